@@ -1,0 +1,104 @@
+// citylod::lod — the LOD-Tree method (paper Sections 4.1-4.2, appendices B-C)
+// for one building. Entry point: build_lod_tree().
+#pragma once
+
+#include "citylod/lod/params.hpp"
+#include "citylod/lod/types.hpp"
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace citylod::lod {
+
+/// Error raised by the engine for input it cannot model at all.
+class LodError : public std::runtime_error {
+ public:
+  LodError(const std::string& stage, const std::string& reason)
+      : std::runtime_error(stage + ": " + reason), stage_(stage) {}
+  const std::string& stage() const { return stage_; }
+
+ private:
+  std::string stage_;
+};
+
+enum class ModelKind { Anchor, Interpolation, Fallback };
+const char* to_string(ModelKind k);
+
+/// One candidate LOD model of the set M.
+struct LodModel {
+  ModelKind kind = ModelKind::Anchor;
+  int level = 0;            ///< level set index k (anchor: finished level; interpolation: level in progress)
+  int step = 0;             ///< number of coarser models in M before this one
+  int cuts = 0;             ///< BSP-node splits needed to reach this model
+  double diff_sum = 0.0;    ///< m^3, summed diff-value of the queue when extracted
+  PolygonMesh polygons;     ///< merged coplanar polygons (outward CCW)
+  TriangleMesh mesh;        ///< the same surface triangulated
+  double volume = 0.0;      ///< m^3
+  double e1 = -1.0;         ///< RMSE model->input, % of bbox diagonal (-1: not computed)
+  double e2 = -1.0;         ///< RMSE input->model, % of bbox diagonal
+  double hausdorff = -1.0;  ///< m, symmetric Hausdorff estimate (sampled)
+};
+
+/// A planar primitive as reported (for --dump-planes and reports).
+struct PlaneReport {
+  Vec3 normal;
+  double d = 0.0;                 ///< n.x + d = 0
+  int level = -1;                 ///< 0 = principal (S0), k = level set S_k, -1 = unused
+  int cluster = -1;
+  double area = 0.0;              ///< m^2 alpha-shape area
+  std::vector<Vec3> inlier_points;
+  bool from_template = false;     ///< cuboid template face
+  bool inferred = false;          ///< closure plane (ground or outline wall)
+};
+
+struct LodStats {
+  int input_points = 0, input_faces = 0;
+  bool normals_estimated = false;
+  bool walls_inferred = false;
+  int planes_detected = 0;        ///< P
+  int planes_sorted = 0;          ///< S (after regularization/templates)
+  int principal = 0;
+  int add_ons = 0, cut_outs = 0;  ///< secondary structures
+  int clusters = 0;
+  int level_sets = 0;             ///< N_l
+  int ioview_cells = 0;
+  int bsp_nodes = 0;              ///< nodes of the LOD-Tree's BSP
+  int lod_nodes = 0;
+  int lod_tree_cuts_to_finest = 0;
+  int baseline_bsp_nodes = 0;     ///< plain BSP-Tree (area order, binary)
+  int baseline_cuts_to_finest = 0;
+  double bbox_diagonal = 0.0;
+  double t_ioview = 0.0;          ///< T1 s (incl. plane detection)
+  double t_tree = 0.0;            ///< T2 s
+  double t_traversal = 0.0;       ///< T3 s (incl. mesh extraction)
+  double t_metrics = 0.0;
+  std::vector<std::string> notes; ///< caps hit, fallbacks, estimations
+};
+
+struct LodResult {
+  std::string status = "ok";      ///< "ok" or "fallback"
+  std::string reason;             ///< why a fallback was used
+  std::vector<LodModel> models;   ///< candidate set M, coarse to fine
+  std::vector<PlaneReport> planes;
+  LodStats stats;
+};
+
+/// The method for one building, top to bottom. Never throws for geometric
+/// trouble inside the pipeline: a fallback model with a reason is returned.
+/// Throws LodError only for input that is not a building at all (empty, NaN).
+LodResult build_lod_tree(const BuildingInput& input, const LodParams& params,
+                         ProgressFn progress = nullptr, void* user = nullptr);
+
+/// Mesh validity, checked by exact edge incidence on vertex indices.
+struct MeshCheck {
+  bool closed = false;           ///< every edge has exactly two incident faces (as a set with orientation pairs)
+  bool edge_manifold = false;    ///< no edge with more than two faces
+  bool oriented = false;         ///< each edge appears once in each direction
+  bool self_intersecting = true; ///< any two non-adjacent triangles intersect
+  int boundary_edges = 0, nonmanifold_edges = 0;
+};
+MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections = true);
+double mesh_volume(const TriangleMesh& mesh);
+
+}  // namespace citylod::lod

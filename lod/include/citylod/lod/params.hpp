@@ -1,0 +1,111 @@
+// Parameters of every stage of the LOD-Tree method, one struct per stage, with
+// the defaults of the paper (Section 4 and appendices B-C). Units in comments.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace citylod::lod {
+
+/// Normal estimation when the input has none (points) — PCA over k neighbours.
+struct NormalParams {
+  int k_neighbors = 12;          ///< neighbours for PCA normals
+};
+
+/// Plane detection by region growing (paper: eps 0.15 m, theta 40 deg, sigma 15).
+struct PlaneParams {
+  double epsilon = 0.15;         ///< m, max point-to-plane distance
+  double max_angle_deg = 40.0;   ///< deg, max normal deviation from the plane
+  int min_region_size = 15;      ///< points (or faces) per plane
+  int k_neighbors = 12;          ///< neighbourhood for point clouds
+  int max_planes = 400;          ///< cap: the largest planes are kept, the rest dropped (recorded)
+};
+
+/// Alpha-shapes of the planar primitives (paper: alpha = 7 m).
+struct AlphaParams {
+  double alpha = 7.0;            ///< m, alpha radius (CGAL's squared alpha = alpha^2)
+};
+
+/// BSP of the enlarged bounding box (Appendix B).
+struct BspParams {
+  double bbox_enlarge = 0.05;    ///< fraction of the bbox diagonal added on every side
+  int max_cells = 60000;         ///< cap on leaf cells per BSP (fallback when hit)
+};
+
+/// In/out labelling by ray casting (Appendix C).
+struct LabelParams {
+  int rays_per_cell = 100;       ///< rays per polyhedron, from its centre
+};
+
+/// IO-View analysis (Section 4.1).
+struct IoViewParams {
+  double separation_coverage = 0.5;  ///< fraction of a shared face covered by an alpha-shape to separate cells
+  double min_principal_area = 0.5;   ///< m^2 of V_in/V_out interface for a primitive to be principal
+};
+
+/// Two-stage mean-shift clustering (Section 4.1).
+struct ClusterParams {
+  double area_bandwidth = 2.0;   ///< m^2, stage 1: projected area on the host primitive
+  double volume_bandwidth = 4.0; ///< m^3, stage 2: mean volume per cluster -> level sets
+};
+
+/// Adaptive regularization (Section 4.1).
+struct RegularizationParams {
+  bool enabled = true;
+  double principal_angle_deg = 5.0;    ///< parallelism/orthogonality tolerance, principal
+  double principal_distance = 0.01;    ///< m, coplanarity tolerance, principal
+  double secondary_angle_deg = 15.0;   ///< relative to the host primitive
+  double secondary_distance = 0.01;    ///< m
+  double vertical_host_deg = 5.0;      ///< host counts as a wall within this angle of vertical
+  int min_cutouts_for_templates = 4;   ///< "more than three" cut-outs -> cuboid templates
+};
+
+/// LOD-Tree construction and traversal (Section 4.2).
+struct TreeParams {
+  int merge_k = 10;                    ///< K: clusters with < K primitives per structure -> one multi-branch LOD-node
+  double label_volume_ratio = 0.65;    ///< node labelled in when >= 65 % of its leaf volume is in
+  double interpolation_ratio = 0.80;   ///< new interpolation model when the diff sum < 80 % of the last model's
+};
+
+/// Work bounds per building; hitting one gives a recorded fallback.
+struct BudgetParams {
+  double time_budget_s = 120.0;        ///< wall-clock seconds per building (0 = none)
+};
+
+/// Closure of airborne LiDAR buildings that have roofs but few walls.
+struct ClosureParams {
+  bool enabled = true;                 ///< add ground + outline walls when walls are missing
+  double wall_fraction_min = 0.05;     ///< if vertical-normal samples are below this fraction, walls are inferred
+  double outline_alpha = 1.5;          ///< m, 2D alpha radius of the outline of the points
+};
+
+/// Evaluation (e1/e2 RMSE).
+struct MetricParams {
+  int samples = 20000;                 ///< samples on each model for e1
+};
+
+struct LodParams {
+  NormalParams normals;
+  PlaneParams planes;
+  AlphaParams alpha;
+  BspParams bsp;
+  LabelParams labels;
+  IoViewParams ioview;
+  ClusterParams cluster;
+  RegularizationParams regularization;
+  TreeParams tree;
+  BudgetParams budget;
+  ClosureParams closure;
+  MetricParams metrics;
+  int threads = 1;                     ///< OpenMP threads inside one building (results do not depend on it)
+
+  /// Throws std::invalid_argument naming the offending parameter.
+  void validate() const;
+  /// Set one parameter by dotted name ("planes.epsilon", "tree.merge_k", ...).
+  /// Throws std::invalid_argument for an unknown name or bad value.
+  void set(const std::string& name, const std::string& value);
+  /// All parameters as (dotted name, value) pairs, in a fixed order.
+  std::vector<std::pair<std::string, std::string>> items() const;
+};
+
+}  // namespace citylod::lod

@@ -1,0 +1,86 @@
+// Internal: adaptive binary space partitioning of a box by convex polygons,
+// with exact predicates and constructions (EPECK) — Appendix B. The same class
+// serves the IO-View partition (area order) and the LOD-Tree's BSP (scale-sorted
+// order), and extracts watertight surfaces from any labelled partition made of
+// its nodes. Implemented in bsp.cpp (CGAL inside; nothing of CGAL leaks here).
+#pragma once
+
+#include "citylod/lod/types.hpp"
+
+#include <array>
+#include <memory>
+#include <vector>
+
+namespace citylod::lod::detail {
+
+/// A convex polygon on its plane, used to split space.
+struct BspPolygon {
+  std::array<double, 4> plane;   ///< a,b,c,d with (a,b,c) unit: a x + b y + c z + d = 0
+  std::vector<Vec3> polygon;     ///< convex, vertices (nearly) on the plane, any orientation
+  int primitive = -1;            ///< caller's id, reported back in nodes
+};
+
+struct BspNode {
+  int parent = -1;
+  std::array<int, 2> children{-1, -1};  ///< [0] negative side, [1] positive side of the split plane; -1 for leaves
+  int split_primitive = -1;      ///< primitive whose polygon split this node (-1 for leaves)
+  int split_plane = -1;          ///< index into planes() of the split plane
+  int depth = 0;
+  double volume = 0.0;           ///< m^3
+  Vec3 center = Vec3::Zero();    ///< mean of the cell's vertices (inside the cell)
+  bool is_leaf() const { return children[0] < 0; }
+};
+
+/// Shared face between two nodes of a partition.
+struct BspInterface {
+  int a = -1, b = -1;            ///< node ids; a on the negative side of the plane, b on the positive side
+  int plane = -1;                ///< index into planes()
+  double area = 0.0;             ///< m^2
+  std::vector<Vec3> polygon;     ///< the shared convex polygon (double)
+};
+
+/// Surface extracted from a labelled partition.
+struct BspSurface {
+  PolygonMesh polygons;          ///< coplanar faces merged; each face a hole-free CCW (from outside) loop
+  TriangleMesh triangles;        ///< watertight, outward, edge-manifold triangulation of the same surface
+  int merged_regions = 0;        ///< number of merged coplanar regions (polygons with holes count once)
+  int labels_flipped = 0;        ///< out-cells relabelled in to remove non-manifold edges
+};
+
+class Bsp {
+ public:
+  /// Adaptive BSP of the box [lo, hi] by `ordered` polygons, processed in the
+  /// given order (index 0 first). A node is split only by a polygon piece that
+  /// has positive area inside it; pieces spanning the split plane are split and
+  /// carried into both children; the splitting piece and pieces lying on the
+  /// split plane are consumed. Planes equal up to 1e-12 are merged. Stops
+  /// splitting when `max_leaves` leaves exist (cap_hit() then true).
+  Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves);
+  ~Bsp();
+  Bsp(Bsp&&) noexcept;
+  Bsp& operator=(Bsp&&) noexcept;
+
+  bool cap_hit() const;
+  const std::vector<BspNode>& nodes() const;     ///< nodes()[0] is the root (the box)
+  std::vector<int> leaves() const;               ///< leaf ids in increasing order
+  std::vector<std::array<double, 4>> planes() const;  ///< distinct split planes (box planes first: 6)
+  std::vector<Vec3> cell_vertices(int node) const;    ///< vertices of a node's polyhedron (double)
+
+  /// Interfaces of positive area between the nodes of `partition` (a set of
+  /// disjoint nodes covering the box, e.g. the leaves, or any cut of the tree).
+  /// Deterministic order.
+  std::vector<BspInterface> adjacency(const std::vector<int>& partition) const;
+
+  /// The boundary between inside and outside nodes of `partition`
+  /// (inside[i] labels partition[i]; the outside of the box is out). Output is
+  /// closed, outward-oriented, edge-manifold (non-manifold edges are removed by
+  /// relabelling the smallest adjacent out-node in), free of self-intersections
+  /// and T-junctions; coplanar faces merged. Deterministic.
+  BspSurface extract(const std::vector<int>& partition, std::vector<char> inside) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace citylod::lod::detail

@@ -1,0 +1,71 @@
+// Internal: samples of the input surface and planar primitives (plane
+// detection, alpha-shapes, convex hulls, closure planes, regularization of the
+// principal planes). Implemented in primitives.cpp / closure.cpp (CGAL inside).
+#pragma once
+
+#include "citylod/lod/lod.hpp"
+
+#include <array>
+#include <vector>
+
+namespace citylod::lod::detail {
+
+/// The input surface as oriented samples. For a point cloud: the points
+/// (normals estimated when missing). For a mesh: one sample per face centroid
+/// plus area-proportional extra samples, normals = face normals; `face_of[i]`
+/// gives the source triangle (or -1).
+struct Samples {
+  std::vector<Vec3> points;
+  std::vector<Vec3> normals;     ///< unit, pointing out of the building
+  std::vector<double> weights;   ///< area represented by each sample (m^2); 1 for point clouds
+  std::vector<int> face_of;      ///< mesh input: triangle index of each sample
+  bool normals_estimated = false;
+};
+
+/// A planar primitive with its alpha-shape and convex hull.
+struct Primitive {
+  Vec3 normal = Vec3::UnitZ();   ///< unit, oriented like its inliers' normals (outward)
+  double d = 0.0;                ///< plane: normal.dot(x) + d = 0
+  std::vector<int> inliers;      ///< indices into Samples
+  Vec3 centroid = Vec3::Zero();
+  Vec3 u = Vec3::UnitX(), v = Vec3::UnitY();  ///< orthonormal in-plane axes, u x v = normal
+  std::vector<Vec3> hull;        ///< convex hull of the projected inliers, CCW about normal
+  std::vector<std::array<Vec3, 3>> alpha_tris;  ///< alpha-shape as triangles on the plane
+  double hull_area = 0.0;
+  double alpha_area = 0.0;
+  bool inferred = false;         ///< closure plane (ground / outline wall), not detected
+  bool from_template = false;    ///< cuboid template face
+};
+
+/// Builds the oriented samples; estimates and orients normals when missing.
+Samples make_samples(const BuildingInput& in, const NormalParams& p);
+
+/// Region growing (CGAL Shape_detection): on the points of a cloud, on the
+/// faces of a mesh. Deterministic. Largest planes first; at most p.max_planes.
+std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s, const PlaneParams& p);
+
+/// (Re)computes centroid, u/v, hull and alpha-shape of a primitive from its
+/// inliers projected on its current plane.
+void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p);
+
+/// Airborne LiDAR closure: when walls are missing (few near-horizontal
+/// normals), adds a ground plane and vertical walls through the outline (the
+/// footprint when given, else a 2D alpha-shape of the samples, simplified).
+/// Returns the number of primitives added (0 when walls were present).
+int close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                   std::vector<Primitive>& prims);
+
+/// Mild regularization of the principal primitives (CGAL Shape_regularization:
+/// parallelism, orthogonality, coplanarity; angle/distance from p). Only the
+/// primitives listed in `which` are changed; shapes are recomputed.
+void regularize_principal(std::vector<Primitive>& prims, const std::vector<int>& which,
+                          const Samples& s, const RegularizationParams& p, const AlphaParams& a);
+
+/// e1 (model -> input) and e2 (input -> model) RMSE in % of `diag`, and the
+/// symmetric Hausdorff estimate in metres. The input surface is the mesh when
+/// `in` is a mesh, else the points.
+struct Fidelity { double e1 = 0, e2 = 0, hausdorff = 0; };
+Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s,
+                          double diag, int model_samples);
+
+}  // namespace citylod::lod::detail

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Idempotent installer of citylod's build and test dependencies (Debian 12 packages only).
+# Usage: scripts/install-deps.sh [--with-test-tools]
+#   --with-test-tools  also installs what the test suite needs beyond the build
+#                      (nodejs/npm, chromium, gdal-bin, slurm-wlm, munge).
+set -euo pipefail
+
+build_pkgs=(
+  build-essential cmake ninja-build pkg-config
+  libcgal-dev libeigen3-dev libpcl-dev libgeographiclib-dev
+  libproj-dev proj-data proj-bin libtinygltf-dev nlohmann-json3-dev
+  libgtest-dev libgmock-dev libmeshoptimizer-dev libomp-dev
+)
+test_pkgs=(chromium gdal-bin gnuplot-nox)
+# Node.js/npm: use the machine's own if present (Debian's npm conflicts with a
+# nodejs installed from elsewhere); otherwise Debian's.
+if ! command -v npm >/dev/null 2>&1; then test_pkgs+=(nodejs npm); fi
+
+want=("${build_pkgs[@]}")
+if [[ "${1:-}" == "--with-test-tools" ]]; then
+  want+=("${test_pkgs[@]}")
+fi
+
+missing=()
+for p in "${want[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if ((${#missing[@]} == 0)); then
+  echo "install-deps: all ${#want[@]} packages already installed"
+  exit 0
+fi
+
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
