@@ -30,6 +30,7 @@ struct AlphaParams {
 struct BspParams {
   double bbox_enlarge = 0.05;    ///< fraction of the bbox diagonal added on every side
   int max_cells = 60000;         ///< cap on leaf cells per BSP (fallback when hit)
+  bool baseline = false;         ///< also build the plain BSP-Tree (area order, binary) for comparison
 };
 
 /// In/out labelling by ray casting (Appendix C).
