@@ -1,0 +1,130 @@
+// Ray-casting in/out labelling (Appendix C of the paper).
+#include "labelling.hpp"
+
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace citylod::lod::detail {
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Point = K::Point_3;
+using Triangle = K::Triangle_3;
+using Ray = K::Ray_3;
+using TriIter = std::vector<Triangle>::const_iterator;
+using Primitive = CGAL::AABB_triangle_primitive<K, TriIter>;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
+
+/// Uniform directions on the sphere (Fibonacci lattice), slightly rotated so
+/// no direction is exactly parallel to an axis-aligned plane.
+std::vector<Vec3> sphere_directions(int n) {
+  std::vector<Vec3> dirs;
+  dirs.reserve(static_cast<size_t>(n));
+  const double golden = M_PI * (3.0 - std::sqrt(5.0));
+  const double tilt = 0.1234;  // radians, breaks axis alignment
+  const double ct = std::cos(tilt), st = std::sin(tilt);
+  for (int i = 0; i < n; ++i) {
+    const double z = 1.0 - (2.0 * i + 1.0) / n;
+    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+    const double phi = golden * i + 0.0371;
+    Vec3 d(r * std::cos(phi), r * std::sin(phi), z);
+    // rotate about x, then about y
+    d = Vec3(d.x(), ct * d.y() - st * d.z(), st * d.y() + ct * d.z());
+    d = Vec3(ct * d.x() + st * d.z(), d.y(), -st * d.x() + ct * d.z());
+    dirs.push_back(d.normalized());
+  }
+  return dirs;
+}
+
+}  // namespace
+
+struct RayLabeller::Impl {
+  std::vector<Triangle> tris;
+  std::vector<Vec3> normals;  // unit, outward
+  std::vector<int> level;
+  std::vector<Vec3> dirs;
+  Tree tree;
+  int max_level = 0;
+};
+
+RayLabeller::RayLabeller(const LevelTriangles& in, int rays) : impl_(std::make_unique<Impl>()) {
+  auto& I = *impl_;
+  I.dirs = sphere_directions(std::max(1, rays));
+  for (size_t i = 0; i < in.triangles.size(); ++i) {
+    const auto& t = in.triangles[i];
+    const Vec3 n = (t[1] - t[0]).cross(t[2] - t[0]);
+    if (!(n.norm() > 1e-12)) continue;  // degenerate (or NaN)
+    I.tris.emplace_back(Point(t[0].x(), t[0].y(), t[0].z()), Point(t[1].x(), t[1].y(), t[1].z()),
+                        Point(t[2].x(), t[2].y(), t[2].z()));
+    I.normals.push_back(n.normalized());
+    I.level.push_back(in.level[i]);
+    I.max_level = std::max(I.max_level, in.level[i]);
+  }
+  if (!I.tris.empty()) {
+    I.tree.insert(I.tris.cbegin(), I.tris.cend());
+    I.tree.build();
+    I.tree.accelerate_distance_queries();
+  }
+}
+
+RayLabeller::~RayLabeller() = default;
+
+std::vector<std::vector<char>> RayLabeller::label(const std::vector<Vec3>& centres, int num_levels,
+                                                  int threads) const {
+  const auto& I = *impl_;
+  const int L = std::max(1, num_levels);
+  std::vector<std::vector<char>> out(centres.size(), std::vector<char>(static_cast<size_t>(L), 0));
+  if (I.tris.empty()) return out;
+  const int nrays = static_cast<int>(I.dirs.size());
+  const long n = static_cast<long>(centres.size());
+
+#pragma omp parallel for schedule(dynamic, 16) num_threads(std::max(1, threads))
+  for (long c = 0; c < n; ++c) {
+    const Vec3& o = centres[static_cast<size_t>(c)];
+    const Point origin(o.x(), o.y(), o.z());
+    std::vector<int> votes_in(static_cast<size_t>(L), 0);
+    std::vector<std::pair<double, int>> hits;
+    std::vector<typename Tree::template Intersection_and_primitive_id<Ray>::Type> raw;
+    for (int r = 0; r < nrays; ++r) {
+      const Vec3& u = I.dirs[static_cast<size_t>(r)];
+      const Ray ray(origin, K::Vector_3(u.x(), u.y(), u.z()));
+      hits.clear();
+      raw.clear();
+      I.tree.all_intersections(ray, std::back_inserter(raw));
+      for (const auto& h : raw) {
+        const int id = static_cast<int>(h.second - I.tris.cbegin());
+        double t = std::numeric_limits<double>::infinity();
+        if (const Point* p = boost::get<Point>(&h.first)) {
+          t = (Vec3(p->x(), p->y(), p->z()) - o).dot(u);
+        } else if (const K::Segment_3* s = boost::get<K::Segment_3>(&h.first)) {
+          // ray lies in the triangle's plane: grazing, counts as no vote
+          (void)s;
+          continue;
+        }
+        hits.emplace_back(t, id);
+      }
+      std::sort(hits.begin(), hits.end());
+      // First hit per level: triangles of level <= k count for label k.
+      int lowest_assigned = L;  // levels [lowest_assigned, L) already decided
+      for (const auto& [t, id] : hits) {
+        const int lv = I.level[static_cast<size_t>(id)];
+        if (lv >= lowest_assigned) continue;  // also skips levels >= L
+        const bool in = I.normals[static_cast<size_t>(id)].dot(u) > 0.0;
+        for (int k = lv; k < lowest_assigned; ++k) votes_in[static_cast<size_t>(k)] += in ? 1 : 0;
+        lowest_assigned = lv;
+        if (lowest_assigned == 0) break;
+      }
+    }
+    for (int k = 0; k < L; ++k)
+      out[static_cast<size_t>(c)][static_cast<size_t>(k)] = (2 * votes_in[static_cast<size_t>(k)] > nrays) ? 1 : 0;
+  }
+  return out;
+}
+
+}  // namespace citylod::lod::detail

@@ -1,0 +1,41 @@
+// Internal: in/out labelling of polyhedra by ray casting against the
+// alpha-shapes of the primitives (paper, Appendix C). Implemented in
+// labelling.cpp (CGAL AABB tree inside).
+#pragma once
+
+#include "citylod/lod/types.hpp"
+
+#include <array>
+#include <memory>
+#include <vector>
+
+namespace citylod::lod::detail {
+
+/// Triangles of alpha-shapes, each CCW about its primitive's outward normal,
+/// tagged with the level set of its primitive (0 = principal).
+struct LevelTriangles {
+  std::vector<std::array<Vec3, 3>> triangles;
+  std::vector<int> level;
+};
+
+class RayLabeller {
+ public:
+  /// `rays`: rays per cell, uniformly distributed directions (Fibonacci sphere).
+  RayLabeller(const LevelTriangles& tris, int rays);
+  ~RayLabeller();
+
+  /// Labels for each centre and each level 0..num_levels-1: label k uses the
+  /// triangles of levels <= k. A ray votes "in" when the first triangle it hits
+  /// faces away from the centre (u.n > 0), "out" when it faces towards it or
+  /// nothing is hit; a cell is in when more than half of its rays vote in.
+  /// Result [cell][level] in {0,1}. Deterministic; parallel over cells with
+  /// `threads` OpenMP threads.
+  std::vector<std::vector<char>> label(const std::vector<Vec3>& centres, int num_levels,
+                                       int threads) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace citylod::lod::detail

@@ -1,0 +1,303 @@
+// The LOD-Tree method for one building, top to bottom (paper Section 4):
+//
+//   samples -> planes (+ closure for roof-only LiDAR) -> IO-View BSP + ray
+//   labels -> regions, principal/secondary structures -> two-stage clustering
+//   -> adaptive regularization (+ window templates) -> scale-sorted S ->
+//   LOD-Tree BSP + per-level labels -> LOD-nodes -> traversal -> mesh per
+//   candidate -> fidelity metrics.
+//
+// Any failure inside gives the fallback model with the reason recorded.
+#include "bsp.hpp"
+#include "citylod/lod/lod.hpp"
+#include "fallback.hpp"
+#include "ioview.hpp"
+#include "labelling.hpp"
+#include "primitives.hpp"
+#include "tree.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+namespace citylod::lod {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using namespace detail;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+void check_input(const BuildingInput& in) {
+  if (in.points.empty()) throw LodError("input", "no points");
+  for (size_t i = 0; i < in.points.size(); ++i)
+    if (!in.points[i].allFinite())
+      throw LodError("input", "non-finite coordinate at point #" + std::to_string(i));
+  if (!in.normals.empty() && in.normals.size() != in.points.size())
+    throw LodError("input", "normals count differs from points count");
+  for (const auto& t : in.triangles)
+    for (int v : t)
+      if (v < 0 || size_t(v) >= in.points.size())
+        throw LodError("input", "triangle index out of range");
+}
+
+struct Budget {
+  Clock::time_point deadline;
+  void check(const char* stage) const {
+    if (Clock::now() > deadline) throw LodError(stage, "time budget exceeded");
+  }
+};
+
+class Progress {
+ public:
+  Progress(ProgressFn fn, void* user) : fn_(fn), user_(user) {}
+  void operator()(double f, const char* stage) const {
+    if (fn_ && !fn_(f, stage, user_)) throw LodError(stage, "cancelled");
+  }
+
+ private:
+  ProgressFn fn_;
+  void* user_;
+};
+
+/// Slightly enlarged bounding box of the samples and primitive shapes.
+void scene_box(const Samples& s, const std::vector<Primitive>& prims, double enlarge, Vec3& lo,
+               Vec3& hi) {
+  lo = hi = s.points.front();
+  for (const auto& p : s.points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  for (const auto& pr : prims)
+    for (const auto& v : pr.hull) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+  const double diag = (hi - lo).norm();
+  const Vec3 pad = Vec3::Constant(std::max(0.5, enlarge * diag));
+  lo -= pad;
+  hi += pad;
+}
+
+std::vector<BspPolygon> hull_polygons(const std::vector<Primitive>& prims, const std::vector<int>& order) {
+  std::vector<BspPolygon> polys;
+  polys.reserve(order.size());
+  for (int i : order) {
+    const auto& p = prims[size_t(i)];
+    polys.push_back(BspPolygon{{p.normal.x(), p.normal.y(), p.normal.z(), p.d}, p.hull, i});
+  }
+  return polys;
+}
+
+LevelTriangles alpha_triangles(const std::vector<Primitive>& prims, const std::vector<int>& level_of) {
+  LevelTriangles t;
+  for (size_t i = 0; i < prims.size(); ++i) {
+    if (level_of[i] < 0) continue;
+    for (const auto& tri : prims[i].alpha_tris) {
+      t.triangles.push_back(tri);
+      t.level.push_back(level_of[i]);
+    }
+  }
+  return t;
+}
+
+std::vector<Vec3> leaf_centres(const Bsp& bsp) {
+  std::vector<Vec3> c;
+  for (int l : bsp.leaves()) c.push_back(bsp.nodes()[size_t(l)].center);
+  return c;
+}
+
+PlaneReport report_plane(const Primitive& p, const Samples& s, int level, int cluster) {
+  PlaneReport r;
+  r.normal = p.normal;
+  r.d = p.d;
+  r.level = level;
+  r.cluster = cluster;
+  r.area = p.alpha_area;
+  r.from_template = p.from_template;
+  r.inferred = p.inferred;
+  for (int i : p.inliers) r.inlier_points.push_back(s.points[size_t(i)]);
+  if (p.inliers.empty())
+    for (const auto& t : p.alpha_tris) r.inlier_points.insert(r.inlier_points.end(), t.begin(), t.end());
+  return r;
+}
+
+/// The whole method; throws on any failure (caught by build_lod_tree).
+void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P,
+                const Progress& progress, const Budget& budget, LodResult& R) {
+  auto& st = R.stats;
+  const auto t1 = Clock::now();
+
+  // 1. Planar primitives (region growing on the oriented samples).
+  progress(0.0, "planes");
+  std::vector<Primitive> prims = detect_planes(in, samples, P.planes);
+  st.planes_detected = int(prims.size());
+  if (prims.empty()) throw LodError("planes", "no plane found");
+  // Roof-only LiDAR: ground + walls through the outline so the building closes.
+  if (P.closure.enabled) {
+    const int added = close_building(in, samples, P.closure, prims);
+    st.walls_inferred = added > 0;
+    if (added > 0)
+      st.notes.push_back("walls missing: " + std::to_string(added) + " closure planes inferred");
+  }
+  prims.erase(std::remove_if(prims.begin(), prims.end(),
+                             [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),
+              prims.end());
+  if (prims.size() < 4) throw LodError("planes", "fewer than 4 usable planes (" + std::to_string(prims.size()) + ")");
+  budget.check("planes");
+
+  // 2. IO-View: BSP by the hulls, largest first; ray labels; regions.
+  progress(0.1, "io-view");
+  Vec3 lo, hi;
+  scene_box(samples, prims, P.bsp.bbox_enlarge, lo, hi);
+  std::vector<int> by_area(prims.size());
+  for (size_t i = 0; i < prims.size(); ++i) by_area[i] = int(i);
+  std::stable_sort(by_area.begin(), by_area.end(), [&](int a, int b) {
+    return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
+  });
+  const Bsp io_bsp(lo, hi, hull_polygons(prims, by_area), P.bsp.max_cells);
+  if (io_bsp.cap_hit()) st.notes.push_back("IO-View BSP hit the cell cap");
+  st.ioview_cells = int(io_bsp.leaves().size());
+  budget.check("io-view");
+  const std::vector<int> all_level0(prims.size(), 0);
+  const RayLabeller io_labeller(alpha_triangles(prims, all_level0), P.labels.rays_per_cell);
+  std::vector<char> io_labels;
+  for (const auto& l : io_labeller.label(leaf_centres(io_bsp), 1, P.threads)) io_labels.push_back(l[0]);
+  budget.check("io-view");
+  IoView view = analyse_io_view(io_bsp, prims, match_planes(io_bsp, prims), io_labels, P.ioview);
+  if (view.core_in < 0) throw LodError("io-view", "no cell labelled inside");
+  for (char p : view.principal) st.principal += p ? 1 : 0;
+  if (st.principal < 4) throw LodError("io-view", "fewer than 4 principal primitives");
+  for (const auto& s : view.structures) (s.addon ? st.add_ons : st.cut_outs) += s.primitives.empty() ? 0 : 1;
+
+  // 3. Two-stage clustering, adaptive regularization, scale-sorted S.
+  Grouping grouping = group_structures(view, prims, P.cluster);
+  if (P.regularization.enabled) {
+    std::vector<int> principal;
+    for (size_t i = 0; i < prims.size(); ++i)
+      if (view.principal[i] && !prims[i].inferred) principal.push_back(int(i));
+    regularize_principal(prims, principal, samples, P.regularization, P.alpha);
+    const int templates = regularize_secondary(prims, grouping, view, io_bsp, samples, P.regularization, P.alpha);
+    if (templates > 0) st.notes.push_back(std::to_string(templates) + " window cut-outs replaced by cuboid templates");
+  }
+  view.principal.resize(prims.size(), 0);  // template primitives are secondary
+  const SortedPrimitives sorted = sort_primitives(prims, view, grouping);
+  st.clusters = int(grouping.clusters.size());
+  st.level_sets = sorted.num_levels - 1;
+  st.planes_sorted = int(sorted.order.size());
+  for (size_t i = 0; i < prims.size(); ++i)
+    R.planes.push_back(report_plane(prims[i], samples, sorted.level_of[i], sorted.cluster_of[i]));
+  st.t_ioview = seconds_since(t1);
+  budget.check("io-view");
+
+  // 4. LOD-Tree: BSP in the order S, per-level leaf labels, LOD-nodes.
+  progress(0.4, "lod-tree");
+  const auto t2 = Clock::now();
+  const Bsp bsp(lo, hi, hull_polygons(prims, sorted.order), P.bsp.max_cells);
+  if (bsp.cap_hit()) st.notes.push_back("LOD-Tree BSP hit the cell cap");
+  budget.check("lod-tree");
+  const RayLabeller labeller(alpha_triangles(prims, sorted.level_of), P.labels.rays_per_cell);
+  const auto leaf_labels = labeller.label(leaf_centres(bsp), sorted.num_levels, P.threads);
+  const LodTree tree = build_tree(bsp, sorted, grouping, leaf_labels, P.tree);
+  st.bsp_nodes = int(bsp.nodes().size());
+  st.lod_nodes = int(tree.nodes.size());
+  st.t_tree = seconds_since(t2);
+  budget.check("lod-tree");
+
+  // 5. Traversal (Algorithm 1) and a watertight mesh per candidate.
+  progress(0.6, "traversal");
+  const auto t3 = Clock::now();
+  const auto candidates = traverse(tree, bsp, P.tree, budget.deadline);
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    progress(0.6 + 0.3 * double(i) / double(candidates.size()), "extraction");
+    budget.check("extraction");
+    const auto& c = candidates[i];
+    BspSurface surf = bsp.extract(c.partition, c.inside);
+    if (surf.triangles.triangles.empty()) continue;  // empty model (nothing inside yet)
+    LodModel m;
+    m.kind = c.kind;
+    m.level = c.level;
+    m.cuts = c.cuts;
+    m.diff_sum = c.diff_sum;
+    m.polygons = std::move(surf.polygons);
+    m.mesh = std::move(surf.triangles);
+    m.volume = mesh_volume(m.mesh);
+    if (surf.labels_flipped > 0)
+      st.notes.push_back("model " + std::to_string(R.models.size()) + ": " +
+                         std::to_string(surf.labels_flipped) + " cells relabelled to remove non-manifold edges");
+    R.models.push_back(std::move(m));
+  }
+  for (size_t i = 0; i < R.models.size(); ++i) R.models[i].step = int(i);
+  if (R.models.empty()) throw LodError("traversal", "no non-empty model");
+  for (const auto& c : candidates)
+    if (c.kind == ModelKind::Anchor) st.lod_tree_cuts_to_finest = c.cuts;
+  st.t_traversal = seconds_since(t3);
+
+  // Plain BSP-Tree baseline: same primitives, area order, binary nodes.
+  if (P.bsp.baseline) {
+    std::vector<int> order = sorted.order;
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+      return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
+    });
+    const Bsp base(lo, hi, hull_polygons(prims, order), P.bsp.max_cells);
+    st.baseline_bsp_nodes = int(base.nodes().size());
+    int internal = 0;
+    for (const auto& n : base.nodes()) internal += n.is_leaf() ? 0 : 1;
+    st.baseline_cuts_to_finest = internal;
+  }
+}
+
+}  // namespace
+
+
+LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, ProgressFn progress_fn,
+                         void* user) {
+  params.validate();
+  check_input(in);
+  LodResult R;
+  R.stats.input_points = int(in.points.size());
+  R.stats.input_faces = int(in.triangles.size());
+  const Progress progress(progress_fn, user);
+  const auto start = Clock::now();
+  Budget budget{params.budget.time_budget_s > 0
+                    ? start + std::chrono::duration_cast<Clock::duration>(
+                                  std::chrono::duration<double>(params.budget.time_budget_s))
+                    : Clock::time_point::max()};
+  // Oriented samples of the input surface (normals estimated when missing).
+  progress(0.0, "samples");
+  const Samples samples = make_samples(in, params.normals);
+  R.stats.normals_estimated = samples.normals_estimated;
+  if (samples.normals_estimated) R.stats.notes.push_back("normals estimated and oriented (input had none)");
+  Vec3 lo = samples.points.front(), hi = lo;
+  for (const auto& p : samples.points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double diag = std::max(1e-9, (hi - lo).norm());
+  R.stats.bbox_diagonal = diag;
+  try {
+    run_method(in, samples, params, progress, budget, R);
+  } catch (const std::exception& e) {
+    R.status = "fallback";
+    R.reason = e.what();
+    R.models.clear();
+    R.models.push_back(extruded_outline(in));  // may throw LodError: no area at all
+  }
+  // Fidelity of every model against the input (e1, e2 in % of the bbox diagonal).
+  progress(0.9, "metrics");
+  const auto tm = Clock::now();
+  for (auto& m : R.models) {
+    const Fidelity f = measure_fidelity(m.mesh, in, samples, diag, params.metrics.samples);
+    m.e1 = f.e1;
+    m.e2 = f.e2;
+    m.hausdorff = f.hausdorff;
+    if (m.volume == 0.0) m.volume = mesh_volume(m.mesh);
+  }
+  R.stats.t_metrics = seconds_since(tm);
+  progress(1.0, "done");
+  return R;
+}
+
+}  // namespace citylod::lod
