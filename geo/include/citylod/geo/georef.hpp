@@ -1,0 +1,70 @@
+// citylod::geo::Georef — the georeferencing of one scene: CRS <-> local ENU at a scene origin.
+#pragma once
+
+#include "citylod/geo/crs.hpp"
+#include "citylod/geo/local_frame.hpp"
+#include "citylod/geo/transformer.hpp"
+
+#include <memory>
+#include <optional>
+
+namespace citylod::geo {
+
+/// After ingest all geometry is float64 ENU metres in `frame()`. Georef converts CRS
+/// coordinates (their own units) to that frame and back, and gives what 3D Tiles needs
+/// (root transform, bounding regions).
+///
+/// Holds a Transformer, so it is NOT thread-safe: clone() one per thread.
+class Georef {
+ public:
+  /// Scene in `crs`; the ENU origin is the point `origin_crs` (CRS units, z included) mapped to
+  /// WGS84. Throws GeoError if the origin cannot be transformed.
+  static Georef from_crs(const Crs& crs, const Eigen::Vector3d& origin_crs,
+                         TransformOptions options = {});
+  /// Scene in `crs` with data bounding box `bbox_crs` (CRS units): checks the box against the
+  /// CRS's area of use (GeoError if outside, see Transformer::check_in_area) and puts the
+  /// origin at the box centre.
+  static Georef from_crs_bbox(const Crs& crs, const Eigen::AlignedBox3d& bbox_crs,
+                              TransformOptions options = {}, double area_margin_deg = 1.0);
+  /// Data already in local ENU metres at `origin` (`--origin LAT,LON,H`): no CRS, to_local is
+  /// the identity.
+  static Georef local(const LonLatH& origin);
+
+  Georef clone() const;
+  ~Georef();
+  Georef(Georef&&) noexcept;
+  Georef& operator=(Georef&&) noexcept;
+
+  bool has_crs() const { return transformer_ != nullptr; }
+  const Crs& crs() const;  ///< throws GeoError when !has_crs()
+  const LocalFrame& frame() const { return frame_; }
+  /// The origin in CRS units (ENU (0,0,0)); for local scenes, (0,0,0).
+  const Eigen::Vector3d& origin_crs() const { return origin_crs_; }
+  /// Warnings of the CRS and the transformer (e.g. the NAP -> EGM96 fallback).
+  std::vector<std::string> warnings() const;
+
+  /// CRS units -> ENU metres.
+  Eigen::Vector3d to_local(const Eigen::Vector3d& crs_point);
+  /// Batch, in place: columns in CRS units become ENU metres.
+  void to_local(Eigen::Ref<Eigen::Matrix3Xd> points);
+  /// ENU metres -> CRS units (GeoError for local scenes).
+  Eigen::Vector3d to_crs(const Eigen::Vector3d& enu);
+  void to_crs(Eigen::Ref<Eigen::Matrix3Xd> points);
+
+  Eigen::Vector3d to_ecef(const Eigen::Vector3d& enu) const { return frame_.enu_to_ecef(enu); }
+  LonLatH to_geodetic(const Eigen::Vector3d& enu) const { return frame_.enu_to_geodetic(enu); }
+  /// Root `transform` for tileset.json (column-major ENU -> ECEF).
+  std::array<double, 16> root_transform() const { return frame_.enu_to_ecef_matrix(); }
+  /// 3D Tiles region of a local ENU box.
+  BoundingRegion bounding_region(const Eigen::AlignedBox3d& enu_box) const {
+    return frame_.bounding_region(enu_box);
+  }
+
+ private:
+  Georef(LocalFrame frame, Eigen::Vector3d origin_crs, std::unique_ptr<Transformer> t);
+  LocalFrame frame_;
+  Eigen::Vector3d origin_crs_;
+  std::unique_ptr<Transformer> transformer_;
+};
+
+}  // namespace citylod::geo

@@ -1,0 +1,65 @@
+#include "citylod/geo/georef.hpp"
+
+namespace citylod::geo {
+
+Georef::Georef(LocalFrame frame, Eigen::Vector3d origin_crs, std::unique_ptr<Transformer> t)
+    : frame_(std::move(frame)), origin_crs_(std::move(origin_crs)), transformer_(std::move(t)) {}
+Georef::~Georef() = default;
+Georef::Georef(Georef&&) noexcept = default;
+Georef& Georef::operator=(Georef&&) noexcept = default;
+
+Georef Georef::from_crs(const Crs& crs, const Eigen::Vector3d& origin_crs, TransformOptions opts) {
+  auto t = std::make_unique<Transformer>(crs, opts);
+  const LonLatH origin = t->to_wgs84(origin_crs);
+  return Georef(LocalFrame(origin), origin_crs, std::move(t));
+}
+
+Georef Georef::from_crs_bbox(const Crs& crs, const Eigen::AlignedBox3d& bbox_crs,
+                             TransformOptions opts, double area_margin_deg) {
+  Transformer t(crs, opts);
+  t.check_in_area(bbox_crs, area_margin_deg);
+  return from_crs(crs, bbox_crs.center(), opts);
+}
+
+Georef Georef::local(const LonLatH& origin) {
+  return Georef(LocalFrame(origin), Eigen::Vector3d::Zero(), nullptr);
+}
+
+Georef Georef::clone() const {
+  return Georef(frame_, origin_crs_,
+                transformer_ ? std::make_unique<Transformer>(transformer_->clone()) : nullptr);
+}
+
+const Crs& Georef::crs() const {
+  if (!transformer_) throw GeoError("this scene is in a local frame (--origin) and has no CRS");
+  return transformer_->crs();
+}
+
+std::vector<std::string> Georef::warnings() const {
+  return transformer_ ? transformer_->warnings() : std::vector<std::string>{};
+}
+
+Eigen::Vector3d Georef::to_local(const Eigen::Vector3d& p) {
+  if (!transformer_) return p;
+  return frame_.geodetic_to_enu(transformer_->to_wgs84(p));
+}
+
+void Georef::to_local(Eigen::Ref<Eigen::Matrix3Xd> points) {
+  if (!transformer_) return;
+  transformer_->to_wgs84(points);
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    points.col(i) = frame_.geodetic_to_enu(points.col(i));
+}
+
+Eigen::Vector3d Georef::to_crs(const Eigen::Vector3d& enu) {
+  return transformer_ ? transformer_->from_wgs84(frame_.enu_to_geodetic(enu)) : (crs(), enu);
+}
+
+void Georef::to_crs(Eigen::Ref<Eigen::Matrix3Xd> points) {
+  crs();  // throws for local scenes
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    points.col(i) = frame_.enu_to_geodetic(points.col(i));
+  transformer_->from_wgs84(points);
+}
+
+}  // namespace citylod::geo
