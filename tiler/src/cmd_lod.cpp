@@ -1,0 +1,119 @@
+// `citylod lod INPUT --out DIR`: the LOD-Tree of one building (paper Section 4).
+#include "cli_common.hpp"
+#include "lod_io.hpp"
+
+#include "citylod/lod/lod.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace citylod::tiler {
+
+namespace {
+
+/// Applies "name=value[,name=value...]" to the parameters.
+void apply_settings(lod::LodParams& p, const std::string& list) {
+  std::stringstream ss(list);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item.empty()) continue;
+    const auto eq = item.find('=');
+    if (eq == std::string::npos) throw UsageError("--set expects NAME=VALUE, got '" + item + "'");
+    try {
+      p.set(item.substr(0, eq), item.substr(eq + 1));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--set: ") + e.what());
+    }
+  }
+}
+
+/// Reads a JSON object {"planes.epsilon": 0.2, ...} (the format of params.json).
+void apply_config(lod::LodParams& p, const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw std::runtime_error(path + ": cannot open the config file");
+  nlohmann::json j;
+  try {
+    f >> j;
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": not valid JSON (" + e.what() + ")");
+  }
+  if (!j.is_object()) throw std::runtime_error(path + ": expected a JSON object of parameters");
+  for (const auto& [k, v] : j.items()) {
+    try {
+      p.set(k, v.is_string() ? v.get<std::string>() : v.dump());
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(path + ": " + e.what());
+    }
+  }
+}
+
+}  // namespace
+
+int cmd_lod(ArgParser& args) {
+  args.usage("INPUT")
+      .describe(
+          "Build the LOD-Tree of one building (a point cloud with or without normals, or a\n"
+          "triangle mesh) and write its candidate LOD models (anchor and interpolation) as\n"
+          "OBJ (merged polygons) and PLY (triangles) in the input frame, with report.json.");
+  args.option("out", 'o', "DIR", "output directory (created)");
+  args.option("set", 's', "NAME=VALUE[,...]", "override parameters, e.g. planes.epsilon=0.2,tree.merge_k=8");
+  args.option("config", 'c', "FILE", "JSON object of parameters (as written to params.json)");
+  args.option("threads", 't', "N", "threads inside the building (results do not depend on it)", "1");
+  args.flag("dump-planes", 0, "write planes.ply: plane inliers coloured by level set");
+  args.flag("baseline", 0, "also build the plain BSP-Tree (area order, binary) and report its cuts");
+  args.flag("print-params", 0, "print every parameter with its value and exit");
+  args.positional("INPUT", "building: PLY/OBJ/OFF/XYZ/LAS", Arity::optional_one);
+  if (!args.parse()) return 0;
+
+  lod::LodParams params;
+  if (args.has("config")) apply_config(params, args.get("config"));
+  if (args.has("set")) apply_settings(params, args.get("set"));
+  params.threads = int(args.get_int("threads"));
+  if (args.has("baseline")) params.bsp.baseline = true;
+  try {
+    params.validate();
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  if (args.has("print-params")) {
+    for (const auto& [k, v] : params.items()) std::printf("%s = %s\n", k.c_str(), v.c_str());
+    return 0;
+  }
+  if (args.positionals().empty()) throw UsageError("missing INPUT");
+  if (!args.has("out")) throw UsageError("missing --out DIR");
+  const std::string input = args.positionals()[0];
+  const std::string out = args.get("out");
+
+  LoadedBuilding b = load_building(input);
+  log_info("lod: " + input + ": " + std::to_string(b.input.points.size()) +
+           (b.is_mesh ? " vertices, " + std::to_string(b.input.triangles.size()) + " triangles"
+                      : std::string(" points") + (b.input.normals.empty() ? " (no normals)" : " with normals")));
+  Progress progress("lod");
+  lod::LodResult r;
+  try {
+    r = lod::build_lod_tree(b.input, params, &Progress::callback, &progress);
+  } catch (const lod::LodError& e) {
+    throw std::runtime_error(input + ": " + e.what());
+  }
+  progress.finish();
+  const auto files = write_lod_output(out, r, params, input, b.origin, args.has("dump-planes"));
+  int anchors = 0, interps = 0;
+  for (const auto& m : r.models) {
+    anchors += m.kind == lod::ModelKind::Anchor;
+    interps += m.kind == lod::ModelKind::Interpolation;
+  }
+  const auto& s = r.stats;
+  std::ostringstream msg;
+  msg << "lod: " << (r.status == "ok" ? "" : "FALLBACK (" + r.reason + "): ") << anchors << " anchor + "
+      << interps << " interpolation models; P=" << s.planes_detected << " S=" << s.planes_sorted
+      << " level sets=" << s.level_sets << "; T1=" << s.t_ioview << "s T2=" << s.t_tree
+      << "s T3=" << s.t_traversal << "s; written to " << out;
+  log_info(msg.str());
+  for (const auto& n : s.notes) log_info("lod: note: " + n);
+  return 0;
+}
+
+}  // namespace citylod::tiler
