@@ -60,6 +60,26 @@ io::PolygonMesh to_io_polygons(const lod::PolygonMesh& m, const io::Vec3d& o) {
   return out;
 }
 
+namespace {
+
+std::string model_stem(const lod::LodModel& m) {
+  std::ostringstream s;
+  s << "model_" << std::setw(2) << std::setfill('0') << m.step << '_' << lod::to_string(m.kind) << "_L"
+    << m.level;
+  return s.str();
+}
+
+/// Distinct colours per level set (level -1 = unused in grey).
+io::Rgb8 level_colour(int level) {
+  static const io::Rgb8 palette[] = {{31, 119, 180}, {214, 39, 40},  {44, 160, 44},  {255, 127, 14},
+                                     {148, 103, 189}, {140, 86, 75}, {227, 119, 194}, {188, 189, 34},
+                                     {23, 190, 207}};
+  if (level < 0) return {128, 128, 128};
+  return palette[size_t(level) % (sizeof(palette) / sizeof(palette[0]))];
+}
+
+}  // namespace
+
 nlohmann::json lod_report(const lod::LodResult& r, const lod::LodParams& p, const std::string& input) {
   using nlohmann::json;
   json j;
@@ -88,7 +108,8 @@ nlohmann::json lod_report(const lod::LodResult& r, const lod::LodParams& p, cons
   j["notes"] = s.notes;
   json models = json::array();
   for (const auto& m : r.models) {
-    models.push_back({{"kind", lod::to_string(m.kind)},
+    models.push_back({{"file", model_stem(m) + ".ply"},
+                      {"kind", lod::to_string(m.kind)},
                       {"level", m.level},
                       {"step", m.step},
                       {"cuts", m.cuts},
@@ -103,26 +124,6 @@ nlohmann::json lod_report(const lod::LodResult& r, const lod::LodParams& p, cons
   j["models"] = models;
   return j;
 }
-
-namespace {
-
-std::string model_stem(const lod::LodModel& m) {
-  std::ostringstream s;
-  s << "model_" << std::setw(2) << std::setfill('0') << m.step << '_' << lod::to_string(m.kind) << "_L"
-    << m.level;
-  return s.str();
-}
-
-/// Distinct colours per level set (level -1 = unused in grey).
-io::Rgb8 level_colour(int level) {
-  static const io::Rgb8 palette[] = {{31, 119, 180}, {214, 39, 40},  {44, 160, 44},  {255, 127, 14},
-                                     {148, 103, 189}, {140, 86, 75}, {227, 119, 194}, {188, 189, 34},
-                                     {23, 190, 207}};
-  if (level < 0) return {128, 128, 128};
-  return palette[size_t(level) % (sizeof(palette) / sizeof(palette[0]))];
-}
-
-}  // namespace
 
 std::vector<std::string> write_lod_output(const std::string& dir, const lod::LodResult& r,
                                           const lod::LodParams& p, const std::string& input,
