@@ -1,0 +1,208 @@
+// End-to-end tests of the LOD-Tree method on synthetic buildings with exact answers.
+#include "support/synthetic.hpp"
+
+#include "citylod/lod/lod.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace citylod;
+using namespace citylod::lod;
+using citylod::test::SynthOptions;
+
+namespace {
+
+const LodModel* first_anchor(const LodResult& r) {
+  for (const auto& m : r.models)
+    if (m.kind == ModelKind::Anchor) return &m;
+  return nullptr;
+}
+const LodModel* last_anchor(const LodResult& r) {
+  const LodModel* a = nullptr;
+  for (const auto& m : r.models)
+    if (m.kind == ModelKind::Anchor) a = &m;
+  return a;
+}
+int count(const LodResult& r, ModelKind k) {
+  int n = 0;
+  for (const auto& m : r.models) n += m.kind == k;
+  return n;
+}
+
+/// Every model closed, oriented, edge-manifold, without self-intersections;
+/// face counts non-decreasing along the candidate set.
+void expect_valid_models(const LodResult& r) {
+  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_FALSE(r.models.empty());
+  size_t last_faces = 0;
+  for (const auto& m : r.models) {
+    SCOPED_TRACE("model step " + std::to_string(m.step) + " " + to_string(m.kind));
+    const MeshCheck c = check_mesh(m.mesh);
+    EXPECT_TRUE(c.closed) << c.boundary_edges << " boundary edges";
+    EXPECT_TRUE(c.edge_manifold) << c.nonmanifold_edges << " non-manifold edges";
+    EXPECT_TRUE(c.oriented);
+    EXPECT_FALSE(c.self_intersecting);
+    EXPECT_GT(m.volume, 0.0);
+    EXPECT_GE(m.polygons.faces.size(), last_faces);
+    last_faces = m.polygons.faces.size();
+  }
+}
+
+LodParams fast_params() {
+  LodParams p;
+  p.metrics.samples = 4000;
+  return p;
+}
+
+}  // namespace
+
+TEST(LodPipeline, BoxIsOnePrincipalStructure) {
+  const auto b = test::box(Vec3(0, 0, 0), Vec3(10, 6, 4));
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  EXPECT_EQ(r.stats.planes_detected, 6);
+  EXPECT_EQ(r.stats.principal, 6);
+  EXPECT_EQ(r.stats.level_sets, 0);
+  ASSERT_NE(last_anchor(r), nullptr);
+  EXPECT_NEAR(last_anchor(r)->volume, b.volume, 0.01 * b.volume);
+  EXPECT_EQ(last_anchor(r)->polygons.faces.size(), 6u);
+  EXPECT_EQ(last_anchor(r)->mesh.triangles.size(), 12u);
+  EXPECT_LT(last_anchor(r)->e2, 0.5);
+}
+
+TEST(LodPipeline, ChimneyAndWindowsAreSecondary) {
+  const auto b = test::chimney_windows();
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  EXPECT_EQ(r.stats.principal, 6);
+  EXPECT_EQ(r.stats.add_ons, 1);
+  EXPECT_EQ(r.stats.cut_outs, 4);
+  // chimney (2 m^3) and windows (0.54 m^3) are within the 4 m^3 bandwidth: one level set
+  EXPECT_EQ(r.stats.level_sets, 1);
+  EXPECT_GE(count(r, ModelKind::Anchor), 2);
+  const LodModel* coarse = first_anchor(r);
+  const LodModel* fine = last_anchor(r);
+  ASSERT_TRUE(coarse && fine && coarse != fine);
+  // first anchor: the main body only (a box: 6 polygons, the box volume)
+  using S = test::ChimneyWindowsSpec;
+  EXPECT_EQ(coarse->polygons.faces.size(), 6u);
+  EXPECT_NEAR(coarse->volume, S::L * S::W * S::H, 0.01 * S::L * S::W * S::H);
+  // finest anchor: with the chimney and the windows
+  EXPECT_NEAR(fine->volume, b.volume, 0.01 * b.volume);
+  EXPECT_GT(fine->polygons.faces.size(), 6u + 4u + 4u * 5u);
+}
+
+TEST(LodPipeline, LShapeIsClosedWithExactVolume) {
+  const auto b = test::l_shape();
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  EXPECT_EQ(r.stats.principal, 8);
+  ASSERT_NE(last_anchor(r), nullptr);
+  EXPECT_NEAR(last_anchor(r)->volume, b.volume, 0.01 * b.volume);
+  EXPECT_EQ(last_anchor(r)->polygons.faces.size(), 8u);
+}
+
+TEST(LodPipeline, GableRoofWithDormer) {
+  const auto b = test::gable_dormer();
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  EXPECT_EQ(r.stats.principal, 7);  // 4 walls + floor + 2 roof planes
+  EXPECT_EQ(r.stats.add_ons, 1);
+  EXPECT_GE(count(r, ModelKind::Anchor), 2);
+  EXPECT_NEAR(first_anchor(r)->volume, b.volume - 3 * 0.5 * (3.0 - 1.0) * 1.5, 0.02 * b.volume);
+  EXPECT_NEAR(last_anchor(r)->volume, b.volume, 0.01 * b.volume);
+}
+
+TEST(LodPipeline, MeshInputGivesTheSameAnchors) {
+  const auto b = test::chimney_windows({}, /*mesh=*/true);
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  EXPECT_GE(count(r, ModelKind::Anchor), 2);
+  EXPECT_NEAR(last_anchor(r)->volume, b.volume, 0.01 * b.volume);
+}
+
+TEST(LodPipeline, RobustToNoise) {
+  SynthOptions o;
+  o.noise_sigma = 0.1;
+  o.seed = 7;
+  const auto clean = build_lod_tree(test::chimney_windows().input, fast_params());
+  const auto b = test::chimney_windows(o);
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  EXPECT_EQ(count(r, ModelKind::Anchor), count(clean, ModelKind::Anchor));
+  EXPECT_EQ(first_anchor(r)->polygons.faces.size(), first_anchor(clean)->polygons.faces.size());
+  EXPECT_NEAR(first_anchor(r)->volume, first_anchor(clean)->volume, 0.02 * first_anchor(clean)->volume);
+}
+
+TEST(LodPipeline, NormalsEstimatedWhenMissing) {
+  SynthOptions o;
+  o.with_normals = false;
+  const auto b = test::l_shape(o);
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  EXPECT_TRUE(r.stats.normals_estimated);
+  expect_valid_models(r);
+  EXPECT_NEAR(last_anchor(r)->volume, b.volume, 0.01 * b.volume);
+}
+
+TEST(LodPipeline, RoofOnlyLidarIsClosedByInferredWalls) {
+  const auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(12, 8, 6));
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  EXPECT_TRUE(r.stats.walls_inferred);
+  EXPECT_NEAR(last_anchor(r)->volume, 12 * 8 * 6, 0.05 * 12 * 8 * 6);
+}
+
+TEST(LodPipeline, DeterministicWhateverTheThreadCount) {
+  const auto b = test::chimney_windows();
+  LodParams p1 = fast_params(), p2 = fast_params();
+  p2.threads = 2;
+  const LodResult a = build_lod_tree(b.input, p1);
+  const LodResult c = build_lod_tree(b.input, p1);
+  const LodResult d = build_lod_tree(b.input, p2);
+  for (const LodResult* other : {&c, &d}) {
+    ASSERT_EQ(a.models.size(), other->models.size());
+    for (size_t i = 0; i < a.models.size(); ++i) {
+      EXPECT_EQ(a.models[i].mesh.vertices, other->models[i].mesh.vertices);
+      EXPECT_EQ(a.models[i].mesh.triangles, other->models[i].mesh.triangles);
+      EXPECT_EQ(a.models[i].polygons.faces, other->models[i].polygons.faces);
+    }
+  }
+}
+
+TEST(LodPipeline, BadInputFailsCleanlyOrFallsBack) {
+  BuildingInput empty;
+  EXPECT_THROW(build_lod_tree(empty, fast_params()), LodError);
+
+  BuildingInput nan;
+  nan.points = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(NAN, 1, 0)};
+  EXPECT_THROW(build_lod_tree(nan, fast_params()), LodError);
+
+  BuildingInput few;  // fewer than 15 points: fallback box
+  for (int i = 0; i < 10; ++i) few.points.emplace_back(i % 3, i / 3, (i * 7) % 4);
+  const LodResult r1 = build_lod_tree(few, fast_params());
+  EXPECT_EQ(r1.status, "fallback");
+  ASSERT_EQ(r1.models.size(), 1u);
+  EXPECT_TRUE(check_mesh(r1.models[0].mesh).closed);
+
+  BuildingInput single_plane;  // one plane: fallback, never a crash
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 40; ++j) single_plane.points.emplace_back(i * 0.2, j * 0.2, 3.0);
+  const LodResult r2 = build_lod_tree(single_plane, fast_params());
+  EXPECT_FALSE(r2.models.empty());
+  for (const auto& m : r2.models) EXPECT_TRUE(check_mesh(m.mesh).closed);
+
+  BuildingInput collinear;  // no area in plan view: a clear error
+  for (int i = 0; i < 100; ++i) collinear.points.emplace_back(i * 0.1, 0, 0);
+  EXPECT_THROW(build_lod_tree(collinear, fast_params()), LodError);
+}
+
+TEST(LodPipeline, TimeBudgetGivesARecordedFallback) {
+  LodParams p = fast_params();
+  p.budget.time_budget_s = 1e-6;
+  const LodResult r = build_lod_tree(test::chimney_windows().input, p);
+  EXPECT_EQ(r.status, "fallback");
+  EXPECT_NE(r.reason.find("budget"), std::string::npos) << r.reason;
+  ASSERT_EQ(r.models.size(), 1u);
+  EXPECT_TRUE(check_mesh(r.models[0].mesh).closed);
+}
