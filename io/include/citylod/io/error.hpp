@@ -1,0 +1,22 @@
+// The single error type of citylod::io.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace citylod::io {
+
+/// Thrown by every reader and writer. what() is one line: "<file>: <reason>".
+class IoError : public std::runtime_error {
+ public:
+  IoError(const std::string& file, const std::string& reason)
+      : std::runtime_error(file + ": " + reason), file_(file), reason_(reason) {}
+  const std::string& file() const { return file_; }
+  const std::string& reason() const { return reason_; }
+
+ private:
+  std::string file_;
+  std::string reason_;
+};
+
+}  // namespace citylod::io

@@ -1,0 +1,266 @@
+// Format detection, reader factory and the whole-file helpers.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "readers_internal.hpp"
+
+namespace citylod::io {
+
+const char* format_name(Format f) {
+  switch (f) {
+    case Format::ply: return "PLY";
+    case Format::obj: return "OBJ";
+    case Format::off: return "OFF";
+    case Format::xyz: return "XYZ";
+    case Format::las: return "LAS";
+    case Format::laz: return "LAZ";
+    case Format::unknown: break;
+  }
+  return "unknown";
+}
+
+const char* las_class_name(int code) {
+  switch (code) {
+    case 0: return "never classified";
+    case 1: return "unclassified";
+    case 2: return "ground";
+    case 3: return "low vegetation";
+    case 4: return "medium vegetation";
+    case 5: return "high vegetation";
+    case 6: return "building";
+    case 7: return "low point (noise)";
+    case 8: return "model key-point";
+    case 9: return "water";
+    case 10: return "rail";
+    case 11: return "road surface";
+    case 12: return "overlap";
+    case 13: return "wire guard";
+    case 14: return "wire conductor";
+    case 15: return "transmission tower";
+    case 16: return "wire connector";
+    case 17: return "bridge deck";
+    case 18: return "high noise";
+    case 26: return "civil structure (AHN)";
+    default: return "";
+  }
+}
+
+void PointSet::append(const PointSet& o) {
+  const bool was_empty = positions.empty();
+  auto merge = [&](auto& mine, const auto& theirs, std::size_t theirs_n) {
+    if (was_empty) {
+      mine = theirs;
+    } else if (mine.size() == positions.size() && theirs.size() == theirs_n && !theirs.empty()) {
+      mine.insert(mine.end(), theirs.begin(), theirs.end());
+    } else {
+      mine.clear();
+    }
+  };
+  const std::size_t n = o.positions.size();
+  merge(normals, o.normals, n);
+  merge(colors, o.colors, n);
+  merge(classes, o.classes, n);
+  positions.insert(positions.end(), o.positions.begin(), o.positions.end());
+}
+
+bool PointSet::consistent() const {
+  const std::size_t n = positions.size();
+  return (normals.empty() || normals.size() == n) && (colors.empty() || colors.size() == n) &&
+         (classes.empty() || classes.size() == n);
+}
+
+TriangleMesh triangulate_fan(const PolygonMesh& mesh) {
+  TriangleMesh t;
+  t.vertices = mesh.vertices;
+  for (const auto& f : mesh.faces)
+    for (std::size_t k = 1; k + 1 < f.size(); ++k) t.triangles.push_back({f[0], f[k], f[k + 1]});
+  return t;
+}
+
+namespace detail {
+
+void ReaderBase::read_faces(std::vector<std::vector<std::uint32_t>>&) {
+  throw IoError(info_.path, std::string(info_.format_name) + " file has no faces (a point cloud, not a mesh)");
+}
+
+std::string bad_index_message(std::uint64_t face, std::int64_t index, std::uint64_t vertex_count) {
+  return "face #" + std::to_string(face) + " references vertex " + std::to_string(index) +
+         " but the file has only " + std::to_string(vertex_count) + " vertices";
+}
+
+std::uint8_t color_to_u8(double v, bool is_float) {
+  if (!(v == v)) return 0;
+  if (is_float) v *= 255.0;
+  v = std::round(v);
+  return static_cast<std::uint8_t>(std::clamp(v, 0.0, 255.0));
+}
+
+namespace {
+
+bool starts_with(const std::string& s, const char* p) { return s.rfind(p, 0) == 0; }
+
+Format sniff(const std::string& path) {
+  InputFile in(path, 4096);
+  if (in.size() == 0) in.fail("empty file");
+  char head[4096];
+  std::size_t n = in.read_some(head, sizeof head);
+  std::string s(head, n);
+  if (starts_with(s, "LASF")) {
+    if (n > 104 && (static_cast<unsigned char>(s[104]) & 0xC0)) return Format::laz;
+    return extension_of(path) == "laz" ? Format::laz : Format::las;
+  }
+  if (starts_with(s, "ply\n") || starts_with(s, "ply\r")) return Format::ply;
+  if (std::memchr(head, '\0', n)) return Format::unknown;  // binary, no known magic
+  // Text: look at the first non-comment line.
+  std::size_t i = 0;
+  while (i < n) {
+    std::size_t e = s.find_first_of("\r\n", i);
+    if (e == std::string::npos) e = n;
+    std::string line = s.substr(i, e - i);
+    i = e + 1;
+    std::size_t b = line.find_first_not_of(" \t");
+    if (b == std::string::npos || line[b] == '#' || line.compare(b, 2, "//") == 0) continue;
+    line = line.substr(b);
+    std::vector<std::string_view> tok;
+    if (split_tokens(line, tok) == 0) return Format::unknown;
+    std::string kw(tok[0]);
+    auto p = kw.find("OFF");
+    if (p != std::string::npos && p + 3 == kw.size() &&
+        kw.substr(0, p).find_first_not_of("CNST4n") == std::string::npos)
+      return Format::off;
+    static const char* obj_kw[] = {"v", "vn", "vt", "vp", "f", "o", "g", "s", "l", "p", "mtllib", "usemtl"};
+    for (const char* k : obj_kw)
+      if (kw == k) return Format::obj;
+    double d;
+    bool numeric = true;
+    for (auto t : tok) numeric = numeric && parse_double(t, d);
+    if (numeric) return Format::xyz;
+    // A CSV header line ("X,Y,Z,...") followed by numbers.
+    std::string l = lower(line);
+    if (tok.size() >= 3 && (starts_with(l, "x,y,z") || starts_with(l, "x y z") || starts_with(l, "//x")))
+      return Format::xyz;
+    return Format::unknown;
+  }
+  return Format::unknown;
+}
+
+}  // namespace
+}  // namespace detail
+
+Format detect_format(const std::string& path) {
+  Format f = detail::sniff(path);
+  if (f != Format::unknown) return f;
+  // Fall back to the extension: the reader then reports what is wrong with
+  // the content (e.g. "not a PLY file (first line is not 'ply')").
+  const std::string ext = detail::extension_of(path);
+  if (ext == "ply") return Format::ply;
+  if (ext == "obj") return Format::obj;
+  if (ext == "off") return Format::off;
+  if (ext == "las") return Format::las;
+  if (ext == "laz") return Format::laz;
+  if (ext == "xyz" || ext == "pts" || ext == "csv" || ext == "txt") return Format::xyz;
+  return Format::unknown;
+}
+
+namespace detail {
+
+std::unique_ptr<ReaderBase> open_reader(const std::string& path) {
+  Format f = detect_format(path);
+  switch (f) {
+    case Format::ply: return open_ply(path);
+    case Format::obj: return open_obj(path);
+    case Format::off: return open_off(path);
+    case Format::xyz: return open_xyz(path);
+    case Format::las:
+    case Format::laz: return open_las(path);
+    case Format::unknown: break;
+  }
+  throw IoError(path, "not a point cloud or mesh file (unrecognised format)");
+}
+
+}  // namespace detail
+
+std::unique_ptr<PointReader> PointReader::open(const std::string& path) { return detail::open_reader(path); }
+
+FileInfo read_header(const std::string& path) { return detail::open_reader(path)->info(); }
+
+FileInfo scan_file(const std::string& path, ProgressFn progress, void* user) {
+  auto r = detail::open_reader(path);
+  FileInfo info = r->info();
+  if (info.compressed) return info;  // header only: LAZ points cannot be decoded
+  PointSet batch;
+  BBox3 box;
+  std::uint64_t counts[256] = {};
+  std::uint64_t n = 0;
+  while (r->read(batch, 1 << 18) > 0) {
+    for (const auto& p : batch.positions) box.add(p);
+    for (std::uint8_t c : batch.classes) ++counts[c];
+    n += batch.size();
+    if (progress && !progress(r->progress(), "reading", user)) throw IoError(path, "cancelled");
+  }
+  r->check_tail();
+  const FileInfo& after = r->info();  // text formats learn their counts while streaming
+  info.point_count = n;
+  info.face_count = after.face_count;
+  info.has_faces = after.has_faces;
+  info.has_colors = after.has_colors;
+  info.bbox = box;
+  info.bbox_from_header = false;
+  info.scanned = true;
+  info.class_counts.clear();
+  if (info.has_classes)
+    for (int c = 0; c < 256; ++c)
+      if (counts[c]) info.class_counts[c] = counts[c];
+  if (progress) progress(1.0, "reading", user);
+  return info;
+}
+
+PointSet read_points(const std::string& path) {
+  auto r = detail::open_reader(path);
+  PointSet all, batch;
+  while (r->read(batch, 1 << 20) > 0) all.append(batch);
+  return all;
+}
+
+namespace {
+
+void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals, std::vector<Rgb8>& colors) {
+  const Format f = detect_format(path);
+  if (f == Format::obj) {
+    detail::read_obj_mesh(path, mesh, normals);
+    return;
+  }
+  auto r = detail::open_reader(path);
+  if (f != Format::ply && f != Format::off)
+    throw IoError(path, std::string(format_name(r->info().format)) + " files hold no faces (a point cloud, not a mesh)");
+  PointSet all, batch;
+  while (r->read(batch, 1 << 20) > 0) all.append(batch);
+  r->read_faces(mesh.faces);
+  mesh.vertices = std::move(all.positions);
+  normals = std::move(all.normals);
+  colors = std::move(all.colors);
+}
+
+}  // namespace
+
+PolygonMesh read_polygon_mesh(const std::string& path) {
+  PolygonMesh m;
+  std::vector<Vec3f> n;
+  std::vector<Rgb8> c;
+  read_mesh_impl(path, m, n, c);
+  return m;
+}
+
+TriangleMesh read_mesh(const std::string& path) {
+  PolygonMesh m;
+  std::vector<Vec3f> n;
+  std::vector<Rgb8> c;
+  read_mesh_impl(path, m, n, c);
+  TriangleMesh t = triangulate_fan(m);
+  t.normals = std::move(n);
+  t.colors = std::move(c);
+  return t;
+}
+
+}  // namespace citylod::io

@@ -1,0 +1,42 @@
+// Private: the concrete readers behind PointReader::open() and read_mesh().
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "citylod/io/reader.hpp"
+#include "input_file.hpp"
+
+namespace citylod::io::detail {
+
+/// Common base of the format readers.
+class ReaderBase : public PointReader {
+ public:
+  /// After read() returned 0: reads and validates what follows the points
+  /// (faces: index range; trailing data) and completes info().face_count.
+  virtual void check_tail() {}
+  /// After read() returned 0: reads the faces (polygons, 0-based indices,
+  /// validated against the vertex count). Throws if the file has no faces.
+  virtual void read_faces(std::vector<std::vector<std::uint32_t>>& faces);
+  FileInfo& mutable_info() { return info_; }
+};
+
+std::unique_ptr<ReaderBase> open_ply(const std::string& path);
+std::unique_ptr<ReaderBase> open_off(const std::string& path);
+std::unique_ptr<ReaderBase> open_obj(const std::string& path);
+std::unique_ptr<ReaderBase> open_xyz(const std::string& path);
+std::unique_ptr<ReaderBase> open_las(const std::string& path);  // LAS and LAZ
+std::unique_ptr<ReaderBase> open_reader(const std::string& path);
+
+/// OBJ meshes are read in one pass (vn are referenced by faces, not by vertices).
+void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals);
+
+/// Error text for an out-of-range face index.
+std::string bad_index_message(std::uint64_t face, std::int64_t index, std::uint64_t vertex_count);
+
+/// Scales a colour channel to 8 bits: integers 0..255 stay; 0..1 floats are scaled.
+std::uint8_t color_to_u8(double v, bool is_float);
+
+}  // namespace citylod::io::detail
