@@ -44,9 +44,9 @@ Eigen::Vector3d Georef::to_local(const Eigen::Vector3d& p) {
   return frame_.geodetic_to_enu(transformer_->to_wgs84(p));
 }
 
-void Georef::to_local(Eigen::Ref<Eigen::Matrix3Xd> points) {
+void Georef::to_local_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
   if (!transformer_) return;
-  transformer_->to_wgs84(points);
+  transformer_->to_wgs84_inplace(points);
   for (Eigen::Index i = 0; i < points.cols(); ++i)
     points.col(i) = frame_.geodetic_to_enu(points.col(i));
 }
@@ -55,11 +55,11 @@ Eigen::Vector3d Georef::to_crs(const Eigen::Vector3d& enu) {
   return transformer_ ? transformer_->from_wgs84(frame_.enu_to_geodetic(enu)) : (crs(), enu);
 }
 
-void Georef::to_crs(Eigen::Ref<Eigen::Matrix3Xd> points) {
+void Georef::to_crs_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
   crs();  // throws for local scenes
   for (Eigen::Index i = 0; i < points.cols(); ++i)
     points.col(i) = frame_.enu_to_geodetic(points.col(i));
-  transformer_->from_wgs84(points);
+  transformer_->from_wgs84_inplace(points);
 }
 
 }  // namespace citylod::geo

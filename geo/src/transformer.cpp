@@ -41,6 +41,13 @@ void create_operations(OpList& ops, PJ_CONTEXT* ctx, const PJ* src, const PJ* ds
   ops.list = proj_create_operations(ctx, src, dst, ops.factory);
 }
 
+/// Name of an operation; crs_to_crs objects with several alternatives have none of their own.
+std::string op_name(PJ* op) {
+  if (const char* n = proj_get_name(op)) return n;
+  const PJ_PROJ_INFO info = proj_pj_info(op);
+  return info.description ? info.description : "PROJ operation";
+}
+
 }  // namespace
 
 struct Transformer::Impl {
@@ -80,7 +87,7 @@ struct Transformer::Impl {
     }
     if (full3d) return;
 
-    if (options.utm_fast_path && crs.is_wgs84_utm()) {
+    if (options.utm_geographiclib && crs.is_wgs84_utm()) {
       utm_fast = true;
       lon0 = crs.utm()->zone * 6.0 - 183.0;
       false_northing = crs.utm()->north ? 0.0 : 10'000'000.0;
@@ -140,7 +147,7 @@ struct Transformer::Impl {
   void check(const Eigen::Ref<Eigen::Matrix3Xd>& p, const Eigen::Matrix3Xd& in, const PJ* op,
              const char* direction) {
     for (Eigen::Index i = 0; i < p.cols(); ++i) {
-      if (p.col(i).allFinite() && std::abs(p(0, i)) < 1e300 && std::abs(p(1, i)) < 1e300) continue;
+      if (p.col(i).allFinite() && std::abs(p(0, i)) < 1e30 && std::abs(p(1, i)) < 1e30) continue;
       throw GeoError("cannot transform point #" + std::to_string(i) + " (" + fmt(in(0, i)) + ", " +
                      fmt(in(1, i)) + ", " + fmt(in(2, i)) + ") " + direction + ": " +
                      (op ? ctx.take_error(op) : std::string("outside the projection's domain")));
@@ -185,6 +192,7 @@ struct Transformer::Impl {
 
   void inverse(Eigen::Ref<Eigen::Matrix3Xd> p) {
     if (p.cols() == 0) return;
+    check_geodetic(p);
     const Eigen::Matrix3Xd in = p;
     const std::string dir = "from WGS 84 to " + crs.label();
     if (full3d) {
@@ -206,8 +214,28 @@ struct Transformer::Impl {
       }
     } else {
       run(horizontal.get(), PJ_INV, p, false);
+      check(p, in, horizontal.get(), dir.c_str());
+      // PROJ's 2D operations carry a hidden ellipsoidal height through datum shifts (0 on the
+      // source side going forward, 0 on the WGS 84 side going back), so INV(FWD(x)) misses x by
+      // up to ~1 mm (RD New, LV95). One step x += x - INV(FWD(x)) makes this the exact inverse
+      // of to_wgs84.
+      Eigen::Matrix3Xd q = p;
+      Eigen::Ref<Eigen::Matrix3Xd> qr(q);
+      run(horizontal.get(), PJ_FWD, qr, false);
+      run(horizontal.get(), PJ_INV, qr, false);
+      check(qr, in, horizontal.get(), dir.c_str());
+      p.topRows<2>() += p.topRows<2>() - q.topRows<2>();
     }
     check(p, in, horizontal.get(), dir.c_str());
+  }
+
+  /// Throws when an input (lon, lat, h) is not a valid geodetic position.
+  static void check_geodetic(const Eigen::Ref<Eigen::Matrix3Xd>& p) {
+    for (Eigen::Index i = 0; i < p.cols(); ++i)
+      if (!p.col(i).allFinite() || std::abs(p(1, i)) > 90.0)
+        throw GeoError("invalid geodetic point #" + std::to_string(i) + " (lon " + fmt(p(0, i)) +
+                       ", lat " + fmt(p(1, i)) + ", h " + fmt(p(2, i)) +
+                       "): latitude must be within [-90, 90]");
   }
 };
 
@@ -220,15 +248,18 @@ Transformer& Transformer::operator=(Transformer&&) noexcept = default;
 Transformer Transformer::clone() const { return Transformer(impl_->crs, impl_->options); }
 const Crs& Transformer::crs() const { return impl_->crs; }
 const TransformOptions& Transformer::options() const { return impl_->options; }
-bool Transformer::uses_utm_fast_path() const { return impl_->utm_fast; }
+bool Transformer::uses_geographiclib_utm() const { return impl_->utm_fast; }
 HeightMode Transformer::effective_height_mode() const { return impl_->effective; }
 const std::vector<std::string>& Transformer::warnings() const { return impl_->warnings; }
 
 std::string Transformer::description() const {
   std::string d;
-  if (impl_->full3d) d = proj_get_name(impl_->full3d.get());
+  if (impl_->full3d) d = op_name(impl_->full3d.get());
   else if (impl_->utm_fast) d = "GeographicLib UTM zone " + std::to_string(impl_->crs.utm()->zone);
-  else d = proj_get_name(impl_->horizontal.get());
+  else if (PjPtr last{proj_trans_get_last_used_operation(impl_->horizontal.get())})
+    d = op_name(last.get());
+  else
+    d = "PROJ " + impl_->crs.label() + " -> WGS 84 (operation chosen per point by area)";
   if (impl_->geoid) d += " + EGM96 geoid (" + std::string(kEgm96Grid) + ")";
   return d;
 }
@@ -238,14 +269,14 @@ LonLatH Transformer::to_wgs84(const Eigen::Vector3d& crs_point) {
   impl_->forward(p);
   return p.col(0);
 }
-void Transformer::to_wgs84(Eigen::Ref<Eigen::Matrix3Xd> points) { impl_->forward(points); }
+void Transformer::to_wgs84_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) { impl_->forward(points); }
 
 Eigen::Vector3d Transformer::from_wgs84(const LonLatH& geodetic) {
   Eigen::Matrix3Xd p = geodetic;
   impl_->inverse(p);
   return p.col(0);
 }
-void Transformer::from_wgs84(Eigen::Ref<Eigen::Matrix3Xd> points) { impl_->inverse(points); }
+void Transformer::from_wgs84_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) { impl_->inverse(points); }
 
 void Transformer::check_in_area(const Eigen::AlignedBox3d& bbox, double margin_deg) {
   if (bbox.isEmpty()) throw GeoError("check_in_area: empty bounding box");
@@ -257,7 +288,7 @@ void Transformer::check_in_area(const Eigen::AlignedBox3d& bbox, double margin_d
   const Crs& crs = impl_->crs;
   const auto& area = crs.area_of_use();
   const std::string where =
-      area ? " (" + area->name + ": lon " + fmt(area->west, 6) + ".." + fmt(area->east, 6) +
+      area ? " (" + (area->name.size() > 80 ? area->name.substr(0, 77) + "..." : area->name) + ": lon " + fmt(area->west, 6) + ".." + fmt(area->east, 6) +
                  ", lat " + fmt(area->south, 6) + ".." + fmt(area->north, 6) + ")"
            : std::string();
   for (Eigen::Index i = 0; i < pts.cols(); ++i) {

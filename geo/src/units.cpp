@@ -11,7 +11,7 @@ namespace {
 
 bool lands_in_area(const Crs& crs, const Eigen::AlignedBox3d& bbox) {
   try {
-    Transformer t(crs, {HeightMode::Ellipsoidal, true});
+    Transformer t(crs, {HeightMode::Ellipsoidal});
     t.check_in_area(bbox);
     return true;
   } catch (const GeoError&) {

@@ -1,10 +1,188 @@
+// Crs parsing and queries, GeoTIFF keys, units sanity.
 #include "citylod/geo/crs.hpp"
+#include "citylod/geo/units.hpp"
+#include "las_scan.hpp"
 
 #include <gtest/gtest.h>
 
 using namespace citylod::geo;
 
-TEST(Crs, ParsesRdNew) {
+namespace {
+const std::string kAutzen = std::string(CITYLOD_SHARED_DATA) + "/las/autzen_trim.las";
+}
+
+TEST(Crs, RdNewFromEpsgCode) {
   const Crs crs = Crs::parse("EPSG:28992");
   EXPECT_EQ(crs.epsg(), 28992);
+  EXPECT_EQ(crs.name(), "Amersfoort / RD New");
+  EXPECT_EQ(crs.label(), "EPSG:28992");
+  EXPECT_TRUE(crs.is_projected());
+  EXPECT_FALSE(crs.is_geographic());
+  EXPECT_FALSE(crs.has_vertical_datum());
+  EXPECT_EQ(crs.horizontal_unit().to_si, 1.0);
+  EXPECT_EQ(crs.vertical_unit().to_si, 1.0);
+  EXPECT_FALSE(crs.utm());
+  ASSERT_TRUE(crs.area_of_use());
+  EXPECT_NEAR(crs.area_of_use()->west, 3.2, 0.1);
+  EXPECT_NEAR(crs.area_of_use()->east, 7.22, 0.1);
+  EXPECT_NEAR(crs.area_of_use()->south, 50.75, 0.1);
+  EXPECT_NEAR(crs.area_of_use()->north, 53.7, 0.1);
+  EXPECT_NO_THROW(crs.require_projected());
+}
+
+TEST(Crs, AcceptedSpellings) {
+  EXPECT_EQ(Crs::parse("epsg:2056").epsg(), 2056);
+  EXPECT_EQ(Crs::parse("  2056 ").epsg(), 2056);
+  const Crs p = Crs::parse("+proj=utm +zone=31 +datum=WGS84 +units=m");
+  EXPECT_TRUE(p.is_projected());
+  ASSERT_TRUE(p.utm());
+  EXPECT_EQ(p.utm()->zone, 31);
+  EXPECT_TRUE(p.is_wgs84_utm());
+}
+
+TEST(Crs, UtmZones) {
+  for (auto [code, zone, north] : {std::tuple{32631, 31, true}, {32633, 33, true}, {32733, 33, false}}) {
+    const Crs crs = Crs::parse("EPSG:" + std::to_string(code));
+    ASSERT_TRUE(crs.utm()) << code;
+    EXPECT_EQ(crs.utm()->zone, zone);
+    EXPECT_EQ(crs.utm()->north, north);
+    EXPECT_TRUE(crs.is_wgs84_utm());
+  }
+  const Crs etrs = Crs::parse("EPSG:25832");  // ETRS89 / UTM 32N: UTM, but not WGS 84
+  ASSERT_TRUE(etrs.utm());
+  EXPECT_EQ(etrs.utm()->zone, 32);
+  EXPECT_FALSE(etrs.is_wgs84_utm());
+}
+
+TEST(Crs, FeetUnits) {
+  const Crs ft = Crs::parse("EPSG:2994");  // NAD83(HARN) / Oregon GIC Lambert (ft)
+  EXPECT_EQ(ft.horizontal_unit().to_si, 0.3048);
+  EXPECT_EQ(ft.vertical_unit().to_si, 0.3048);  // projected 2D: z follows x/y
+  const Crs us = Crs::parse("EPSG:2264");  // NAD83 / North Carolina (ftUS)
+  EXPECT_NEAR(us.horizontal_unit().to_si, 1200.0 / 3937.0, 1e-15);
+  EXPECT_EQ(unit_from_epsg(9003).to_si, 1200.0 / 3937.0);
+  EXPECT_EQ(unit_from_epsg(9002).to_si, 0.3048);
+  EXPECT_EQ(unit_from_epsg(9001).to_si, 1.0);
+  EXPECT_THROW(unit_from_epsg(9122), GeoError);  // degree: not a length
+}
+
+TEST(Crs, Geographic) {
+  const Crs crs = Crs::parse("EPSG:4326");
+  EXPECT_TRUE(crs.is_geographic());
+  EXPECT_TRUE(crs.horizontal_unit().angular);
+  EXPECT_EQ(crs.vertical_unit().to_si, 1.0);
+  try {
+    crs.require_projected("to tile a scene");
+    FAIL() << "expected GeoError";
+  } catch (const GeoError& e) {
+    EXPECT_NE(std::string(e.what()).find("is geographic; a projected CRS is needed"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(Crs, CompoundRdNap) {
+  const Crs crs = Crs::parse("EPSG:28992+5709");
+  EXPECT_TRUE(crs.is_projected());
+  EXPECT_TRUE(crs.has_vertical_datum());
+  EXPECT_EQ(crs.vertical_name(), "NAP height");
+  EXPECT_TRUE(crs.area_of_use());
+  EXPECT_THROW(crs.with_vertical_unit({"foot", 0.3048, false}), GeoError);
+}
+
+TEST(Crs, Errors) {
+  try {
+    Crs::parse("EPSG:99999");
+    FAIL() << "expected GeoError";
+  } catch (const GeoError& e) {
+    EXPECT_STREQ(e.what(), "unknown CRS 'EPSG:99999': PROJ has no such code");
+  }
+  EXPECT_THROW(Crs::parse(""), GeoError);
+  EXPECT_THROW(Crs::parse("PROJCS[\"broken\""), GeoError);
+  EXPECT_THROW(Crs::parse("EPSG:4978"), GeoError);  // geocentric: neither projected nor geographic
+  EXPECT_THROW(Crs::parse("EPSG:5709"), GeoError);  // vertical only
+}
+
+TEST(Crs, GeoTiffKeys) {
+  GeoTiffKeys k;
+  k.model_type = 1;
+  k.projected_cs = 2994;
+  k.linear_units = 9002;
+  const Crs crs = Crs::from_geotiff(k);
+  EXPECT_EQ(crs.epsg(), 2994);
+  EXPECT_EQ(crs.horizontal_unit().to_si, 0.3048);
+  EXPECT_TRUE(crs.warnings().empty());
+
+  k.vertical_cs = 5703;  // NAVD88 height
+  k.vertical_units = 9001;
+  const Crs compound = Crs::from_geotiff(k);
+  EXPECT_TRUE(compound.has_vertical_datum());
+  EXPECT_EQ(compound.vertical_unit().to_si, 1.0);
+
+  GeoTiffKeys user;
+  user.model_type = 1;
+  user.projected_cs = 32767;
+  EXPECT_THROW(Crs::from_geotiff(user), GeoError);
+  EXPECT_THROW(Crs::from_geotiff(GeoTiffKeys{}), GeoError);
+}
+
+TEST(Crs, GeoTiffUnitKeyOverridesEpsgUnit) {
+  GeoTiffKeys k;
+  k.model_type = 1;
+  k.projected_cs = 32631;  // metres by definition ...
+  k.linear_units = 9002;   // ... but the file says feet
+  k.vertical_units = 9002;
+  const Crs crs = Crs::from_geotiff(k);
+  EXPECT_EQ(crs.horizontal_unit().to_si, 0.3048);
+  EXPECT_EQ(crs.vertical_unit().to_si, 0.3048);
+  EXPECT_FALSE(crs.epsg());
+  ASSERT_EQ(crs.warnings().size(), 1u);
+  EXPECT_NE(crs.warnings()[0].find("ProjLinearUnitsGeoKey"), std::string::npos);
+  EXPECT_TRUE(crs.area_of_use());
+}
+
+TEST(Crs, AutzenWktFromLas) {
+  const auto las = test::scan_las(kAutzen);
+  if (!las) GTEST_SKIP() << "shared data missing: " << kAutzen;
+  ASSERT_FALSE(las->wkt.empty());
+  const Crs crs = Crs::parse(las->wkt);
+  EXPECT_TRUE(crs.is_projected());
+  EXPECT_EQ(crs.horizontal_unit().to_si, 0.3048);
+  EXPECT_EQ(crs.horizontal_unit().name, "foot");
+  EXPECT_EQ(crs.vertical_unit().to_si, 0.3048);
+  EXPECT_FALSE(crs.utm());
+  // The GeoTIFF keys of this file are user-defined (3072 = 32767): only the WKT is usable.
+  GeoTiffKeys k;
+  for (size_t i = 4; i + 3 < las->geokeys.size(); i += 4)
+    if (las->geokeys[i] == 3072) k.projected_cs = las->geokeys[i + 3];
+  EXPECT_EQ(k.projected_cs, 32767);
+  EXPECT_THROW(Crs::from_geotiff(k), GeoError);
+}
+
+TEST(Units, FeetDeclaredAsMetresIsReported) {
+  const Crs utm = Crs::parse("EPSG:32631");
+  // A block in Delft (~ (4.36 E, 52.0 N)), in metres: fine.
+  const Eigen::AlignedBox3d metres(Eigen::Vector3d(593000, 5762000, -5), Eigen::Vector3d(594000, 5763000, 60));
+  const UnitReport ok = check_units(utm, metres);
+  EXPECT_EQ(ok.horizontal_to_metre, 1.0);
+  EXPECT_TRUE(ok.warnings.empty());
+  // The same block written in feet under a metre CRS.
+  const Eigen::AlignedBox3d feet(metres.min() / 0.3048, metres.max() / 0.3048);
+  const UnitReport bad = check_units(utm, feet);
+  ASSERT_FALSE(bad.warnings.empty());
+  EXPECT_NE(bad.warnings[0].find("if read in foot"), std::string::npos) << bad.warnings[0];
+}
+
+TEST(Units, AutzenInFeetIsConsistent) {
+  const auto las = test::scan_las(kAutzen);
+  if (!las) GTEST_SKIP() << "shared data missing: " << kAutzen;
+  const Crs crs = Crs::parse(las->wkt);
+  const auto& b = las->bbox;
+  const UnitReport r = check_units(crs, Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], b[2]),
+                                                            Eigen::Vector3d(b[3], b[4], b[5])));
+  EXPECT_EQ(r.horizontal_to_metre, 0.3048);
+  EXPECT_EQ(r.vertical_to_metre, 0.3048);
+  EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
+  const UnitReport heights = check_units(crs, Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], 0),
+                                                                  Eigen::Vector3d(b[3], b[4], 40000)));
+  EXPECT_EQ(heights.warnings.size(), 1u);
 }

@@ -46,10 +46,10 @@ class Georef {
   /// CRS units -> ENU metres.
   Eigen::Vector3d to_local(const Eigen::Vector3d& crs_point);
   /// Batch, in place: columns in CRS units become ENU metres.
-  void to_local(Eigen::Ref<Eigen::Matrix3Xd> points);
+  void to_local_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
   /// ENU metres -> CRS units (GeoError for local scenes).
   Eigen::Vector3d to_crs(const Eigen::Vector3d& enu);
-  void to_crs(Eigen::Ref<Eigen::Matrix3Xd> points);
+  void to_crs_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
 
   Eigen::Vector3d to_ecef(const Eigen::Vector3d& enu) const { return frame_.enu_to_ecef(enu); }
   LonLatH to_geodetic(const Eigen::Vector3d& enu) const { return frame_.enu_to_geodetic(enu); }
