@@ -111,6 +111,11 @@ class PlyReader final : public ReaderBase {
     const auto& ve = elements_[vertex_el_];
     std::uint64_t left = ve.count - points_read_;
     std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(left, max_points));
+    if (enc_ == Encoding::ascii) {
+      // Never size a batch from an unchecked count: a record needs >= 2 bytes per property.
+      const std::uint64_t rest = in_.size() - std::min(in_.size(), in_.tell());
+      n = static_cast<std::size_t>(std::min<std::uint64_t>(n, rest / (2 * ve.props.size()) + 1));
+    }
     if (n == 0) return 0;
     batch.positions.resize(n);
     if (has_normals_) batch.normals.resize(n);

@@ -104,17 +104,17 @@ class XyzReader final : public ReaderBase {
           header_line_ = no;  // e.g. "X,Y,Z,R,G,B"
           continue;
         }
-        in_.fail(rows.empty() ? "not a point cloud or mesh file (unrecognised format)"
-                              : "bad line " + std::to_string(no) + ": '" + line.substr(0, 60) + "'");
+        if (rows.empty()) in_.fail("not a point cloud or mesh file (unrecognised format)");
+        continue;  // reported with its line number when streaming reaches it
       }
       if (tok_.size() == 1) continue;  // PTS count
-      if (tok_.size() < 3) in_.fail("line " + std::to_string(no) + ": expected at least 3 values (x y z)");
+      if (tok_.size() < 3) continue;  // reported when streaming reaches it
       if (cols == 0) cols = tok_.size();
       std::vector<double> r(tok_.size());
       for (std::size_t k = 0; k < tok_.size(); ++k) parse_double(tok_[k], r[k]);
       rows.push_back(std::move(r));
     }
-    if (rows.empty()) in_.fail("no points (not a point cloud or mesh file?)");
+    if (rows.empty()) in_.fail("no points with x y z values (not a point cloud?)");
     min_cols_ = 3;
     if (cols == 6) {
       if (colour_like(rows, 3)) rgb_ = 3;

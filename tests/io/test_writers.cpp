@@ -1,0 +1,152 @@
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "citylod/io/atomic_file.hpp"
+#include "citylod/io/reader.hpp"
+#include "citylod/io/writers.hpp"
+#include "fixtures.hpp"
+
+using namespace citylod::io;
+using namespace citylod::io::test;
+
+namespace {
+
+PointSet sample_points(bool normals, bool colors, bool classes) {
+  PointSet p;
+  for (int i = 0; i < 257; ++i) {
+    p.positions.push_back({85000.123456789 + i, 447412.987654321 - i, 0.001 * i});
+    if (normals) p.normals.push_back({0.0f, 0.6f, 0.8f});
+    if (colors) p.colors.push_back({static_cast<std::uint8_t>(i), 7, 255});
+    if (classes) p.classes.push_back(static_cast<std::uint8_t>(i % 10));
+  }
+  return p;
+}
+
+std::string slurp(const std::string& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+bool no_temp_files(const std::string& dir) {
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.path().filename().string().find(".tmp.") != std::string::npos) return false;
+  return true;
+}
+
+}  // namespace
+
+TEST(Writers, PlyPointRoundTripBinaryAndAscii) {
+  for (bool binary : {true, false}) {
+    PointSet in = sample_points(true, true, true);
+    PlyWriteOptions opt;
+    opt.binary = binary;
+    opt.comment = "round trip";
+    std::string p = tmp_path(binary ? "rt_bin.ply" : "rt_ascii.ply");
+    write_ply(p, in, opt);
+    PointSet out = read_points(p);
+    ASSERT_EQ(out.size(), in.size());
+    ASSERT_TRUE(out.has_normals() && out.has_colors() && out.has_classes());
+    for (std::size_t i = 0; i < in.size(); ++i) {
+      EXPECT_EQ(out.positions[i], in.positions[i]) << i;  // exact: doubles, %.17g
+      EXPECT_EQ(out.normals[i], in.normals[i]);
+      EXPECT_EQ(out.colors[i], in.colors[i]);
+      EXPECT_EQ(out.classes[i], in.classes[i]);
+    }
+  }
+  PointSet bare = sample_points(false, false, false);
+  std::string p = tmp_path("rt_bare.ply");
+  write_ply(p, bare);
+  FileInfo info = scan_file(p);
+  EXPECT_EQ(info.point_count, 257u);
+  EXPECT_FALSE(info.has_normals || info.has_colors || info.has_classes);
+}
+
+TEST(Writers, MeshRoundTrips) {
+  PolygonMesh pm;
+  pm.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5, 0.5, 1}};
+  pm.faces = {{0, 3, 2, 1}, {0, 1, 4}, {1, 2, 4}, {2, 3, 4}, {3, 0, 4}};
+  std::string obj = tmp_path("pyramid.obj");
+  write_obj(obj, pm);
+  PolygonMesh back = read_polygon_mesh(obj);
+  EXPECT_EQ(back.vertices, pm.vertices);
+  EXPECT_EQ(back.faces, pm.faces);
+
+  std::string ply = tmp_path("pyramid.ply");
+  write_ply(ply, pm);
+  PolygonMesh back_ply = read_polygon_mesh(ply);
+  EXPECT_EQ(back_ply.faces, pm.faces);
+
+  TriangleMesh tm = triangulate_fan(pm);
+  tm.normals.assign(tm.vertices.size(), {0, 0, 1});
+  std::string tobj = tmp_path("tri.obj");
+  write_obj(tobj, tm);
+  TriangleMesh tback = read_mesh(tobj);
+  EXPECT_EQ(tback.triangles, tm.triangles);
+  EXPECT_EQ(tback.normals.size(), tm.vertices.size());
+  std::string tply = tmp_path("tri_ascii.ply");
+  PlyWriteOptions ascii;
+  ascii.binary = false;
+  write_ply(tply, tm, ascii);
+  TriangleMesh tpback = read_mesh(tply);
+  EXPECT_EQ(tpback.triangles, tm.triangles);
+  EXPECT_EQ(tpback.vertices, tm.vertices);
+  EXPECT_EQ(tpback.normals, tm.normals);
+}
+
+TEST(Writers, RejectInconsistentInput) {
+  PointSet bad = sample_points(true, false, false);
+  bad.normals.pop_back();
+  std::string p = tmp_path("bad_attr.ply");
+  expect_io_error([&] { write_ply(p, bad); }, "differ in size");
+  EXPECT_FALSE(std::filesystem::exists(p));
+  PolygonMesh pm;
+  pm.vertices = {{0, 0, 0}};
+  pm.faces = {{0, 1, 2}};
+  expect_io_error([&] { write_obj(tmp_path("bad_face.obj"), pm); }, "face index out of range");
+}
+
+TEST(AtomicFile, WritesViaTempAndRename) {
+  std::string dir = tmp_path("atomic");
+  std::filesystem::remove_all(dir);
+  std::string p = dir + "/sub/out.bin";  // parents are created
+  atomic_write_file(p, "first");
+  EXPECT_EQ(slurp(p), "first");
+  atomic_write_file(p, std::string("second\0x", 8));
+  EXPECT_EQ(slurp(p), std::string("second\0x", 8));
+  EXPECT_TRUE(no_temp_files(dir + "/sub"));
+
+  {
+    AtomicFile f(p);
+    f.write("partial");
+    EXPECT_TRUE(std::filesystem::exists(f.temp_path()));
+    // no commit: destructor discards the temp file, the old content stays
+  }
+  EXPECT_EQ(slurp(p), std::string("second\0x", 8));
+  EXPECT_TRUE(no_temp_files(dir + "/sub"));
+
+  AtomicFile g(p);
+  g.write("third");
+  g.commit();
+  EXPECT_EQ(slurp(p), "third");
+  EXPECT_THROW(g.commit(), IoError);
+
+  std::filesystem::create_directories(dir + "/isdir");
+  expect_io_error([&] { atomic_write_file(dir + "/isdir", "x"); }, "cannot rename");
+  EXPECT_TRUE(no_temp_files(dir));
+}
+
+TEST(PointSet, AppendKeepsOnlyCommonAttributes) {
+  PointSet a = sample_points(true, true, false);
+  PointSet b = sample_points(true, false, false);
+  PointSet all;
+  all.append(a);
+  EXPECT_TRUE(all.has_colors());
+  all.append(b);
+  EXPECT_EQ(all.size(), 514u);
+  EXPECT_TRUE(all.has_normals());
+  EXPECT_FALSE(all.has_colors());
+  EXPECT_TRUE(all.consistent());
+}
