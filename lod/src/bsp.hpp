@@ -45,6 +45,7 @@ struct BspSurface {
   TriangleMesh triangles;        ///< watertight, outward, edge-manifold triangulation of the same surface
   int merged_regions = 0;        ///< number of merged coplanar regions (polygons with holes count once)
   int labels_flipped = 0;        ///< out-cells relabelled in to remove non-manifold edges
+  std::vector<char> inside;      ///< labels actually used (input labels after relabelling), per partition entry
 };
 
 class Bsp {

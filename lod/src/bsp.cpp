@@ -1,0 +1,585 @@
+// Exact adaptive BSP (Appendix B): construction, node geometry, adjacency.
+// Extraction of surfaces lives in bsp_extract.cpp. See bsp_impl.hpp for the
+// representation.
+#include "bsp_impl.hpp"
+
+#include <CGAL/box_intersection_d.h>
+#include <CGAL/intersections.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <utility>
+
+namespace citylod::lod::detail {
+
+using namespace bspi;
+
+namespace {
+
+constexpr double kPlaneMergeTol = 1e-12;
+constexpr double kInterfaceMinArea = 1e-9;
+
+bool normalize_plane(std::array<double, 4>& c) {
+  const double n = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+  if (!(n > 1e-300) || !std::isfinite(n) || !std::isfinite(c[3])) return false;
+  for (double& x : c) x /= n;
+  return true;
+}
+
+Vec3 newell_normal(const std::vector<Vec3>& p) {
+  Vec3 n = Vec3::Zero();
+  for (size_t i = 0; i < p.size(); ++i) {
+    const Vec3& a = p[i];
+    const Vec3& b = p[(i + 1) % p.size()];
+    n.x() += (a.y() - b.y()) * (a.z() + b.z());
+    n.y() += (a.z() - b.z()) * (a.x() + b.x());
+    n.z() += (a.x() - b.x()) * (a.y() + b.y());
+  }
+  return n;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// Plane table and vertices
+
+int BspData::find_or_add_plane(const std::array<double, 4>& c, int* flip) {
+  for (size_t j = 0; j < dplanes.size(); ++j) {
+    const auto& q = dplanes[j];
+    double dp = 0, dm = 0;
+    for (int k = 0; k < 4; ++k) {
+      dp = std::max(dp, std::abs(q[k] - c[k]));
+      dm = std::max(dm, std::abs(q[k] + c[k]));
+    }
+    if (dp <= kPlaneMergeTol) {
+      *flip = 1;
+      return int(j);
+    }
+    if (dm <= kPlaneMergeTol) {
+      *flip = -1;
+      return int(j);
+    }
+  }
+  dplanes.push_back(c);
+  planes.emplace_back(FT(c[0]), FT(c[1]), FT(c[2]), FT(c[3]));
+  *flip = 1;
+  return int(dplanes.size()) - 1;
+}
+
+int BspData::add_vertex(const Point3& p, std::vector<int> on_planes) {
+  Vertex v;
+  v.p = p;
+  v.approx = Vec3(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
+  std::sort(on_planes.begin(), on_planes.end());
+  on_planes.erase(std::unique(on_planes.begin(), on_planes.end()), on_planes.end());
+  v.planes = std::move(on_planes);
+  verts.push_back(std::move(v));
+  return int(verts.size()) - 1;
+}
+
+int BspData::sign(int vi, int P) {
+  Vertex& v = verts[vi];
+  for (int q : v.planes)
+    if (q == P) return 0;
+  for (const auto& qs : v.signs)
+    if (qs.first == P) return qs.second;
+  const int s = int(planes[P].oriented_side(v.p));
+  if (s == 0)
+    v.planes.push_back(P);
+  else
+    v.signs.emplace_back(P, static_cast<signed char>(s));
+  return s;
+}
+
+int BspData::cut(int a, int b, int S, int E, int P) {
+  const CutKey key{std::min(a, b), std::max(a, b), P};
+  auto it = cut_memo.find(key);
+  if (it != cut_memo.end()) return it->second;
+  const auto res = CGAL::intersection(planes[S], planes[E], planes[P]);
+  const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
+  if (!pt) throw std::logic_error("Bsp: edge does not cross the cutting plane in one point");
+  std::vector<int> on;
+  on.reserve(4);
+  for (int q : verts[a].planes)
+    if (std::find(verts[b].planes.begin(), verts[b].planes.end(), q) != verts[b].planes.end()) on.push_back(q);
+  on.push_back(S);
+  on.push_back(E);
+  on.push_back(P);
+  const int id = add_vertex(*pt, std::move(on));
+  cut_memo.emplace(key, id);
+  return id;
+}
+
+// ---------------------------------------------------------------------------
+// Polygon and cell splitting
+
+void BspData::split_poly(const Poly& f, int P, Poly* neg, Poly* pos) {
+  const int n = int(f.v.size());
+  if (neg) neg->v.clear(), neg->e.clear(), neg->plane = f.plane;
+  if (pos) pos->v.clear(), pos->e.clear(), pos->plane = f.plane;
+  int sg_local[16];
+  std::vector<int> sg_heap;
+  int* sg = sg_local;
+  if (n > 16) {
+    sg_heap.resize(n);
+    sg = sg_heap.data();
+  }
+  bool hasneg = false, haspos = false;
+  for (int i = 0; i < n; ++i) {
+    sg[i] = sign(f.v[i], P);
+    hasneg |= sg[i] < 0;
+    haspos |= sg[i] > 0;
+  }
+  if (!haspos) {
+    if (hasneg && neg) *neg = f;
+    return;
+  }
+  if (!hasneg) {
+    if (pos) *pos = f;
+    return;
+  }
+  for (int s : {-1, 1}) {
+    Poly* out = s < 0 ? neg : pos;
+    if (!out) continue;
+    out->v.reserve(n + 2);
+    out->e.reserve(n + 2);
+    for (int i = 0; i < n; ++i) {
+      const int j = (i + 1 == n) ? 0 : i + 1;
+      const int ta = -s * sg[i], tb = -s * sg[j];
+      if (ta <= 0) {
+        out->v.push_back(f.v[i]);
+        out->e.push_back((tb <= 0 || ta < 0) ? f.e[i] : P);
+      }
+      if ((ta < 0 && tb > 0) || (ta > 0 && tb < 0)) {
+        out->v.push_back(cut(f.v[i], f.v[j], f.plane, f.e[i], P));
+        out->e.push_back(ta < 0 ? P : f.e[i]);
+      }
+    }
+  }
+}
+
+int BspData::classify_cell(const Cell& c, int P) {
+  bool hasneg = false, haspos = false;
+  for (const auto& f : c.faces)
+    for (int v : f.poly.v) {
+      const int s = sign(v, P);
+      hasneg |= s < 0;
+      haspos |= s > 0;
+      if (hasneg && haspos) return 0;
+    }
+  if (hasneg) return -1;
+  if (haspos) return 1;
+  return 2;
+}
+
+void BspData::split_cell(const Cell& c, int P, Cell* neg, Cell* pos, Poly* cap) {
+  // cap edges of the negative child: reversed on-P edges of its faces
+  std::vector<std::array<int, 3>> capedges;  // from, to, edge plane
+  Poly pn, pp;
+  if (neg) neg->faces.clear();
+  if (pos) pos->faces.clear();
+  for (const auto& f : c.faces) {
+    split_poly(f.poly, P, &pn, &pp);
+    if (!pn.v.empty()) {
+      const int n = int(pn.v.size());
+      for (int i = 0; i < n; ++i) {
+        const int u = pn.v[i], w = pn.v[(i + 1) % n];
+        if (sign(u, P) == 0 && sign(w, P) == 0) capedges.push_back({w, u, f.poly.plane});
+      }
+      if (neg) neg->faces.push_back({pn, f.cell_pos});
+    }
+    if (!pp.v.empty() && pos) pos->faces.push_back({pp, f.cell_pos});
+  }
+  // chain
+  std::map<int, std::pair<int, int>> next;
+  for (const auto& e : capedges)
+    if (!next.emplace(e[0], std::make_pair(e[1], e[2])).second)
+      throw std::logic_error("Bsp: inconsistent cap (vertex used twice)");
+  if (next.size() < 3) throw std::logic_error("Bsp: degenerate cap");
+  Poly capn;
+  capn.plane = P;
+  const int start = next.begin()->first;
+  int cur = start;
+  do {
+    auto it = next.find(cur);
+    if (it == next.end()) throw std::logic_error("Bsp: open cap chain");
+    capn.v.push_back(cur);
+    capn.e.push_back(it->second.second);
+    cur = it->second.first;
+    if (capn.v.size() > next.size()) throw std::logic_error("Bsp: cap chain loops");
+  } while (cur != start);
+  if (capn.v.size() != next.size()) throw std::logic_error("Bsp: cap has several loops");
+  if (pos) {
+    Poly capp;
+    capp.plane = P;
+    const int n = int(capn.v.size());
+    capp.v.reserve(n);
+    capp.e.reserve(n);
+    // reversed loop: v0, v_{n-1}, ..., v1; edge (v_i -> v_{i-1}) has plane e[i-1]
+    for (int k = 0; k < n; ++k) {
+      const int i = (n - k) % n;
+      capp.v.push_back(capn.v[i]);
+      capp.e.push_back(capn.e[(i + n - 1) % n]);
+    }
+    pos->faces.push_back({std::move(capp), true});
+  }
+  if (cap) *cap = capn;
+  if (neg) neg->faces.push_back({std::move(capn), false});
+}
+
+std::vector<int> BspData::cell_vertex_ids(const Cell& c) const {
+  std::vector<int> ids;
+  for (const auto& f : c.faces)
+    for (int v : f.poly.v) ids.push_back(v);
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  return ids;
+}
+
+void BspData::fill_node_geometry(BspNode& n, const Cell& c) const {
+  const auto ids = cell_vertex_ids(c);
+  Vec3 ctr = Vec3::Zero();
+  for (int v : ids) ctr += verts[v].approx;
+  if (!ids.empty()) ctr /= double(ids.size());
+  n.center = ctr;
+  double vol = 0;
+  for (const auto& f : c.faces) {
+    const auto& L = f.poly.v;
+    const Vec3 a = verts[L[0]].approx - ctr;
+    for (size_t i = 1; i + 1 < L.size(); ++i) {
+      const Vec3 b = verts[L[i]].approx - ctr;
+      const Vec3 d = verts[L[i + 1]].approx - ctr;
+      vol += a.dot(b.cross(d));
+    }
+  }
+  n.volume = vol / 6.0;
+}
+
+// ---------------------------------------------------------------------------
+// Construction
+
+Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& I = *impl_;
+  I.lo = lo;
+  I.hi = hi;
+  if (!(hi.x() > lo.x() && hi.y() > lo.y() && hi.z() > lo.z()))
+    throw std::invalid_argument("Bsp: empty box");
+  // box planes: 2k -> coordinate k = lo[k], 2k+1 -> coordinate k = hi[k]; normal +e_k
+  for (int k = 0; k < 3; ++k)
+    for (int h = 0; h < 2; ++h) {
+      std::array<double, 4> c{0, 0, 0, -(h ? hi[k] : lo[k])};
+      c[k] = 1;
+      I.dplanes.push_back(c);
+      I.planes.emplace_back(FT(c[0]), FT(c[1]), FT(c[2]), FT(c[3]));
+    }
+  // root cell: corners i + 2j + 4l
+  for (int l = 0; l < 2; ++l)
+    for (int j = 0; j < 2; ++j)
+      for (int i = 0; i < 2; ++i) {
+        const int id = I.add_vertex(Point3(i ? hi.x() : lo.x(), j ? hi.y() : lo.y(), l ? hi.z() : lo.z()),
+                                    {0 + i, 2 + j, 4 + l});
+        (void)id;
+      }
+  {
+    Cell root;
+    for (int k = 0; k < 3; ++k)
+      for (int h = 0; h < 2; ++h) {
+        const int pl = 2 * k + h;
+        std::vector<int> loop;
+        // the 4 corners with coordinate k == h, in cyclic order in the (k+1, k+2) axes
+        const int u = (k + 1) % 3, w = (k + 2) % 3;
+        const int uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+        for (const auto& q : uv) {
+          int bits[3];
+          bits[k] = h;
+          bits[u] = q[0];
+          bits[w] = q[1];
+          loop.push_back(bits[0] + 2 * bits[1] + 4 * bits[2]);
+        }
+        // this loop is CCW seen from +e_k; outward is +e_k iff h == 1
+        if (h == 0) std::reverse(loop.begin(), loop.end());
+        Poly p;
+        p.plane = pl;
+        p.v = loop;
+        for (int e = 0; e < 4; ++e) {
+          const auto& A = I.verts[loop[e]].planes;
+          const auto& B = I.verts[loop[(e + 1) % 4]].planes;
+          int ep = -1;
+          for (int q : A)
+            if (q != pl && std::find(B.begin(), B.end(), q) != B.end()) ep = q;
+          p.e.push_back(ep);
+        }
+        root.faces.push_back({std::move(p), h == 0});
+      }
+    BspNode rn;
+    I.fill_node_geometry(rn, root);
+    I.nodes.push_back(rn);
+    I.cells.push_back(std::move(root));
+  }
+
+  // --- planes of the input polygons: supports first (they are the split planes), then edges
+  struct Prep {
+    int support = -1;
+    std::vector<Vec3> loop;  // projected, CCW around the table support normal
+  };
+  std::vector<Prep> prep(ordered.size());
+  for (size_t i = 0; i < ordered.size(); ++i) {
+    const BspPolygon& bp = ordered[i];
+    if (bp.polygon.size() < 3) continue;
+    std::array<double, 4> c = bp.plane;
+    if (!normalize_plane(c)) continue;
+    int flip = 1;
+    Vec3 n(c[0], c[1], c[2]);
+    // project onto the input plane, drop repeated points
+    std::vector<Vec3> q;
+    for (const Vec3& p : bp.polygon) {
+      if (!p.allFinite()) continue;
+      Vec3 pr = p - (n.dot(p) + c[3]) * n;
+      if (q.empty() || (pr - q.back()).norm() > 1e-9) q.push_back(pr);
+    }
+    while (q.size() > 1 && (q.front() - q.back()).norm() <= 1e-9) q.pop_back();
+    if (q.size() < 3) continue;
+    const Vec3 nn = newell_normal(q);
+    if (nn.norm() < 1e-12) continue;  // no area
+    const int S = I.find_or_add_plane(c, &flip);
+    const Vec3 ns = double(flip) * n;
+    if (nn.dot(ns) < 0) std::reverse(q.begin(), q.end());
+    prep[i].support = S;
+    prep[i].loop = std::move(q);
+  }
+  I.n_split_planes = int(I.dplanes.size());
+
+  std::vector<Piece> root_pieces;
+  for (size_t i = 0; i < ordered.size(); ++i) {
+    Prep& pr = prep[i];
+    if (pr.support < 0 || pr.support < 6) continue;  // degenerate, or on the box boundary
+    const int S = pr.support;
+    if (I.classify_cell(I.cells[0], S) != 0) continue;  // plane misses the open box
+    Poly piece;
+    I.split_cell(I.cells[0], S, nullptr, nullptr, &piece);
+    const Vec3 ns(I.dplanes[S][0], I.dplanes[S][1], I.dplanes[S][2]);
+    const auto& q = pr.loop;
+    bool empty = false;
+    for (size_t e = 0; e < q.size() && !empty; ++e) {
+      const Vec3& a = q[e];
+      const Vec3& b = q[(e + 1) % q.size()];
+      Vec3 ne = (b - a).cross(ns);  // points out of the polygon
+      const double len = ne.norm();
+      if (!(len > 1e-12)) continue;
+      ne /= len;
+      std::array<double, 4> ce{ne.x(), ne.y(), ne.z(), -ne.dot(a)};
+      int flip = 1;
+      const int E = I.find_or_add_plane(ce, &flip);
+      if (E == S) continue;
+      Poly kept;
+      if (flip > 0)
+        I.split_poly(piece, E, &kept, nullptr);
+      else
+        I.split_poly(piece, E, nullptr, &kept);
+      if (kept.v.empty()) empty = true;
+      piece = std::move(kept);
+    }
+    if (empty || piece.v.size() < 3) continue;
+    root_pieces.push_back({std::move(piece), ordered[i].primitive});
+  }
+
+  // --- adaptive BSP, depth first (negative child first)
+  struct Work {
+    int node;
+    std::vector<Piece> pieces;
+  };
+  std::vector<Work> stack;
+  stack.push_back({0, std::move(root_pieces)});
+  int leaves = 1;
+  while (!stack.empty()) {
+    Work w = std::move(stack.back());
+    stack.pop_back();
+    for (size_t idx = 0; idx < w.pieces.size(); ++idx) {
+      const int P = w.pieces[idx].poly.plane;
+      if (I.classify_cell(I.cells[w.node], P) != 0) continue;  // piece on the cell boundary
+      if (max_leaves > 0 && leaves >= max_leaves) {
+        I.cap_hit = true;
+        stack.clear();
+        break;
+      }
+      Cell cn, cp;
+      I.split_cell(I.cells[w.node], P, &cn, &cp, nullptr);
+      Work wn, wp;
+      Poly qn, qp;
+      for (size_t j = idx + 1; j < w.pieces.size(); ++j) {
+        Piece& q = w.pieces[j];
+        if (q.poly.plane == P) continue;  // consumed with the splitting piece
+        I.split_poly(q.poly, P, &qn, &qp);
+        if (!qn.v.empty()) wn.pieces.push_back({qn, q.primitive});
+        if (!qp.v.empty()) wp.pieces.push_back({qp, q.primitive});
+      }
+      const int parent = w.node;
+      const int depth = I.nodes[parent].depth + 1;
+      const int idn = int(I.nodes.size()), idp = idn + 1;
+      BspNode nn, np;
+      nn.parent = np.parent = parent;
+      nn.depth = np.depth = depth;
+      I.fill_node_geometry(nn, cn);
+      I.fill_node_geometry(np, cp);
+      I.nodes.push_back(nn);
+      I.nodes.push_back(np);
+      I.cells.push_back(std::move(cn));
+      I.cells.push_back(std::move(cp));
+      BspNode& pn = I.nodes[parent];
+      pn.children = {idn, idp};
+      pn.split_primitive = w.pieces[idx].primitive;
+      pn.split_plane = P;
+      ++leaves;
+      wn.node = idn;
+      wp.node = idp;
+      stack.push_back(std::move(wp));
+      stack.push_back(std::move(wn));
+      break;
+    }
+  }
+  I.cut_memo.clear();
+  I.cut_memo.rehash(0);
+}
+
+Bsp::~Bsp() = default;
+Bsp::Bsp(Bsp&&) noexcept = default;
+Bsp& Bsp::operator=(Bsp&&) noexcept = default;
+
+bool Bsp::cap_hit() const { return impl_->cap_hit; }
+const std::vector<BspNode>& Bsp::nodes() const { return impl_->nodes; }
+
+std::vector<int> Bsp::leaves() const {
+  std::vector<int> out;
+  for (size_t i = 0; i < impl_->nodes.size(); ++i)
+    if (impl_->nodes[i].is_leaf()) out.push_back(int(i));
+  return out;
+}
+
+std::vector<std::array<double, 4>> Bsp::planes() const {
+  return std::vector<std::array<double, 4>>(impl_->dplanes.begin(), impl_->dplanes.begin() + impl_->n_split_planes);
+}
+
+std::vector<Vec3> Bsp::cell_vertices(int node) const {
+  if (node < 0 || node >= int(impl_->cells.size())) throw std::out_of_range("Bsp::cell_vertices");
+  std::vector<Vec3> out;
+  for (int v : impl_->cell_vertex_ids(impl_->cells[node])) out.push_back(impl_->verts[v].approx);
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+// Adjacency
+
+namespace {
+
+using Poly2 = std::vector<Eigen::Vector2d>;
+
+double area2(const Poly2& p) {
+  double a = 0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    const auto& u = p[i];
+    const auto& w = p[(i + 1) % p.size()];
+    a += u.x() * w.y() - u.y() * w.x();
+  }
+  return 0.5 * a;
+}
+
+// Convex clipping (Sutherland-Hodgman); both CCW.
+Poly2 clip_convex(const Poly2& subject, const Poly2& clip) {
+  Poly2 out = subject;
+  for (size_t i = 0; i < clip.size() && !out.empty(); ++i) {
+    const auto& a = clip[i];
+    const auto& b = clip[(i + 1) % clip.size()];
+    const Eigen::Vector2d d = b - a;
+    auto side = [&](const Eigen::Vector2d& p) { return d.x() * (p.y() - a.y()) - d.y() * (p.x() - a.x()); };
+    Poly2 in = std::move(out);
+    out.clear();
+    for (size_t j = 0; j < in.size(); ++j) {
+      const auto& p = in[j];
+      const auto& q = in[(j + 1) % in.size()];
+      const double sp = side(p), sq = side(q);
+      if (sp >= 0) out.push_back(p);
+      if ((sp > 0 && sq < 0) || (sp < 0 && sq > 0)) out.push_back(p + (q - p) * (sp / (sp - sq)));
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<BspInterface> Bsp::adjacency(const std::vector<int>& partition) const {
+  const Impl& I = *impl_;
+  struct FRef {
+    int node, face;
+    bool pos;
+  };
+  std::map<int, std::vector<FRef>> byplane;
+  for (int nid : partition) {
+    if (nid < 0 || nid >= int(I.cells.size())) throw std::out_of_range("Bsp::adjacency: node id");
+    const Cell& c = I.cells[nid];
+    for (size_t f = 0; f < c.faces.size(); ++f) {
+      const int pl = c.faces[f].poly.plane;
+      if (pl < 6) continue;  // box boundary: no neighbour
+      byplane[pl].push_back({nid, int(f), c.faces[f].cell_pos});
+    }
+  }
+  std::vector<BspInterface> out;
+  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 2, int>;
+  for (const auto& [pl, refs] : byplane) {
+    const auto& c = I.dplanes[pl];
+    int k = 0;
+    for (int t = 1; t < 3; ++t)
+      if (std::abs(c[t]) > std::abs(c[k])) k = t;
+    const int u = (k + 1) % 3, w = (k + 2) % 3;
+    std::vector<Poly2> p2(refs.size());
+    std::vector<Box> ba, bb;
+    for (size_t r = 0; r < refs.size(); ++r) {
+      const auto& L = I.cells[refs[r].node].faces[refs[r].face].poly.v;
+      Poly2& P = p2[r];
+      for (int v : L) P.emplace_back(I.verts[v].approx[u], I.verts[v].approx[w]);
+      if (area2(P) < 0) std::reverse(P.begin(), P.end());
+      double lo2[2] = {1e300, 1e300}, hi2[2] = {-1e300, -1e300};
+      for (const auto& p : P)
+        for (int t = 0; t < 2; ++t) lo2[t] = std::min(lo2[t], p[t]), hi2[t] = std::max(hi2[t], p[t]);
+      (refs[r].pos ? bb : ba).emplace_back(lo2, hi2, int(r));
+    }
+    if (ba.empty() || bb.empty()) continue;
+    std::vector<std::pair<int, int>> pairs;
+    CGAL::box_intersection_d(ba.begin(), ba.end(), bb.begin(), bb.end(),
+                             [&](const Box& x, const Box& y) { pairs.emplace_back(x.info(), y.info()); });
+    for (const auto& [ra, rb] : pairs) {
+      // ra: cell on the negative side (a); rb: cell on the positive side (b)
+      Poly2 inter = clip_convex(p2[ra], p2[rb]);
+      if (inter.size() < 3) continue;
+      const double area = std::abs(area2(inter)) / std::abs(c[k]);
+      if (!(area > kInterfaceMinArea)) continue;
+      BspInterface itf;
+      itf.a = refs[ra].node;
+      itf.b = refs[rb].node;
+      itf.plane = pl;
+      itf.area = area;
+      for (const auto& q : inter) {
+        Vec3 x;
+        x[u] = q.x();
+        x[w] = q.y();
+        x[k] = -(c[u] * q.x() + c[w] * q.y() + c[3]) / c[k];
+        itf.polygon.push_back(x);
+      }
+      // CCW around +normal
+      if (c[k] < 0) std::reverse(itf.polygon.begin(), itf.polygon.end());
+      out.push_back(std::move(itf));
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const BspInterface& x, const BspInterface& y) {
+    return std::tie(x.a, x.b, x.plane) < std::tie(y.a, y.b, y.plane);
+  });
+  return out;
+}
+
+BspSurface Bsp::extract(const std::vector<int>& partition, std::vector<char> inside) const {
+  return extract_surface(*impl_, partition, std::move(inside));
+}
+
+}  // namespace citylod::lod::detail

@@ -1,0 +1,515 @@
+// Tests of the exact adaptive BSP and its watertight surface extraction.
+#include "bsp.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <map>
+#include <random>
+#include <set>
+
+using citylod::lod::PolygonMesh;
+using citylod::lod::TriangleMesh;
+using citylod::lod::Vec3;
+using citylod::lod::detail::Bsp;
+using citylod::lod::detail::BspPolygon;
+using citylod::lod::detail::BspSurface;
+
+namespace {
+
+// axis-aligned rectangle on plane coordinate `axis` == v, spanning [a0,a1] x [b0,b1] on the other two axes (cyclic)
+BspPolygon rect(int axis, double v, double a0, double a1, double b0, double b1, int prim) {
+  const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+  std::vector<Vec3> pts(4, Vec3::Zero());
+  const double uv[4][2] = {{a0, b0}, {a1, b0}, {a1, b1}, {a0, b1}};
+  for (int i = 0; i < 4; ++i) {
+    pts[i][axis] = v;
+    pts[i][u] = uv[i][0];
+    pts[i][w] = uv[i][1];
+  }
+  BspPolygon p;
+  p.polygon = pts;
+  p.primitive = prim;
+  p.plane = {0, 0, 0, -v};
+  p.plane[axis] = 1;
+  return p;
+}
+
+// the 6 faces of an axis-aligned box
+std::vector<BspPolygon> box_faces(const Vec3& lo, const Vec3& hi, int prim0) {
+  std::vector<BspPolygon> out;
+  const int order[3] = {2, 0, 1};
+  for (int axis : order) {
+    const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+    out.push_back(rect(axis, lo[axis], lo[u], hi[u], lo[w], hi[w], prim0++));
+    out.push_back(rect(axis, hi[axis], lo[u], hi[u], lo[w], hi[w], prim0++));
+  }
+  return out;
+}
+
+struct MeshReport {
+  bool closed = true;      // every undirected edge used by exactly 2 triangles
+  bool oriented = true;    // every directed edge used once
+  bool degenerate = false; // repeated index in a triangle
+  int edges = 0;
+};
+
+MeshReport check_mesh(const TriangleMesh& m) {
+  MeshReport r;
+  std::map<std::pair<int, int>, int> und, dir;
+  for (const auto& t : m.triangles) {
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) r.degenerate = true;
+    for (int e = 0; e < 3; ++e) {
+      const int a = t[e], b = t[(e + 1) % 3];
+      ++dir[{a, b}];
+      ++und[{std::min(a, b), std::max(a, b)}];
+    }
+  }
+  for (const auto& [e, n] : und)
+    if (n != 2) r.closed = false;
+  for (const auto& [e, n] : dir)
+    if (n != 1) r.oriented = false;
+  r.edges = int(und.size());
+  return r;
+}
+
+// Polygon mesh closedness: every directed edge of the face loops appears once, and its reverse once.
+bool polygon_mesh_closed(const PolygonMesh& m) {
+  std::map<std::pair<int, int>, int> dir;
+  for (const auto& f : m.faces)
+    for (size_t i = 0; i < f.size(); ++i) ++dir[{f[i], f[(i + 1) % f.size()]}];
+  for (const auto& [e, n] : dir) {
+    if (n != 1) return false;
+    auto it = dir.find({e.second, e.first});
+    if (it == dir.end() || it->second != 1) return false;
+  }
+  return true;
+}
+
+double mesh_volume(const TriangleMesh& m) {
+  double v = 0;
+  for (const auto& t : m.triangles) v += m.vertices[t[0]].dot(m.vertices[t[1]].cross(m.vertices[t[2]]));
+  return v / 6.0;
+}
+
+double sum_inside_volume(const Bsp& bsp, const std::vector<int>& part, const std::vector<char>& in) {
+  double v = 0;
+  for (size_t i = 0; i < part.size(); ++i)
+    if (in[i]) v += bsp.nodes()[part[i]].volume;
+  return v;
+}
+
+std::vector<char> label_by(const Bsp& bsp, const std::vector<int>& part, const std::function<bool(const Vec3&)>& f) {
+  std::vector<char> in;
+  for (int n : part) in.push_back(f(bsp.nodes()[n].center) ? 1 : 0);
+  return in;
+}
+
+bool in_box(const Vec3& p, const Vec3& lo, const Vec3& hi) {
+  return (p.array() > lo.array()).all() && (p.array() < hi.array()).all();
+}
+
+void expect_good_surface(const BspSurface& s, const char* what) {
+  const MeshReport r = check_mesh(s.triangles);
+  EXPECT_TRUE(r.closed) << what;
+  EXPECT_TRUE(r.oriented) << what;
+  EXPECT_FALSE(r.degenerate) << what;
+  EXPECT_TRUE(polygon_mesh_closed(s.polygons)) << what;
+  EXPECT_EQ(s.polygons.vertices.size(), s.triangles.vertices.size()) << what;
+}
+
+double now_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
+TEST(Bsp, OneSplitGivesThreeNodes) {
+  const Vec3 lo(0, 0, 0), hi(2, 1, 1);
+  std::vector<BspPolygon> polys{rect(0, 0.5, -1, 2, -1, 2, 7)};
+  Bsp bsp(lo, hi, polys, 0);
+  ASSERT_EQ(bsp.nodes().size(), 3u);
+  EXPECT_FALSE(bsp.cap_hit());
+  EXPECT_EQ(bsp.planes().size(), 7u);
+  const auto& n = bsp.nodes();
+  EXPECT_EQ(n[0].split_primitive, 7);
+  EXPECT_EQ(n[0].split_plane, 6);
+  EXPECT_EQ(n[0].children[0], 1);
+  EXPECT_EQ(n[0].children[1], 2);
+  EXPECT_EQ(n[1].parent, 0);
+  EXPECT_EQ(n[1].depth, 1);
+  EXPECT_NEAR(n[0].volume, 2.0, 1e-12);
+  EXPECT_NEAR(n[1].volume, 0.5, 1e-12);  // x < 0.5: negative side of x - 0.5
+  EXPECT_NEAR(n[2].volume, 1.5, 1e-12);
+  EXPECT_NEAR(n[1].volume + n[2].volume, n[0].volume, 1e-12);
+  EXPECT_NEAR(n[1].center.x(), 0.25, 1e-12);
+  EXPECT_EQ(bsp.leaves(), (std::vector<int>{1, 2}));
+  EXPECT_EQ(bsp.cell_vertices(1).size(), 8u);
+
+  const auto adj = bsp.adjacency(bsp.leaves());
+  ASSERT_EQ(adj.size(), 1u);
+  EXPECT_EQ(adj[0].a, 1);
+  EXPECT_EQ(adj[0].b, 2);
+  EXPECT_EQ(adj[0].plane, 6);
+  EXPECT_NEAR(adj[0].area, 1.0, 1e-12);
+  EXPECT_EQ(adj[0].polygon.size(), 4u);
+}
+
+TEST(Bsp, TiltedSplitVolumesSum) {
+  const Vec3 lo(0, 0, 0), hi(1, 1, 1);
+  // plane x + 2y + 3z = 2.5 through the whole box
+  Vec3 n(1, 2, 3);
+  const double nn = n.norm();
+  BspPolygon p;
+  p.primitive = 0;
+  p.plane = {1 / nn, 2 / nn, 3 / nn, -2.5 / nn};
+  // big polygon in the plane
+  const Vec3 c = n * (2.5 / (nn * nn));
+  const Vec3 a = n.unitOrthogonal(), b = n.normalized().cross(a);
+  for (int i = 0; i < 6; ++i) {
+    const double t = 2 * M_PI * i / 6;
+    p.polygon.push_back(c + 10 * (std::cos(t) * a + std::sin(t) * b));
+  }
+  Bsp bsp(lo, hi, {p}, 0);
+  ASSERT_EQ(bsp.nodes().size(), 3u);
+  const auto& N = bsp.nodes();
+  EXPECT_NEAR(N[1].volume + N[2].volume, 1.0, 1e-12);
+  // whole box as a partition, and the two leaves: both extract to a closed surface of volume 1
+  for (const std::vector<int>& part : {std::vector<int>{0}, std::vector<int>{1, 2}}) {
+    const auto s = bsp.extract(part, std::vector<char>(part.size(), 1));
+    expect_good_surface(s, "tilted");
+    EXPECT_NEAR(mesh_volume(s.triangles), 1.0, 1e-12);
+    EXPECT_EQ(s.merged_regions, 6);
+  }
+  const auto s1 = bsp.extract({1, 2}, {1, 0});
+  expect_good_surface(s1, "tilted lower");
+  EXPECT_NEAR(mesh_volume(s1.triangles), N[1].volume, 1e-12);
+}
+
+TEST(Bsp, CubeInsideEnlargedBox) {
+  const Vec3 lo(-1, -1, -1), hi(2, 2, 2);
+  Bsp bsp(lo, hi, box_faces(Vec3(0, 0, 0), Vec3(1, 1, 1), 0), 0);
+  const auto leaves = bsp.leaves();
+  EXPECT_EQ(leaves.size(), 7u);
+  EXPECT_EQ(bsp.planes().size(), 12u);
+  int cube = -1;
+  double total = 0;
+  for (int l : leaves) {
+    total += bsp.nodes()[l].volume;
+    if (in_box(bsp.nodes()[l].center, Vec3(0, 0, 0), Vec3(1, 1, 1))) {
+      EXPECT_EQ(cube, -1);
+      cube = l;
+    }
+  }
+  EXPECT_NEAR(total, 27.0, 1e-9);
+  ASSERT_GE(cube, 0);
+  EXPECT_NEAR(bsp.nodes()[cube].volume, 1.0, 1e-9);
+  EXPECT_EQ(bsp.cell_vertices(cube).size(), 8u);
+
+  const BspSurface s = bsp.extract({cube}, {1});
+  expect_good_surface(s, "cube");
+  EXPECT_EQ(s.merged_regions, 6);
+  EXPECT_EQ(s.polygons.faces.size(), 6u);
+  for (const auto& f : s.polygons.faces) EXPECT_EQ(f.size(), 4u);
+  EXPECT_EQ(s.triangles.triangles.size(), 12u);
+  EXPECT_EQ(s.triangles.vertices.size(), 8u);
+  EXPECT_NEAR(mesh_volume(s.triangles), 1.0, 1e-12);
+  EXPECT_EQ(s.labels_flipped, 0);
+
+  // the same from the full leaf partition
+  const auto in = label_by(bsp, leaves, [](const Vec3& p) { return in_box(p, Vec3(0, 0, 0), Vec3(1, 1, 1)); });
+  const BspSurface s2 = bsp.extract(leaves, in);
+  expect_good_surface(s2, "cube (leaves)");
+  EXPECT_EQ(s2.merged_regions, 6);
+  EXPECT_EQ(s2.triangles.triangles.size(), 12u);
+
+  // the cube leaf has exactly 6 interfaces of area 1
+  int ncube = 0;
+  for (const auto& itf : bsp.adjacency(leaves))
+    if (itf.a == cube || itf.b == cube) {
+      ++ncube;
+      EXPECT_NEAR(itf.area, 1.0, 1e-12);
+    }
+  EXPECT_EQ(ncube, 6);
+
+  // complement: everything but the cube -> box with a cubic cavity, two shells
+  std::vector<char> out(in.size());
+  for (size_t i = 0; i < in.size(); ++i) out[i] = !in[i];
+  const BspSurface s3 = bsp.extract(leaves, out);
+  expect_good_surface(s3, "cavity");
+  EXPECT_NEAR(mesh_volume(s3.triangles), 26.0, 1e-12);
+  EXPECT_EQ(s3.merged_regions, 12);
+}
+
+TEST(Bsp, SmallPolygonsSplitOnlyTheCellsTheyCross) {
+  const Vec3 lo(0, 0, 0), hi(4, 4, 4);
+  std::vector<BspPolygon> polys{
+      rect(0, 2.0, -1, 5, -1, 5, 0),       // x = 2 through everything: 2 leaves
+      rect(1, 1.0, 0.5, 1.5, 0.5, 1.5, 1),  // y = 1, z in [.5,1.5], x in [.5,1.5]: only x<2 -> 3
+      rect(2, 3.0, 1.0, 3.0, 0.0, 4.0, 2),  // z = 3, x in [1,3], y in [0,4]: 3 cells -> 6
+      rect(2, 1.0, 2.5, 3.5, 0.5, 1.5, 3),  // z = 1, x in [2.5,3.5]: only x>2, z<3 -> 7
+      rect(0, 1.0, 2.0, 3.0, 3.5, 3.9, 4),  // x = 1, y in [2,3], z in [3.5,3.9]: x<2, y>1, z>3 -> 8
+      rect(0, 3.0, 5.0, 6.0, 1.0, 2.0, 5),  // outside the box: nothing
+  };
+  // note rect() spans (u,w) = cyclic axes: for axis 0 (x) u = y, w = z; axis 1 (y): u = z, w = x; axis 2: u = x, w = y
+  Bsp bsp(lo, hi, polys, 0);
+  EXPECT_EQ(bsp.leaves().size(), 8u);
+  double total = 0;
+  for (int l : bsp.leaves()) total += bsp.nodes()[l].volume;
+  EXPECT_NEAR(total, 64.0, 1e-9);
+  std::set<int> prims;
+  for (const auto& n : bsp.nodes())
+    if (!n.is_leaf()) prims.insert(n.split_primitive);
+  EXPECT_EQ(prims, (std::set<int>{0, 1, 2, 3, 4}));
+
+  // cap: at most 4 leaves
+  Bsp capped(lo, hi, polys, 4);
+  EXPECT_TRUE(capped.cap_hit());
+  EXPECT_EQ(capped.leaves().size(), 4u);
+  Bsp exact_cap(lo, hi, polys, 8);
+  EXPECT_FALSE(exact_cap.cap_hit());
+  EXPECT_EQ(exact_cap.leaves().size(), 8u);
+}
+
+TEST(Bsp, LShapePrism) {
+  // L in xy: [0,2]x[0,1] U [0,1]x[1,2], z in [0,1]
+  auto inL = [](const Vec3& p) {
+    if (p.z() <= 0 || p.z() >= 1) return false;
+    return (p.x() > 0 && p.x() < 2 && p.y() > 0 && p.y() < 1) || (p.x() > 0 && p.x() < 1 && p.y() > 0 && p.y() < 2);
+  };
+  std::vector<BspPolygon> polys{
+      rect(2, 0, 0, 2, 0, 1, 0), rect(2, 0, 0, 1, 1, 2, 1),  // bottom (two convex parts)
+      rect(2, 1, 0, 2, 0, 1, 2), rect(2, 1, 0, 1, 1, 2, 3),  // top
+      rect(0, 0, 0, 2, 0, 1, 4),                              // x = 0, y 0..2
+      rect(1, 0, 0, 1, 0, 2, 5),                              // y = 0, (z,x) = z 0..1, x 0..2
+      rect(0, 2, 0, 1, 0, 1, 6),                              // x = 2, y 0..1
+      rect(1, 1, 0, 1, 1, 2, 7),                              // y = 1, x 1..2
+      rect(0, 1, 1, 2, 0, 1, 8),                              // x = 1, y 1..2
+      rect(1, 2, 0, 1, 0, 1, 9),                              // y = 2, x 0..1
+  };
+  Bsp bsp(Vec3(-1, -1, -1), Vec3(3, 3, 2), polys, 0);
+  const auto leaves = bsp.leaves();
+  const auto in = label_by(bsp, leaves, inL);
+  EXPECT_NEAR(sum_inside_volume(bsp, leaves, in), 3.0, 1e-9);
+  const double t0 = now_s();
+  const BspSurface s = bsp.extract(leaves, in);
+  std::printf("[ L-shape ] %zu leaves, extract %.2f ms\n", leaves.size(), 1e3 * (now_s() - t0));
+  expect_good_surface(s, "L");
+  EXPECT_EQ(s.merged_regions, 8);
+  EXPECT_EQ(s.polygons.faces.size(), 8u);
+  EXPECT_EQ(s.labels_flipped, 0);
+  EXPECT_NEAR(mesh_volume(s.triangles), 3.0, 1e-12);
+  // L-shaped top and bottom have 6 corners; the 6 walls are rectangles
+  std::multiset<size_t> sizes;
+  for (const auto& f : s.polygons.faces) sizes.insert(f.size());
+  EXPECT_EQ(sizes, (std::multiset<size_t>{4, 4, 4, 4, 4, 4, 6, 6}));
+  EXPECT_EQ(s.polygons.vertices.size(), 12u);
+}
+
+TEST(Bsp, TJunctionBoxOnBox) {
+  // big box [0,4]x[0,4]x[0,2], small box [0,1]x[0,1]x[2,3] on its corner (shares the walls x=0, y=0)
+  const Vec3 blo(0, 0, 0), bhi(4, 4, 2), slo(0, 0, 2), shi(1, 1, 3);
+  auto polys = box_faces(blo, bhi, 0);
+  auto small = box_faces(slo, shi, 6);
+  polys.insert(polys.end(), small.begin(), small.end());
+  Bsp bsp(Vec3(-1, -1, -1), Vec3(5, 5, 4), polys, 0);
+  const auto leaves = bsp.leaves();
+  const auto in = label_by(bsp, leaves, [&](const Vec3& p) { return in_box(p, blo, bhi) || in_box(p, slo, shi); });
+  EXPECT_NEAR(sum_inside_volume(bsp, leaves, in), 33.0, 1e-9);
+  const BspSurface s = bsp.extract(leaves, in);
+  expect_good_surface(s, "T-junction");
+  EXPECT_NEAR(mesh_volume(s.triangles), 33.0, 1e-12);
+  // bottom, x=0 (merged L), y=0 (merged L), x=4, y=4, top of big (L), small: x=1, y=1, top
+  EXPECT_EQ(s.merged_regions, 9);
+  EXPECT_EQ(s.labels_flipped, 0);
+
+  // small box in the middle of the top: the big top has a hole
+  const Vec3 mlo(1, 1, 2), mhi(2, 2, 3);
+  auto polys2 = box_faces(blo, bhi, 0);
+  auto mid = box_faces(mlo, mhi, 6);
+  polys2.insert(polys2.end(), mid.begin(), mid.end());
+  Bsp bsp2(Vec3(-1, -1, -1), Vec3(5, 5, 4), polys2, 0);
+  const auto l2 = bsp2.leaves();
+  const auto in2 = label_by(bsp2, l2, [&](const Vec3& p) { return in_box(p, blo, bhi) || in_box(p, mlo, mhi); });
+  const BspSurface s2 = bsp2.extract(l2, in2);
+  expect_good_surface(s2, "T-junction hole");
+  EXPECT_NEAR(mesh_volume(s2.triangles), 33.0, 1e-12);
+  EXPECT_EQ(s2.merged_regions, 11);  // 6 + 5, the top with a hole counts once
+}
+
+TEST(Bsp, WindowCutout) {
+  // a house box with a recessed window cut into the wall y = 0
+  const Vec3 blo(0, 0, 0), bhi(4, 4, 3), wlo(1, 0, 1), whi(2, 0.5, 2);
+  auto polys = box_faces(blo, bhi, 0);
+  polys.push_back(rect(1, 0.5, 1, 2, 1, 2, 6));   // back of the recess: y = 0.5, (z,x)
+  polys.push_back(rect(0, 1, 0, 0.5, 1, 2, 7));   // x = 1, (y,z)
+  polys.push_back(rect(0, 2, 0, 0.5, 1, 2, 8));   // x = 2
+  polys.push_back(rect(2, 1, 1, 2, 0, 0.5, 9));   // z = 1, (x,y)
+  polys.push_back(rect(2, 2, 1, 2, 0, 0.5, 10));  // z = 2
+  Bsp bsp(Vec3(-1, -1, -1), Vec3(5, 5, 4), polys, 0);
+  const auto leaves = bsp.leaves();
+  const auto in = label_by(bsp, leaves, [&](const Vec3& p) { return in_box(p, blo, bhi) && !in_box(p, wlo, whi); });
+  EXPECT_NEAR(sum_inside_volume(bsp, leaves, in), 47.5, 1e-9);
+  const BspSurface s = bsp.extract(leaves, in);
+  expect_good_surface(s, "window");
+  EXPECT_NEAR(mesh_volume(s.triangles), 47.5, 1e-12);
+  EXPECT_EQ(s.merged_regions, 11);  // 6 outer (the wall y=0 with a hole) + 5 recess faces
+  EXPECT_EQ(s.labels_flipped, 0);
+}
+
+TEST(Bsp, DiagonalCubesNonManifoldEdgeRepaired) {
+  const Vec3 alo(0, 0, 0), ahi(1, 1, 1), blo(1, 1, 0), bhi(2, 2, 1);
+  auto polys = box_faces(alo, ahi, 0);
+  auto b = box_faces(blo, bhi, 6);
+  polys.insert(polys.end(), b.begin(), b.end());
+  Bsp bsp(Vec3(-1, -1, -1), Vec3(3, 3, 2), polys, 0);
+  const auto leaves = bsp.leaves();
+  const auto in = label_by(bsp, leaves, [&](const Vec3& p) { return in_box(p, alo, ahi) || in_box(p, blo, bhi); });
+  const BspSurface s = bsp.extract(leaves, in);
+  expect_good_surface(s, "diagonal");
+  EXPECT_EQ(s.labels_flipped, 1);
+  ASSERT_EQ(s.inside.size(), in.size());
+  EXPECT_NEAR(mesh_volume(s.triangles), sum_inside_volume(bsp, leaves, s.inside), 1e-12);
+  EXPECT_GT(mesh_volume(s.triangles), 2.0);
+}
+
+TEST(Bsp, CoplanarDuplicatesMerged) {
+  const Vec3 lo(0, 0, 0), hi(4, 4, 4);
+  std::vector<BspPolygon> one{rect(2, 1.0, 0.5, 2.5, 0.5, 2.5, 0), rect(0, 3.0, 0, 4, 0, 4, 1)};
+  std::vector<BspPolygon> dup = one;
+  BspPolygon d = rect(2, 1.0, 0.0, 3.0, 1.0, 2.0, 2);  // same plane, overlapping
+  d.plane[3] += 1e-13;                                 // within the merge tolerance
+  dup.insert(dup.begin() + 1, d);
+  Bsp a(lo, hi, one, 0), b(lo, hi, dup, 0);
+  EXPECT_EQ(a.planes().size(), 8u);
+  EXPECT_EQ(b.planes().size(), 8u);  // the duplicate plane is merged
+  EXPECT_EQ(a.leaves().size(), b.leaves().size());
+  EXPECT_EQ(a.leaves().size(), 4u);
+  // the duplicate's piece lies on the split plane: consumed, never splits
+  for (const auto& n : b.nodes()) {
+    if (!n.is_leaf()) EXPECT_NE(n.split_primitive, 2);
+  }
+}
+
+namespace {
+
+std::vector<BspPolygon> random_polygons(int n, unsigned seed, double L) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  std::vector<BspPolygon> out;
+  for (int i = 0; i < n; ++i) {
+    if (i % 2 == 0) {
+      const int axis = int(U(rng) * 3) % 3;
+      // snap to a coarse grid so that coplanar / collinear coincidences happen
+      auto g = [&]() { return std::round(U(rng) * 8) / 8 * L; };
+      double a0 = g(), a1 = g(), b0 = g(), b1 = g();
+      if (a0 > a1) std::swap(a0, a1);
+      if (b0 > b1) std::swap(b0, b1);
+      if (a1 - a0 < 0.1 * L) a1 = a0 + 0.25 * L;
+      if (b1 - b0 < 0.1 * L) b1 = b0 + 0.25 * L;
+      out.push_back(rect(axis, g(), a0, a1, b0, b1, i));
+    } else {
+      Vec3 n(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5);
+      if (n.norm() < 1e-3) n = Vec3(1, 1, 1);
+      n.normalize();
+      const Vec3 c(U(rng) * L, U(rng) * L, U(rng) * L);
+      const Vec3 a = n.unitOrthogonal(), b = n.cross(a);
+      const double r = (0.2 + 0.5 * U(rng)) * L;
+      const int k = 3 + int(U(rng) * 5);
+      std::vector<Vec3> pts;
+      for (int j = 0; j < k; ++j) {
+        const double t = 2 * M_PI * j / k + 0.3 * U(rng);
+        pts.push_back(c + r * (std::cos(t) * a + std::sin(t) * b));
+      }
+      BspPolygon p;
+      p.polygon = pts;
+      p.primitive = i;
+      p.plane = {n.x(), n.y(), n.z(), -n.dot(c)};
+      out.push_back(p);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Bsp, RandomStressClosedOrientedVolume) {
+  const double L = 10;
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    const auto polys = random_polygons(50, seed, L);
+    const double t0 = now_s();
+    Bsp bsp(Vec3(0, 0, 0), Vec3(L, L, L), polys, 0);
+    const double t1 = now_s();
+    const auto leaves = bsp.leaves();
+    double total = 0;
+    for (int l : leaves) total += bsp.nodes()[l].volume;
+    EXPECT_NEAR(total, L * L * L, 1e-9 * L * L * L);
+    std::mt19937 rng(seed * 77);
+    std::vector<char> in(leaves.size());
+    // half the seeds: random labels; the others: a blob (more realistic, fewer repairs)
+    for (size_t i = 0; i < leaves.size(); ++i) {
+      const Vec3 c = bsp.nodes()[leaves[i]].center;
+      in[i] = (seed % 2) ? char(rng() % 2) : char((c - Vec3(5, 5, 5)).norm() < 3.5);
+    }
+    const double t2 = now_s();
+    const BspSurface s = bsp.extract(leaves, in);
+    const double t3 = now_s();
+    std::printf("[ stress %u ] %zu leaves in %.1f ms (%.0f leaves/s); extract %zu tris, %d regions, %d flipped in %.1f ms\n",
+                seed, leaves.size(), 1e3 * (t1 - t0), leaves.size() / (t1 - t0), s.triangles.triangles.size(),
+                s.merged_regions, s.labels_flipped, 1e3 * (t3 - t2));
+    expect_good_surface(s, "stress");
+    const double vin = sum_inside_volume(bsp, leaves, s.inside);
+    EXPECT_NEAR(mesh_volume(s.triangles), vin, 1e-6 * std::max(1.0, vin)) << "seed " << seed;
+    // random cut of the tree: some internal nodes
+    if (seed == 2) {
+      std::vector<int> cut;
+      std::function<void(int)> rec = [&](int n) {
+        const auto& N = bsp.nodes()[n];
+        if (N.is_leaf() || N.depth >= 4) {
+          cut.push_back(n);
+          return;
+        }
+        rec(N.children[0]);
+        rec(N.children[1]);
+      };
+      rec(0);
+      std::vector<char> cin;
+      for (int n : cut) cin.push_back((bsp.nodes()[n].center - Vec3(5, 5, 5)).norm() < 4);
+      const BspSurface sc = bsp.extract(cut, cin);
+      expect_good_surface(sc, "cut");
+      EXPECT_NEAR(mesh_volume(sc.triangles), sum_inside_volume(bsp, cut, sc.inside), 1e-6 * L * L * L);
+      double cv = 0;
+      for (int n : cut) cv += bsp.nodes()[n].volume;
+      EXPECT_NEAR(cv, L * L * L, 1e-9 * L * L * L);
+    }
+  }
+}
+
+TEST(Bsp, Deterministic) {
+  const auto polys = random_polygons(40, 11, 10);
+  Bsp a(Vec3(0, 0, 0), Vec3(10, 10, 10), polys, 0), b(Vec3(0, 0, 0), Vec3(10, 10, 10), polys, 0);
+  ASSERT_EQ(a.nodes().size(), b.nodes().size());
+  for (size_t i = 0; i < a.nodes().size(); ++i) {
+    EXPECT_EQ(a.nodes()[i].children, b.nodes()[i].children);
+    EXPECT_EQ(a.nodes()[i].split_plane, b.nodes()[i].split_plane);
+    EXPECT_EQ(a.nodes()[i].volume, b.nodes()[i].volume);
+  }
+  const auto leaves = a.leaves();
+  std::vector<char> in;
+  for (int l : leaves) in.push_back((a.nodes()[l].center - Vec3(5, 5, 5)).norm() < 3);
+  const auto sa = a.extract(leaves, in), sb = b.extract(leaves, in);
+  EXPECT_EQ(sa.triangles.vertices, sb.triangles.vertices);
+  EXPECT_EQ(sa.triangles.triangles, sb.triangles.triangles);
+  EXPECT_EQ(sa.polygons.faces, sb.polygons.faces);
+  const auto ia = a.adjacency(leaves), ib = b.adjacency(leaves);
+  ASSERT_EQ(ia.size(), ib.size());
+  for (size_t i = 0; i < ia.size(); ++i) {
+    EXPECT_EQ(ia[i].a, ib[i].a);
+    EXPECT_EQ(ia[i].b, ib[i].b);
+    EXPECT_EQ(ia[i].area, ib[i].area);
+  }
+}
