@@ -1,0 +1,99 @@
+// Binary glTF (glb) output for 3D Tiles content: per-building triangle meshes
+// with flat normals, roof / wall / base materials, EXT_mesh_features feature
+// ids and an EXT_structural_metadata property table (one row per feature).
+//
+//   io::GlbBuilder b(tile_centre_enu);            // node translation
+//   b.add_feature(meta, mesh_in_scene_enu);       // one building (model) each
+//   io::atomic_write_file(path, b.glb());
+//
+// Coordinates: meshes come in a z-up ENU frame (metres, double). The glb stores
+// float32 positions relative to `origin` (so they stay small), rotated to glTF's
+// y-up axes as (x, z, -y); the node translation puts them back at `origin`, and
+// a 3D Tiles client's y-up -> z-up rotation restores the ENU axes. tinygltf is
+// private to io/src. Output is deterministic: same calls -> same bytes.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "citylod/io/types.hpp"
+
+namespace citylod::io {
+
+enum class LodKind : std::uint8_t { anchor = 0, interpolation = 1 };
+const char* to_string(LodKind k);  ///< "anchor" | "interpolation"
+
+/// One row of the glb's property table (class "building" of schema "citylod").
+/// A feature is one LOD model of one building.
+struct GlbFeature {
+  std::string building_id;
+  LodKind kind = LodKind::anchor;
+  int level = 0;               ///< LOD-Tree level set of the model
+  int step = 0;                ///< traversal step that produced it (report.json)
+  int model_index = 0;         ///< position in the building's kept chain, 0 = coarsest
+  int model_count = 1;         ///< models kept for the building
+  double height_m = 0;         ///< vertical extent of the model
+  double footprint_area_m2 = 0;
+  double error_m = 0;          ///< geometric error: distance to the building's finest model
+};
+
+struct GlbOptions {
+  /// KHR_mesh_quantization: positions as normalized int16 (node scale restores
+  /// metres; step = node extent / 32767), normals as normalized int16.
+  bool quantize = false;
+  std::string generator = "citylod";
+};
+
+/// Surface class of a triangle, from its outward normal: roof (facing up, slope
+/// below ~70 degrees), base (facing down), wall (everything else).
+enum class SurfaceClass : std::uint8_t { wall = 0, roof = 1, base = 2 };
+SurfaceClass classify_normal(const Vec3d& unit_normal);
+
+/// Size of a mesh once flat-shaded the way GlbBuilder stores it.
+struct GlbMeshSize {
+  std::size_t vertices = 0;   ///< after splitting vertices per face normal
+  std::size_t triangles = 0;  ///< non-degenerate triangles
+  std::size_t bytes = 0;      ///< vertex + index data in the BIN chunk (estimate, +-4 B)
+};
+GlbMeshSize glb_mesh_size(const TriangleMesh& mesh, bool quantize = false);
+
+class GlbBuilder {
+ public:
+  /// `origin`: point of the input frame (z-up metres) that becomes the node
+  /// translation; stored positions are relative to it.
+  explicit GlbBuilder(const Vec3d& origin, GlbOptions options = {});
+  ~GlbBuilder();
+  GlbBuilder(GlbBuilder&&) noexcept;
+  GlbBuilder& operator=(GlbBuilder&&) noexcept;
+
+  /// Starts a new glTF node (with its own mesh); features added afterwards go
+  /// into it. Without a call, everything goes into one node named "content".
+  void begin_node(const std::string& name);
+
+  /// Adds one feature (a building's model) to the current node: triangles are
+  /// flat-shaded (vertices split per face normal), degenerate ones dropped.
+  /// Returns its feature id (row in the property table).
+  std::uint32_t add_feature(const GlbFeature& meta, const TriangleMesh& mesh);
+
+  std::size_t feature_count() const;
+  std::size_t triangle_count() const;
+  std::size_t vertex_count() const;
+
+  /// The bounds of the positions as stored (after float32 rounding or
+  /// quantization), back in the input frame: what a client will draw.
+  BBox3 stored_bounds() const;
+
+  /// Serializes to glb bytes. Throws IoError("<glb>: ...") when there is
+  /// nothing to write or tinygltf fails.
+  std::string glb() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace citylod::io

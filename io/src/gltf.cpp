@@ -1,0 +1,450 @@
+// glb writer: flat-shaded per-feature meshes, three materials, EXT_mesh_features
+// and EXT_structural_metadata, optional KHR_mesh_quantization. tinygltf (the
+// Debian library) builds and serializes the glTF; its header stays here.
+#include "citylod/io/gltf.hpp"
+
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <set>
+#include <sstream>
+#include <unordered_map>
+
+#include "citylod/io/error.hpp"
+
+namespace citylod::io {
+
+namespace {
+
+constexpr int kArrayBuffer = 34962;
+constexpr int kElementArrayBuffer = 34963;
+constexpr const char* kWhere = "glb";
+
+/// z-up (ENU) -> glTF y-up: (x, y, z) -> (x, z, -y). A rotation: windings keep.
+inline Vec3d to_yup(const Vec3d& p) { return {p[0], p[2], -p[1]}; }
+inline Vec3d from_yup(const Vec3d& p) { return {p[0], -p[2], p[1]}; }
+
+/// A mesh split into flat-shaded vertices (one per source vertex and face
+/// normal) and one index list per surface class.
+struct FlatMesh {
+  std::vector<Vec3d> positions;
+  std::vector<Vec3f> normals;
+  std::array<std::vector<std::uint32_t>, 3> indices;
+  std::size_t triangles = 0;
+};
+
+struct VertexKey {
+  std::uint32_t vertex;
+  std::int32_t nx, ny, nz;
+  bool operator==(const VertexKey& o) const {
+    return vertex == o.vertex && nx == o.nx && ny == o.ny && nz == o.nz;
+  }
+};
+struct VertexKeyHash {
+  std::size_t operator()(const VertexKey& k) const {
+    std::uint64_t h = k.vertex;
+    h = h * 0x9E3779B97F4A7C15ULL ^ std::uint32_t(k.nx);
+    h = h * 0x9E3779B97F4A7C15ULL ^ std::uint32_t(k.ny);
+    h = h * 0x9E3779B97F4A7C15ULL ^ std::uint32_t(k.nz);
+    return std::size_t(h ^ (h >> 29));
+  }
+};
+
+FlatMesh flat_shade(const TriangleMesh& mesh) {
+  FlatMesh out;
+  std::unordered_map<VertexKey, std::uint32_t, VertexKeyHash> index;
+  index.reserve(mesh.triangles.size() * 2);
+  const std::size_t nv = mesh.vertices.size();
+  for (const auto& t : mesh.triangles) {
+    if (t[0] >= nv || t[1] >= nv || t[2] >= nv)
+      throw IoError(kWhere, "triangle refers to vertex " + std::to_string(std::max({t[0], t[1], t[2]})) + " of " +
+                                std::to_string(nv));
+    const Vec3d& a = mesh.vertices[t[0]];
+    const Vec3d& b = mesh.vertices[t[1]];
+    const Vec3d& c = mesh.vertices[t[2]];
+    const Vec3d u{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const Vec3d v{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    Vec3d n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 1e-10)) continue;  // degenerate (or NaN)
+    for (auto& x : n) x /= len;
+    const int cls = int(classify_normal(n));
+    // Triangles of one planar face share vertices: the normal key is coarse
+    // enough to absorb rounding, the first triangle's normal is kept.
+    const std::int32_t nx = std::int32_t(std::lround(n[0] * 4096)), ny = std::int32_t(std::lround(n[1] * 4096)),
+                       nz = std::int32_t(std::lround(n[2] * 4096));
+    for (int k = 0; k < 3; ++k) {
+      const VertexKey key{t[size_t(k)], nx, ny, nz};
+      auto [it, fresh] = index.emplace(key, std::uint32_t(out.positions.size()));
+      if (fresh) {
+        out.positions.push_back(mesh.vertices[t[size_t(k)]]);
+        out.normals.push_back({float(n[0]), float(n[1]), float(n[2])});
+      }
+      out.indices[size_t(cls)].push_back(it->second);
+    }
+    ++out.triangles;
+  }
+  return out;
+}
+
+std::size_t vertex_bytes(bool quantize) { return quantize ? 8 + 8 + 4 : 12 + 12 + 4; }
+
+struct Material {
+  const char* name;
+  double r, g, b, roughness;
+};
+// Linear-space base colours: light plaster walls, terracotta roofs, grey base.
+constexpr Material kMaterials[3] = {{"wall", 0.80, 0.76, 0.68, 0.9},
+                                    {"roof", 0.45, 0.13, 0.08, 0.8},
+                                    {"base", 0.25, 0.25, 0.25, 1.0}};
+
+using Value = tinygltf::Value;
+Value str(const std::string& s) { return Value(s); }
+Value obj(Value::Object o) { return Value(std::move(o)); }
+
+/// Appends bufferViews to buffer 0, every one 8-byte aligned (required for
+/// property table columns, harmless for the rest).
+struct BinWriter {
+  tinygltf::Model& model;
+  std::vector<unsigned char>& data;
+
+  int view(const void* p, std::size_t n, int target, int stride = 0) {
+    while (data.size() % 8) data.push_back(0);
+    tinygltf::BufferView bv;
+    bv.buffer = 0;
+    bv.byteOffset = data.size();
+    bv.byteLength = n;
+    bv.byteStride = size_t(stride);
+    bv.target = target;
+    const auto* b = static_cast<const unsigned char*>(p);
+    data.insert(data.end(), b, b + n);
+    model.bufferViews.push_back(bv);
+    return int(model.bufferViews.size() - 1);
+  }
+  int accessor(int view, int component, int type, std::size_t count, bool normalized = false,
+               std::vector<double> min = {}, std::vector<double> max = {}) {
+    tinygltf::Accessor a;
+    a.bufferView = view;
+    a.byteOffset = 0;
+    a.componentType = component;
+    a.type = type;
+    a.count = count;
+    a.normalized = normalized;
+    a.minValues = std::move(min);
+    a.maxValues = std::move(max);
+    model.accessors.push_back(a);
+    return int(model.accessors.size() - 1);
+  }
+};
+
+}  // namespace
+
+const char* to_string(LodKind k) { return k == LodKind::anchor ? "anchor" : "interpolation"; }
+
+SurfaceClass classify_normal(const Vec3d& n) {
+  if (n[2] >= 0.34) return SurfaceClass::roof;  // slope below ~70 degrees
+  if (n[2] <= -0.34) return SurfaceClass::base;
+  return SurfaceClass::wall;
+}
+
+GlbMeshSize glb_mesh_size(const TriangleMesh& mesh, bool quantize) {
+  const FlatMesh f = flat_shade(mesh);
+  GlbMeshSize s;
+  s.vertices = f.positions.size();
+  s.triangles = f.triangles;
+  // Indices counted as 4 bytes (uint16 when a node stays below 65536 vertices).
+  s.bytes = s.vertices * vertex_bytes(quantize) + s.triangles * 12;
+  return s;
+}
+
+// ------------------------------------------------------------------ builder
+struct GlbBuilder::Impl {
+  struct Node {
+    std::string name;
+    std::vector<Vec3d> rel;  // z-up, relative to origin
+    std::vector<Vec3f> normals;
+    std::vector<float> feature;
+    std::array<std::vector<std::uint32_t>, 3> indices;
+  };
+  Vec3d origin;
+  GlbOptions opt;
+  std::vector<Node> nodes;
+  std::vector<GlbFeature> features;
+  std::size_t triangles = 0;
+
+  /// Uniform dequantization scale of a node (KHR_mesh_quantization).
+  static double quant_extent(const Node& n) {
+    double e = 0;
+    for (const auto& p : n.rel)
+      for (double x : p) e = std::max(e, std::fabs(x));
+    return e > 1e-3 ? e : 1e-3;
+  }
+  static std::int16_t quant(double x, double extent) {
+    const double q = std::round(x / extent * 32767.0);
+    return std::int16_t(std::clamp(q, -32767.0, 32767.0));
+  }
+};
+
+GlbBuilder::GlbBuilder(const Vec3d& origin, GlbOptions options) : impl_(std::make_unique<Impl>()) {
+  impl_->origin = origin;
+  impl_->opt = std::move(options);
+}
+GlbBuilder::~GlbBuilder() = default;
+GlbBuilder::GlbBuilder(GlbBuilder&&) noexcept = default;
+GlbBuilder& GlbBuilder::operator=(GlbBuilder&&) noexcept = default;
+
+void GlbBuilder::begin_node(const std::string& name) {
+  impl_->nodes.emplace_back();
+  impl_->nodes.back().name = name;
+}
+
+std::uint32_t GlbBuilder::add_feature(const GlbFeature& meta, const TriangleMesh& mesh) {
+  if (impl_->nodes.empty()) begin_node("content");
+  auto& node = impl_->nodes.back();
+  const std::uint32_t fid = std::uint32_t(impl_->features.size());
+  if (fid >= (1u << 24)) throw IoError(kWhere, "more than 2^24 features in one glb (float feature ids)");
+  impl_->features.push_back(meta);
+  const FlatMesh f = flat_shade(mesh);
+  const std::uint32_t base = std::uint32_t(node.rel.size());
+  const Vec3d& o = impl_->origin;
+  for (std::size_t i = 0; i < f.positions.size(); ++i) {
+    const Vec3d& p = f.positions[i];
+    node.rel.push_back({p[0] - o[0], p[1] - o[1], p[2] - o[2]});
+    node.normals.push_back(f.normals[i]);
+    node.feature.push_back(float(fid));
+  }
+  for (int c = 0; c < 3; ++c)
+    for (std::uint32_t i : f.indices[size_t(c)]) node.indices[size_t(c)].push_back(base + i);
+  impl_->triangles += f.triangles;
+  return fid;
+}
+
+std::size_t GlbBuilder::feature_count() const { return impl_->features.size(); }
+std::size_t GlbBuilder::triangle_count() const { return impl_->triangles; }
+std::size_t GlbBuilder::vertex_count() const {
+  std::size_t n = 0;
+  for (const auto& node : impl_->nodes) n += node.rel.size();
+  return n;
+}
+
+BBox3 GlbBuilder::stored_bounds() const {
+  BBox3 b;
+  const Vec3d& o = impl_->origin;
+  for (const auto& node : impl_->nodes) {
+    const double e = Impl::quant_extent(node);
+    for (const auto& p : node.rel) {
+      const Vec3d y = to_yup(p);
+      Vec3d s;
+      for (int k = 0; k < 3; ++k)
+        s[size_t(k)] = impl_->opt.quantize ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e
+                                           : double(float(y[size_t(k)]));
+      const Vec3d z = from_yup(s);
+      b.add(Vec3d{o[0] + z[0], o[1] + z[1], o[2] + z[2]});
+    }
+  }
+  return b;
+}
+
+std::string GlbBuilder::glb() const {
+  const Impl& im = *impl_;
+  if (im.features.empty()) throw IoError(kWhere, "no features to write");
+  const bool q = im.opt.quantize;
+
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = im.opt.generator;
+  model.extensionsUsed = {"EXT_mesh_features", "EXT_structural_metadata"};
+  if (q) {
+    model.extensionsUsed.push_back("KHR_mesh_quantization");
+    model.extensionsRequired.push_back("KHR_mesh_quantization");
+  }
+  std::sort(model.extensionsUsed.begin(), model.extensionsUsed.end());
+
+  for (const auto& m : kMaterials) {
+    tinygltf::Material mat;
+    mat.name = m.name;
+    mat.pbrMetallicRoughness.baseColorFactor = {m.r, m.g, m.b, 1.0};
+    mat.pbrMetallicRoughness.metallicFactor = 0.0;
+    mat.pbrMetallicRoughness.roughnessFactor = m.roughness;
+    model.materials.push_back(mat);
+  }
+
+  model.buffers.emplace_back();
+  std::vector<unsigned char> bin;
+  BinWriter w{model, bin};
+  tinygltf::Scene scene;
+  scene.name = "citylod";
+
+  const Vec3d oy = to_yup(im.origin);
+  for (const auto& node : im.nodes) {
+    tinygltf::Node gn;
+    gn.name = node.name;
+    gn.translation = {oy[0], oy[1], oy[2]};
+    const std::size_t nv = node.rel.size();
+    bool any = false;
+    for (const auto& ix : node.indices) any = any || !ix.empty();
+    if (nv == 0 || !any) {
+      model.nodes.push_back(gn);
+      scene.nodes.push_back(int(model.nodes.size() - 1));
+      continue;
+    }
+    // Vertex attributes.
+    int pos_acc, nrm_acc;
+    if (q) {
+      const double e = Impl::quant_extent(node);
+      gn.scale = {e, e, e};
+      std::vector<std::int16_t> pos(nv * 4, 0), nrm(nv * 4, 0);
+      std::vector<double> mn(3, 32767), mx(3, -32767);
+      for (std::size_t i = 0; i < nv; ++i) {
+        const Vec3d y = to_yup(node.rel[i]);
+        const Vec3d n = to_yup(Vec3d{node.normals[i][0], node.normals[i][1], node.normals[i][2]});
+        for (int k = 0; k < 3; ++k) {
+          const std::int16_t v = Impl::quant(y[size_t(k)], e);
+          pos[i * 4 + size_t(k)] = v;
+          mn[size_t(k)] = std::min(mn[size_t(k)], double(v));
+          mx[size_t(k)] = std::max(mx[size_t(k)], double(v));
+          nrm[i * 4 + size_t(k)] = std::int16_t(std::lround(std::clamp(n[size_t(k)], -1.0, 1.0) * 32767.0));
+        }
+      }
+      const int pv = w.view(pos.data(), pos.size() * 2, kArrayBuffer, 8);
+      pos_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true, mn, mx);
+      const int nvw = w.view(nrm.data(), nrm.size() * 2, kArrayBuffer, 8);
+      nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true);
+    } else {
+      std::vector<float> pos(nv * 3), nrm(nv * 3);
+      std::vector<double> mn(3, std::numeric_limits<double>::infinity()),
+          mx(3, -std::numeric_limits<double>::infinity());
+      for (std::size_t i = 0; i < nv; ++i) {
+        const Vec3d y = to_yup(node.rel[i]);
+        const Vec3f& n = node.normals[i];
+        const float ny[3] = {n[0], n[2], -n[1]};
+        for (int k = 0; k < 3; ++k) {
+          const float v = float(y[size_t(k)]);
+          pos[i * 3 + size_t(k)] = v;
+          mn[size_t(k)] = std::min(mn[size_t(k)], double(v));
+          mx[size_t(k)] = std::max(mx[size_t(k)], double(v));
+          nrm[i * 3 + size_t(k)] = ny[k];
+        }
+      }
+      const int pv = w.view(pos.data(), pos.size() * 4, kArrayBuffer);
+      pos_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv, false, mn, mx);
+      const int nvw = w.view(nrm.data(), nrm.size() * 4, kArrayBuffer);
+      nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+    }
+    const int fv = w.view(node.feature.data(), node.feature.size() * 4, kArrayBuffer);
+    const int fid_acc = w.accessor(fv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+
+    tinygltf::Mesh mesh;
+    mesh.name = node.name;
+    for (int c = 0; c < 3; ++c) {
+      const auto& ix = node.indices[size_t(c)];
+      if (ix.empty()) continue;
+      int iv, ct;
+      if (nv <= 65535) {
+        std::vector<std::uint16_t> s(ix.begin(), ix.end());
+        iv = w.view(s.data(), s.size() * 2, kElementArrayBuffer);
+        ct = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+      } else {
+        iv = w.view(ix.data(), ix.size() * 4, kElementArrayBuffer);
+        ct = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+      }
+      tinygltf::Primitive prim;
+      prim.mode = TINYGLTF_MODE_TRIANGLES;
+      prim.material = c;
+      prim.indices = w.accessor(iv, ct, TINYGLTF_TYPE_SCALAR, ix.size());
+      prim.attributes["POSITION"] = pos_acc;
+      prim.attributes["NORMAL"] = nrm_acc;
+      prim.attributes["_FEATURE_ID_0"] = fid_acc;
+      std::set<float> distinct;
+      for (std::uint32_t i : ix) distinct.insert(node.feature[i]);
+      Value::Object fid{{"featureCount", Value(int(distinct.size()))},
+                        {"attribute", Value(0)},
+                        {"propertyTable", Value(0)}};
+      prim.extensions["EXT_mesh_features"] =
+          obj({{"featureIds", Value(Value::Array{obj(std::move(fid))})}});
+      mesh.primitives.push_back(prim);
+    }
+    model.meshes.push_back(mesh);
+    gn.mesh = int(model.meshes.size() - 1);
+    model.nodes.push_back(gn);
+    scene.nodes.push_back(int(model.nodes.size() - 1));
+  }
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+
+  // ---- EXT_structural_metadata: schema + one property table.
+  const std::size_t n = im.features.size();
+  std::string ids;
+  std::vector<std::uint32_t> offsets{0};
+  std::vector<std::uint8_t> kind;
+  std::vector<std::int32_t> level, step, index, count;
+  std::vector<float> height, area, error;
+  for (const auto& f : im.features) {
+    ids += f.building_id;
+    offsets.push_back(std::uint32_t(ids.size()));
+    kind.push_back(std::uint8_t(f.kind));
+    level.push_back(f.level);
+    step.push_back(f.step);
+    index.push_back(f.model_index);
+    count.push_back(f.model_count);
+    height.push_back(float(f.height_m));
+    area.push_back(float(f.footprint_area_m2));
+    error.push_back(float(f.error_m));
+  }
+  if (ids.empty()) ids.push_back('\0');  // a bufferView needs byteLength >= 1
+  Value::Object props;
+  auto column = [&](const char* name, const void* p, std::size_t bytes) {
+    props[name] = obj({{"values", Value(w.view(p, bytes, 0))}});
+  };
+  props["building_id"] = obj({{"values", Value(w.view(ids.data(), ids.size(), 0))},
+                              {"stringOffsets", Value(w.view(offsets.data(), offsets.size() * 4, 0))},
+                              {"stringOffsetType", str("UINT32")}});
+  column("lod_kind", kind.data(), n);
+  column("level", level.data(), n * 4);
+  column("step", step.data(), n * 4);
+  column("model_index", index.data(), n * 4);
+  column("model_count", count.data(), n * 4);
+  column("height", height.data(), n * 4);
+  column("footprint_area", area.data(), n * 4);
+  column("geometric_error", error.data(), n * 4);
+
+  auto prop = [](const char* type, const char* component, const char* description) {
+    Value::Object o{{"type", str(type)}, {"description", str(description)}};
+    if (component) o["componentType"] = str(component);
+    return obj(std::move(o));
+  };
+  Value::Object class_props{
+      {"building_id", prop("STRING", nullptr, "building (chunk) id of the work directory")},
+      {"lod_kind", obj({{"type", str("ENUM")},
+                        {"enumType", str("LodKind")},
+                        {"description", str("anchor or interpolation model of the LOD-Tree")}})},
+      {"level", prop("SCALAR", "INT32", "LOD-Tree level set of the model")},
+      {"step", prop("SCALAR", "INT32", "traversal step that produced the model")},
+      {"model_index", prop("SCALAR", "INT32", "index in the building's kept models, 0 = coarsest")},
+      {"model_count", prop("SCALAR", "INT32", "number of kept models of the building")},
+      {"height", prop("SCALAR", "FLOAT32", "vertical extent of the model, metres")},
+      {"footprint_area", prop("SCALAR", "FLOAT32", "footprint area of the building, square metres")},
+      {"geometric_error", prop("SCALAR", "FLOAT32", "distance to the finest model, metres")},
+  };
+  Value::Array enum_values{obj({{"name", str("anchor")}, {"value", Value(0)}}),
+                           obj({{"name", str("interpolation")}, {"value", Value(1)}})};
+  Value::Object schema{
+      {"id", str("citylod")},
+      {"classes", obj({{"building", obj({{"name", str("Building LOD model")}, {"properties", obj(class_props)}})}})},
+      {"enums", obj({{"LodKind", obj({{"valueType", str("UINT8")}, {"values", Value(enum_values)}})}})}};
+  Value::Object table{{"class", str("building")}, {"count", Value(int(n))}, {"properties", obj(props)}};
+  model.extensions["EXT_structural_metadata"] =
+      obj({{"schema", obj(schema)}, {"propertyTables", Value(Value::Array{obj(table)})}});
+
+  while (bin.size() % 4) bin.push_back(0);
+  model.buffers[0].data = std::move(bin);
+
+  tinygltf::TinyGLTF writer;
+  std::ostringstream os;
+  if (!writer.WriteGltfSceneToStream(&model, os, false, true)) throw IoError(kWhere, "tinygltf could not serialize");
+  return os.str();
+}
+
+}  // namespace citylod::io
