@@ -1,0 +1,110 @@
+#include "citylod/lod/lod.hpp"
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <stdexcept>
+
+using namespace citylod::lod;
+
+TEST(LodParams, DefaultsAreThePapers) {
+  const LodParams p;
+  EXPECT_DOUBLE_EQ(p.planes.epsilon, 0.15);
+  EXPECT_DOUBLE_EQ(p.planes.max_angle_deg, 40.0);
+  EXPECT_EQ(p.planes.min_region_size, 15);
+  EXPECT_DOUBLE_EQ(p.alpha.alpha, 7.0);
+  EXPECT_DOUBLE_EQ(p.cluster.area_bandwidth, 2.0);
+  EXPECT_DOUBLE_EQ(p.cluster.volume_bandwidth, 4.0);
+  EXPECT_DOUBLE_EQ(p.regularization.principal_angle_deg, 5.0);
+  EXPECT_DOUBLE_EQ(p.regularization.principal_distance, 0.01);
+  EXPECT_DOUBLE_EQ(p.regularization.secondary_angle_deg, 15.0);
+  EXPECT_DOUBLE_EQ(p.regularization.secondary_distance, 0.01);
+  EXPECT_DOUBLE_EQ(p.regularization.vertical_host_deg, 5.0);
+  EXPECT_EQ(p.tree.merge_k, 10);
+  EXPECT_DOUBLE_EQ(p.tree.label_volume_ratio, 0.65);
+  EXPECT_DOUBLE_EQ(p.tree.interpolation_ratio, 0.80);
+  EXPECT_EQ(p.labels.rays_per_cell, 100);
+  EXPECT_NO_THROW(p.validate());
+}
+
+TEST(LodParams, SetByDottedName) {
+  LodParams p;
+  p.set("planes.epsilon", "0.2");
+  p.set("alpha.alpha", "3.5");
+  p.set("tree.merge_k", "4");
+  p.set("tree.interpolation_ratio", "0.9");
+  p.set("labels.rays_per_cell", "50");
+  p.set("regularization.enabled", "false");
+  p.set("closure.enabled", "0");
+  p.set("threads", "3");
+  EXPECT_DOUBLE_EQ(p.planes.epsilon, 0.2);
+  EXPECT_DOUBLE_EQ(p.alpha.alpha, 3.5);
+  EXPECT_EQ(p.tree.merge_k, 4);
+  EXPECT_DOUBLE_EQ(p.tree.interpolation_ratio, 0.9);
+  EXPECT_EQ(p.labels.rays_per_cell, 50);
+  EXPECT_FALSE(p.regularization.enabled);
+  EXPECT_FALSE(p.closure.enabled);
+  EXPECT_EQ(p.threads, 3);
+  EXPECT_NO_THROW(p.validate());
+}
+
+TEST(LodParams, SetRejectsUnknownAndMalformed) {
+  LodParams p;
+  EXPECT_THROW(p.set("planes.epsilonx", "1"), std::invalid_argument);
+  EXPECT_THROW(p.set("epsilon", "1"), std::invalid_argument);
+  EXPECT_THROW(p.set("planes.epsilon", "abc"), std::invalid_argument);
+  EXPECT_THROW(p.set("planes.epsilon", "1.0x"), std::invalid_argument);
+  EXPECT_THROW(p.set("tree.merge_k", "2.5"), std::invalid_argument);
+  EXPECT_THROW(p.set("regularization.enabled", "maybe"), std::invalid_argument);
+  EXPECT_DOUBLE_EQ(p.planes.epsilon, 0.15);
+}
+
+TEST(LodParams, ValidateNamesTheParameter) {
+  auto expect_bad = [](const char* name, const char* value) {
+    LodParams p;
+    p.set(name, value);
+    try {
+      p.validate();
+      ADD_FAILURE() << name << "=" << value << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  };
+  expect_bad("planes.epsilon", "0");
+  expect_bad("planes.epsilon", "-1");
+  expect_bad("planes.max_angle_deg", "0");
+  expect_bad("planes.max_angle_deg", "91");
+  expect_bad("planes.min_region_size", "2");
+  expect_bad("alpha.alpha", "0");
+  expect_bad("tree.interpolation_ratio", "1.5");
+  expect_bad("tree.label_volume_ratio", "0");
+  expect_bad("labels.rays_per_cell", "0");
+  expect_bad("tree.merge_k", "0");
+  expect_bad("regularization.principal_angle_deg", "100");
+  expect_bad("closure.outline_alpha", "-2");
+}
+
+TEST(LodParams, ItemsRoundTrip) {
+  LodParams p;
+  const auto items = p.items();
+  std::set<std::string> names;
+  for (const auto& kv : items) EXPECT_TRUE(names.insert(kv.first).second) << "duplicate " << kv.first;
+  for (const char* n : {"planes.epsilon", "alpha.alpha", "tree.merge_k", "tree.interpolation_ratio",
+                        "labels.rays_per_cell", "regularization.enabled", "threads", "closure.outline_alpha",
+                        "metrics.samples", "bsp.max_cells", "budget.time_budget_s", "normals.k_neighbors"})
+    EXPECT_TRUE(names.count(n)) << n;
+  EXPECT_EQ(items.size(), 30u);
+  // Every listed item can be set back to its listed value, unchanged.
+  LodParams q;
+  q.set("planes.epsilon", "0.3");
+  for (const auto& kv : items) q.set(kv.first, kv.second);
+  EXPECT_EQ(q.items(), items);
+  EXPECT_EQ(items.front().first, "normals.k_neighbors");
+  EXPECT_EQ(items.back().first, "threads");
+}
+
+TEST(LodParams, ModelKindNames) {
+  EXPECT_STREQ(to_string(ModelKind::Anchor), "anchor");
+  EXPECT_STREQ(to_string(ModelKind::Interpolation), "interpolation");
+  EXPECT_STREQ(to_string(ModelKind::Fallback), "fallback");
+}
