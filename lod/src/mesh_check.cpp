@@ -1,0 +1,175 @@
+// check_mesh (exact edge incidence + self-intersections) and mesh_volume.
+#include "citylod/lod/lod.hpp"
+
+#include <Eigen/Geometry>
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/box_intersection_d.h>
+#include <CGAL/intersections.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <unordered_map>
+
+namespace citylod::lod {
+
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using P3 = K::Point_3;
+
+std::uint64_t key(int a, int b) {
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+}
+
+bool degenerate_tri(const TriangleMesh& m, const std::array<int, 3>& t) {
+  if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) return true;
+  const P3 a(m.vertices[t[0]].x(), m.vertices[t[0]].y(), m.vertices[t[0]].z());
+  const P3 b(m.vertices[t[1]].x(), m.vertices[t[1]].y(), m.vertices[t[1]].z());
+  const P3 c(m.vertices[t[2]].x(), m.vertices[t[2]].y(), m.vertices[t[2]].z());
+  return CGAL::collinear(a, b, c);
+}
+
+/// Do two triangles of the soup intersect other than along what they share?
+/// Mirrors the case analysis of PMP::self_intersections (shared edge / vertex).
+bool tri_pair_intersect(const std::vector<P3>& pts, const std::array<int, 3>& t1, const std::array<int, 3>& t2) {
+  int shared = 0, i1[3], i2[3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (t1[i] == t2[j]) { i1[shared] = i; i2[shared] = j; ++shared; }
+  const K::Triangle_3 T1(pts[t1[0]], pts[t1[1]], pts[t1[2]]);
+  const K::Triangle_3 T2(pts[t2[0]], pts[t2[1]], pts[t2[2]]);
+  if (shared == 0) return CGAL::do_intersect(T1, T2);
+  if (shared >= 3) return true;  // duplicate triangle
+  if (shared == 2) {
+    // Shared edge: intersect iff coplanar and the opposite vertices on the same side.
+    const int o1 = 3 - i1[0] - i1[1], o2 = 3 - i2[0] - i2[1];
+    const P3& p = pts[t1[i1[0]]];
+    const P3& q = pts[t1[i1[1]]];
+    const P3& r = pts[t1[o1]];
+    const P3& s = pts[t2[o2]];
+    if (CGAL::orientation(p, q, r, s) != CGAL::COPLANAR) return false;
+    return CGAL::coplanar_orientation(p, q, r, s) == CGAL::POSITIVE;
+  }
+  // Shared vertex: the opposite edge of one must not meet the other triangle.
+  const int a = i1[0], b = i2[0];
+  const K::Segment_3 e1(pts[t1[(a + 1) % 3]], pts[t1[(a + 2) % 3]]);
+  const K::Segment_3 e2(pts[t2[(b + 1) % 3]], pts[t2[(b + 2) % 3]]);
+  if (CGAL::do_intersect(e1, T2) || CGAL::do_intersect(e2, T1)) return true;
+  // Coplanar overlap around the shared vertex (both triangles on the same side).
+  const P3& v = pts[t1[a]];
+  if (CGAL::orientation(pts[t1[0]], pts[t1[1]], pts[t1[2]], pts[t2[(b + 1) % 3]]) == CGAL::COPLANAR &&
+      CGAL::orientation(pts[t1[0]], pts[t1[1]], pts[t1[2]], pts[t2[(b + 2) % 3]]) == CGAL::COPLANAR) {
+    // Sample a point slightly inside T2 near v and test containment in T1 (coplanar case).
+    const K::Vector_3 d = ((pts[t2[(b + 1) % 3]] - v) + (pts[t2[(b + 2) % 3]] - v)) * 1e-6;
+    if (T1.has_on(v + d)) return true;
+    const K::Vector_3 d1 = ((pts[t1[(a + 1) % 3]] - v) + (pts[t1[(a + 2) % 3]] - v)) * 1e-6;
+    if (T2.has_on(v + d1)) return true;
+  }
+  return false;
+}
+
+bool soup_self_intersects(const std::vector<P3>& pts, const std::vector<std::array<int, 3>>& tris) {
+  using Box = CGAL::Box_intersection_d::Box_with_handle_d<double, 3, std::size_t,
+                                                          CGAL::Box_intersection_d::ID_EXPLICIT>;
+  std::vector<Box> boxes;
+  boxes.reserve(tris.size());
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    const auto& t = tris[i];
+    const auto bb = pts[t[0]].bbox() + pts[t[1]].bbox() + pts[t[2]].bbox();
+    boxes.emplace_back(bb, i);
+  }
+  bool found = false;
+  struct Stop {};
+  auto cb = [&](const Box& a, const Box& b) {
+    if (tri_pair_intersect(pts, tris[a.handle()], tris[b.handle()])) {
+      found = true;
+      throw Stop();
+    }
+  };
+  try {
+    CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), cb);
+  } catch (const Stop&) {
+  }
+  return found;
+}
+
+}  // namespace
+
+MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
+  MeshCheck r;
+  // Undirected edge -> (count, directed balance per direction).
+  struct E { int count = 0; int ab = 0; int ba = 0; };
+  std::unordered_map<std::uint64_t, E> edges;
+  edges.reserve(mesh.triangles.size() * 2);
+  const int nv = static_cast<int>(mesh.vertices.size());
+  bool bad_index = false;
+  for (const auto& t : mesh.triangles) {
+    for (int i = 0; i < 3; ++i) {
+      int a = t[i], b = t[(i + 1) % 3];
+      if (a < 0 || b < 0 || a >= nv || b >= nv || a == b) { bad_index = true; continue; }
+      const bool fwd = a < b;
+      E& e = edges[fwd ? key(a, b) : key(b, a)];
+      ++e.count;
+      (fwd ? e.ab : e.ba)++;
+    }
+  }
+  bool oriented = !bad_index;
+  for (const auto& kv : edges) {
+    const E& e = kv.second;
+    if (e.count == 1) ++r.boundary_edges;
+    if (e.count > 2) ++r.nonmanifold_edges;
+    if (!(e.ab == 1 && e.ba == 1)) oriented = false;
+  }
+  r.closed = !bad_index && !mesh.triangles.empty() && r.boundary_edges == 0 && r.nonmanifold_edges == 0;
+  r.edge_manifold = !bad_index && r.nonmanifold_edges == 0;
+  r.oriented = oriented && !mesh.triangles.empty();
+  if (!test_self_intersections) return r;
+
+  std::vector<P3> pts;
+  pts.reserve(mesh.vertices.size());
+  for (const auto& v : mesh.vertices) pts.emplace_back(v.x(), v.y(), v.z());
+  std::vector<std::array<int, 3>> tris;
+  tris.reserve(mesh.triangles.size());
+  bool degenerate = bad_index;
+  for (const auto& t : mesh.triangles) {
+    if (t[0] < 0 || t[1] < 0 || t[2] < 0 || t[0] >= nv || t[1] >= nv || t[2] >= nv) continue;
+    if (degenerate_tri(mesh, t)) { degenerate = true; continue; }
+    tris.push_back(t);
+  }
+  // Degenerate triangles count as a defect of the surface ("self-intersecting").
+  if (degenerate) { r.self_intersecting = true; return r; }
+
+  // Valid polygon mesh -> PMP::does_self_intersect on a Surface_mesh; else our soup check.
+  std::vector<std::vector<std::size_t>> polys;
+  polys.reserve(tris.size());
+  for (const auto& t : tris) polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
+  namespace PMP = CGAL::Polygon_mesh_processing;
+  if (r.edge_manifold && r.oriented && PMP::is_polygon_soup_a_polygon_mesh(polys)) {
+    CGAL::Surface_mesh<P3> sm;
+    PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);
+    r.self_intersecting = PMP::does_self_intersect<CGAL::Sequential_tag>(sm);
+  } else {
+    r.self_intersecting = soup_self_intersects(pts, tris);
+  }
+  return r;
+}
+
+double mesh_volume(const TriangleMesh& mesh) {
+  double v = 0.0;
+  const int nv = static_cast<int>(mesh.vertices.size());
+  for (const auto& t : mesh.triangles) {
+    if (t[0] < 0 || t[1] < 0 || t[2] < 0 || t[0] >= nv || t[1] >= nv || t[2] >= nv) continue;
+    const Vec3& a = mesh.vertices[t[0]];
+    const Vec3& b = mesh.vertices[t[1]];
+    const Vec3& c = mesh.vertices[t[2]];
+    v += a.dot(b.cross(c));
+  }
+  return v / 6.0;
+}
+
+}  // namespace citylod::lod
