@@ -1,0 +1,284 @@
+// Closure of airborne LiDAR buildings: ground plane + vertical walls through the
+// (simplified) outline when the samples have (almost) no walls.
+#include "primitives.hpp"
+
+#include <CGAL/Constrained_Delaunay_triangulation_2.h>
+#include <CGAL/Delaunay_triangulation_2.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_vertex_base_with_info_2.h>
+#include <CGAL/convex_hull_2.h>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+namespace citylod::lod::detail {
+
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using P2 = K::Point_2;
+
+double signed_area(const std::vector<Vec2>& poly) {
+  double a = 0;
+  for (std::size_t i = 0; i < poly.size(); ++i) {
+    const Vec2& p = poly[i];
+    const Vec2& q = poly[(i + 1) % poly.size()];
+    a += p.x() * q.y() - q.x() * p.y();
+  }
+  return 0.5 * a;
+}
+
+double seg_dist(const Vec2& p, const Vec2& a, const Vec2& b) {
+  const Vec2 ab = b - a;
+  const double l2 = ab.squaredNorm();
+  double t = l2 > 0 ? (p - a).dot(ab) / l2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  return (p - (a + t * ab)).norm();
+}
+
+/// Largest outer boundary loop (CCW) of the 2D alpha-shape of the points.
+std::vector<Vec2> alpha_outline(const std::vector<Vec2>& xy, double alpha) {
+  // Faces of a REGULARIZED alpha-shape for squared alpha a^2 = Delaunay faces with
+  // circumradius^2 <= a^2 (computed directly: Alpha_shape_2 builds the whole
+  // spectrum first, ~10x slower).
+  using Vb = CGAL::Triangulation_vertex_base_with_info_2<int, K>;
+  using Tds = CGAL::Triangulation_data_structure_2<Vb>;
+  using Dt = CGAL::Delaunay_triangulation_2<K, Tds>;
+  std::vector<P2> pts;
+  pts.reserve(xy.size());
+  for (const auto& p : xy) pts.emplace_back(p.x(), p.y());
+  Dt dt(pts.begin(), pts.end());
+  if (dt.dimension() != 2) return {};
+  const double a2 = alpha * alpha;
+  int id = 0;
+  for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v) v->info() = id++;
+  std::vector<Vec2> vpos(id);
+  for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
+    vpos[v->info()] = Vec2(v->point().x(), v->point().y());
+  auto interior = [&](Dt::Face_handle f) {
+    return !dt.is_infinite(f) &&
+           CGAL::squared_radius(f->vertex(0)->point(), f->vertex(1)->point(), f->vertex(2)->point()) <= a2;
+  };
+  // Boundary half-edges of the interior region, interior on the left.
+  std::multimap<int, int> next;  // from -> to
+  for (auto f = dt.finite_faces_begin(); f != dt.finite_faces_end(); ++f) {
+    if (!interior(f)) continue;
+    for (int i = 0; i < 3; ++i) {
+      if (interior(f->neighbor(i))) continue;
+      next.emplace(f->vertex(Dt::ccw(i))->info(), f->vertex(Dt::cw(i))->info());
+    }
+  }
+  std::vector<Vec2> best;
+  double best_area = 0;
+  while (!next.empty()) {
+    auto it = next.begin();
+    const int start = it->first;
+    std::vector<int> loop{start};
+    int cur = it->second;
+    next.erase(it);
+    int guard = 0;
+    while (cur != start && guard++ < 10000000) {
+      loop.push_back(cur);
+      auto jt = next.find(cur);
+      if (jt == next.end()) break;
+      cur = jt->second;
+      next.erase(jt);
+    }
+    if (cur != start || loop.size() < 3) continue;
+    std::vector<Vec2> poly;
+    for (int v : loop) poly.push_back(vpos[v]);
+    const double a = signed_area(poly);
+    if (a > best_area) { best_area = a; best = std::move(poly); }
+  }
+  return best;
+}
+
+void dp_rec(const std::vector<Vec2>& p, std::size_t i, std::size_t j, double tol, std::vector<char>& keep) {
+  if (j <= i + 1) return;
+  double dmax = -1;
+  std::size_t k = i;
+  for (std::size_t m = i + 1; m < j; ++m) {
+    const double d = seg_dist(p[m], p[i], p[j]);
+    if (d > dmax) { dmax = d; k = m; }
+  }
+  if (dmax > tol) {
+    keep[k] = 1;
+    dp_rec(p, i, k, tol, keep);
+    dp_rec(p, k, j, tol, keep);
+  }
+}
+
+/// Douglas-Peucker on a closed polygon, then merge of nearly collinear edges.
+std::vector<Vec2> simplify_closed(std::vector<Vec2> poly, double tol, double angle_deg) {
+  const std::size_t n = poly.size();
+  if (n <= 4) return poly;
+  // Split at vertex 0 and the vertex farthest from it.
+  std::size_t far = 0;
+  double dmax = -1;
+  for (std::size_t i = 1; i < n; ++i) {
+    const double d = (poly[i] - poly[0]).squaredNorm();
+    if (d > dmax) { dmax = d; far = i; }
+  }
+  std::vector<Vec2> ext(poly);
+  ext.push_back(poly[0]);
+  std::vector<char> keep(ext.size(), 0);
+  keep[0] = keep[far] = keep[n] = 1;
+  dp_rec(ext, 0, far, tol, keep);
+  dp_rec(ext, far, n, tol, keep);
+  std::vector<Vec2> out;
+  for (std::size_t i = 0; i < n; ++i)
+    if (keep[i]) out.push_back(poly[i]);
+  // Merge nearly collinear consecutive edges and drop very short ones.
+  const double ca = std::cos(angle_deg * M_PI / 180.0);
+  bool changed = true;
+  while (changed && out.size() > 3) {
+    changed = false;
+    for (std::size_t i = 0; i < out.size() && out.size() > 3; ++i) {
+      const Vec2& a = out[(i + out.size() - 1) % out.size()];
+      const Vec2& b = out[i];
+      const Vec2& c = out[(i + 1) % out.size()];
+      const Vec2 e1 = b - a, e2 = c - b;
+      const double l1 = e1.norm(), l2 = e2.norm();
+      const bool tiny = l1 < 1e-6 || l2 < 1e-6;
+      if (tiny || e1.dot(e2) / (l1 * l2) > ca || seg_dist(b, a, c) < 0.5 * tol) {
+        out.erase(out.begin() + i);
+        changed = true;
+        break;
+      }
+    }
+  }
+  if (signed_area(out) <= 0) return poly;
+  return out;
+}
+
+bool point_in_poly(const Vec2& p, const std::vector<Vec2>& poly) {
+  bool in = false;
+  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const Vec2& a = poly[i];
+    const Vec2& b = poly[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
+      in = !in;
+  }
+  return in;
+}
+
+/// Triangles (CCW in xy) of a simple polygon, by a constrained Delaunay triangulation.
+std::vector<std::array<Vec2, 3>> triangulate(const std::vector<Vec2>& poly) {
+  using CDT = CGAL::Constrained_Delaunay_triangulation_2<K>;
+  CDT cdt;
+  for (std::size_t i = 0; i < poly.size(); ++i) {
+    const Vec2& a = poly[i];
+    const Vec2& b = poly[(i + 1) % poly.size()];
+    cdt.insert_constraint(P2(a.x(), a.y()), P2(b.x(), b.y()));
+  }
+  std::vector<std::array<Vec2, 3>> out;
+  for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+    const P2 &a = f->vertex(0)->point(), &b = f->vertex(1)->point(), &c = f->vertex(2)->point();
+    const Vec2 g((a.x() + b.x() + c.x()) / 3, (a.y() + b.y() + c.y()) / 3);
+    if (!point_in_poly(g, poly)) continue;
+    out.push_back({Vec2(a.x(), a.y()), Vec2(b.x(), b.y()), Vec2(c.x(), c.y())});
+  }
+  return out;
+}
+
+}  // namespace
+
+int close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                   std::vector<Primitive>& prims) {
+  if (!p.enabled || s.points.size() < 3) return 0;
+  double wall_w = 0, total_w = 0;
+  double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    const double w = s.weights.empty() ? 1.0 : s.weights[i];
+    total_w += w;
+    if (std::abs(s.normals[i].z()) < 0.3) wall_w += w;
+    zmin = std::min(zmin, s.points[i].z());
+    zmax = std::max(zmax, s.points[i].z());
+  }
+  if (total_w <= 0 || wall_w / total_w >= p.wall_fraction_min) return 0;
+
+  // Outline (CCW in xy).
+  std::vector<Vec2> outline;
+  if (in.footprint.size() >= 3) {
+    outline = in.footprint;
+    // Drop a closing duplicate vertex.
+    if ((outline.front() - outline.back()).norm() < 1e-9) outline.pop_back();
+    if (signed_area(outline) < 0) std::reverse(outline.begin(), outline.end());
+  } else {
+    std::vector<Vec2> xy;
+    xy.reserve(s.points.size());
+    for (const auto& q : s.points) xy.emplace_back(q.x(), q.y());
+    outline = alpha_outline(xy, p.outline_alpha);
+    if (outline.size() >= 3) outline = simplify_closed(outline, 0.4, 10.0);
+  }
+  if (outline.size() < 3 || !(signed_area(outline) > 0)) return 0;
+
+  const double gz = in.has_ground_z ? in.ground_z : zmin;
+  int added = 0;
+
+  // Ground: normal -z (outward = down); CCW about -z = CW in xy.
+  {
+    Primitive g;
+    g.inferred = true;
+    g.normal = -Vec3::UnitZ();
+    g.d = gz;  // -z + gz = 0  <=> z = gz
+    g.u = Vec3::UnitX();
+    g.v = g.normal.cross(g.u);
+    std::vector<P2> pts, hull;
+    for (const auto& q : outline) pts.emplace_back(q.x(), q.y());
+    CGAL::convex_hull_2(pts.begin(), pts.end(), std::back_inserter(hull));
+    for (auto it = hull.rbegin(); it != hull.rend(); ++it) g.hull.emplace_back(it->x(), it->y(), gz);
+    double ha = 0;
+    for (std::size_t i = 0; i < hull.size(); ++i) {
+      const P2& a = hull[i];
+      const P2& b = hull[(i + 1) % hull.size()];
+      ha += a.x() * b.y() - b.x() * a.y();
+    }
+    g.hull_area = 0.5 * ha;
+    for (const auto& t : triangulate(outline)) {
+      g.alpha_tris.push_back({Vec3(t[0].x(), t[0].y(), gz), Vec3(t[2].x(), t[2].y(), gz), Vec3(t[1].x(), t[1].y(), gz)});
+      g.alpha_area += 0.5 * std::abs((t[1] - t[0]).x() * (t[2] - t[0]).y() - (t[2] - t[0]).x() * (t[1] - t[0]).y());
+    }
+    Vec2 c = Vec2::Zero();
+    for (const auto& q : outline) c += q;
+    c /= double(outline.size());
+    g.centroid = Vec3(c.x(), c.y(), gz);
+    prims.push_back(std::move(g));
+    ++added;
+  }
+
+  // Walls: one per outline edge, outward = right of the CCW edge direction.
+  for (std::size_t i = 0; i < outline.size(); ++i) {
+    const Vec2& a = outline[i];
+    const Vec2& b = outline[(i + 1) % outline.size()];
+    const Vec2 e = b - a;
+    const double len = e.norm();
+    if (len < 1e-6) continue;
+    double top = -std::numeric_limits<double>::infinity();
+    for (const auto& q : s.points)
+      if (seg_dist(Vec2(q.x(), q.y()), a, b) <= 1.0) top = std::max(top, q.z());
+    if (!std::isfinite(top)) top = zmax;
+    top = std::max(top, gz + 1.0);
+    Primitive w;
+    w.inferred = true;
+    w.normal = Vec3(e.y() / len, -e.x() / len, 0.0);
+    w.d = -(w.normal.x() * a.x() + w.normal.y() * a.y());
+    w.u = Vec3::UnitZ().cross(w.normal).normalized();  // = edge direction
+    w.v = w.normal.cross(w.u);                          // = +z
+    // CCW about the outward normal: a, b at the bottom, then b, a at the top.
+    const Vec3 A0(a.x(), a.y(), gz), B0(b.x(), b.y(), gz), A1(a.x(), a.y(), top), B1(b.x(), b.y(), top);
+    w.hull = {A0, B0, B1, A1};
+    w.alpha_tris = {{A0, B0, B1}, {A0, B1, A1}};
+    w.hull_area = w.alpha_area = len * (top - gz);
+    w.centroid = 0.25 * (A0 + B0 + A1 + B1);
+    prims.push_back(std::move(w));
+    ++added;
+  }
+  return added;
+}
+
+}  // namespace citylod::lod::detail

@@ -1,0 +1,127 @@
+// e1 / e2 RMSE and Hausdorff estimate between a model and the input surface.
+#include "primitives.hpp"
+
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Orthogonal_k_neighbor_search.h>
+#include <CGAL/Search_traits_3.h>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+
+namespace citylod::lod::detail {
+
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using P3 = K::Point_3;
+using Tri = K::Triangle_3;
+using TriVec = std::vector<Tri>;
+using Prim = CGAL::AABB_triangle_primitive<K, TriVec::const_iterator>;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Prim>>;
+
+inline P3 toP(const Vec3& v) { return P3(v.x(), v.y(), v.z()); }
+
+TriVec triangles_of(const std::vector<Vec3>& v, const std::vector<std::array<int, 3>>& t) {
+  TriVec out;
+  out.reserve(t.size());
+  const int n = static_cast<int>(v.size());
+  for (const auto& tr : t) {
+    if (tr[0] < 0 || tr[1] < 0 || tr[2] < 0 || tr[0] >= n || tr[1] >= n || tr[2] >= n) continue;
+    Tri T(toP(v[tr[0]]), toP(v[tr[1]]), toP(v[tr[2]]));
+    if (T.is_degenerate()) continue;
+    out.push_back(T);
+  }
+  return out;
+}
+
+/// Area-uniform deterministic samples: stratified positions along the cumulative
+/// area, barycentric coordinates from the R2 low-discrepancy sequence.
+std::vector<P3> sample_triangles(const TriVec& tris, int n) {
+  std::vector<P3> out;
+  if (tris.empty() || n <= 0) return out;
+  std::vector<double> cum(tris.size());
+  double acc = 0;
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    acc += std::sqrt(tris[i].squared_area());
+    cum[i] = acc;
+  }
+  if (!(acc > 0)) return out;
+  out.reserve(n);
+  const double g = 1.32471795724474602596;  // plastic number
+  const double a1 = 1.0 / g, a2 = 1.0 / (g * g);
+  for (int k = 0; k < n; ++k) {
+    const double t = (k + 0.5) / n * acc;
+    std::size_t i = std::lower_bound(cum.begin(), cum.end(), t) - cum.begin();
+    if (i >= tris.size()) i = tris.size() - 1;
+    double r1 = std::fmod(0.5 + a1 * (k + 1), 1.0), r2 = std::fmod(0.5 + a2 * (k + 1), 1.0);
+    if (r1 + r2 > 1) { r1 = 1 - r1; r2 = 1 - r2; }
+    const Tri& T = tris[i];
+    out.push_back(T[0] + r1 * (T[1] - T[0]) + r2 * (T[2] - T[0]));
+  }
+  return out;
+}
+
+}  // namespace
+
+Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s, double diag,
+                          int model_samples) {
+  Fidelity f;
+  const TriVec mtris = triangles_of(model.vertices, model.triangles);
+  if (mtris.empty() || s.points.empty()) {
+    f.e1 = f.e2 = f.hausdorff = -1;
+    return f;
+  }
+  const double scale = diag > 0 ? 100.0 / diag : 100.0;
+  const std::vector<P3> msamples = sample_triangles(mtris, std::max(1, model_samples));
+
+  // e1: model -> input.
+  double sum1 = 0, max1 = 0;
+  TriVec itris;
+  if (in.is_mesh()) itris = triangles_of(in.points, in.triangles);
+  if (!itris.empty()) {
+    Tree tree(itris.begin(), itris.end());
+    tree.accelerate_distance_queries();
+    for (const auto& q : msamples) {
+      const double d2 = CGAL::to_double(tree.squared_distance(q));
+      sum1 += d2;
+      max1 = std::max(max1, d2);
+    }
+  } else {
+    using Traits = CGAL::Search_traits_3<K>;
+    using Search = CGAL::Orthogonal_k_neighbor_search<Traits>;
+    std::vector<P3> ip;
+    ip.reserve(s.points.size());
+    for (const auto& q : s.points) ip.push_back(toP(q));
+    Search::Tree kd(ip.begin(), ip.end());
+    kd.build();
+    for (const auto& q : msamples) {
+      Search search(kd, q, 1);
+      const double d2 = search.begin()->second;
+      sum1 += d2;
+      max1 = std::max(max1, d2);
+    }
+  }
+  f.e1 = std::sqrt(sum1 / msamples.size()) * scale;
+
+  // e2: input -> model (mesh: its area-weighted samples; cloud: its points).
+  Tree mtree(mtris.begin(), mtris.end());
+  mtree.accelerate_distance_queries();
+  double sum2 = 0, wsum = 0, max2 = 0;
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    const double w = (in.is_mesh() && i < s.weights.size()) ? s.weights[i] : 1.0;
+    const double d2 = CGAL::to_double(mtree.squared_distance(toP(s.points[i])));
+    sum2 += w * d2;
+    wsum += w;
+    max2 = std::max(max2, d2);
+  }
+  f.e2 = wsum > 0 ? std::sqrt(sum2 / wsum) * scale : -1;
+  f.hausdorff = std::sqrt(std::max(max1, max2));
+  return f;
+}
+
+}  // namespace citylod::lod::detail
