@@ -1,0 +1,357 @@
+// citylod assemble: model choice, Hausdorff distances, the tile tree and its
+// files (tileset.json invariants, glb content, determinism, georeferencing,
+// bad input, atomic replacement).
+#include <gtest/gtest.h>
+
+#include <proj.h>
+
+#include <chrono>
+#include <cstdio>
+
+#include "../../tiler/src/assemble.hpp"
+#include "citylod/geo/georef.hpp"
+#include "citylod/io/error.hpp"
+#include "tiler/test_assemble_support.hpp"
+
+namespace citylod::test {
+namespace {
+
+using tiler::AssembleParams;
+
+std::string tmp_dir(const std::string& name) {
+  const fs::path p = fs::path(CITYLOD_TEST_TMP) / "assemble" / name;
+  fs::remove_all(p);
+  fs::remove_all(p.string() + ".out");
+  fs::remove_all(p.string() + ".out.partial");
+  fs::create_directories(p);
+  return p.string();
+}
+
+AssembleParams quiet_params() {
+  AssembleParams p;
+  p.threads = 2;
+  return p;
+}
+
+TriangleMesh box_mesh(double x0, double y0, double z0, double x1, double y1, double z1) {
+  TriangleMesh m;
+  add_box(m, x0, y0, z0, x1, y1, z1);
+  return m;
+}
+
+// ------------------------------------------------------------ Hausdorff and model choice
+
+TEST(AssembleMetrics, HausdorffOfKnownShapes) {
+  const TriangleMesh a = box_mesh(0, 0, 0, 10, 8, 6);
+  EXPECT_NEAR(tiler::hausdorff_distance(a, a, 0.5), 0.0, 1e-9);
+  // Shifted by 1 m along x: every point of one is within 1 m of the other.
+  EXPECT_NEAR(tiler::hausdorff_distance(a, box_mesh(1, 0, 0, 11, 8, 6), 0.25), 1.0, 1e-9);
+  // A taller box: its roof is 3 m above the other's.
+  EXPECT_NEAR(tiler::hausdorff_distance(a, box_mesh(0, 0, 0, 10, 8, 9), 0.25), 3.0, 1e-9);
+  // A 4.5 m chimney on top: the distance is the chimney height.
+  TriangleMesh c = a;
+  add_box(c, 3, 1, 6, 4, 2, 10.5);
+  EXPECT_NEAR(tiler::hausdorff_distance(a, c, 0.25), 4.5, 1e-6);
+  EXPECT_TRUE(std::isinf(tiler::hausdorff_distance(a, TriangleMesh{}, 0.25)));
+}
+
+TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {
+  const auto chain = lod_chain(12, 9, 8, 4);
+  std::vector<tiler::ModelEntry> entries;
+  std::vector<TriangleMesh> meshes;
+  for (const auto& m : chain) {
+    entries.push_back({"x", m.kind == "anchor", m.level, m.step});
+    meshes.push_back(m.mesh);
+  }
+  // An interpolation identical to the following anchor: no new look.
+  entries.insert(entries.begin() + 2, {"dup", false, 1, 1});
+  meshes.insert(meshes.begin() + 2, chain[2].mesh);
+  entries[3].step = 2;  // keep steps increasing: box(0) annex(1) dup(1) house(2) chimney(3)
+  const tiler::ModelChoice c = tiler::choose_models(entries, meshes, 0.1, 0.25);
+  ASSERT_EQ(c.kept.size(), 4u);
+  EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3, 4}));
+  ASSERT_EQ(c.error_m.size(), 4u);
+  EXPECT_EQ(c.error_m.back(), 0.0);
+  for (std::size_t i = 1; i < c.error_m.size(); ++i) EXPECT_LT(c.error_m[i], c.error_m[i - 1]);
+  // The chimney (4.5 m above the eave, ~3.2 m from the roof slope) is the
+  // difference of the house to the finest model.
+  EXPECT_GT(c.hausdorff_m[2], 3.0);
+  EXPECT_LT(c.hausdorff_m[2], 4.5);
+}
+
+TEST(AssembleMetrics, ErrorsStrictlyDecreaseEvenWhenDistancesDoNot) {
+  // Two anchors equal to the finest one: distances 0, errors still > 0.
+  const TriangleMesh a = box_mesh(0, 0, 0, 10, 10, 10);
+  std::vector<tiler::ModelEntry> e{{"a", true, 0, 0}, {"b", true, 1, 1}, {"c", true, 2, 2}};
+  const auto c = tiler::choose_models(e, {a, a, a}, 0.1, 0.5);
+  ASSERT_EQ(c.kept.size(), 3u);
+  EXPECT_NEAR(c.error_m[0], 0.02, 1e-12);
+  EXPECT_NEAR(c.error_m[1], 0.01, 1e-12);
+  EXPECT_EQ(c.error_m[2], 0.0);
+}
+
+// ------------------------------------------------------------ whole stage
+
+TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
+  const std::string work = tmp_dir("city50");
+  const auto city = synthetic_city(50, 3);
+  write_work(work, synthetic_manifest(), city);
+  const std::string out = work + ".out";
+  const auto t0 = std::chrono::steady_clock::now();
+  const tiler::AssembleStats st = tiler::assemble(work, out, quiet_params());
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("[ measure  ] 50 buildings x 3 models: %.3f s, %zu tiles (%zu glb, depth %d), %zu B of tiles "
+              "(largest %zu B), %zu B of building glbs\n",
+              secs, st.tiles, st.content_tiles, st.depth, st.glb_bytes, st.max_glb_bytes, st.building_glb_bytes);
+  EXPECT_EQ(st.buildings, 50u);
+  EXPECT_EQ(st.models_read, 150u);
+  EXPECT_EQ(st.models_kept, 150u);
+  EXPECT_TRUE(st.warnings.empty());
+
+  const TilesetCheck chk = check_tileset(out);
+  for (const auto& p : chk.problems) ADD_FAILURE() << p;
+  EXPECT_EQ(chk.tiles, int(st.tiles));
+  EXPECT_GE(chk.depth, 2);  // three models -> at least three levels of content
+  EXPECT_GT(chk.leaves, 4);
+  EXPECT_EQ(std::size_t(chk.content_tiles), st.content_tiles);
+
+  // Root: the coarse anchor (model 0) of all 50 buildings; leaves: the finest.
+  const auto ts = nlohmann::json::parse(read_bytes(out + "/tileset.json"));
+  ASSERT_TRUE(ts["root"].contains("transform"));
+  ASSERT_TRUE(ts["root"].contains("content"));
+  const GlbFile root = read_glb(out + "/" + ts["root"]["content"]["uri"].get<std::string>());
+  const auto& table = root.json["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
+  EXPECT_EQ(table["count"], 50);
+  EXPECT_EQ(root.json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["building"]["properties"].size(),
+            9u);
+  std::set<int> features;
+  for (const auto& v : glb_vertices(root)) features.insert(v.feature);
+  EXPECT_EQ(features.size(), 50u);
+  // Every building appears in the leaves exactly once, with its finest model.
+  std::map<std::string, int> leaf_count;
+  std::function<void(const nlohmann::json&)> leaves = [&](const nlohmann::json& t) {
+    if (!t.contains("children")) {
+      const GlbFile g = read_glb(out + "/" + t["content"]["uri"].get<std::string>());
+      const auto& pt = g.json["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
+      const auto& bv = g.json["bufferViews"];
+      const std::size_t n = pt["count"];
+      const auto& ids = bv[pt["properties"]["building_id"]["values"].get<size_t>()];
+      const auto& offs = bv[pt["properties"]["building_id"]["stringOffsets"].get<size_t>()];
+      const auto& idx = bv[pt["properties"]["model_index"]["values"].get<size_t>()];
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t a = u32(g.bin, offs.value("byteOffset", 0u) + 4 * i),
+                            b = u32(g.bin, offs.value("byteOffset", 0u) + 4 * i + 4);
+        ++leaf_count[g.bin.substr(ids.value("byteOffset", 0u) + a, b - a)];
+        EXPECT_EQ(u32(g.bin, idx.value("byteOffset", 0u) + 4 * i), 2u);
+      }
+      return;
+    }
+    for (const auto& c : t["children"]) leaves(c);
+  };
+  leaves(ts["root"]);
+  EXPECT_EQ(leaf_count.size(), 50u);
+  for (const auto& [id, n] : leaf_count) EXPECT_EQ(n, 1) << id;
+
+  // The viewer's per-building files.
+  const auto index = nlohmann::json::parse(read_bytes(out + "/buildings.json"));
+  ASSERT_EQ(index["buildings"].size(), 50u);
+  const auto& b0 = index["buildings"]["b-0000"];
+  ASSERT_EQ(b0["models"].size(), 3u);
+  EXPECT_EQ(b0["models"][0]["kind"], "anchor");
+  EXPECT_EQ(b0["models"][1]["kind"], "interpolation");
+  EXPECT_EQ(b0["models"][2]["error_m"], 0.0);
+  const GlbFile bg = read_glb(out + "/" + b0["glb"].get<std::string>());
+  EXPECT_EQ(bg.json["nodes"].size(), 3u);
+  EXPECT_EQ(bg.json["nodes"][1]["name"], "model_1");
+}
+
+TEST(Assemble, OutputIsDeterministicWhateverTheThreads) {
+  const std::string work = tmp_dir("determinism");
+  write_work(work, synthetic_manifest(), synthetic_city(30, 4));
+  AssembleParams p = quiet_params();
+  p.threads = 1;
+  tiler::assemble(work, work + ".a", p);
+  p.threads = 2;
+  tiler::assemble(work, work + ".b", p);
+  const auto a = dir_contents(work + ".a"), b = dir_contents(work + ".b");
+  ASSERT_EQ(a.size(), b.size());
+  for (const auto& [name, bytes] : a) {
+    ASSERT_TRUE(b.count(name)) << name;
+    EXPECT_TRUE(bytes == b.at(name)) << name << " differs";
+  }
+  fs::remove_all(work + ".a");
+  fs::remove_all(work + ".b");
+}
+
+TEST(Assemble, TileBudgetSplitsTiles) {
+  const std::string work = tmp_dir("budget");
+  write_work(work, synthetic_manifest(), synthetic_city(64, 3));
+  AssembleParams p = quiet_params();
+  p.max_tile_triangles = 120;  // a few buildings per tile
+  p.building_models = false;
+  const auto st = tiler::assemble(work, work + ".out", p);
+  EXPECT_LE(st.max_tile_triangles, 120u);
+  const TilesetCheck chk = check_tileset(work + ".out");
+  for (const auto& pr : chk.problems) ADD_FAILURE() << pr;
+  // The coarse models of 64 buildings (768 triangles) do not fit: empty root.
+  const auto ts = nlohmann::json::parse(read_bytes(work + ".out/tileset.json"));
+  EXPECT_FALSE(ts["root"].contains("content"));
+  EXPECT_GT(ts["root"]["children"].size(), 4u);
+  EXPECT_FALSE(fs::exists(work + ".out/buildings"));
+}
+
+TEST(Assemble, QuantizedOutputIsValidAndSmaller) {
+  const std::string work = tmp_dir("quantized");
+  write_work(work, synthetic_manifest(), synthetic_city(20, 3));
+  AssembleParams p = quiet_params();
+  const auto plain = tiler::assemble(work, work + ".plain", p);
+  p.quantize = true;
+  const auto q = tiler::assemble(work, work + ".out", p);
+  EXPECT_LT(q.glb_bytes, plain.glb_bytes);
+  const TilesetCheck chk = check_tileset(work + ".out");
+  for (const auto& pr : chk.problems) ADD_FAILURE() << pr;
+  const auto ts = nlohmann::json::parse(read_bytes(work + ".out/tileset.json"));
+  const GlbFile g = read_glb(work + ".out/" + ts["root"]["content"]["uri"].get<std::string>());
+  EXPECT_EQ(g.json["extensionsRequired"][0], "KHR_mesh_quantization");
+  fs::remove_all(work + ".plain");
+}
+
+// ------------------------------------------------------------ georeferencing
+
+TEST(Assemble, DelftBuildingLandsWhereItIs) {
+  // Scene in RD New (EPSG:28992), heights given as ellipsoidal. One building
+  // whose corner is at RD (84950, 447450) (Delft centre), base 43.5 m.
+  geo::TransformOptions to;
+  to.height = geo::HeightMode::Ellipsoidal;
+  geo::Georef g = geo::Georef::from_crs(geo::Crs::parse("EPSG:28992"), Eigen::Vector3d(84000, 447000, 43.0), to);
+  io::Manifest man = synthetic_manifest(g.frame().origin().x(), g.frame().origin().y(), g.frame().origin().z());
+  man.scene.crs = "EPSG:28992";
+  man.scene.origin_crs = {84000, 447000, 43.0};
+  const Eigen::Vector3d corner_rd(84950.0, 447450.0, 43.5);
+  const Eigen::Vector3d corner_enu = g.to_local(corner_rd);
+  SynthBuilding b;
+  b.id = "delft";
+  b.origin = {corner_enu.x(), corner_enu.y(), corner_enu.z()};
+  b.models = lod_chain(12, 9, 15, 3);
+  const std::string work = tmp_dir("delft");
+  write_work(work, man, {b});
+  tiler::assemble(work, work + ".out", quiet_params());
+
+  // The leaf (finest model): its lowest south-west vertex is the RD corner.
+  const auto ts = nlohmann::json::parse(read_bytes(work + ".out/tileset.json"));
+  const Eigen::Matrix4d T = matrix_of(ts["root"]["transform"]);
+  nlohmann::json leaf = ts["root"];
+  while (leaf.contains("children")) leaf = leaf["children"][0];
+  const GlbFile glb = read_glb(work + ".out/" + leaf["content"]["uri"].get<std::string>());
+  Eigen::Vector3d best(0, 0, 0);
+  double key = std::numeric_limits<double>::infinity();
+  for (const auto& v : glb_vertices(glb))
+    if (v.p.sum() < key) {
+      key = v.p.sum();
+      best = v.p;
+    }
+  const Eigen::Vector3d ecef = (T * Eigen::Vector4d(best.x(), best.y(), best.z(), 1)).head<3>();
+
+  // Reference straight from PROJ: RD -> WGS84 lon/lat, then (lon, lat, h) -> ECEF.
+  PJ_CONTEXT* ctx = proj_context_create();
+  PJ* rd = proj_create_crs_to_crs(ctx, "EPSG:28992", "EPSG:4326", nullptr);
+  ASSERT_NE(rd, nullptr);
+  PJ* rdn = proj_normalize_for_visualization(ctx, rd);
+  PJ_COORD ll = proj_trans(rdn, PJ_FWD, proj_coord(corner_rd.x(), corner_rd.y(), 0, 0));
+  PJ* geoc = proj_create_crs_to_crs(ctx, "EPSG:4979", "EPSG:4978", nullptr);
+  PJ* geocn = proj_normalize_for_visualization(ctx, geoc);
+  PJ_COORD xyz = proj_trans(geocn, PJ_FWD, proj_coord(ll.lp.lam, ll.lp.phi, corner_rd.z(), 0));
+  const Eigen::Vector3d ref(xyz.xyz.x, xyz.xyz.y, xyz.xyz.z);
+  const double lon = ll.lp.lam * M_PI / 180, lat = ll.lp.phi * M_PI / 180;
+  proj_destroy(geocn);
+  proj_destroy(geoc);
+  proj_destroy(rdn);
+  proj_destroy(rd);
+  proj_context_destroy(ctx);
+
+  const Eigen::Vector3d d = ecef - ref;
+  const Eigen::Vector3d up(std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat));
+  const double vertical = d.dot(up), horizontal = (d - vertical * up).norm();
+  std::printf("[ measure  ] Delft corner: ECEF off PROJ by %.4f m horizontally, %.4f m vertically\n", horizontal,
+              vertical);
+  EXPECT_LT(horizontal, 0.05);
+  EXPECT_LT(std::fabs(vertical), 0.05);  // ellipsoidal height kept
+}
+
+// ------------------------------------------------------------ bad input
+
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Assemble, MissingManifestIsAClearError) {
+  const std::string work = tmp_dir("nomanifest");
+  const std::string e = error_of([&] { tiler::assemble(work, work + ".out", quiet_params()); });
+  EXPECT_NE(e.find("manifest.json"), std::string::npos) << e;
+  EXPECT_FALSE(fs::exists(work + ".out"));
+  const std::string e2 = error_of([&] { tiler::assemble(work + "/nope", work + ".out", quiet_params()); });
+  EXPECT_NE(e2.find("does not exist"), std::string::npos) << e2;
+}
+
+TEST(Assemble, EmptyWorkDirIsAClearError) {
+  const std::string work = tmp_dir("empty");
+  write_work(work, synthetic_manifest(), {});
+  const std::string e = error_of([&] { tiler::assemble(work, work + ".out", quiet_params()); });
+  EXPECT_NE(e.find("no buildings"), std::string::npos) << e;
+  EXPECT_FALSE(fs::exists(work + ".out"));
+}
+
+TEST(Assemble, BuildingWithoutModelsIsAClearError) {
+  const std::string work = tmp_dir("nomodels");
+  auto city = synthetic_city(4, 3);
+  city[2].write_report = false;  // 'lod' never ran for it
+  city[1].models.clear();        // report.json with an empty model list
+  write_work(work, synthetic_manifest(), city);
+  std::string e = error_of([&] { tiler::assemble(work, work + ".out", quiet_params()); });
+  EXPECT_NE(e.find("'b-0001' has no models"), std::string::npos) << e;
+  EXPECT_FALSE(fs::exists(work + ".out"));
+  // With --skip-missing both are skipped with warnings.
+  AssembleParams p = quiet_params();
+  p.skip_missing = true;
+  const auto st = tiler::assemble(work, work + ".out", p);
+  EXPECT_EQ(st.buildings, 2u);
+  EXPECT_EQ(st.skipped, 2u);
+  ASSERT_EQ(st.warnings.size(), 2u);
+  EXPECT_NE(st.warnings[1].find("'b-0002' has no LOD models"), std::string::npos) << st.warnings[1];
+  // A model file listed but missing.
+  fs::remove(fs::path(io::lod_dir(work, "b-0000")) / "model_01_interpolation_L1.ply");
+  e = error_of([&] { tiler::assemble(work, work + ".out2", quiet_params()); });
+  EXPECT_NE(e.find("model_01_interpolation_L1.ply: model listed in"), std::string::npos) << e;
+}
+
+TEST(Assemble, ReplacesAPreviousTilesetAtomicallyAndKeepsItOnFailure) {
+  const std::string work = tmp_dir("replace");
+  write_work(work, synthetic_manifest(), synthetic_city(6, 3));
+  const std::string out = work + ".out";
+  tiler::assemble(work, out, quiet_params());
+  const auto before = dir_contents(out);
+  // A failing run (a building lost its report) leaves the old tileset intact.
+  fs::remove(fs::path(io::lod_dir(work, "b-0003")) / "report.json");
+  EXPECT_FALSE(error_of([&] { tiler::assemble(work, out, quiet_params()); }).empty());
+  EXPECT_EQ(dir_contents(out), before);
+  EXPECT_FALSE(fs::exists(out + ".partial"));
+  // A user directory that is not a tileset is never replaced without force.
+  const std::string other = work + ".other";
+  fs::create_directories(other);
+  io::atomic_write_file(other + "/notes.txt", "mine");
+  AssembleParams p = quiet_params();
+  p.skip_missing = true;
+  const std::string e = error_of([&] { tiler::assemble(work, other, p); });
+  EXPECT_NE(e.find("not a tileset"), std::string::npos) << e;
+  EXPECT_TRUE(fs::exists(other + "/notes.txt"));
+  fs::remove_all(other);
+}
+
+}  // namespace
+}  // namespace citylod::test

@@ -1,0 +1,79 @@
+// `citylod assemble WORK --out TILESET_DIR`: per-building LOD models -> 3D Tiles 1.1.
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+#include "assemble.hpp"
+#include "cli_common.hpp"
+
+namespace citylod::tiler {
+
+int cmd_assemble(ArgParser& args) {
+  args.usage("WORK --out TILESET_DIR")
+      .describe(
+          "Turn the LOD models of every building of a work directory (WORK/manifest.json,\n"
+          "WORK/lod/<id>/report.json and model PLYs) into a hierarchical 3D Tiles 1.1\n"
+          "tileset: coarse anchor models of many buildings near the root, finer\n"
+          "interpolation and anchor models of fewer buildings below (refine REPLACE).\n"
+          "Writes TILESET_DIR/tileset.json, tiles/*.glb, buildings/*.glb (every kept model\n"
+          "of a building, for the viewer's LOD slider) and buildings.json. The output is\n"
+          "staged in TILESET_DIR.partial and swapped in when complete. See docs/3dtiles.md.");
+  args.option("out", 'o', "DIR", "output tileset directory");
+  args.option("max-triangles", 0, "N", "triangle budget of one tile glb", "250000");
+  args.option("max-bytes", 0, "BYTES", "geometry byte budget of one tile glb", "4194304");
+  args.option("min-change", 0, "M",
+              "keep an interpolation model only if it differs by >= M metres (Hausdorff) from its "
+              "kept neighbours",
+              "0.1");
+  args.option("hausdorff-tolerance", 0, "M", "accuracy of the Hausdorff distances between models, metres", "0.1");
+  args.flag("quantize", 0, "KHR_mesh_quantization: int16 positions and normals (smaller glbs)");
+  args.flag("no-building-models", 0, "do not write buildings/*.glb (the viewer's LOD slider needs them)");
+  args.flag("skip-missing", 0, "skip buildings without LOD models (warning) instead of failing");
+  args.flag("force", 0, "replace TILESET_DIR even if it is not a citylod tileset");
+  args.option("threads", 't', "N", "threads (0 = all cores); the output does not depend on it", "0");
+  args.positional("WORK", "work directory (manifest.json, lod/<id>/)", Arity::one);
+  if (!args.parse()) return 0;
+  if (!args.has("out")) throw UsageError("missing --out TILESET_DIR");
+
+  AssembleParams p;
+  const auto max_tris = args.get_int("max-triangles");
+  const auto max_bytes = args.get_int("max-bytes");
+  const auto threads = args.get_int("threads");
+  if (max_tris < 1) throw UsageError("--max-triangles must be >= 1");
+  if (max_bytes < 1024) throw UsageError("--max-bytes must be >= 1024");
+  if (threads < 0) throw UsageError("--threads must be >= 0");
+  p.max_tile_triangles = std::size_t(max_tris);
+  p.max_tile_bytes = std::size_t(max_bytes);
+  p.min_change_m = args.get_double("min-change");
+  p.hausdorff_tolerance_m = args.get_double("hausdorff-tolerance");
+  p.quantize = args.has("quantize");
+  p.building_models = !args.has("no-building-models");
+  p.skip_missing = args.has("skip-missing");
+  p.force = args.has("force");
+  p.threads = int(threads);
+  try {
+    p.validate();
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+
+  const std::string work = args.positionals().at(0);
+  const std::string out = args.get("out");
+  Progress prog("assemble");
+  const AssembleStats st = assemble(work, out, p, [&](double f, const char* stage) { prog.update(f, stage); });
+  prog.finish();
+  for (const auto& w : st.warnings) log_warn(w);
+  std::ostringstream s;
+  s.precision(3);
+  s << "wrote " << out << "/tileset.json: " << st.buildings << " buildings (" << st.models_kept << " of "
+    << st.models_read << " models kept";
+  if (st.skipped) s << ", " << st.skipped << " skipped";
+  s << "), " << st.tiles << " tiles (" << st.content_tiles << " glb, depth " << st.depth << "), "
+    << human_count(double(st.glb_bytes)) << "B of tiles (largest " << human_count(double(st.max_glb_bytes))
+    << "B, " << human_count(double(st.max_tile_triangles)) << " triangles), root error " << st.root_error_m
+    << " m, " << std::fixed << st.seconds_read + st.seconds_write << " s";
+  log_info(s.str());
+  return 0;
+}
+
+}  // namespace citylod::tiler
