@@ -162,11 +162,13 @@ MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
 double mesh_volume(const TriangleMesh& mesh) {
   double v = 0.0;
   const int nv = static_cast<int>(mesh.vertices.size());
+  if (nv == 0) return 0.0;
+  const Vec3 o = mesh.vertices[0];  // relative coordinates: exact for closed meshes, better conditioned
   for (const auto& t : mesh.triangles) {
     if (t[0] < 0 || t[1] < 0 || t[2] < 0 || t[0] >= nv || t[1] >= nv || t[2] >= nv) continue;
-    const Vec3& a = mesh.vertices[t[0]];
-    const Vec3& b = mesh.vertices[t[1]];
-    const Vec3& c = mesh.vertices[t[2]];
+    const Vec3 a = mesh.vertices[t[0]] - o;
+    const Vec3 b = mesh.vertices[t[1]] - o;
+    const Vec3 c = mesh.vertices[t[2]] - o;
     v += a.dot(b.cross(c));
   }
   return v / 6.0;
