@@ -3,6 +3,7 @@
 // representation.
 #include "bsp_impl.hpp"
 
+#include <CGAL/Exact_integer.h>
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
 
@@ -68,9 +69,10 @@ int BspData::find_or_add_plane(const std::array<double, 4>& c, int* flip) {
   return int(dplanes.size()) - 1;
 }
 
-int BspData::add_vertex(const Point3& p, std::vector<int> on_planes) {
+int BspData::add_vertex(const Point3& p, const std::array<int, 3>& def, std::vector<int> on_planes) {
   Vertex v;
   v.p = p;
+  v.def = def;
   v.approx = Vec3(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
   std::sort(on_planes.begin(), on_planes.end());
   on_planes.erase(std::unique(on_planes.begin(), on_planes.end()), on_planes.end());
@@ -107,9 +109,53 @@ int BspData::cut(int a, int b, int S, int E, int P) {
   on.push_back(S);
   on.push_back(E);
   on.push_back(P);
-  const int id = add_vertex(*pt, std::move(on));
+  const int id = add_vertex(*pt, {S, E, P}, std::move(on));
   cut_memo.emplace(key, id);
   return id;
+}
+
+bool BspData::exact_coords_of(const std::array<int, 3>& def, FT out[3]) const {
+  using Z = CGAL::Exact_integer;
+  using ET = FT::ET;
+  // scale each plane row by a power of two so that its coefficients are integers
+  Z m[3][4];
+  for (int r = 0; r < 3; ++r) {
+    const auto& c = dplanes[def[r]];
+    int emin = INT32_MAX, emax = INT32_MIN;
+    for (double x : c) {
+      if (x == 0) continue;
+      int e;
+      std::frexp(x, &e);
+      emin = std::min(emin, e - 53);
+      emax = std::max(emax, e);
+    }
+    if (emax - emin > 1000) {  // cannot scale in double: let CGAL do it
+      const auto res = CGAL::intersection(planes[def[0]], planes[def[1]], planes[def[2]]);
+      const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
+      if (!pt) return false;
+      for (int t = 0; t < 3; ++t) out[t] = FT(CGAL::exact(pt->cartesian(t)));
+      return true;
+    }
+    for (int t = 0; t < 4; ++t) m[r][t] = Z(std::ldexp(c[t], -emin));
+  }
+  auto det3 = [&](int c0, int c1, int c2) -> Z {
+    return m[0][c0] * (m[1][c1] * m[2][c2] - m[1][c2] * m[2][c1]) -
+           m[1][c0] * (m[0][c1] * m[2][c2] - m[0][c2] * m[2][c1]) +
+           m[2][c0] * (m[0][c1] * m[1][c2] - m[0][c2] * m[1][c1]);
+  };
+  const Z D = det3(0, 1, 2);
+  if (D == 0) return false;
+  // A x = -d  =>  x_k = -det(A with column k replaced by d) / det(A)
+  const ET den(D);
+  const Z nx = det3(3, 1, 2), ny = det3(0, 3, 2), nz = det3(0, 1, 3);
+  out[0] = FT(ET(-nx) / den);
+  out[1] = FT(ET(-ny) / den);
+  out[2] = FT(ET(-nz) / den);
+  return true;
+}
+
+void BspData::exact_coords(int vi, FT out[3]) const {
+  if (!exact_coords_of(verts[vi].def, out)) throw std::logic_error("Bsp: vertex planes are not independent");
 }
 
 // ---------------------------------------------------------------------------
@@ -280,7 +326,7 @@ Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered,
     for (int j = 0; j < 2; ++j)
       for (int i = 0; i < 2; ++i) {
         const int id = I.add_vertex(Point3(i ? hi.x() : lo.x(), j ? hi.y() : lo.y(), l ? hi.z() : lo.z()),
-                                    {0 + i, 2 + j, 4 + l});
+                                    {0 + i, 2 + j, 4 + l}, {0 + i, 2 + j, 4 + l});
         (void)id;
       }
   {

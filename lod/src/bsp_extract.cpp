@@ -2,26 +2,37 @@
 //
 // For each plane pi and side: region = (union of the faces on pi of inside
 // cells whose outward normal is that side) minus (union of the faces on pi of
-// inside cells on the other side), computed as exact 2D polygon sets (EPECK,
-// projection dropping the dominant axis). Regions are lifted back exactly,
-// collinear boundary vertices removed, T-junctions resolved by inserting every
-// output vertex lying inside an output edge, and each region triangulated with
-// an exact constrained Delaunay triangulation. Vertices are welded by exact
-// equality and converted to double once. Non-manifold edges are removed by
-// relabelling the smallest adjacent out-cell in and extracting again.
+// inside cells on the other side). The faces on one plane are convex and, per
+// side, interior-disjoint, so the region boundary is computed exactly edge by
+// edge: along every face edge, the coverage of both sides of the edge by the
+// faces of both sets (their edges on that line, or their interiors crossing
+// it) is swept, and each boundary piece is emitted by exactly one owner edge.
+// The pieces are chained into loops (pinch vertices resolved by angle), the
+// collinear vertices dropped, the loops lifted back to 3D exactly and welded
+// by exact equality. T-junctions are resolved by inserting every output vertex
+// lying inside an output edge, and each plane side is triangulated with an
+// exact constrained Delaunay triangulation; each connected domain is one merged
+// region. Vertices are converted to double once. Non-manifold edges are
+// removed by relabelling the smallest adjacent out-cell in and extracting
+// again. Everything is exact (EPECK, lazy with shallow DAGs; the BSP vertices
+// enter as exact rationals computed with integer determinants).
 #include "bsp_impl.hpp"
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
-#include <CGAL/Polygon_set_2.h>
 #include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 #include <CGAL/box_intersection_d.h>
+#include <CGAL/intersections.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <map>
 #include <stdexcept>
+#include <unordered_map>
 #include <utility>
 
 namespace citylod::lod::detail {
@@ -31,12 +42,11 @@ using namespace bspi;
 namespace {
 
 using Point2 = K::Point_2;
-using Polygon2 = CGAL::Polygon_2<K>;
-using PwH = CGAL::Polygon_with_holes_2<K>;
-using PSet = CGAL::Polygon_set_2<K>;
+using Line2 = K::Line_2;
 
 struct FaceInfo {
   int nesting = -1;
+  int domain = -1;
 };
 using Vb = CGAL::Triangulation_vertex_base_with_info_2<int, K>;
 using Fbb = CGAL::Triangulation_face_base_with_info_2<FaceInfo, K>;
@@ -44,15 +54,23 @@ using Fb = CGAL::Constrained_triangulation_face_base_2<K, Fbb>;
 using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
 using CDT = CGAL::Constrained_Delaunay_triangulation_2<K, Tds, CGAL::No_constraint_intersection_requiring_constructions_tag>;
 
-struct Region {
-  int plane = -1;
-  int side = 1;  ///< outward normal = side * plane normal
-  int k = 2;     ///< dropped axis
-  std::vector<std::vector<int>> loops;  ///< [0] outer; CCW seen from outside (holes CW)
+struct Less2 {
+  bool operator()(const Point2& a, const Point2& b) const { return CGAL::compare_xy(a, b) == CGAL::SMALLER; }
+};
+struct Less3 {
+  bool operator()(const Point3& a, const Point3& b) const { return CGAL::compare_xyz(a, b) == CGAL::SMALLER; }
 };
 
-struct PointLess {
-  bool operator()(const Point3& a, const Point3& b) const { return CGAL::compare_xyz(a, b) == CGAL::SMALLER; }
+struct Prof {
+  const bool on = std::getenv("CITYLOD_BSP_PROF") != nullptr;
+  double t = now();
+  static double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+  void lap(const char* what) {
+    if (!on) return;
+    const double n = now();
+    std::fprintf(stderr, "  [bsp extract] %-14s %8.2f ms\n", what, 1e3 * (n - t));
+    t = n;
+  }
 };
 
 int dominant_axis(const std::array<double, 4>& c) {
@@ -62,17 +80,280 @@ int dominant_axis(const std::array<double, 4>& c) {
   return k;
 }
 
-void remove_collinear(std::vector<Point2>& L) {
+/// A face of an inside cell on plane pi, projected (drop axis k), CCW in 2D.
+struct F2 {
+  std::vector<Point2> p;
+  std::vector<int> vid;               ///< BSP vertex ids
+  std::vector<int> ep;                ///< edge planes: ep[i] contains edge vid[i] -> vid[i+1]
+  std::vector<Eigen::Vector2d> ap;    ///< approximations
+  bool a = true;                      ///< outward normal +n (else -n)
+};
+
+/// A point on the plane (exact): a BSP vertex (vid >= 0) or the intersection
+/// of 3 table planes def (the plane itself and two edge planes).
+struct EvPt {
+  Point2 p;
+  int vid = -1;
+  std::array<int, 3> def{-1, -1, -1};
+};
+
+/// Per-plane context: the table, the projection, and memoized crossing points.
+struct PlaneCtx {
+  const BspData& I;
+  int pl, k, u, w;
+  std::unordered_map<uint64_t, EvPt> cross;
+  /// Is x exactly known to lie on table plane E? (false means "unknown")
+  bool known_on(const EvPt& x, int E) const {
+    if (x.vid >= 0) {
+      const auto& ps = I.verts[x.vid].planes;
+      return std::find(ps.begin(), ps.end(), E) != ps.end();
+    }
+    return x.def[0] == E || x.def[1] == E || x.def[2] == E;
+  }
+  /// The point of the plane on table planes E1 and E2 (exact leaves).
+  const EvPt& crossing(int E1, int E2) {
+    if (E1 > E2) std::swap(E1, E2);
+    const uint64_t key = (uint64_t(uint32_t(E1)) << 32) | uint32_t(E2);
+    auto it = cross.find(key);
+    if (it != cross.end()) return it->second;
+    EvPt e;
+    e.def = {pl, E1, E2};
+    FT c[3];
+    if (!I.exact_coords_of(e.def, c)) throw std::logic_error("Bsp::extract: crossing lines are parallel");
+    e.p = Point2(c[u], c[w]);
+    return cross.emplace(key, std::move(e)).first->second;
+  }
+  int common_line_plane(const EvPt& a, const EvPt& b, const EvPt& c) const {
+    auto planes_of = [&](const EvPt& x, int buf[3], int& n) -> const int* {
+      if (x.vid >= 0) {
+        n = int(I.verts[x.vid].planes.size());
+        return I.verts[x.vid].planes.data();
+      }
+      for (int t = 0; t < 3; ++t) buf[t] = x.def[t];
+      n = 3;
+      return buf;
+    };
+    int bb[3], nb;
+    const int* pb = planes_of(b, bb, nb);
+    for (int t = 0; t < nb; ++t)
+      if (pb[t] != pl && known_on(a, pb[t]) && known_on(c, pb[t])) return pb[t];
+    return -1;
+  }
+};
+
+/// Plane-local point table (exact welding).
+struct LocalPts {
+  std::vector<EvPt> pts;
+  std::map<Point2, int, Less2> idx;
+  std::unordered_map<int, int> byvid;
+  std::map<std::array<int, 3>, int> bydef;
+  int get(const EvPt& e) {
+    std::array<int, 3> key = e.def;
+    std::sort(key.begin(), key.end());
+    if (e.vid >= 0) {
+      auto it = byvid.find(e.vid);
+      if (it != byvid.end()) return it->second;
+    } else {
+      auto it = bydef.find(key);
+      if (it != bydef.end()) return it->second;
+    }
+    int id;
+    auto it = idx.find(e.p);
+    if (it != idx.end()) {
+      id = it->second;
+      if (pts[id].vid < 0 && e.vid >= 0) pts[id].vid = e.vid;
+    } else {
+      id = int(pts.size());
+      pts.push_back(e);
+      idx.emplace(e.p, id);
+    }
+    if (e.vid >= 0)
+      byvid.emplace(e.vid, id);
+    else
+      bydef.emplace(key, id);
+    return id;
+  }
+};
+
+enum : unsigned { AL = 1, AR = 2, BL = 4, BR = 8 };
+
+/// Boundary of R+ = A - B (out[0]) and R- = B - A (out[1]) along edge ei of face fi,
+/// as directed segments (region on the left in 2D) between local points.
+void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const std::vector<int>& cand, LocalPts& L,
+                   std::vector<std::pair<int, int>> out[2]) {
+  const F2& f = F[fi];
+  const int n = int(f.p.size());
+  const EvPt P{f.p[ei], f.vid[ei]};
+  const EvPt Q{f.p[(ei + 1) % n], f.vid[(ei + 1) % n]};
+  const int E = f.ep[ei];  // the edge's line is this plane's intersection with E
+  const bool asc = CGAL::compare_xy(P.p, Q.p) == CGAL::SMALLER;
+  auto less = [asc](const Point2& x, const Point2& y) {
+    const auto c = CGAL::compare_xy(x, y);
+    return asc ? c == CGAL::SMALLER : c == CGAL::LARGER;
+  };
+  struct Iv {
+    EvPt s, e;
+    unsigned fl;
+  };
+  std::vector<Iv> ivs;
+  std::vector<int> o;
+  std::vector<EvPt> cr;
+  for (int g : cand) {
+    if (g == fi) continue;
+    const F2& G = F[g];
+    const int m = int(G.p.size());
+    o.resize(m);
+    bool pos = false, neg = false;
+    int zeros = 0;
+    for (int j = 0; j < m; ++j) {
+      const int gv = G.vid[j];
+      o[j] = (gv == P.vid || gv == Q.vid || C.known_on(EvPt{G.p[j], gv}, E)) ? 0
+                                                                          : int(CGAL::orientation(P.p, Q.p, G.p[j]));
+      pos |= o[j] > 0;
+      neg |= o[j] < 0;
+      zeros += o[j] == 0;
+    }
+    unsigned fl;
+    EvPt s, e;
+    if (pos && neg) {
+      cr.clear();
+      for (int j = 0; j < m; ++j) {
+        const int jn = (j + 1) % m;
+        if (o[j] == 0) {
+          cr.push_back({G.p[j], G.vid[j]});
+        } else if (o[j] * o[jn] < 0) {
+          cr.push_back(C.crossing(E, G.ep[j]));
+        }
+      }
+      if (cr.size() != 2) throw std::logic_error("Bsp::extract: a convex face crosses a line in != 2 points");
+      if (less(cr[1].p, cr[0].p)) std::swap(cr[0], cr[1]);
+      s = cr[0];
+      e = cr[1];
+      fl = G.a ? (AL | AR) : (BL | BR);
+    } else if (zeros == 2) {
+      cr.clear();
+      for (int j = 0; j < m; ++j)
+        if (o[j] == 0) cr.push_back({G.p[j], G.vid[j]});
+      if (less(cr[1].p, cr[0].p)) std::swap(cr[0], cr[1]);
+      s = cr[0];
+      e = cr[1];
+      fl = pos ? (G.a ? AL : BL) : (G.a ? AR : BR);
+    } else {
+      continue;
+    }
+    // clip to [P, Q]
+    if (less(s.p, P.p)) s = P;
+    if (less(Q.p, e.p)) e = Q;
+    if (!less(s.p, e.p)) continue;
+    ivs.push_back({s, e, fl});
+  }
+  std::vector<EvPt> ev{P, Q};
+  for (const auto& iv : ivs) {
+    ev.push_back(iv.s);
+    ev.push_back(iv.e);
+  }
+  std::stable_sort(ev.begin(), ev.end(), [&](const EvPt& x, const EvPt& y) { return less(x.p, y.p); });
+  {
+    std::vector<EvPt> u;
+    for (const auto& x : ev) {
+      if (!u.empty() && CGAL::compare_xy(u.back().p, x.p) == CGAL::EQUAL) {
+        if (u.back().vid < 0) u.back().vid = x.vid;
+        continue;
+      }
+      u.push_back(x);
+    }
+    ev.swap(u);
+  }
+  const int np = int(ev.size()) - 1;
+  std::vector<unsigned> fl(np, f.a ? AL : BL);
+  auto index_of = [&](const Point2& x) {
+    return int(std::lower_bound(ev.begin(), ev.end(), x, [&](const EvPt& a, const Point2& b) { return less(a.p, b); }) -
+               ev.begin());
+  };
+  for (const auto& iv : ivs) {
+    const int is = index_of(iv.s.p), ie = index_of(iv.e.p);
+    for (int j = is; j < ie; ++j) fl[j] |= iv.fl;
+  }
+  std::vector<int> li(ev.size(), -1);
+  auto lid = [&](int j) {
+    if (li[j] < 0) li[j] = L.get(ev[j]);
+    return li[j];
+  };
+  for (int j = 0; j < np; ++j) {
+    const unsigned c = fl[j];
+    if (f.a) {
+      if (!(c & BL) && !(c & AR)) out[0].emplace_back(lid(j), lid(j + 1));
+      if ((c & BR) && !(c & AR) && (c & BL)) out[1].emplace_back(lid(j + 1), lid(j));
+    } else {
+      if (!(c & AL) && !(c & BR)) out[1].emplace_back(lid(j), lid(j + 1));
+      if ((c & AR) && !(c & BR) && (c & AL)) out[0].emplace_back(lid(j + 1), lid(j));
+    }
+  }
+}
+
+/// Chain directed segments (region on the left) into loops of local point ids.
+std::vector<std::vector<int>> chain_loops(const std::vector<std::pair<int, int>>& segs, const LocalPts& L) {
+  std::unordered_map<int, std::vector<int>> outs;
+  for (int s = 0; s < int(segs.size()); ++s) outs[segs[s].first].push_back(s);
+  std::vector<int> next(segs.size(), -1), used(segs.size(), 0);
+  for (int s = 0; s < int(segs.size()); ++s) {
+    const int u = segs[s].first, v = segs[s].second;
+    auto it = outs.find(v);
+    if (it == outs.end()) throw std::logic_error("Bsp::extract: open boundary");
+    const auto& cand = it->second;
+    int best = cand[0];
+    if (cand.size() > 1) {
+      // first outgoing segment clockwise from the reversed incoming direction
+      const Point2& pv = L.pts[v].p;
+      const Point2& pu = L.pts[u].p;
+      auto bucket = [&](int t) {
+        const Point2& w = L.pts[segs[t].second].p;
+        const auto o = CGAL::orientation(pv, pu, w);
+        if (o == CGAL::RIGHT_TURN) return 0;
+        if (o == CGAL::LEFT_TURN) return 2;
+        return CGAL::collinear_are_ordered_along_line(pu, pv, w) ? 1 : 3;
+      };
+      auto before = [&](int t1, int t2) {
+        const int b1 = bucket(t1), b2 = bucket(t2);
+        if (b1 != b2) return b1 < b2;
+        return CGAL::orientation(pv, L.pts[segs[t1].second].p, L.pts[segs[t2].second].p) == CGAL::RIGHT_TURN;
+      };
+      for (int t : cand)
+        if (before(t, best)) best = t;
+    }
+    if (used[best]++) throw std::logic_error("Bsp::extract: ambiguous boundary at a vertex");
+    next[s] = best;
+  }
+  std::vector<std::vector<int>> loops;
+  std::vector<char> seen(segs.size(), 0);
+  for (int s0 = 0; s0 < int(segs.size()); ++s0) {
+    if (seen[s0]) continue;
+    std::vector<int> loop;
+    int s = s0;
+    do {
+      seen[s] = 1;
+      loop.push_back(segs[s].first);
+      s = next[s];
+    } while (s != s0 && !seen[s]);
+    if (s != s0) throw std::logic_error("Bsp::extract: boundary chain does not close");
+    loops.push_back(std::move(loop));
+  }
+  return loops;
+}
+
+void remove_collinear(std::vector<int>& loop, const LocalPts& L, const PlaneCtx& C) {
   bool changed = true;
-  while (changed && L.size() > 3) {
+  while (changed && loop.size() > 3) {
     changed = false;
-    for (size_t i = 0; i < L.size() && L.size() > 3; ++i) {
-      const size_t n = L.size();
-      const Point2& a = L[(i + n - 1) % n];
-      const Point2& b = L[i];
-      const Point2& c = L[(i + 1) % n];
-      if (CGAL::collinear(a, b, c) && CGAL::collinear_are_strictly_ordered_along_line(a, b, c)) {
-        L.erase(L.begin() + long(i));
+    for (size_t i = 0; i < loop.size() && loop.size() > 3; ++i) {
+      const size_t n = loop.size();
+      const Point2& a = L.pts[loop[(i + n - 1) % n]].p;
+      const Point2& b = L.pts[loop[i]].p;
+      const Point2& c = L.pts[loop[(i + 1) % n]].p;
+      const bool col = C.common_line_plane(L.pts[loop[(i + n - 1) % n]], L.pts[loop[i]], L.pts[loop[(i + 1) % n]]) >= 0 ||
+                       CGAL::collinear(a, b, c);
+      if (col && CGAL::collinear_are_strictly_ordered_along_line(a, b, c)) {
+        loop.erase(loop.begin() + long(i));
         changed = true;
         --i;
       }
@@ -113,21 +394,36 @@ void mark_domains(CDT& cdt) {
   }
 }
 
-struct Extracted {
-  std::vector<Point3> pts;
-  std::vector<Region> regions;
-  std::vector<std::vector<int>> region_tris_flat;  // per region: 3*t ids
+/// Output of one plane side.
+struct Group {
+  int plane = -1, side = 1, k = 2;
+  std::vector<std::vector<int>> loops;       ///< global ids, region on the left in 2D
+  std::unordered_map<int, Point2> p2;        ///< 2D points of the group's own vertices
+  std::vector<std::vector<int>> faces;       ///< output polygons (3D orientation)
+  std::vector<int> tris;                     ///< output triangles, flat (3D orientation)
+  int regions = 0;
 };
 
-}  // namespace
-
-namespace {
+struct Extracted {
+  std::vector<Point3> pts;
+  std::vector<Group> groups;
+};
 
 // One extraction pass with fixed labels.
 Extracted extract_once(const BspData& I, const std::vector<int>& partition, const std::vector<char>& inside) {
   Extracted X;
-  // --- faces per plane, split by outward side
-  std::map<int, std::pair<std::vector<Polygon2>, std::vector<Polygon2>>> byplane;
+  Prof prof;
+  // exact coordinates of the BSP vertices used, computed once per pass
+  std::unordered_map<int, std::array<FT, 3>> exact;
+  auto coords = [&](int v) -> const std::array<FT, 3>& {
+    auto it = exact.find(v);
+    if (it != exact.end()) return it->second;
+    std::array<FT, 3> c;
+    I.exact_coords(v, c.data());
+    return exact.emplace(v, std::move(c)).first->second;
+  };
+  // --- faces per plane
+  std::map<int, std::vector<F2>> byplane;
   for (size_t i = 0; i < partition.size(); ++i) {
     if (!inside[i]) continue;
     const Cell& c = I.cells[partition[i]];
@@ -137,20 +433,27 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
       const auto& dc = I.dplanes[pl];
       const int k = dominant_axis(dc);
       const int u = (k + 1) % 3, w = (k + 2) % 3;
-      std::vector<Point2> pts;
-      pts.reserve(f.poly.v.size());
-      for (int v : f.poly.v) {
-        const Point3& p = I.verts[v].p;
-        pts.emplace_back(p.cartesian(u), p.cartesian(w));
+      F2 g;
+      g.a = side > 0;
+      g.vid = f.poly.v;
+      g.ep = f.poly.e;
+      if (side * dc[k] < 0) {
+        const int n = int(g.vid.size());
+        std::reverse(g.vid.begin(), g.vid.end());
+        for (int i = 0; i < n; ++i) g.ep[i] = f.poly.e[(2 * n - 2 - i) % n];
       }
-      if (side * dc[k] < 0) std::reverse(pts.begin(), pts.end());
-      auto& lists = byplane[pl];
-      (side > 0 ? lists.first : lists.second).emplace_back(pts.begin(), pts.end());
+      for (int v : g.vid) {
+        const auto& p = coords(v);
+        g.p.emplace_back(p[u], p[w]);
+        g.ap.emplace_back(I.verts[v].approx[u], I.verts[v].approx[w]);
+      }
+      byplane[pl].push_back(std::move(g));
     }
   }
+  prof.lap("gather");
 
-  std::map<Point3, int, PointLess> weld;
-  auto vid = [&](const Point3& p) {
+  std::map<Point3, int, Less3> weld;
+  auto gid = [&](const Point3& p) {
     auto it = weld.find(p);
     if (it != weld.end()) return it->second;
     const int id = int(X.pts.size());
@@ -159,52 +462,93 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
     return id;
   };
 
-  for (auto& [pl, lists] : byplane) {
+  using Box2 = CGAL::Box_intersection_d::Box_with_info_d<double, 2, int>;
+  for (auto& [pl, faces0] : byplane) {
+    // identical faces from both sides cancel
+    std::vector<F2> F;
+    {
+      std::map<std::vector<int>, std::vector<int>> bykey;
+      for (int i = 0; i < int(faces0.size()); ++i) {
+        std::vector<int> key = faces0[i].vid;
+        std::sort(key.begin(), key.end());
+        bykey[key].push_back(i);
+      }
+      std::vector<char> drop(faces0.size(), 0);
+      for (const auto& [key, ids] : bykey)
+        if (ids.size() == 2 && faces0[ids[0]].a != faces0[ids[1]].a) drop[ids[0]] = drop[ids[1]] = 1;
+      for (int i = 0; i < int(faces0.size()); ++i)
+        if (!drop[i]) F.push_back(std::move(faces0[i]));
+    }
+    if (F.empty()) continue;
     const auto& dc = I.dplanes[pl];
     const int k = dominant_axis(dc);
     const int u = (k + 1) % 3, w = (k + 2) % 3;
-    const Plane3& P = I.planes[pl];
-    const FT coef[4] = {P.a(), P.b(), P.c(), P.d()};
-    for (int side : {1, -1}) {
-      auto& mine = side > 0 ? lists.first : lists.second;
-      auto& other = side > 0 ? lists.second : lists.first;
-      if (mine.empty()) continue;
-      PSet R;
-      R.join(mine.begin(), mine.end());
-      if (!other.empty()) {
-        PSet O;
-        O.join(other.begin(), other.end());
-        R.difference(O);
+    // candidate faces per edge
+    double scale = 1.0;
+    for (const auto& f : F)
+      for (const auto& q : f.ap) scale = std::max(scale, q.cwiseAbs().maxCoeff());
+    const double tol = 1e-7 * scale;
+    std::vector<Box2> eb, fb;
+    std::vector<std::pair<int, int>> erefs;
+    for (int fi = 0; fi < int(F.size()); ++fi) {
+      const auto& ap = F[fi].ap;
+      double flo[2] = {1e300, 1e300}, fhi[2] = {-1e300, -1e300};
+      for (int e = 0; e < int(ap.size()); ++e) {
+        const auto& a = ap[e];
+        const auto& b = ap[(e + 1) % ap.size()];
+        double lo2[2], hi2[2];
+        for (int t = 0; t < 2; ++t) {
+          lo2[t] = std::min(a[t], b[t]) - tol;
+          hi2[t] = std::max(a[t], b[t]) + tol;
+          flo[t] = std::min(flo[t], lo2[t]);
+          fhi[t] = std::max(fhi[t], hi2[t]);
+        }
+        eb.emplace_back(lo2, hi2, int(erefs.size()));
+        erefs.emplace_back(fi, e);
       }
-      std::vector<PwH> pwhs;
-      R.polygons_with_holes(std::back_inserter(pwhs));
-      const bool flip = side * dc[k] < 0;
-      for (const PwH& ph : pwhs) {
-        Region reg;
-        reg.plane = pl;
-        reg.side = side;
-        reg.k = k;
-        auto add_loop = [&](const Polygon2& poly) {
-          std::vector<Point2> L(poly.vertices_begin(), poly.vertices_end());
-          remove_collinear(L);
-          if (flip) std::reverse(L.begin(), L.end());
-          std::vector<int> ids;
-          ids.reserve(L.size());
-          for (const Point2& q : L) {
-            FT xyz[3];
-            xyz[u] = q.x();
-            xyz[w] = q.y();
-            xyz[k] = -(coef[u] * q.x() + coef[w] * q.y() + coef[3]) / coef[k];
-            ids.push_back(vid(Point3(xyz[0], xyz[1], xyz[2])));
+      fb.emplace_back(flo, fhi, fi);
+    }
+    std::vector<std::vector<int>> cand(erefs.size());
+    CGAL::box_intersection_d(eb.begin(), eb.end(), fb.begin(), fb.end(),
+                             [&](const Box2& e, const Box2& f) { cand[e.info()].push_back(f.info()); });
+    LocalPts L;
+    PlaneCtx C{I, pl, k, u, w, {}};
+    std::vector<std::pair<int, int>> segs[2];
+    for (int e = 0; e < int(erefs.size()); ++e) {
+      std::sort(cand[e].begin(), cand[e].end());
+      edge_boundary(C, F, erefs[e].first, erefs[e].second, cand[e], L, segs);
+    }
+    // loops per side; lift to 3D
+    for (int si = 0; si < 2; ++si) {
+      if (segs[si].empty()) continue;
+      Group G;
+      G.plane = pl;
+      G.side = si == 0 ? 1 : -1;
+      G.k = k;
+      for (auto& loop : chain_loops(segs[si], L)) {
+        remove_collinear(loop, L, C);
+        std::vector<int> ids;
+        ids.reserve(loop.size());
+        for (int li : loop) {
+          const EvPt& ep = L.pts[li];
+          int id;
+          if (ep.vid >= 0) {
+            const auto& c = coords(ep.vid);
+            id = gid(Point3(c[0], c[1], c[2]));
+          } else {
+            FT c[3];
+            if (!I.exact_coords_of(ep.def, c)) throw std::logic_error("Bsp::extract: bad crossing");
+            id = gid(Point3(c[0], c[1], c[2]));
           }
-          reg.loops.push_back(std::move(ids));
-        };
-        add_loop(ph.outer_boundary());
-        for (auto h = ph.holes_begin(); h != ph.holes_end(); ++h) add_loop(*h);
-        X.regions.push_back(std::move(reg));
+          G.p2.emplace(id, ep.p);
+          ids.push_back(id);
+        }
+        G.loops.push_back(std::move(ids));
       }
+      X.groups.push_back(std::move(G));
     }
   }
+  prof.lap("regions");
 
   // --- T-junctions: insert every output vertex lying strictly inside an output edge
   {
@@ -222,9 +566,9 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
     std::vector<ERef> erefs;
     using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
     std::vector<Box> eboxes, vboxes;
-    for (int r = 0; r < int(X.regions.size()); ++r)
-      for (int l = 0; l < int(X.regions[r].loops.size()); ++l) {
-        const auto& L = X.regions[r].loops[l];
+    for (int r = 0; r < int(X.groups.size()); ++r)
+      for (int l = 0; l < int(X.groups[r].loops.size()); ++l) {
+        const auto& L = X.groups[r].loops[l];
         for (int i = 0; i < int(L.size()); ++i) {
           const Vec3& a = ap[L[i]];
           const Vec3& b = ap[L[(i + 1) % L.size()]];
@@ -246,7 +590,7 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
     std::map<std::pair<int, int>, std::map<int, std::vector<int>>> inserts;  // (r,l) -> i -> vertices
     for (const auto& [ei, v] : cand) {
       const ERef& er = erefs[ei];
-      const auto& L = X.regions[er.r].loops[er.l];
+      const auto& L = X.groups[er.r].loops[er.l];
       const int a = L[er.i], b = L[(er.i + 1) % L.size()];
       if (v == a || v == b) continue;
       const Point3 &pa = X.pts[a], &pb = X.pts[b], &pv = X.pts[v];
@@ -254,7 +598,7 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
         inserts[{er.r, er.l}][er.i].push_back(v);
     }
     for (auto& [rl, byedge] : inserts) {
-      auto& L = X.regions[rl.first].loops[rl.second];
+      auto& L = X.groups[rl.first].loops[rl.second];
       std::vector<int> NL;
       NL.reserve(L.size() + byedge.size());
       for (int i = 0; i < int(L.size()); ++i) {
@@ -272,50 +616,83 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
     }
   }
 
-  // --- triangulate each region
-  X.region_tris_flat.resize(X.regions.size());
-  for (size_t r = 0; r < X.regions.size(); ++r) {
-    const Region& reg = X.regions[r];
-    const int k = reg.k, u = (k + 1) % 3, w = (k + 2) % 3;
-    const auto& dc = I.dplanes[reg.plane];
-    const bool flip = reg.side * dc[k] < 0;  // loops CCW from outside are CW in 2D
+  prof.lap("tjunctions");
+  // --- triangulate each plane side; each connected domain is one merged region
+  for (Group& G : X.groups) {
+    const int k = G.k, u = (k + 1) % 3, w = (k + 2) % 3;
+    const bool flip = G.side * I.dplanes[G.plane][k] < 0;  // CCW in 2D is CW seen from outside
     CDT cdt;
-    for (const auto& L : reg.loops) {
+    std::unordered_map<uint64_t, int> edge_loop;
+    for (int l = 0; l < int(G.loops.size()); ++l) {
+      const auto& Lp = G.loops[l];
       std::vector<CDT::Vertex_handle> vh;
-      vh.reserve(L.size());
-      for (int id : L) {
-        const Point3& p = X.pts[id];
-        CDT::Vertex_handle h = cdt.insert(Point2(p.cartesian(u), p.cartesian(w)));
+      vh.reserve(Lp.size());
+      for (int id : Lp) {
+        auto it = G.p2.find(id);
+        const Point2 q = it != G.p2.end() ? it->second : Point2(X.pts[id].cartesian(u), X.pts[id].cartesian(w));
+        CDT::Vertex_handle h = cdt.insert(q);
         h->info() = id;
         vh.push_back(h);
       }
-      for (size_t i = 0; i < vh.size(); ++i) cdt.insert_constraint(vh[i], vh[(i + 1) % vh.size()]);
-    }
-    mark_domains(cdt);
-    auto& tris = X.region_tris_flat[r];
-    for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
-      if (f->info().nesting % 2 != 1) continue;
-      const int a = f->vertex(0)->info(), b = f->vertex(1)->info(), c = f->vertex(2)->info();
-      tris.push_back(a);
-      if (flip) {
-        tris.push_back(c);
-        tris.push_back(b);
-      } else {
-        tris.push_back(b);
-        tris.push_back(c);
+      for (size_t i = 0; i < vh.size(); ++i) {
+        const int a = Lp[i], b = Lp[(i + 1) % Lp.size()];
+        edge_loop[(uint64_t(uint32_t(a)) << 32) | uint32_t(b)] = l;
+        cdt.insert_constraint(vh[i], vh[(i + 1) % vh.size()]);
       }
     }
+    mark_domains(cdt);
+    int ndom = 0;
+    for (auto f0 = cdt.finite_faces_begin(); f0 != cdt.finite_faces_end(); ++f0) {
+      if (f0->info().nesting % 2 != 1 || f0->info().domain >= 0) continue;
+      const int dom = ndom++;
+      std::vector<int> dtris;
+      std::vector<int> dloops;
+      std::deque<CDT::Face_handle> queue{f0};
+      f0->info().domain = dom;
+      while (!queue.empty()) {
+        CDT::Face_handle fh = queue.front();
+        queue.pop_front();
+        for (int t = 0; t < 3; ++t) dtris.push_back(fh->vertex(t)->info());
+        for (int i = 0; i < 3; ++i) {
+          if (cdt.is_constrained(CDT::Edge(fh, i))) {
+            const int a = fh->vertex(CDT::ccw(i))->info(), b = fh->vertex(CDT::cw(i))->info();
+            auto it = edge_loop.find((uint64_t(uint32_t(a)) << 32) | uint32_t(b));
+            if (it == edge_loop.end()) throw std::logic_error("Bsp::extract: constraint not on a loop");
+            dloops.push_back(it->second);
+            continue;
+          }
+          CDT::Face_handle n = fh->neighbor(i);
+          if (cdt.is_infinite(n) || n->info().domain >= 0) continue;
+          n->info().domain = dom;
+          queue.push_back(n);
+        }
+      }
+      std::sort(dloops.begin(), dloops.end());
+      dloops.erase(std::unique(dloops.begin(), dloops.end()), dloops.end());
+      if (flip)
+        for (size_t i = 0; i < dtris.size(); i += 3) std::swap(dtris[i + 1], dtris[i + 2]);
+      if (dloops.size() == 1) {
+        std::vector<int> face = G.loops[dloops[0]];
+        if (flip) std::reverse(face.begin(), face.end());
+        G.faces.push_back(std::move(face));
+      } else {
+        for (size_t i = 0; i < dtris.size(); i += 3) G.faces.push_back({dtris[i], dtris[i + 1], dtris[i + 2]});
+      }
+      G.tris.insert(G.tris.end(), dtris.begin(), dtris.end());
+    }
+    G.regions = ndom;
   }
+  prof.lap("triangulate");
   return X;
 }
 
 // Undirected edges used by more than two triangles.
 std::vector<std::pair<int, int>> nonmanifold_edges(const Extracted& X) {
   std::vector<std::pair<int, int>> edges;
-  for (const auto& t : X.region_tris_flat)
-    for (size_t i = 0; i + 2 < t.size(); i += 3)
+  for (const auto& G : X.groups)
+    for (size_t i = 0; i + 2 < G.tris.size(); i += 3)
       for (int e = 0; e < 3; ++e) {
-        int a = t[i + e], b = t[i + (e + 1) % 3];
+        int a = G.tris[i + e], b = G.tris[i + (e + 1) % 3];
         if (a > b) std::swap(a, b);
         edges.emplace_back(a, b);
       }
@@ -365,7 +742,11 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
     }
     std::vector<int> flip;
     for (const auto& [a, b] : bad) {
+      // out-cells around the edge: those whose closure contains its midpoint (an
+      // out-wedge may be cut into several cells along the edge; flipping one
+      // shortens the non-manifold part, the next round handles the rest)
       const Point3 &pa = X.pts[a], &pb = X.pts[b];
+      const Point3 mid = CGAL::midpoint(pa, pb);
       const Vec3 qa(CGAL::to_double(pa.x()), CGAL::to_double(pa.y()), CGAL::to_double(pa.z()));
       const Vec3 qb(CGAL::to_double(pb.x()), CGAL::to_double(pb.y()), CGAL::to_double(pb.z()));
       const Vec3 elo = qa.cwiseMin(qb), ehi = qa.cwiseMax(qb);
@@ -376,7 +757,7 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
         if ((bbox[i].first.array() > ehi.array() + tol).any() || (bbox[i].second.array() < elo.array() - tol).any())
           continue;
         const Cell& c = cells[partition[i]];
-        if (!cell_contains(D, c, pa) || !cell_contains(D, c, pb)) continue;
+        if (!cell_contains(D, c, mid)) continue;
         if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
       }
       if (best >= 0) flip.push_back(best);
@@ -394,15 +775,10 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
   for (size_t i = 0; i < X.pts.size(); ++i)
     S.polygons.vertices[i] = Vec3(CGAL::to_double(X.pts[i].x()), CGAL::to_double(X.pts[i].y()), CGAL::to_double(X.pts[i].z()));
   S.triangles.vertices = S.polygons.vertices;
-  S.merged_regions = int(X.regions.size());
-  for (size_t r = 0; r < X.regions.size(); ++r) {
-    const auto& t = X.region_tris_flat[r];
-    for (size_t i = 0; i + 2 < t.size(); i += 3) S.triangles.triangles.push_back({t[i], t[i + 1], t[i + 2]});
-    if (X.regions[r].loops.size() == 1) {
-      S.polygons.faces.push_back(X.regions[r].loops[0]);
-    } else {
-      for (size_t i = 0; i + 2 < t.size(); i += 3) S.polygons.faces.push_back({t[i], t[i + 1], t[i + 2]});
-    }
+  for (const Group& G : X.groups) {
+    S.merged_regions += G.regions;
+    for (size_t i = 0; i + 2 < G.tris.size(); i += 3) S.triangles.triangles.push_back({G.tris[i], G.tris[i + 1], G.tris[i + 2]});
+    for (const auto& f : G.faces) S.polygons.faces.push_back(f);
   }
   return S;
 }

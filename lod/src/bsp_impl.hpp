@@ -31,7 +31,8 @@ using Point3 = K::Point_3;
 using Plane3 = K::Plane_3;
 
 struct Vertex {
-  Point3 p;
+  Point3 p;                                      ///< lazy intersection of the 3 defining planes
+  std::array<int, 3> def{-1, -1, -1};            ///< the defining planes
   Vec3 approx = Vec3::Zero();
   std::vector<int> planes;                       ///< table planes the vertex lies on (exactly)
   std::vector<std::pair<int, signed char>> signs;  ///< cached non-zero signs
@@ -87,7 +88,12 @@ struct BspData {
   /// Index of a plane equal (within 1e-12, either orientation) to c, adding it
   /// if new; *flip = +1 if the table plane has the same orientation, -1 otherwise.
   int find_or_add_plane(const std::array<double, 4>& c, int* flip);
-  int add_vertex(const Point3& p, std::vector<int> on_planes);
+  int add_vertex(const Point3& p, const std::array<int, 3>& def, std::vector<int> on_planes);
+  /// Exact coordinates of vertex v (intersection of its 3 defining planes),
+  /// computed with integer determinants (fast; no lazy DAG).
+  void exact_coords(int v, FT out[3]) const;
+  /// Exact intersection point of 3 table planes (false if not independent).
+  bool exact_coords_of(const std::array<int, 3>& def, FT out[3]) const;
   /// Exact sign of vertex v w.r.t. table plane P (cached).
   int sign(int v, int P);
   /// Vertex where edge (a,b) (on planes S and E) crosses P; memoized by (a,b,P).
