@@ -11,6 +11,8 @@ class IoError : public std::runtime_error {
  public:
   IoError(const std::string& file, const std::string& reason)
       : std::runtime_error(file + ": " + reason), file_(file), reason_(reason) {}
+  /// For a message already formatted as "<file>: <reason>" (file() stays empty).
+  explicit IoError(const std::string& message) : std::runtime_error(message), reason_(message) {}
   const std::string& file() const { return file_; }
   const std::string& reason() const { return reason_; }
 

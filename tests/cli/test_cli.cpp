@@ -1,0 +1,224 @@
+// Runs the real `citylod` binary: exit codes, stdout/stderr, real data.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace {
+
+struct Result {
+  int code = -1;
+  std::string out, err;
+};
+
+std::string slurp(const std::string& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+std::string tmp_dir() {
+  std::string d = std::string(CITYLOD_TEST_TMP) + "/cli";
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+Result run(const std::string& args) {
+  const std::string d = tmp_dir();
+  const std::string out = d + "/stdout.txt", err = d + "/stderr.txt";
+  std::string cmd = quote(CITYLOD_BINARY) + " " + args + " >" + quote(out) + " 2>" + quote(err) + " </dev/null";
+  int st = std::system(cmd.c_str());
+  Result r;
+  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + (WIFSIGNALED(st) ? WTERMSIG(st) : 0);
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+std::string shared(const std::string& rel) { return std::string(CITYLOD_SHARED_DATA) + "/" + rel; }
+
+std::string write_tmp(const std::string& name, const std::string& bytes) {
+  std::string p = tmp_dir() + "/" + name;
+  std::ofstream(p, std::ios::binary) << bytes;
+  return p;
+}
+
+int count_lines(const std::string& s) {
+  int n = 0;
+  for (char c : s) n += c == '\n';
+  return n;
+}
+
+#define REQUIRE_SHARED(p) \
+  if (!std::filesystem::exists(p)) GTEST_SKIP() << "shared data missing: " << (p)
+
+}  // namespace
+
+TEST(Cli, Version) {
+  Result r = run("--version");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_EQ(r.out, "citylod 0.1.0\n");
+}
+
+TEST(Cli, HelpListsSubcommands) {
+  Result r = run("--help");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("usage: citylod"), std::string::npos);
+  EXPECT_NE(r.out.find("  info"), std::string::npos);
+  EXPECT_NE(r.out.find("--log-level"), std::string::npos);
+  Result none = run("");
+  EXPECT_EQ(none.code, 2);
+  EXPECT_NE(none.err.find("commands:"), std::string::npos);
+}
+
+TEST(Cli, SubcommandHelp) {
+  Result r = run("info --help");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("usage: citylod info [options] FILE..."), std::string::npos);
+  EXPECT_NE(r.out.find("--json"), std::string::npos);
+  EXPECT_NE(r.out.find("--quiet"), std::string::npos);
+  EXPECT_TRUE(r.err.empty()) << r.err;
+}
+
+TEST(Cli, UsageErrorsExit2) {
+  Result r = run("info --bogus x.ply");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("unknown option '--bogus'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("see 'citylod info --help'"), std::string::npos) << r.err;
+  Result u = run("frobnicate");
+  EXPECT_EQ(u.code, 2);
+  EXPECT_NE(u.err.find("unknown command 'frobnicate'"), std::string::npos);
+  EXPECT_NE(u.err.find("see 'citylod --help'"), std::string::npos);
+  Result m = run("info");
+  EXPECT_EQ(m.code, 2);
+  EXPECT_NE(m.err.find("missing argument FILE"), std::string::npos) << m.err;
+  Result l = run("--log-level loud info x");
+  EXPECT_EQ(l.code, 2);
+  EXPECT_NE(l.err.find("invalid log level 'loud'"), std::string::npos) << l.err;
+  Result g = run("--nope");
+  EXPECT_EQ(g.code, 2);
+}
+
+TEST(Cli, GlobalOptionsBeforeAndAfterSubcommand) {
+  std::string p = write_tmp("g.xyz", "1 2 3\n4 5 6\n");
+  EXPECT_EQ(run("--log-level debug --quiet info " + quote(p)).code, 0);
+  EXPECT_EQ(run("info --log-level=error -q " + quote(p)).code, 0);
+  EXPECT_EQ(run("info -- " + quote(p)).code, 0);
+}
+
+TEST(Cli, InfoCgalBuilding) {
+  const std::string p = shared("single_building/cgal_building.ply");
+  REQUIRE_SHARED(p);
+  Result r = run("info " + quote(p));
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("points:         100000"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("attributes:     normals"), std::string::npos) << r.out;
+}
+
+TEST(Cli, InfoAhn3Las) {
+  const std::string p = shared("delft/ahn3_cropped_2.las");
+  REQUIRE_SHARED(p);
+  Result r = run("info " + quote(p));
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("points:         208432"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("point format:   1 "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("      6 building"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("      2 ground"), std::string::npos) << r.out;
+
+  Result j = run("info --json " + quote(p));
+  ASSERT_EQ(j.code, 0) << j.err;
+  auto doc = nlohmann::json::parse(j.out);
+  EXPECT_EQ(doc["point_count"], 208432);
+  EXPECT_EQ(doc["las"]["point_format"], 1);
+  bool has6 = false;
+  for (const auto& c : doc["classes"])
+    if (c["code"] == 6 && c["count"].get<long>() > 0) has6 = true;
+  EXPECT_TRUE(has6);
+}
+
+TEST(Cli, InfoAutzenCrsInFeet) {
+  const std::string p = shared("las/autzen_trim.las");
+  REQUIRE_SHARED(p);
+  Result r = run("info " + quote(p));
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("crs:            NAD_1983_HARN_Lambert_Conformal_Conic"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("linear unit:    foot"), std::string::npos) << r.out;
+  Result j = run("info -j " + quote(p));
+  auto doc = nlohmann::json::parse(j.out);
+  EXPECT_EQ(doc["crs"]["linear_unit"], "foot");
+  EXPECT_DOUBLE_EQ(doc["crs"]["linear_unit_m"].get<double>(), 0.3048);
+}
+
+TEST(Cli, InfoLaz) {
+  const std::string p = shared("delft/ahn3_cropped_2.laz");
+  REQUIRE_SHARED(p);
+  Result r = run("info " + quote(p));
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("compressed:     LASzip"), std::string::npos) << r.out;
+}
+
+TEST(Cli, InfoAllSharedFiles) {
+  const std::string dir = CITYLOD_SHARED_DATA;
+  REQUIRE_SHARED(dir);
+  int n = 0;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir)) {
+    const std::string ext = e.path().extension().string();
+    if (ext != ".ply" && ext != ".off" && ext != ".obj" && ext != ".las" && ext != ".laz") continue;
+    Result r = run("info --json " + quote(e.path().string()));
+    EXPECT_EQ(r.code, 0) << e.path() << ": " << r.err;
+    EXPECT_TRUE(nlohmann::json::accept(r.out)) << e.path();
+    ++n;
+  }
+  EXPECT_GE(n, 11);
+  // Several files at once: one JSON array.
+  Result many = run("info --json " + quote(dir + "/las/sample_c.las") + " " + quote(dir + "/las/autzen_trim.las"));
+  EXPECT_EQ(many.code, 0);
+  EXPECT_EQ(nlohmann::json::parse(many.out).size(), 2u);
+}
+
+TEST(Cli, InfoBadInputsFailWithOneLine) {
+  struct Case {
+    std::string path, reason;
+  };
+  std::string ply_hdr = "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+                        "property float y\nproperty float z\nend_header\n";
+  std::string truncated = write_tmp("truncated.ply", ply_hdr + std::string(12 * 40, '\0'));
+  // A LAS 1.2 file whose header claims more points than it holds.
+  std::string las;
+  const std::string src = shared("las/sample_c.las");
+  if (std::filesystem::exists(src)) {
+    las = slurp(src);
+    las.resize(las.size() / 2);
+  }
+  std::string lying = las.empty() ? std::string() : write_tmp("lying.las", las);
+  std::string readme = std::string(CITYLOD_SOURCE_DIR) + "/README.md";
+  if (!std::filesystem::exists(readme)) readme = write_tmp("README.md", "# title\n\ntext\n");
+  std::vector<Case> cases = {
+      {tmp_dir() + "/missing.ply", "no such file"},
+      {readme, "not a point cloud or mesh file (unrecognised format)"},
+      {truncated, "truncated: header declares 100 points but the file holds only 40"},
+      {write_tmp("nan.xyz", "1 2 3\nnan 2 3\n"), "NaN coordinate at point #1"},
+      {write_tmp("empty.ply", ""), "empty file"},
+      {write_tmp("badface.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"), "face #0 references vertex 7"},
+  };
+  if (!lying.empty()) cases.push_back({lying, "truncated: header declares 14408 points but the file holds only"});
+  for (const auto& c : cases) {
+    Result r = run("info " + quote(c.path));
+    EXPECT_EQ(r.code, 1) << c.path << "\n" << r.err;
+    EXPECT_EQ(count_lines(r.err), 1) << r.err;
+    EXPECT_EQ(r.err.rfind("citylod: error: " + c.path + ": ", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find(c.reason), std::string::npos) << r.err;
+  }
+}
