@@ -121,11 +121,16 @@ bool on_wgs84_datum(Context& ctx, const PJ* crs) {
 
 std::string type_name(PJ_TYPE t) {
   switch (t) {
-    case PJ_TYPE_GEOCENTRIC_CRS: return "geocentric";
-    case PJ_TYPE_VERTICAL_CRS: return "vertical";
-    case PJ_TYPE_ENGINEERING_CRS: return "engineering";
-    case PJ_TYPE_TEMPORAL_CRS: return "temporal";
-    default: return "unsupported";
+    case PJ_TYPE_GEOCENTRIC_CRS:
+      return "geocentric";
+    case PJ_TYPE_VERTICAL_CRS:
+      return "vertical";
+    case PJ_TYPE_ENGINEERING_CRS:
+      return "engineering";
+    case PJ_TYPE_TEMPORAL_CRS:
+      return "temporal";
+    default:
+      return "unsupported";
   }
 }
 
@@ -159,8 +164,7 @@ class CrsBuilder {
     PjPtr horiz = detail::horizontal_part(ctx, crs);
     const PJ_TYPE htype = proj_get_type(horiz.get());
     c.projected_ = htype == PJ_TYPE_PROJECTED_CRS;
-    c.geographic_ =
-        htype == PJ_TYPE_GEOGRAPHIC_2D_CRS || htype == PJ_TYPE_GEOGRAPHIC_3D_CRS;
+    c.geographic_ = htype == PJ_TYPE_GEOGRAPHIC_2D_CRS || htype == PJ_TYPE_GEOGRAPHIC_3D_CRS;
     if (!c.projected_ && !c.geographic_)
       throw GeoError("CRS '" + c.spec_.substr(0, 60) + "' (" + c.name_ + ") is a " +
                      type_name(htype) + " CRS; citylod needs a projected or geographic CRS");
@@ -175,8 +179,9 @@ class CrsBuilder {
       c.has_vertical_ = true;
       c.vertical_name_ = proj_get_name(vert.get());
       c.vertical_unit_ = axis_unit(ctx, vert.get(), 0);
-    } else if (proj_cs_get_axis_count(ctx.get(), PjPtr(proj_crs_get_coordinate_system(
-                                                     ctx.get(), horiz.get())).get()) == 3) {
+    } else if (proj_cs_get_axis_count(
+                   ctx.get(),
+                   PjPtr(proj_crs_get_coordinate_system(ctx.get(), horiz.get())).get()) == 3) {
       c.vertical_unit_ = axis_unit(ctx, horiz.get(), 2);  // ellipsoidal height axis
     } else {
       c.vertical_unit_ = c.projected_ ? c.horizontal_unit_ : Unit{"metre", 1.0, false};
@@ -208,11 +213,12 @@ class CrsBuilder {
     PjPtr horiz = detail::horizontal_part(ctx, crs.get());
     PjPtr altered(proj_crs_alter_cs_linear_unit(ctx.get(), horiz.get(), unit.name.c_str(),
                                                 unit.to_si, nullptr, nullptr));
-    if (!altered) throw GeoError("cannot change the unit of '" + in.name() + "': " + ctx.take_error());
+    if (!altered)
+      throw GeoError("cannot change the unit of '" + in.name() + "': " + ctx.take_error());
     if (proj_get_type(crs.get()) == PJ_TYPE_COMPOUND_CRS) {
       PjPtr vert(proj_crs_get_sub_crs(ctx.get(), crs.get(), 1));
-      altered.reset(proj_create_compound_crs(ctx.get(), proj_get_name(altered.get()),
-                                             altered.get(), vert.get()));
+      altered.reset(proj_create_compound_crs(ctx.get(), proj_get_name(altered.get()), altered.get(),
+                                             vert.get()));
       if (!altered) throw GeoError("cannot rebuild compound CRS: " + ctx.take_error());
     }
     const char* json = proj_as_projjson(ctx.get(), altered.get(), nullptr);
@@ -220,7 +226,8 @@ class CrsBuilder {
     Crs out = describe(ctx, altered.get(), in.spec_, json);
     out.epsg_ = std::nullopt;  // no longer the EPSG definition
     if (!out.area_) out.area_ = in.area_;
-    const bool vertical_followed = !in.has_vertical_ && in.vertical_unit_.to_si == in.horizontal_unit_.to_si;
+    const bool vertical_followed =
+        !in.has_vertical_ && in.vertical_unit_.to_si == in.horizontal_unit_.to_si;
     out.vertical_unit_ = vertical_followed ? out.horizontal_unit_ : in.vertical_unit_;
     out.warnings_ = in.warnings_;
     return out;
@@ -234,7 +241,8 @@ Crs Crs::parse(const std::string& spec_in) {
   const std::string spec = trim(spec_in);
   if (spec.empty()) throw GeoError("empty CRS definition");
   std::string def = spec;
-  if (std::all_of(spec.begin(), spec.end(), [](char ch) { return std::isdigit(static_cast<unsigned char>(ch)); })) {
+  if (std::all_of(spec.begin(), spec.end(),
+                  [](char ch) { return std::isdigit(static_cast<unsigned char>(ch)); })) {
     def = "EPSG:" + spec;
   } else if ((spec[0] == '+' || spec.rfind("proj=", 0) == 0) &&
              spec.find("type=crs") == std::string::npos) {
@@ -247,16 +255,17 @@ Crs Crs::from_geotiff(const GeoTiffKeys& k) {
   auto valid = [](int code) { return code > 0 && code < 32767; };
   std::string spec;
   if (k.projected_cs == 32767 || (k.model_type == 1 && !valid(k.projected_cs)))
-    throw GeoError(
-        "user-defined GeoTIFF projection (ProjectedCSTypeGeoKey " + std::to_string(k.projected_cs) +
-        ") is not supported: use the file's WKT record or give the CRS as EPSG code");
+    throw GeoError("user-defined GeoTIFF projection (ProjectedCSTypeGeoKey " +
+                   std::to_string(k.projected_cs) +
+                   ") is not supported: use the file's WKT record or give the CRS as EPSG code");
   if (valid(k.projected_cs)) {
     spec = "EPSG:" + std::to_string(k.projected_cs);
   } else if (valid(k.geographic_cs)) {
     spec = "EPSG:" + std::to_string(k.geographic_cs);
   } else {
-    throw GeoError("GeoTIFF keys name no EPSG coordinate system (ProjectedCSTypeGeoKey / "
-                   "GeographicTypeGeoKey missing or user-defined)");
+    throw GeoError(
+        "GeoTIFF keys name no EPSG coordinate system (ProjectedCSTypeGeoKey / "
+        "GeographicTypeGeoKey missing or user-defined)");
   }
   if (valid(k.vertical_cs)) spec += "+" + std::to_string(k.vertical_cs);
   Crs crs = parse(spec);
@@ -266,8 +275,9 @@ Crs Crs::from_geotiff(const GeoTiffKeys& k) {
     if (std::abs(u.to_si - crs.horizontal_unit().to_si) > 1e-12) {
       const std::string declared = crs.horizontal_unit().name;
       crs = CrsBuilder::alter_unit(crs, u);
-      CrsBuilder::warn(crs, spec + " is defined in " + declared + " but ProjLinearUnitsGeoKey says " +
-                                u.name + ": reading x, y in " + u.name);
+      CrsBuilder::warn(crs, spec + " is defined in " + declared +
+                                " but ProjLinearUnitsGeoKey says " + u.name + ": reading x, y in " +
+                                u.name);
     }
   }
   if (k.vertical_units) {
@@ -275,15 +285,17 @@ Crs Crs::from_geotiff(const GeoTiffKeys& k) {
     if (!crs.has_vertical_datum()) {
       CrsBuilder::set_vertical_unit(crs, u);
     } else if (std::abs(u.to_si - crs.vertical_unit().to_si) > 1e-12) {
-      CrsBuilder::warn(crs, "VerticalUnitsGeoKey (" + u.name + ") disagrees with the vertical CRS " +
-                                crs.vertical_name() + " (" + crs.vertical_unit().name +
-                                "); the vertical CRS wins");
+      CrsBuilder::warn(crs, "VerticalUnitsGeoKey (" + u.name +
+                                ") disagrees with the vertical CRS " + crs.vertical_name() + " (" +
+                                crs.vertical_unit().name + "); the vertical CRS wins");
     }
   }
   return crs;
 }
 
-std::string Crs::label() const { return epsg_ ? "EPSG:" + std::to_string(*epsg_) : name_; }
+std::string Crs::label() const {
+  return epsg_ ? "EPSG:" + std::to_string(*epsg_) : name_;
+}
 
 Crs Crs::with_vertical_unit(const Unit& unit) const {
   if (has_vertical_)
@@ -303,10 +315,14 @@ void Crs::require_projected(const std::string& what) const {
 
 Unit unit_from_epsg(int code) {
   switch (code) {
-    case 9001: return {"metre", 1.0, false};
-    case 9002: return {"foot", 0.3048, false};
-    case 9003: return {"US survey foot", 1200.0 / 3937.0, false};
-    default: break;
+    case 9001:
+      return {"metre", 1.0, false};
+    case 9002:
+      return {"foot", 0.3048, false};
+    case 9003:
+      return {"US survey foot", 1200.0 / 3937.0, false};
+    default:
+      break;
   }
   Context ctx;
   const char* name = nullptr;
@@ -315,13 +331,16 @@ Unit unit_from_epsg(int code) {
   const std::string s = std::to_string(code);
   if (!proj_uom_get_info_from_database(ctx.get(), "EPSG", s.c_str(), &name, &factor, &category) ||
       !category || std::string(category) != "linear")
-    throw GeoError("unknown linear unit code " + s + " (EPSG units 9001 metre, 9002 foot, 9003 "
+    throw GeoError("unknown linear unit code " + s +
+                   " (EPSG units 9001 metre, 9002 foot, 9003 "
                    "US survey foot, ...)");
   return {name, factor, false};
 }
 
 namespace detail {
-Crs with_horizontal_unit(const Crs& crs, const Unit& unit) { return CrsBuilder::alter_unit(crs, unit); }
+Crs with_horizontal_unit(const Crs& crs, const Unit& unit) {
+  return CrsBuilder::alter_unit(crs, unit);
+}
 }  // namespace detail
 
 }  // namespace citylod::geo

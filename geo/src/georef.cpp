@@ -52,7 +52,8 @@ void Georef::to_local_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
 }
 
 Eigen::Vector3d Georef::to_crs(const Eigen::Vector3d& enu) {
-  return transformer_ ? transformer_->from_wgs84(frame_.enu_to_geodetic(enu)) : (crs(), enu);
+  crs();  // throws for local scenes
+  return transformer_->from_wgs84(frame_.enu_to_geodetic(enu));
 }
 
 void Georef::to_crs_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {

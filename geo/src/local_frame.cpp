@@ -12,7 +12,9 @@
 namespace citylod::geo {
 
 namespace {
-const GeographicLib::Geocentric& earth() { return GeographicLib::Geocentric::WGS84(); }
+const GeographicLib::Geocentric& earth() {
+  return GeographicLib::Geocentric::WGS84();
+}
 constexpr double kDeg = M_PI / 180.0;
 }  // namespace
 
@@ -100,7 +102,8 @@ LonLatH parse_origin(const std::string& text) {
   if (!(is >> lat >> c1 >> lon >> c2 >> h) || c1 != ',' || c2 != ',' || !(is >> std::ws).eof())
     throw GeoError("invalid origin '" + text + "': expected LAT,LON,H (degrees, degrees, metres)");
   if (std::abs(lat) > 90.0 || std::abs(lon) > 180.0)
-    throw GeoError("invalid origin '" + text + "': latitude must be in [-90, 90], longitude in "
+    throw GeoError("invalid origin '" + text +
+                   "': latitude must be in [-90, 90], longitude in "
                    "[-180, 180] (order is LAT,LON,H)");
   return {lon, lat, h};
 }

@@ -1,8 +1,8 @@
 #include "proj_util.hpp"
 
 #include <cstdio>
-#include <sstream>
 #include <locale>
+#include <sstream>
 
 namespace citylod::geo::detail {
 
@@ -12,7 +12,9 @@ Context::Context() : ctx_(proj_context_create()) {
   proj_log_level(ctx_, PJ_LOG_ERROR);
 }
 
-Context::~Context() { proj_context_destroy(ctx_); }
+Context::~Context() {
+  proj_context_destroy(ctx_);
+}
 
 void Context::log(void* self, int level, const char* msg) {
   if (level > PJ_LOG_ERROR || !msg) return;

@@ -36,8 +36,8 @@ void create_operations(OpList& ops, PJ_CONTEXT* ctx, const PJ* src, const PJ* ds
   ops.ctx = ctx;
   ops.factory = proj_create_operation_factory_context(ctx, nullptr);
   proj_operation_factory_context_set_grid_availability_use(ctx, ops.factory, grids);
-  proj_operation_factory_context_set_spatial_criterion(
-      ctx, ops.factory, PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION);
+  proj_operation_factory_context_set_spatial_criterion(ctx, ops.factory,
+                                                       PROJ_SPATIAL_CRITERION_PARTIAL_INTERSECTION);
   ops.list = proj_create_operations(ctx, src, dst, ops.factory);
 }
 
@@ -97,7 +97,8 @@ struct Transformer::Impl {
     PjPtr wgs84(proj_create(ctx.get(), "EPSG:4326"));
     PjPtr op(proj_create_crs_to_crs_from_pj(ctx.get(), horiz.get(), wgs84.get(), nullptr, nullptr));
     if (!op)
-      throw GeoError("no PROJ transformation from " + crs.label() + " to WGS 84: " + ctx.take_error());
+      throw GeoError("no PROJ transformation from " + crs.label() +
+                     " to WGS 84: " + ctx.take_error());
     horizontal.reset(proj_normalize_for_visualization(ctx.get(), op.get()));
     if (!horizontal) throw GeoError("cannot normalise axis order: " + ctx.take_error());
   }
@@ -138,7 +139,8 @@ struct Transformer::Impl {
       }
     }
     ctx.clear();
-    return crs.label() + " heights (" + crs.vertical_name() + ") to ellipsoidal need PROJ grid(s) " +
+    return crs.label() + " heights (" + crs.vertical_name() +
+           ") to ellipsoidal need PROJ grid(s) " +
            (grids.empty() ? std::string("that are not installed") : grids + ", not installed") +
            ": using the EGM96 geoid instead (" + kEgm96Grid +
            "); heights may be off by decimetres up to ~1 m";
@@ -159,8 +161,8 @@ struct Transformer::Impl {
     const size_t n = static_cast<size_t>(p.cols());
     proj_errno_reset(op);
     proj_trans_generic(const_cast<PJ*>(op), dir, &p(0, 0), stride, n, &p(1, 0), stride, n,
-                       with_z ? &p(2, 0) : nullptr, with_z ? stride : 0, with_z ? n : 0, nullptr,
-                       0, 0);
+                       with_z ? &p(2, 0) : nullptr, with_z ? stride : 0, with_z ? n : 0, nullptr, 0,
+                       0);
   }
 
   void forward(Eigen::Ref<Eigen::Matrix3Xd> p) {
@@ -245,17 +247,31 @@ Transformer::~Transformer() = default;
 Transformer::Transformer(Transformer&&) noexcept = default;
 Transformer& Transformer::operator=(Transformer&&) noexcept = default;
 
-Transformer Transformer::clone() const { return Transformer(impl_->crs, impl_->options); }
-const Crs& Transformer::crs() const { return impl_->crs; }
-const TransformOptions& Transformer::options() const { return impl_->options; }
-bool Transformer::uses_geographiclib_utm() const { return impl_->utm_fast; }
-HeightMode Transformer::effective_height_mode() const { return impl_->effective; }
-const std::vector<std::string>& Transformer::warnings() const { return impl_->warnings; }
+Transformer Transformer::clone() const {
+  return Transformer(impl_->crs, impl_->options);
+}
+const Crs& Transformer::crs() const {
+  return impl_->crs;
+}
+const TransformOptions& Transformer::options() const {
+  return impl_->options;
+}
+bool Transformer::uses_geographiclib_utm() const {
+  return impl_->utm_fast;
+}
+HeightMode Transformer::effective_height_mode() const {
+  return impl_->effective;
+}
+const std::vector<std::string>& Transformer::warnings() const {
+  return impl_->warnings;
+}
 
 std::string Transformer::description() const {
   std::string d;
-  if (impl_->full3d) d = op_name(impl_->full3d.get());
-  else if (impl_->utm_fast) d = "GeographicLib UTM zone " + std::to_string(impl_->crs.utm()->zone);
+  if (impl_->full3d)
+    d = op_name(impl_->full3d.get());
+  else if (impl_->utm_fast)
+    d = "GeographicLib UTM zone " + std::to_string(impl_->crs.utm()->zone);
   else if (PjPtr last{proj_trans_get_last_used_operation(impl_->horizontal.get())})
     d = op_name(last.get());
   else
@@ -269,14 +285,18 @@ LonLatH Transformer::to_wgs84(const Eigen::Vector3d& crs_point) {
   impl_->forward(p);
   return p.col(0);
 }
-void Transformer::to_wgs84_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) { impl_->forward(points); }
+void Transformer::to_wgs84_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
+  impl_->forward(points);
+}
 
 Eigen::Vector3d Transformer::from_wgs84(const LonLatH& geodetic) {
   Eigen::Matrix3Xd p = geodetic;
   impl_->inverse(p);
   return p.col(0);
 }
-void Transformer::from_wgs84_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) { impl_->inverse(points); }
+void Transformer::from_wgs84_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
+  impl_->inverse(points);
+}
 
 void Transformer::check_in_area(const Eigen::AlignedBox3d& bbox, double margin_deg) {
   if (bbox.isEmpty()) throw GeoError("check_in_area: empty bounding box");
@@ -288,8 +308,9 @@ void Transformer::check_in_area(const Eigen::AlignedBox3d& bbox, double margin_d
   const Crs& crs = impl_->crs;
   const auto& area = crs.area_of_use();
   const std::string where =
-      area ? " (" + (area->name.size() > 80 ? area->name.substr(0, 77) + "..." : area->name) + ": lon " + fmt(area->west, 6) + ".." + fmt(area->east, 6) +
-                 ", lat " + fmt(area->south, 6) + ".." + fmt(area->north, 6) + ")"
+      area ? " (" + (area->name.size() > 80 ? area->name.substr(0, 77) + "..." : area->name) +
+                 ": lon " + fmt(area->west, 6) + ".." + fmt(area->east, 6) + ", lat " +
+                 fmt(area->south, 6) + ".." + fmt(area->north, 6) + ")"
            : std::string();
   for (Eigen::Index i = 0; i < pts.cols(); ++i) {
     const std::string xy = "coordinates (" + fmt(pts(0, i)) + ", " + fmt(pts(1, i)) + ")";
@@ -311,8 +332,9 @@ void Transformer::check_in_area(const Eigen::AlignedBox3d& bbox, double margin_d
                g.y() >= area->south - margin_deg && g.y() <= area->north + margin_deg;
     }
     if (!inside)
-      throw GeoError(xy + " lie outside the area of use of " + crs.label() + where + ": they map to lon " +
-                     fmt(g.x(), 8) + ", lat " + fmt(g.y(), 8) + " (wrong CRS or units?)");
+      throw GeoError(xy + " lie outside the area of use of " + crs.label() + where +
+                     ": they map to lon " + fmt(g.x(), 8) + ", lat " + fmt(g.y(), 8) +
+                     " (wrong CRS or units?)");
   }
 }
 
@@ -322,8 +344,9 @@ std::string egm96_grid_path() {
   const PJ_GRID_INFO info = proj_grid_info(kEgm96Grid);
   if (info.filename[0] != '\0') return info.filename;
   const PJ_INFO pinfo = proj_info();
-  throw GeoError(std::string("EGM96 geoid grid ") + kEgm96Grid + " not found in PROJ's search path (" +
-                 (pinfo.searchpath ? pinfo.searchpath : "") + "): install proj-data");
+  throw GeoError(std::string("EGM96 geoid grid ") + kEgm96Grid +
+                 " not found in PROJ's search path (" + (pinfo.searchpath ? pinfo.searchpath : "") +
+                 "): install proj-data");
 }
 
 }  // namespace citylod::geo

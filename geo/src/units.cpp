@@ -35,10 +35,12 @@ UnitReport check_units(const Crs& crs, const Eigen::AlignedBox3d& bbox) {
                            crs.horizontal_unit().name + " but inside it if read in " + other.name +
                            ": are the coordinates really in " + crs.horizontal_unit().name + "?");
   }
-  const double zlo = bbox.min().z() * r.vertical_to_metre, zhi = bbox.max().z() * r.vertical_to_metre;
+  const double zlo = bbox.min().z() * r.vertical_to_metre,
+               zhi = bbox.max().z() * r.vertical_to_metre;
   if (zlo < -500.0 || zhi > 9000.0)
-    r.warnings.push_back("heights " + detail::fmt(zlo, 6) + ".." + detail::fmt(zhi, 6) + " m (z in " +
-                         crs.vertical_unit().name + ") are outside -500..9000 m: wrong vertical unit?");
+    r.warnings.push_back("heights " + detail::fmt(zlo, 6) + ".." + detail::fmt(zhi, 6) +
+                         " m (z in " + crs.vertical_unit().name +
+                         ") are outside -500..9000 m: wrong vertical unit?");
   return r;
 }
 

@@ -14,10 +14,10 @@
 namespace citylod::geo::test {
 
 struct LasInfo {
-  std::string wkt;                         // empty when there is no WKT VLR
-  std::vector<uint16_t> geokeys;           // raw 34735 record
-  std::array<double, 3> first_point{};     // scaled + offset
-  std::array<double, 6> bbox{};            // min x, y, z, max x, y, z
+  std::string wkt;                      // empty when there is no WKT VLR
+  std::vector<uint16_t> geokeys;        // raw 34735 record
+  std::array<double, 3> first_point{};  // scaled + offset
+  std::array<double, 6> bbox{};         // min x, y, z, max x, y, z
 };
 
 template <class T>

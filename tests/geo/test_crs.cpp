@@ -41,7 +41,8 @@ TEST(Crs, AcceptedSpellings) {
 }
 
 TEST(Crs, UtmZones) {
-  for (auto [code, zone, north] : {std::tuple{32631, 31, true}, {32633, 33, true}, {32733, 33, false}}) {
+  for (auto [code, zone, north] :
+       {std::tuple{32631, 31, true}, {32633, 33, true}, {32733, 33, false}}) {
     const Crs crs = Crs::parse("EPSG:" + std::to_string(code));
     ASSERT_TRUE(crs.utm()) << code;
     EXPECT_EQ(crs.utm()->zone, zone);
@@ -58,7 +59,7 @@ TEST(Crs, FeetUnits) {
   const Crs ft = Crs::parse("EPSG:2994");  // NAD83(HARN) / Oregon GIC Lambert (ft)
   EXPECT_EQ(ft.horizontal_unit().to_si, 0.3048);
   EXPECT_EQ(ft.vertical_unit().to_si, 0.3048);  // projected 2D: z follows x/y
-  const Crs us = Crs::parse("EPSG:2264");  // NAD83 / North Carolina (ftUS)
+  const Crs us = Crs::parse("EPSG:2264");       // NAD83 / North Carolina (ftUS)
   EXPECT_NEAR(us.horizontal_unit().to_si, 1200.0 / 3937.0, 1e-15);
   EXPECT_EQ(unit_from_epsg(9003).to_si, 1200.0 / 3937.0);
   EXPECT_EQ(unit_from_epsg(9002).to_si, 0.3048);
@@ -75,7 +76,8 @@ TEST(Crs, Geographic) {
     crs.require_projected("to tile a scene");
     FAIL() << "expected GeoError";
   } catch (const GeoError& e) {
-    EXPECT_NE(std::string(e.what()).find("is geographic; a projected CRS is needed"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("is geographic; a projected CRS is needed"),
+              std::string::npos)
         << e.what();
   }
 }
@@ -161,7 +163,8 @@ TEST(Crs, AutzenWktFromLas) {
 TEST(Units, FeetDeclaredAsMetresIsReported) {
   const Crs utm = Crs::parse("EPSG:32631");
   // A block in Delft (~ (4.36 E, 52.0 N)), in metres: fine.
-  const Eigen::AlignedBox3d metres(Eigen::Vector3d(593000, 5762000, -5), Eigen::Vector3d(594000, 5763000, 60));
+  const Eigen::AlignedBox3d metres(Eigen::Vector3d(593000, 5762000, -5),
+                                   Eigen::Vector3d(594000, 5763000, 60));
   const UnitReport ok = check_units(utm, metres);
   EXPECT_EQ(ok.horizontal_to_metre, 1.0);
   EXPECT_TRUE(ok.warnings.empty());
@@ -182,7 +185,7 @@ TEST(Units, AutzenInFeetIsConsistent) {
   EXPECT_EQ(r.horizontal_to_metre, 0.3048);
   EXPECT_EQ(r.vertical_to_metre, 0.3048);
   EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
-  const UnitReport heights = check_units(crs, Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], 0),
-                                                                  Eigen::Vector3d(b[3], b[4], 40000)));
+  const UnitReport heights = check_units(
+      crs, Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], 0), Eigen::Vector3d(b[3], b[4], 40000)));
   EXPECT_EQ(heights.warnings.size(), 1u);
 }

@@ -2,8 +2,8 @@
 #include "citylod/geo/georef.hpp"
 #include "citylod/geo/local_frame.hpp"
 
-#include <GeographicLib/LocalCartesian.hpp>
 #include <gtest/gtest.h>
+#include <GeographicLib/LocalCartesian.hpp>
 
 #include <cmath>
 #include <random>
@@ -75,8 +75,8 @@ TEST(LocalFrame, BoundingRegionEnclosesTheBox) {
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> u(0, 1);
   for (int i = 0; i < 20000; ++i) {
-    const Eigen::Vector3d p = box.min() + (box.max() - box.min()).cwiseProduct(
-                                              Eigen::Vector3d(u(rng), u(rng), u(rng)));
+    const Eigen::Vector3d p =
+        box.min() + (box.max() - box.min()).cwiseProduct(Eigen::Vector3d(u(rng), u(rng), u(rng)));
     const LonLatH g = frame.enu_to_geodetic(p);
     ASSERT_GE(g.x() * M_PI / 180, r.west);
     ASSERT_LE(g.x() * M_PI / 180, r.east);
@@ -117,7 +117,8 @@ TEST(Georef, LocalSceneIsIdentity) {
 
 TEST(Georef, RdSceneOriginAtBoxCentre) {
   const Crs rd = Crs::parse("EPSG:28992");
-  const Eigen::AlignedBox3d box(Eigen::Vector3d(84000, 446000, -2), Eigen::Vector3d(86000, 448000, 40));
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(84000, 446000, -2),
+                                Eigen::Vector3d(86000, 448000, 40));
   Georef geo = Georef::from_crs_bbox(rd, box, {HeightMode::Egm96});
   EXPECT_EQ(geo.origin_crs(), box.center());
   EXPECT_LT(geo.to_local(box.center()).norm(), 1e-6);
@@ -131,8 +132,8 @@ TEST(Georef, RdSceneOriginAtBoxCentre) {
   EXPECT_GT(east.x(), 999.0);
   // Origin height: ellipsoidal = 19 m NAP-as-EGM96 + N (~43.5 m).
   EXPECT_NEAR(geo.frame().origin().z(), 19 + 43.5, 0.5);
-  const BoundingRegion r = geo.bounding_region(Eigen::AlignedBox3d(Eigen::Vector3d(-1000, -1000, -21),
-                                                                   Eigen::Vector3d(1000, 1000, 21)));
+  const BoundingRegion r = geo.bounding_region(
+      Eigen::AlignedBox3d(Eigen::Vector3d(-1000, -1000, -21), Eigen::Vector3d(1000, 1000, 21)));
   EXPECT_NEAR(r.west * 180 / M_PI, 4.35, 0.05);
   EXPECT_NEAR(r.south * 180 / M_PI, 51.99, 0.05);
 }

@@ -80,8 +80,8 @@ TEST(Transformer, RoundTripsWithinOneMillimetre) {
     }
     EXPECT_LT(worst, 1e-6);  // exact inverse: ~1e-8 m in practice
 
-    Georef geo = Georef::from_crs_bbox(crs, Eigen::AlignedBox3d(pts.rowwise().minCoeff(),
-                                                                pts.rowwise().maxCoeff()));
+    Georef geo = Georef::from_crs_bbox(
+        crs, Eigen::AlignedBox3d(pts.rowwise().minCoeff(), pts.rowwise().maxCoeff()));
     Eigen::Matrix3Xd local = pts;
     geo.to_local_inplace(local);
     EXPECT_LT(local.cwiseAbs().maxCoeff(), 1200.0);  // ENU metres near the origin
@@ -89,8 +89,10 @@ TEST(Transformer, RoundTripsWithinOneMillimetre) {
     geo.to_crs_inplace(back);
     const double batch_worst = (back - pts).cwiseAbs().maxCoeff() * to_m;
     EXPECT_LT(batch_worst, 1e-6);
-    RecordProperty(c.name + " round trip max error m", std::to_string(std::max(worst, batch_worst)));
-    std::printf("  round trip %-16s max error %.3g m\n", c.name.c_str(), std::max(worst, batch_worst));
+    RecordProperty(c.name + " round trip max error m",
+                   std::to_string(std::max(worst, batch_worst)));
+    std::printf("  round trip %-16s max error %.3g m\n", c.name.c_str(),
+                std::max(worst, batch_worst));
   }
 }
 
@@ -104,8 +106,8 @@ TEST(Transformer, AutzenLandsInOregon) {
   EXPECT_NEAR(g.x(), -123.07, 0.02);
   EXPECT_NEAR(g.z(), f[2] * 0.3048, 1e-9);  // feet heights become metres
   const auto& b = las->bbox;
-  EXPECT_NO_THROW(t.check_in_area(Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], b[2]),
-                                                      Eigen::Vector3d(b[3], b[4], b[5]))));
+  EXPECT_NO_THROW(t.check_in_area(
+      Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], b[2]), Eigen::Vector3d(b[3], b[4], b[5]))));
 }
 
 TEST(Transformer, GeographicLibUtmAgreesWithProj) {
@@ -140,7 +142,8 @@ TEST(Transformer, GeographicLibUtmAgreesWithProj) {
 TEST(Transformer, OutsideAreaOfUse) {
   Transformer rd(Crs::parse("EPSG:28992"));
   // UTM-like coordinates fed to RD New: far away from the Netherlands.
-  const Eigen::AlignedBox3d bad(Eigen::Vector3d(593000, 5762000, 0), Eigen::Vector3d(594000, 5763000, 10));
+  const Eigen::AlignedBox3d bad(Eigen::Vector3d(593000, 5762000, 0),
+                                Eigen::Vector3d(594000, 5763000, 10));
   try {
     rd.check_in_area(bad);
     FAIL() << "expected GeoError";
@@ -150,7 +153,8 @@ TEST(Transformer, OutsideAreaOfUse) {
     EXPECT_NE(msg.find("lie outside the area of use of EPSG:28992"), std::string::npos) << msg;
   }
   EXPECT_THROW(Georef::from_crs_bbox(Crs::parse("EPSG:28992"), bad), GeoError);
-  const Eigen::AlignedBox3d delft(Eigen::Vector3d(84000, 446000, -5), Eigen::Vector3d(86000, 448000, 60));
+  const Eigen::AlignedBox3d delft(Eigen::Vector3d(84000, 446000, -5),
+                                  Eigen::Vector3d(86000, 448000, 60));
   EXPECT_NO_THROW(rd.check_in_area(delft));
   // Swiss coordinates in RD: outside too.
   EXPECT_THROW(rd.check_in_area(Eigen::AlignedBox3d(Eigen::Vector3d(2600000, 1200000, 0),
@@ -242,10 +246,11 @@ TEST(Transformer, BatchThroughput) {
     Eigen::Vector3d c;
     TransformOptions opt;
   };
-  for (const Run& r : {Run{"RD New (PROJ)", "EPSG:28992", {155000, 463000, 0}, {}},
-                       Run{"RD New + EGM96", "EPSG:28992", {155000, 463000, 0}, {HeightMode::Egm96}},
-                       Run{"UTM 31N PROJ", "EPSG:32631", {593500, 5762500, 0}, {}},
-                       Run{"UTM 31N GeogLib", "EPSG:32631", {593500, 5762500, 0}, {HeightMode::FromCrs, true}}}) {
+  for (const Run& r :
+       {Run{"RD New (PROJ)", "EPSG:28992", {155000, 463000, 0}, {}},
+        Run{"RD New + EGM96", "EPSG:28992", {155000, 463000, 0}, {HeightMode::Egm96}},
+        Run{"UTM 31N PROJ", "EPSG:32631", {593500, 5762500, 0}, {}},
+        Run{"UTM 31N GeogLib", "EPSG:32631", {593500, 5762500, 0}, {HeightMode::FromCrs, true}}}) {
     Transformer t(Crs::parse(r.spec), r.opt);
     Eigen::Matrix3Xd p = cloud(r.c, 5000, n);
     const auto t0 = std::chrono::steady_clock::now();

@@ -11,15 +11,15 @@ namespace citylod::geo {
 
 /// A unit of measure. `to_si` converts one unit to metres (linear) or radians (angular).
 struct Unit {
-  std::string name;     ///< e.g. "metre", "foot", "US survey foot", "degree"
-  double to_si = 1.0;   ///< metre: 1, foot: 0.3048, US survey foot: 1200/3937
-  bool angular = false; ///< true for the degree axes of a geographic CRS
+  std::string name;      ///< e.g. "metre", "foot", "US survey foot", "degree"
+  double to_si = 1.0;    ///< metre: 1, foot: 0.3048, US survey foot: 1200/3937
+  bool angular = false;  ///< true for the degree axes of a geographic CRS
 };
 
 /// Area of use of a CRS, in degrees (WGS84 longitude/latitude), as recorded by PROJ/EPSG.
 struct AreaOfUse {
   double west = 0, south = 0, east = 0, north = 0;  ///< degrees
-  std::string name;                                  ///< e.g. "Netherlands - onshore, ..."
+  std::string name;                                 ///< e.g. "Netherlands - onshore, ..."
 };
 
 /// A UTM zone (from the projection parameters, whatever the datum).
@@ -30,12 +30,12 @@ struct UtmZone {
 
 /// GeoTIFF GeoKeys (as in the LASF_Projection 34735 VLR). 0 = key absent.
 struct GeoTiffKeys {
-  int model_type = 0;         ///< GTModelTypeGeoKey 1024: 1 projected, 2 geographic
-  int projected_cs = 0;       ///< ProjectedCSTypeGeoKey 3072 (EPSG code; 32767 = user-defined)
-  int geographic_cs = 0;      ///< GeographicTypeGeoKey 2048 (EPSG code)
-  int linear_units = 0;       ///< ProjLinearUnitsGeoKey 3076: 9001 m, 9002 ft, 9003 US survey ft
-  int vertical_cs = 0;        ///< VerticalCSTypeGeoKey 4096 (EPSG code of a vertical CRS)
-  int vertical_units = 0;     ///< VerticalUnitsGeoKey 4099 (EPSG unit code)
+  int model_type = 0;      ///< GTModelTypeGeoKey 1024: 1 projected, 2 geographic
+  int projected_cs = 0;    ///< ProjectedCSTypeGeoKey 3072 (EPSG code; 32767 = user-defined)
+  int geographic_cs = 0;   ///< GeographicTypeGeoKey 2048 (EPSG code)
+  int linear_units = 0;    ///< ProjLinearUnitsGeoKey 3076: 9001 m, 9002 ft, 9003 US survey ft
+  int vertical_cs = 0;     ///< VerticalCSTypeGeoKey 4096 (EPSG code of a vertical CRS)
+  int vertical_units = 0;  ///< VerticalUnitsGeoKey 4099 (EPSG unit code)
 };
 
 /// A coordinate reference system, parsed once by PROJ. A plain, copyable value: it holds no
@@ -54,7 +54,7 @@ class Crs {
   /// sets vertical_unit(). Throws GeoError for user-defined (32767) or missing codes.
   static Crs from_geotiff(const GeoTiffKeys& keys);
 
-  const std::string& name() const { return name_; }            ///< e.g. "Amersfoort / RD New"
+  const std::string& name() const { return name_; }              ///< e.g. "Amersfoort / RD New"
   const std::string& definition() const { return definition_; }  ///< what PROJ is given
   std::optional<int> epsg() const { return epsg_; }  ///< EPSG code of the whole CRS, if known
   /// "EPSG:28992" when the code is known, else the name; for messages.

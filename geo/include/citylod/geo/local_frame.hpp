@@ -15,7 +15,9 @@ struct BoundingRegion {
   double west = 0, south = 0, east = 0, north = 0;  ///< radians
   double min_height = 0, max_height = 0;            ///< metres (ellipsoidal)
   /// [west, south, east, north, minimum height, maximum height], the tileset.json "region".
-  std::array<double, 6> to_array() const { return {west, south, east, north, min_height, max_height}; }
+  std::array<double, 6> to_array() const {
+    return {west, south, east, north, min_height, max_height};
+  }
 };
 
 /// ENU frame at an origin (GeographicLib LocalCartesian on WGS84). Stateless after

@@ -11,9 +11,9 @@
 namespace citylod::geo {
 
 struct UnitReport {
-  double horizontal_to_metre = 1.0;  ///< factor applied to x, y (1 for geographic CRSes)
-  double vertical_to_metre = 1.0;    ///< factor applied to z
-  std::vector<std::string> warnings; ///< empty when nothing looks wrong
+  double horizontal_to_metre = 1.0;   ///< factor applied to x, y (1 for geographic CRSes)
+  double vertical_to_metre = 1.0;     ///< factor applied to z
+  std::vector<std::string> warnings;  ///< empty when nothing looks wrong
 };
 
 /// Reports the unit factors the transform applies for `crs` and looks for signs that the data
