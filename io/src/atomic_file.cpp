@@ -17,7 +17,8 @@ AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   if (!parent.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(parent, ec);
-    if (ec) throw IoError(path_, "cannot create directory " + parent.string() + ": " + ec.message());
+    if (ec)
+      throw IoError(path_, "cannot create directory " + parent.string() + ": " + ec.message());
   }
   file_ = std::fopen(tmp_.c_str(), "wb");
   if (!file_) throw IoError(path_, std::string("cannot create file: ") + std::strerror(errno));

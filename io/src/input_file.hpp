@@ -59,7 +59,9 @@ bool parse_double(std::string_view s, double& out);
 bool parse_u64(std::string_view s, std::uint64_t& out);
 bool parse_i64(std::string_view s, std::int64_t& out);
 
-inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v'; }
+inline bool is_space(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v';
+}
 
 /// Returns "NaN coordinate at point #k" / "infinite coordinate at point #k" or "".
 std::string check_finite(const double* p, std::uint64_t index);

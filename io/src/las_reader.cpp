@@ -30,11 +30,21 @@ std::string fixed_string(const unsigned char* p, std::size_t n) {
 
 const char* unit_name(int code, double* metres) {
   switch (code) {
-    case 9001: *metres = 1.0; return "metre";
-    case 9002: *metres = 0.3048; return "foot";
-    case 9003: *metres = 1200.0 / 3937.0; return "US survey foot";
-    case 9036: *metres = 1000.0; return "kilometre";
-    default: *metres = 0; return "";
+    case 9001:
+      *metres = 1.0;
+      return "metre";
+    case 9002:
+      *metres = 0.3048;
+      return "foot";
+    case 9003:
+      *metres = 1200.0 / 3937.0;
+      return "US survey foot";
+    case 9036:
+      *metres = 1000.0;
+      return "kilometre";
+    default:
+      *metres = 0;
+      return "";
   }
 }
 
@@ -52,8 +62,11 @@ class LasReader final : public ReaderBase {
   std::size_t read(PointSet& b, std::size_t max_points) override {
     b.clear();
     if (info_.compressed)
-      in_.fail("the file is LASzip-compressed (LAZ), which citylod cannot decode; convert it to LAS first, e.g. "
-               "'pdal translate in.laz out.las', 'las2las -i in.laz -o out.las' or 'laszip -i in.laz -o out.las'");
+      in_.fail(
+          "the file is LASzip-compressed (LAZ), which citylod cannot decode; convert it to LAS "
+          "first, e.g. "
+          "'pdal translate in.laz out.las', 'las2las -i in.laz -o out.las' or 'laszip -i in.laz -o "
+          "out.las'");
     std::uint64_t left = info_.point_count - points_read_;
     std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(left, max_points));
     if (n == 0) return 0;
@@ -76,7 +89,9 @@ class LasReader final : public ReaderBase {
   }
 
   double progress() const override {
-    return info_.point_count ? static_cast<double>(points_read_) / static_cast<double>(info_.point_count) : 1.0;
+    return info_.point_count
+               ? static_cast<double>(points_read_) / static_cast<double>(info_.point_count)
+               : 1.0;
   }
 
  private:
@@ -90,21 +105,23 @@ class LasReader final : public ReaderBase {
       const unsigned char* c = p + rgb_offset_;
       for (int a = 0; a < 3; ++a) {
         std::uint16_t v = le<std::uint16_t>(c + 2 * a);
-        b.colors[i][a] = static_cast<std::uint8_t>(rgb16_ ? v >> 8 : std::min<std::uint16_t>(v, 255));
+        b.colors[i][a] =
+            static_cast<std::uint8_t>(rgb16_ ? v >> 8 : std::min<std::uint16_t>(v, 255));
       }
     }
   }
 
   [[noreturn]] void truncated(std::uint64_t holds) {
-    in_.fail("truncated: header declares " + std::to_string(info_.point_count) + " points but the file holds only " +
-             std::to_string(holds));
+    in_.fail("truncated: header declares " + std::to_string(info_.point_count) +
+             " points but the file holds only " + std::to_string(holds));
   }
 
   void parse_header() {
     unsigned char h[375] = {};
     std::size_t got = in_.read_some(h, sizeof h);
     if (got < 4 || std::memcmp(h, "LASF", 4) != 0) in_.fail("not a LAS file (no LASF signature)");
-    if (got < 227) in_.fail("truncated: LAS header is " + std::to_string(got) + " bytes, needs at least 227");
+    if (got < 227)
+      in_.fail("truncated: LAS header is " + std::to_string(got) + " bytes, needs at least 227");
     const int major = h[24], minor = h[25];
     info_.version = std::to_string(major) + "." + std::to_string(minor);
     if (major != 1 || minor > 4) in_.fail("unsupported LAS version " + info_.version);
@@ -117,8 +134,10 @@ class LasReader final : public ReaderBase {
     info_.system_id = fixed_string(h + 26, 32);
     info_.generating_software = fixed_string(h + 58, 32);
     if (header_size < 227) in_.fail("bad LAS header size " + std::to_string(header_size));
-    if (header_size > got) in_.fail("truncated: LAS header declares " + std::to_string(header_size) + " bytes");
-    if (point_offset < header_size) in_.fail("bad LAS header: point data offset lies inside the header");
+    if (header_size > got)
+      in_.fail("truncated: LAS header declares " + std::to_string(header_size) + " bytes");
+    if (point_offset < header_size)
+      in_.fail("bad LAS header: point data offset lies inside the header");
 
     info_.compressed = (pf_raw & 0xC0) != 0 || extension_of(info_.path) == "laz";
     if (info_.compressed) {
@@ -130,15 +149,17 @@ class LasReader final : public ReaderBase {
     info_.las_point_format = pf;
     info_.las_record_length = record_length;
     if (record_length < kBaseRecord[pf])
-      in_.fail("bad LAS header: point record length " + std::to_string(record_length) + " is smaller than the " +
-               std::to_string(kBaseRecord[pf]) + " bytes of point format " + std::to_string(pf));
+      in_.fail("bad LAS header: point record length " + std::to_string(record_length) +
+               " is smaller than the " + std::to_string(kBaseRecord[pf]) +
+               " bytes of point format " + std::to_string(pf));
     extended_ = pf >= 6;
     if (pf == 2) rgb_offset_ = 20;
     if (pf == 3 || pf == 5) rgb_offset_ = 28;
     if (pf == 7 || pf == 8 || pf == 10) rgb_offset_ = 30;
     info_.has_classes = true;
     info_.has_colors = rgb_offset_ > 0;
-    info_.extra_attributes = {"intensity", "return_number", "number_of_returns", "scan_angle", "point_source_id"};
+    info_.extra_attributes = {"intensity", "return_number", "number_of_returns", "scan_angle",
+                              "point_source_id"};
     if (pf != 0 && pf != 2) info_.extra_attributes.push_back("gps_time");
     if (pf == 8 || pf == 10) info_.extra_attributes.push_back("nir");
     if (pf == 4 || pf == 5 || pf == 9 || pf == 10) info_.extra_attributes.push_back("waveform");
@@ -148,7 +169,8 @@ class LasReader final : public ReaderBase {
       info_.scale[a] = le<double>(h + 131 + 8 * a);
       info_.offset[a] = le<double>(h + 155 + 8 * a);
       if (!std::isfinite(info_.scale[a]) || info_.scale[a] == 0.0)
-        in_.fail("bad LAS header: scale factor " + std::to_string(info_.scale[a]) + " is zero or not finite");
+        in_.fail("bad LAS header: scale factor " + std::to_string(info_.scale[a]) +
+                 " is zero or not finite");
       if (!std::isfinite(info_.offset[a])) in_.fail("bad LAS header: offset is not finite");
     }
     info_.bbox.max = {le<double>(h + 179), le<double>(h + 195), le<double>(h + 211)};
@@ -163,8 +185,8 @@ class LasReader final : public ReaderBase {
       n_evlr = le<std::uint32_t>(h + 243);
       const std::uint64_t count64 = le<std::uint64_t>(h + 247);
       if (legacy_count != 0 && count64 != legacy_count)
-        in_.fail("bad LAS header: legacy point count " + std::to_string(legacy_count) + " and 64-bit point count " +
-                 std::to_string(count64) + " disagree");
+        in_.fail("bad LAS header: legacy point count " + std::to_string(legacy_count) +
+                 " and 64-bit point count " + std::to_string(count64) + " disagree");
       count = count64;
     }
     info_.point_count = count;
@@ -180,7 +202,8 @@ class LasReader final : public ReaderBase {
       in_.read_exact(vh, 54, "a VLR header");
       const std::uint64_t len = le<std::uint16_t>(vh + 20);
       if (pos + 54 + len > point_offset)
-        in_.fail("bad LAS header: VLR #" + std::to_string(i) + " extends beyond the point data offset");
+        in_.fail("bad LAS header: VLR #" + std::to_string(i) +
+                 " extends beyond the point data offset");
       handle_vlr(fixed_string(vh + 2, 16), le<std::uint16_t>(vh + 18), pos + 54, len);
       pos += 54 + len;
     }
@@ -200,12 +223,14 @@ class LasReader final : public ReaderBase {
     if (n_evlr > 0) {
       std::uint64_t e = evlr_start;
       for (std::uint32_t i = 0; i < n_evlr; ++i) {
-        if (e < point_offset || e + 60 > file) in_.fail("bad LAS header: EVLR #" + std::to_string(i) + " lies outside the file");
+        if (e < point_offset || e + 60 > file)
+          in_.fail("bad LAS header: EVLR #" + std::to_string(i) + " lies outside the file");
         unsigned char eh[60];
         in_.seek(e);
         in_.read_exact(eh, 60, "an EVLR header");
         const std::uint64_t len = le<std::uint64_t>(eh + 20);
-        if (len > file - e - 60) in_.fail("bad LAS header: EVLR #" + std::to_string(i) + " extends beyond the file");
+        if (len > file - e - 60)
+          in_.fail("bad LAS header: EVLR #" + std::to_string(i) + " extends beyond the file");
         handle_vlr(fixed_string(eh + 2, 16), le<std::uint16_t>(eh + 18), e + 60, len);
         e += 60 + len;
       }
@@ -229,7 +254,8 @@ class LasReader final : public ReaderBase {
     in_.seek(point_offset);
   }
 
-  void handle_vlr(const std::string& user, std::uint16_t id, std::uint64_t data, std::uint64_t len) {
+  void handle_vlr(const std::string& user, std::uint16_t id, std::uint64_t data,
+                  std::uint64_t len) {
     if (user != "LASF_Projection" || len == 0 || len > (64u << 20)) return;
     std::vector<unsigned char> d(static_cast<std::size_t>(len));
     in_.seek(data);
@@ -258,8 +284,10 @@ class LasReader final : public ReaderBase {
     info_.crs_wkt = wkt_;
     WktSummary w = summarize_wkt(wkt_);
     info_.crs_name = w.name;
-    if (projected_ > 0 && projected_ < 32767) info_.epsg = projected_;
-    else if (projected_ == 0 && geographic_ > 0 && geographic_ < 32767) info_.epsg = geographic_;
+    if (projected_ > 0 && projected_ < 32767)
+      info_.epsg = projected_;
+    else if (projected_ == 0 && geographic_ > 0 && geographic_ < 32767)
+      info_.epsg = geographic_;
     if (info_.epsg == 0) info_.epsg = w.epsg;
     if (vertical_cs_ > 0 && vertical_cs_ < 32767) info_.vertical_epsg = vertical_cs_;
     if (info_.vertical_epsg == 0) info_.vertical_epsg = w.vertical_epsg;
@@ -293,6 +321,8 @@ class LasReader final : public ReaderBase {
 
 }  // namespace
 
-std::unique_ptr<ReaderBase> open_las(const std::string& path) { return std::make_unique<LasReader>(path); }
+std::unique_ptr<ReaderBase> open_las(const std::string& path) {
+  return std::make_unique<LasReader>(path);
+}
 
 }  // namespace citylod::io::detail

@@ -58,7 +58,8 @@ class ObjReader final : public ReaderBase {
         Vec3d p;
         Rgb8 c{};
         bool has_rgb = false;
-        if (!parse_vertex(tok_, p, &c, has_rgb)) in_.fail("bad vertex at line " + std::to_string(line_no_));
+        if (!parse_vertex(tok_, p, &c, has_rgb))
+          in_.fail("bad vertex at line " + std::to_string(line_no_));
         std::string bad = check_finite(p.data(), vertices_);
         if (!bad.empty()) in_.fail(bad);
         if (vertices_ == 0) colors_ = has_rgb;
@@ -74,9 +75,11 @@ class ObjReader final : public ReaderBase {
         ++faces_;
         for (std::size_t k = 1; k < tok_.size(); ++k) {
           std::int64_t v, vn;
-          if (!parse_corner(tok_[k], v, vn)) in_.fail("bad face at line " + std::to_string(line_no_));
+          if (!parse_corner(tok_[k], v, vn))
+            in_.fail("bad face at line " + std::to_string(line_no_));
           if (v < 0) {
-            if (static_cast<std::uint64_t>(-v) > vertices_) in_.fail(bad_index_message(faces_ - 1, v, vertices_));
+            if (static_cast<std::uint64_t>(-v) > vertices_)
+              in_.fail(bad_index_message(faces_ - 1, v, vertices_));
           } else if (v == 0) {
             in_.fail(bad_index_message(faces_ - 1, 0, vertices_) + " (OBJ indices start at 1)");
           } else if (static_cast<std::uint64_t>(v) > max_index_) {
@@ -92,7 +95,9 @@ class ObjReader final : public ReaderBase {
   }
 
   double progress() const override {
-    return in_.size() ? std::min(1.0, static_cast<double>(in_.tell()) / static_cast<double>(in_.size())) : 1.0;
+    return in_.size()
+               ? std::min(1.0, static_cast<double>(in_.tell()) / static_cast<double>(in_.size()))
+               : 1.0;
   }
 
   void check_tail() override {
@@ -107,8 +112,9 @@ class ObjReader final : public ReaderBase {
     finished_ = true;
     if (vertices_ == 0 && faces_ == 0) in_.fail("not an OBJ file (no 'v' or 'f' statements)");
     if (max_index_ > vertices_)
-      in_.fail(bad_index_message(max_index_face_, static_cast<std::int64_t>(max_index_), vertices_) +
-               " (OBJ indices start at 1)");
+      in_.fail(
+          bad_index_message(max_index_face_, static_cast<std::int64_t>(max_index_), vertices_) +
+          " (OBJ indices start at 1)");
     info_.point_count = vertices_;
     info_.face_count = faces_;
     info_.has_faces = faces_ > 0;
@@ -123,7 +129,9 @@ class ObjReader final : public ReaderBase {
 
 }  // namespace
 
-std::unique_ptr<ReaderBase> open_obj(const std::string& path) { return std::make_unique<ObjReader>(path); }
+std::unique_ptr<ReaderBase> open_obj(const std::string& path) {
+  return std::make_unique<ObjReader>(path);
+}
 
 void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals) {
   InputFile in(path);
@@ -144,14 +152,16 @@ void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f
     if (tok[0] == "v") {
       Vec3d p;
       bool has_rgb;
-      if (!parse_vertex(tok, p, nullptr, has_rgb)) in.fail("bad vertex at line " + std::to_string(line_no));
+      if (!parse_vertex(tok, p, nullptr, has_rgb))
+        in.fail("bad vertex at line " + std::to_string(line_no));
       std::string bad = check_finite(p.data(), mesh.vertices.size());
       if (!bad.empty()) in.fail(bad);
       mesh.vertices.push_back(p);
       vn_of_vertex.push_back(-1);
     } else if (tok[0] == "vn") {
       Vec3d n{0, 0, 0};
-      if (tok.size() < 4 || !parse_double(tok[1], n[0]) || !parse_double(tok[2], n[1]) || !parse_double(tok[3], n[2]))
+      if (tok.size() < 4 || !parse_double(tok[1], n[0]) || !parse_double(tok[2], n[1]) ||
+          !parse_double(tok[3], n[2]))
         in.fail("bad normal at line " + std::to_string(line_no));
       vn.push_back({static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2])});
     } else if (tok[0] == "f") {
@@ -177,8 +187,8 @@ void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f
         if (n != 0) {
           std::int64_t ni = n < 0 ? static_cast<std::int64_t>(vn.size()) + n : n - 1;
           if (ni < 0 || static_cast<std::uint64_t>(ni) >= vn.size())
-            in.fail("face #" + std::to_string(face) + " references normal " + std::to_string(n) + " but only " +
-                    std::to_string(vn.size()) + " normals precede it");
+            in.fail("face #" + std::to_string(face) + " references normal " + std::to_string(n) +
+                    " but only " + std::to_string(vn.size()) + " normals precede it");
           if (static_cast<std::uint64_t>(v) < nv) vn_of_vertex[static_cast<std::size_t>(v)] = ni;
         }
         poly.push_back(static_cast<std::uint32_t>(v));
@@ -186,15 +196,19 @@ void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f
       mesh.faces.push_back(poly);
     }
   }
-  if (mesh.vertices.empty() && mesh.faces.empty()) in.fail("not an OBJ file (no 'v' or 'f' statements)");
+  if (mesh.vertices.empty() && mesh.faces.empty())
+    in.fail("not an OBJ file (no 'v' or 'f' statements)");
   if (max_index > mesh.vertices.size())
-    in.fail(bad_index_message(max_index_face, static_cast<std::int64_t>(max_index), mesh.vertices.size()) +
+    in.fail(bad_index_message(max_index_face, static_cast<std::int64_t>(max_index),
+                              mesh.vertices.size()) +
             " (OBJ indices start at 1)");
   if (mesh.faces.empty()) in.fail("OBJ file has no faces (a point cloud, not a mesh)");
-  bool all_normals = !vn.empty() && std::all_of(vn_of_vertex.begin(), vn_of_vertex.end(), [](std::int64_t i) { return i >= 0; });
+  bool all_normals = !vn.empty() && std::all_of(vn_of_vertex.begin(), vn_of_vertex.end(),
+                                                [](std::int64_t i) { return i >= 0; });
   if (all_normals) {
     normals.resize(mesh.vertices.size());
-    for (std::size_t i = 0; i < normals.size(); ++i) normals[i] = vn[static_cast<std::size_t>(vn_of_vertex[i])];
+    for (std::size_t i = 0; i < normals.size(); ++i)
+      normals[i] = vn[static_cast<std::size_t>(vn_of_vertex[i])];
   }
 }
 

@@ -24,11 +24,15 @@ class OffReader final : public ReaderBase {
     if (p == std::string::npos || p + 3 != kw.size()) in_.fail("not an OFF file (no OFF keyword)");
     std::string prefix = kw.substr(0, p);
     for (char c : prefix) {
-      if (c == 'N') normals_ = true;
-      else if (c == 'C') colors_ = true;
-      else if (c == 'S' && prefix.find("ST") != std::string::npos) texcoords_ = true;
+      if (c == 'N')
+        normals_ = true;
+      else if (c == 'C')
+        colors_ = true;
+      else if (c == 'S' && prefix.find("ST") != std::string::npos)
+        texcoords_ = true;
       else if (c == 'T') {
-      } else in_.fail("unsupported OFF variant '" + kw + "'");
+      } else
+        in_.fail("unsupported OFF variant '" + kw + "'");
     }
     if (kw != "OFF") info_.version = kw;  // variant: NOFF, COFF, ...
     std::vector<std::string_view> counts(tok_.begin() + 1, tok_.end());
@@ -53,7 +57,8 @@ class OffReader final : public ReaderBase {
 
   std::size_t read(PointSet& b, std::size_t max_points) override {
     b.clear();
-    std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(info_.point_count - points_read_, max_points));
+    std::size_t n = static_cast<std::size_t>(
+        std::min<std::uint64_t>(info_.point_count - points_read_, max_points));
     std::string line;
     for (std::size_t i = 0; i < n; ++i) {
       std::uint64_t idx = points_read_ + i;
@@ -64,21 +69,24 @@ class OffReader final : public ReaderBase {
       double v[10];
       for (std::size_t k = 0; k < need; ++k)
         if (!parse_double(tok_[k], v[k]))
-          in_.fail("invalid number '" + std::string(tok_[k].substr(0, 32)) + "' in vertex #" + std::to_string(idx));
+          in_.fail("invalid number '" + std::string(tok_[k].substr(0, 32)) + "' in vertex #" +
+                   std::to_string(idx));
       Vec3d p{v[0], v[1], v[2]};
       std::string bad = check_finite(p.data(), idx);
       if (!bad.empty()) in_.fail(bad);
       b.positions.push_back(p);
       std::size_t c = 3;
       if (normals_) {
-        b.normals.push_back({static_cast<float>(v[3]), static_cast<float>(v[4]), static_cast<float>(v[5])});
+        b.normals.push_back(
+            {static_cast<float>(v[3]), static_cast<float>(v[4]), static_cast<float>(v[5])});
         c = 6;
       }
       if (colors_) {
         bool is_float = false;
         for (std::size_t k = c; k < c + 3; ++k)
           if (tok_[k].find('.') != std::string_view::npos) is_float = true;
-        b.colors.push_back({color_to_u8(v[c], is_float), color_to_u8(v[c + 1], is_float), color_to_u8(v[c + 2], is_float)});
+        b.colors.push_back({color_to_u8(v[c], is_float), color_to_u8(v[c + 1], is_float),
+                            color_to_u8(v[c + 2], is_float)});
       }
     }
     points_read_ += n;
@@ -87,7 +95,8 @@ class OffReader final : public ReaderBase {
 
   double progress() const override {
     std::uint64_t span = in_.size() > data_start_ ? in_.size() - data_start_ : 1;
-    return std::min(1.0, static_cast<double>(in_.tell() - std::min(in_.tell(), data_start_)) / static_cast<double>(span));
+    return std::min(1.0, static_cast<double>(in_.tell() - std::min(in_.tell(), data_start_)) /
+                             static_cast<double>(span));
   }
 
   void check_tail() override { faces(nullptr); }
@@ -108,8 +117,8 @@ class OffReader final : public ReaderBase {
   }
 
   [[noreturn]] void truncated_vertices(std::uint64_t declared, std::uint64_t holds) {
-    in_.fail("truncated: header declares " + std::to_string(declared) + " points but the file holds only " +
-             std::to_string(holds));
+    in_.fail("truncated: header declares " + std::to_string(declared) +
+             " points but the file holds only " + std::to_string(holds));
   }
 
   void faces(std::vector<std::vector<std::uint32_t>>* out) {
@@ -121,8 +130,8 @@ class OffReader final : public ReaderBase {
     std::vector<std::uint32_t> poly;
     for (std::uint64_t f = 0; f < info_.face_count; ++f) {
       if (!next_line(line))
-        in_.fail("truncated: header declares " + std::to_string(info_.face_count) + " faces but the file holds only " +
-                 std::to_string(f));
+        in_.fail("truncated: header declares " + std::to_string(info_.face_count) +
+                 " faces but the file holds only " + std::to_string(f));
       split_tokens(line, tok_);
       std::uint64_t n = 0;
       if (tok_.empty() || !parse_u64(tok_[0], n) || n + 1 > tok_.size())
@@ -131,7 +140,8 @@ class OffReader final : public ReaderBase {
       for (std::uint64_t k = 1; k <= n; ++k) {
         std::int64_t idx;
         if (!parse_i64(tok_[k], idx)) in_.fail("bad vertex index in face #" + std::to_string(f));
-        if (idx < 0 || static_cast<std::uint64_t>(idx) >= nv) in_.fail(bad_index_message(f, idx, nv));
+        if (idx < 0 || static_cast<std::uint64_t>(idx) >= nv)
+          in_.fail(bad_index_message(f, idx, nv));
         poly.push_back(static_cast<std::uint32_t>(idx));
       }
       if (out) out->push_back(poly);
@@ -146,6 +156,8 @@ class OffReader final : public ReaderBase {
 
 }  // namespace
 
-std::unique_ptr<ReaderBase> open_off(const std::string& path) { return std::make_unique<OffReader>(path); }
+std::unique_ptr<ReaderBase> open_off(const std::string& path) {
+  return std::make_unique<OffReader>(path);
+}
 
 }  // namespace citylod::io::detail

@@ -34,18 +34,24 @@ bool parse_type(const std::string& s, PlyType& t) {
 std::size_t type_size(PlyType t) {
   switch (t) {
     case PlyType::i8:
-    case PlyType::u8: return 1;
+    case PlyType::u8:
+      return 1;
     case PlyType::i16:
-    case PlyType::u16: return 2;
+    case PlyType::u16:
+      return 2;
     case PlyType::i32:
     case PlyType::u32:
-    case PlyType::f32: return 4;
-    case PlyType::f64: return 8;
+    case PlyType::f32:
+      return 4;
+    case PlyType::f64:
+      return 8;
   }
   return 0;
 }
 
-bool is_float(PlyType t) { return t == PlyType::f32 || t == PlyType::f64; }
+bool is_float(PlyType t) {
+  return t == PlyType::f32 || t == PlyType::f64;
+}
 
 template <typename T>
 T load(const unsigned char* p, bool swap) {
@@ -62,14 +68,22 @@ T load(const unsigned char* p, bool swap) {
 
 double decode(const unsigned char* p, PlyType t, bool swap) {
   switch (t) {
-    case PlyType::i8: return static_cast<double>(static_cast<std::int8_t>(*p));
-    case PlyType::u8: return static_cast<double>(*p);
-    case PlyType::i16: return load<std::int16_t>(p, swap);
-    case PlyType::u16: return load<std::uint16_t>(p, swap);
-    case PlyType::i32: return load<std::int32_t>(p, swap);
-    case PlyType::u32: return load<std::uint32_t>(p, swap);
-    case PlyType::f32: return load<float>(p, swap);
-    case PlyType::f64: return load<double>(p, swap);
+    case PlyType::i8:
+      return static_cast<double>(static_cast<std::int8_t>(*p));
+    case PlyType::u8:
+      return static_cast<double>(*p);
+    case PlyType::i16:
+      return load<std::int16_t>(p, swap);
+    case PlyType::u16:
+      return load<std::uint16_t>(p, swap);
+    case PlyType::i32:
+      return load<std::int32_t>(p, swap);
+    case PlyType::u32:
+      return load<std::uint32_t>(p, swap);
+    case PlyType::f32:
+      return load<float>(p, swap);
+    case PlyType::f64:
+      return load<double>(p, swap);
   }
   return 0;
 }
@@ -133,7 +147,8 @@ class PlyReader final : public ReaderBase {
         if (got < buf_.size()) {
           truncated(points_read_ + i + got / ve.stride);
         }
-        for (std::size_t r = 0; r < k; ++r) decode_binary_vertex(buf_.data() + r * ve.stride, batch, i + r);
+        for (std::size_t r = 0; r < k; ++r)
+          decode_binary_vertex(buf_.data() + r * ve.stride, batch, i + r);
         i += k;
       }
     }
@@ -172,16 +187,21 @@ class PlyReader final : public ReaderBase {
       if (kw == "comment" || kw == "obj_info") continue;
       if (kw == "format") {
         if (tok.size() < 3) in_.fail("bad PLY format line: '" + line + "'");
-        if (tok[1] == "ascii") enc_ = Encoding::ascii;
-        else if (tok[1] == "binary_little_endian") enc_ = Encoding::le;
-        else if (tok[1] == "binary_big_endian") enc_ = Encoding::be;
-        else in_.fail("unknown PLY format '" + std::string(tok[1]) + "'");
+        if (tok[1] == "ascii")
+          enc_ = Encoding::ascii;
+        else if (tok[1] == "binary_little_endian")
+          enc_ = Encoding::le;
+        else if (tok[1] == "binary_big_endian")
+          enc_ = Encoding::be;
+        else
+          in_.fail("unknown PLY format '" + std::string(tok[1]) + "'");
         info_.encoding = std::string(tok[1]);
         info_.version = std::string(tok[2]);
         have_format = true;
       } else if (kw == "element") {
         PlyElement e;
-        if (tok.size() < 3 || !parse_u64(tok[2], e.count)) in_.fail("bad PLY element line: '" + line + "'");
+        if (tok.size() < 3 || !parse_u64(tok[2], e.count))
+          in_.fail("bad PLY element line: '" + line + "'");
         e.name = std::string(tok[1]);
         elements_.push_back(std::move(e));
       } else if (kw == "property") {
@@ -189,12 +209,13 @@ class PlyReader final : public ReaderBase {
         PlyProp p;
         if (tok.size() >= 5 && tok[1] == "list") {
           p.is_list = true;
-          if (!parse_type(std::string(tok[2]), p.count_type) || !parse_type(std::string(tok[3]), p.type) ||
-              is_float(p.count_type))
+          if (!parse_type(std::string(tok[2]), p.count_type) ||
+              !parse_type(std::string(tok[3]), p.type) || is_float(p.count_type))
             in_.fail("bad PLY list property: '" + line + "'");
           p.name = std::string(tok[4]);
         } else if (tok.size() >= 3) {
-          if (!parse_type(std::string(tok[1]), p.type)) in_.fail("unknown PLY property type in '" + line + "'");
+          if (!parse_type(std::string(tok[1]), p.type))
+            in_.fail("unknown PLY property type in '" + line + "'");
           p.name = std::string(tok[2]);
         } else {
           in_.fail("bad PLY property line: '" + line + "'");
@@ -246,7 +267,8 @@ class PlyReader final : public ReaderBase {
       int ik = static_cast<int>(k);
       bool used = std::find(xyz_.begin(), xyz_.end(), ik) != xyz_.end() ||
                   (has_normals_ && std::find(nrm_.begin(), nrm_.end(), ik) != nrm_.end()) ||
-                  (has_colors_ && std::find(rgb_.begin(), rgb_.end(), ik) != rgb_.end()) || ik == class_;
+                  (has_colors_ && std::find(rgb_.begin(), rgb_.end(), ik) != rgb_.end()) ||
+                  ik == class_;
       if (!used) info_.extra_attributes.push_back(ve.props[k].name);
     }
     info_.point_count = ve.count;
@@ -256,11 +278,14 @@ class PlyReader final : public ReaderBase {
     if (face_el_ >= 0) {
       auto& fe = elements_[face_el_];
       for (std::size_t k = 0; k < fe.props.size(); ++k)
-        if (fe.props[k].is_list && (fe.props[k].name == "vertex_indices" || fe.props[k].name == "vertex_index"))
+        if (fe.props[k].is_list &&
+            (fe.props[k].name == "vertex_indices" || fe.props[k].name == "vertex_index"))
           face_prop_ = static_cast<int>(k);
-      if (face_prop_ < 0) in_.fail("PLY face element has no list property vertex_indices/vertex_index");
+      if (face_prop_ < 0)
+        in_.fail("PLY face element has no list property vertex_indices/vertex_index");
       if (is_float(fe.props[face_prop_].type)) in_.fail("PLY face indices are floating point");
-      if (face_el_ < vertex_el_) in_.fail("PLY face element precedes the vertex element (not supported)");
+      if (face_el_ < vertex_el_)
+        in_.fail("PLY face element precedes the vertex element (not supported)");
       info_.has_faces = true;
       info_.face_count = fe.count;
     }
@@ -334,7 +359,8 @@ class PlyReader final : public ReaderBase {
       std::string_view s = next_token(e, record);
       double v;
       if (!parse_double(s, v))
-        in_.fail("invalid number '" + std::string(s.substr(0, 32)) + "' in " + e.name + " #" + std::to_string(record));
+        in_.fail("invalid number '" + std::string(s.substr(0, 32)) + "' in " + e.name + " #" +
+                 std::to_string(record));
       return v;
     }
     unsigned char b[8];
@@ -351,7 +377,8 @@ class PlyReader final : public ReaderBase {
   std::uint64_t read_list_count(const PlyProp& p, const PlyElement& e, std::uint64_t record) {
     double c = read_scalar(p.count_type, e, record);
     if (!(c >= 0) || c > static_cast<double>(kMaxListCount) || c != std::floor(c))
-      in_.fail("bad list length " + std::to_string(c) + " in " + e.name + " #" + std::to_string(record));
+      in_.fail("bad list length " + std::to_string(c) + " in " + e.name + " #" +
+               std::to_string(record));
     return static_cast<std::uint64_t>(c);
   }
 
@@ -359,7 +386,8 @@ class PlyReader final : public ReaderBase {
     const auto& ve = elements_[vertex_el_];
     const std::uint64_t rec = points_read_ + i;
     if (vals_.size() < ve.props.size()) vals_.resize(ve.props.size());
-    for (std::size_t k = 0; k < ve.props.size(); ++k) vals_[k] = read_scalar(ve.props[k].type, ve, rec);
+    for (std::size_t k = 0; k < ve.props.size(); ++k)
+      vals_[k] = read_scalar(ve.props[k].type, ve, rec);
     store(b, i, rec, [&](int k) { return vals_[static_cast<std::size_t>(k)]; });
   }
 
@@ -409,7 +437,9 @@ class PlyReader final : public ReaderBase {
         skip_element(e);
         continue;
       }
-      if (faces) faces->reserve(std::min<std::uint64_t>(e.count, in_.size() / std::max<std::size_t>(1, e.min_size)));
+      if (faces)
+        faces->reserve(
+            std::min<std::uint64_t>(e.count, in_.size() / std::max<std::size_t>(1, e.min_size)));
       std::vector<std::uint32_t> poly;
       for (std::uint64_t r = 0; r < e.count; ++r) {
         for (std::size_t k = 0; k < e.props.size(); ++k) {
@@ -436,11 +466,13 @@ class PlyReader final : public ReaderBase {
     }
     // Trailing data: the header's counts understate the file.
     if (enc_ == Encoding::ascii) {
-      if (tok_i_ < toks_.size()) in_.fail("trailing data after the elements the header declares (header counts lie)");
+      if (tok_i_ < toks_.size())
+        in_.fail("trailing data after the elements the header declares (header counts lie)");
       std::string l;
       std::vector<std::string_view> t;
       while (in_.getline(l))
-        if (split_tokens(l, t) > 0) in_.fail("trailing data after the elements the header declares (header counts lie)");
+        if (split_tokens(l, t) > 0)
+          in_.fail("trailing data after the elements the header declares (header counts lie)");
     } else {
       std::uint64_t extra = in_.size() - std::min(in_.size(), in_.tell());
       const auto& last = elements_.back();
@@ -470,6 +502,8 @@ class PlyReader final : public ReaderBase {
 
 }  // namespace
 
-std::unique_ptr<ReaderBase> open_ply(const std::string& path) { return std::make_unique<PlyReader>(path); }
+std::unique_ptr<ReaderBase> open_ply(const std::string& path) {
+  return std::make_unique<PlyReader>(path);
+}
 
 }  // namespace citylod::io::detail

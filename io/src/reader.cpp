@@ -9,40 +9,68 @@ namespace citylod::io {
 
 const char* format_name(Format f) {
   switch (f) {
-    case Format::ply: return "PLY";
-    case Format::obj: return "OBJ";
-    case Format::off: return "OFF";
-    case Format::xyz: return "XYZ";
-    case Format::las: return "LAS";
-    case Format::laz: return "LAZ";
-    case Format::unknown: break;
+    case Format::ply:
+      return "PLY";
+    case Format::obj:
+      return "OBJ";
+    case Format::off:
+      return "OFF";
+    case Format::xyz:
+      return "XYZ";
+    case Format::las:
+      return "LAS";
+    case Format::laz:
+      return "LAZ";
+    case Format::unknown:
+      break;
   }
   return "unknown";
 }
 
 const char* las_class_name(int code) {
   switch (code) {
-    case 0: return "never classified";
-    case 1: return "unclassified";
-    case 2: return "ground";
-    case 3: return "low vegetation";
-    case 4: return "medium vegetation";
-    case 5: return "high vegetation";
-    case 6: return "building";
-    case 7: return "low point (noise)";
-    case 8: return "model key-point";
-    case 9: return "water";
-    case 10: return "rail";
-    case 11: return "road surface";
-    case 12: return "overlap";
-    case 13: return "wire guard";
-    case 14: return "wire conductor";
-    case 15: return "transmission tower";
-    case 16: return "wire connector";
-    case 17: return "bridge deck";
-    case 18: return "high noise";
-    case 26: return "civil structure (AHN)";
-    default: return "";
+    case 0:
+      return "never classified";
+    case 1:
+      return "unclassified";
+    case 2:
+      return "ground";
+    case 3:
+      return "low vegetation";
+    case 4:
+      return "medium vegetation";
+    case 5:
+      return "high vegetation";
+    case 6:
+      return "building";
+    case 7:
+      return "low point (noise)";
+    case 8:
+      return "model key-point";
+    case 9:
+      return "water";
+    case 10:
+      return "rail";
+    case 11:
+      return "road surface";
+    case 12:
+      return "overlap";
+    case 13:
+      return "wire guard";
+    case 14:
+      return "wire conductor";
+    case 15:
+      return "transmission tower";
+    case 16:
+      return "wire connector";
+    case 17:
+      return "bridge deck";
+    case 18:
+      return "high noise";
+    case 26:
+      return "civil structure (AHN)";
+    default:
+      return "";
   }
 }
 
@@ -81,7 +109,8 @@ TriangleMesh triangulate_fan(const PolygonMesh& mesh) {
 namespace detail {
 
 void ReaderBase::read_faces(std::vector<std::vector<std::uint32_t>>&) {
-  throw IoError(info_.path, std::string(info_.format_name) + " file has no faces (a point cloud, not a mesh)");
+  throw IoError(info_.path,
+                std::string(info_.format_name) + " file has no faces (a point cloud, not a mesh)");
 }
 
 std::string bad_index_message(std::uint64_t face, std::int64_t index, std::uint64_t vertex_count) {
@@ -98,7 +127,9 @@ std::uint8_t color_to_u8(double v, bool is_float) {
 
 namespace {
 
-bool starts_with(const std::string& s, const char* p) { return s.rfind(p, 0) == 0; }
+bool starts_with(const std::string& s, const char* p) {
+  return s.rfind(p, 0) == 0;
+}
 
 Format sniff(const std::string& path) {
   InputFile in(path, 4096);
@@ -129,7 +160,8 @@ Format sniff(const std::string& path) {
     if (p != std::string::npos && p + 3 == kw.size() &&
         kw.substr(0, p).find_first_not_of("CNST4n") == std::string::npos)
       return Format::off;
-    static const char* obj_kw[] = {"v", "vn", "vt", "vp", "f", "o", "g", "s", "l", "p", "mtllib", "usemtl"};
+    static const char* obj_kw[] = {"v", "vn", "vt", "vp", "f",      "o",
+                                   "g", "s",  "l",  "p",  "mtllib", "usemtl"};
     for (const char* k : obj_kw)
       if (kw == k) return Format::obj;
     double d;
@@ -138,7 +170,8 @@ Format sniff(const std::string& path) {
     if (numeric) return Format::xyz;
     // A CSV header line ("X,Y,Z,...") followed by numbers.
     std::string l = lower(line);
-    if (tok.size() >= 3 && (starts_with(l, "x,y,z") || starts_with(l, "x y z") || starts_with(l, "//x")))
+    if (tok.size() >= 3 &&
+        (starts_with(l, "x,y,z") || starts_with(l, "x y z") || starts_with(l, "//x")))
       return Format::xyz;
     return Format::unknown;
   }
@@ -168,22 +201,32 @@ namespace detail {
 std::unique_ptr<ReaderBase> open_reader(const std::string& path) {
   Format f = detect_format(path);
   switch (f) {
-    case Format::ply: return open_ply(path);
-    case Format::obj: return open_obj(path);
-    case Format::off: return open_off(path);
-    case Format::xyz: return open_xyz(path);
+    case Format::ply:
+      return open_ply(path);
+    case Format::obj:
+      return open_obj(path);
+    case Format::off:
+      return open_off(path);
+    case Format::xyz:
+      return open_xyz(path);
     case Format::las:
-    case Format::laz: return open_las(path);
-    case Format::unknown: break;
+    case Format::laz:
+      return open_las(path);
+    case Format::unknown:
+      break;
   }
   throw IoError(path, "not a point cloud or mesh file (unrecognised format)");
 }
 
 }  // namespace detail
 
-std::unique_ptr<PointReader> PointReader::open(const std::string& path) { return detail::open_reader(path); }
+std::unique_ptr<PointReader> PointReader::open(const std::string& path) {
+  return detail::open_reader(path);
+}
 
-FileInfo read_header(const std::string& path) { return detail::open_reader(path)->info(); }
+FileInfo read_header(const std::string& path) {
+  return detail::open_reader(path)->info();
+}
 
 FileInfo scan_file(const std::string& path, ProgressFn progress, void* user) {
   auto r = detail::open_reader(path);
@@ -225,7 +268,8 @@ PointSet read_points(const std::string& path) {
 
 namespace {
 
-void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals, std::vector<Rgb8>& colors) {
+void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals,
+                    std::vector<Rgb8>& colors) {
   const Format f = detect_format(path);
   if (f == Format::obj) {
     detail::read_obj_mesh(path, mesh, normals);
@@ -233,7 +277,8 @@ void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3
   }
   auto r = detail::open_reader(path);
   if (f != Format::ply && f != Format::off)
-    throw IoError(path, std::string(format_name(r->info().format)) + " files hold no faces (a point cloud, not a mesh)");
+    throw IoError(path, std::string(format_name(r->info().format)) +
+                            " files hold no faces (a point cloud, not a mesh)");
   PointSet all, batch;
   while (r->read(batch, 1 << 20) > 0) all.append(batch);
   r->read_faces(mesh.faces);

@@ -23,7 +23,8 @@ class Parser {
     if (depth > 32) return nullptr;
     skip();
     auto n = std::make_unique<Node>();
-    while (i_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[i_])) || s_[i_] == '_')) n->keyword += s_[i_++];
+    while (i_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[i_])) || s_[i_] == '_'))
+      n->keyword += s_[i_++];
     skip();
     if (n->keyword.empty() || i_ >= s_.size() || (s_[i_] != '[' && s_[i_] != '(')) return nullptr;
     const char close = s_[i_] == '[' ? ']' : ')';
@@ -119,10 +120,14 @@ void unit_of(const Node& crs, WktSummary& out) {
   double f = 0;
   if (!parse_double(u->values[1], f)) return;
   out.unit_m = f;
-  if (std::abs(f - 1.0) < 1e-12) out.unit = "metre";
-  else if (std::abs(f - 0.3048) < 1e-12) out.unit = "foot";
-  else if (std::abs(f - 1200.0 / 3937.0) < 1e-12) out.unit = "US survey foot";
-  else out.unit = u->values[0];
+  if (std::abs(f - 1.0) < 1e-12)
+    out.unit = "metre";
+  else if (std::abs(f - 0.3048) < 1e-12)
+    out.unit = "foot";
+  else if (std::abs(f - 1200.0 / 3937.0) < 1e-12)
+    out.unit = "US survey foot";
+  else
+    out.unit = u->values[0];
 }
 
 }  // namespace
@@ -137,7 +142,9 @@ WktSummary summarize_wkt(const std::string& wkt) {
   if (is(*root, {"COMPD_CS", "COMPOUNDCRS"})) {
     horiz = nullptr;
     for (const auto& c : root->children) {
-      if (!horiz && is(*c, {"PROJCS", "GEOGCS", "PROJCRS", "GEOGCRS", "GEODCRS", "PROJECTEDCRS", "GEOCCS"})) horiz = c.get();
+      if (!horiz &&
+          is(*c, {"PROJCS", "GEOGCS", "PROJCRS", "GEOGCRS", "GEODCRS", "PROJECTEDCRS", "GEOCCS"}))
+        horiz = c.get();
       if (is(*c, {"VERT_CS", "VERTCRS", "VERTICALCRS"})) out.vertical_epsg = epsg_of(*c);
     }
     if (!horiz) horiz = root.get();

@@ -52,7 +52,8 @@ void check_points(const std::string& path, std::size_t n, std::size_t normals, s
     throw IoError(path, "cannot write: attribute arrays and positions differ in size");
 }
 
-void vertex_header(Out& o, std::size_t n, const PlyWriteOptions& opt, bool normals, bool colors, bool classes) {
+void vertex_header(Out& o, std::size_t n, const PlyWriteOptions& opt, bool normals, bool colors,
+                   bool classes) {
   o.str("ply\nformat ");
   o.str(opt.binary ? "binary_little_endian" : "ascii");
   o.str(" 1.0\n");
@@ -65,32 +66,44 @@ void vertex_header(Out& o, std::size_t n, const PlyWriteOptions& opt, bool norma
   if (classes) o.str("property uchar classification\n");
 }
 
-void vertex_record(Out& o, const PlyWriteOptions& opt, const Vec3d& p, const Vec3f* n, const Rgb8* c,
-                   const std::uint8_t* cls) {
+void vertex_record(Out& o, const PlyWriteOptions& opt, const Vec3d& p, const Vec3f* n,
+                   const Rgb8* c, const std::uint8_t* cls) {
   if (opt.binary) {
     for (double v : p) {
-      if (opt.double_precision) o.bin(v);
-      else o.bin(static_cast<float>(v));
+      if (opt.double_precision)
+        o.bin(v);
+      else
+        o.bin(static_cast<float>(v));
     }
-    if (n) for (float v : *n) o.bin(v);
-    if (c) for (std::uint8_t v : *c) o.bin(v);
+    if (n)
+      for (float v : *n) o.bin(v);
+    if (c)
+      for (std::uint8_t v : *c) o.bin(v);
     if (cls) o.bin(*cls);
     return;
   }
   for (int a = 0; a < 3; ++a) {
     if (a) o.ch(' ');
-    if (opt.double_precision) o.num(p[a]);
-    else o.numf(static_cast<float>(p[a]));
+    if (opt.double_precision)
+      o.num(p[a]);
+    else
+      o.numf(static_cast<float>(p[a]));
   }
-  if (n) for (float v : *n) { o.ch(' '); o.numf(v); }
-  if (c) for (std::uint8_t v : *c) o.str(" " + std::to_string(v));
+  if (n)
+    for (float v : *n) {
+      o.ch(' ');
+      o.numf(v);
+    }
+  if (c)
+    for (std::uint8_t v : *c) o.str(" " + std::to_string(v));
   if (cls) o.str(" " + std::to_string(*cls));
   o.ch('\n');
 }
 
 template <typename Faces>
-void write_ply_mesh(const std::string& path, const std::vector<Vec3d>& vertices, const std::vector<Vec3f>& normals,
-                    const std::vector<Rgb8>& colors, const Faces& faces, const PlyWriteOptions& opt) {
+void write_ply_mesh(const std::string& path, const std::vector<Vec3d>& vertices,
+                    const std::vector<Vec3f>& normals, const std::vector<Rgb8>& colors,
+                    const Faces& faces, const PlyWriteOptions& opt) {
   check_points(path, vertices.size(), normals.size(), colors.size(), 0);
   for (const auto& f : faces) {
     if (f.size() > 255) throw IoError(path, "cannot write: a face has more than 255 vertices");
@@ -100,10 +113,11 @@ void write_ply_mesh(const std::string& path, const std::vector<Vec3d>& vertices,
   AtomicFile file(path);
   Out o(file);
   vertex_header(o, vertices.size(), opt, !normals.empty(), !colors.empty(), false);
-  o.str("element face " + std::to_string(faces.size()) + "\nproperty list uchar int vertex_indices\nend_header\n");
+  o.str("element face " + std::to_string(faces.size()) +
+        "\nproperty list uchar int vertex_indices\nend_header\n");
   for (std::size_t i = 0; i < vertices.size(); ++i)
-    vertex_record(o, opt, vertices[i], normals.empty() ? nullptr : &normals[i], colors.empty() ? nullptr : &colors[i],
-                  nullptr);
+    vertex_record(o, opt, vertices[i], normals.empty() ? nullptr : &normals[i],
+                  colors.empty() ? nullptr : &colors[i], nullptr);
   for (const auto& f : faces) {
     if (opt.binary) {
       o.bin(static_cast<std::uint8_t>(f.size()));
@@ -119,8 +133,8 @@ void write_ply_mesh(const std::string& path, const std::vector<Vec3d>& vertices,
 }
 
 template <typename Faces>
-void write_obj_impl(const std::string& path, const std::vector<Vec3d>& vertices, const std::vector<Vec3f>& normals,
-                    const Faces& faces) {
+void write_obj_impl(const std::string& path, const std::vector<Vec3d>& vertices,
+                    const std::vector<Vec3f>& normals, const Faces& faces) {
   check_points(path, vertices.size(), normals.size(), 0, 0);
   for (const auto& f : faces)
     for (auto i : f)
@@ -163,14 +177,16 @@ void write_obj_impl(const std::string& path, const std::vector<Vec3d>& vertices,
 }  // namespace
 
 void write_ply(const std::string& path, const PointSet& pts, const PlyWriteOptions& opt) {
-  check_points(path, pts.positions.size(), pts.normals.size(), pts.colors.size(), pts.classes.size());
+  check_points(path, pts.positions.size(), pts.normals.size(), pts.colors.size(),
+               pts.classes.size());
   AtomicFile file(path);
   Out o(file);
   vertex_header(o, pts.size(), opt, pts.has_normals(), pts.has_colors(), pts.has_classes());
   o.str("end_header\n");
   for (std::size_t i = 0; i < pts.size(); ++i)
     vertex_record(o, opt, pts.positions[i], pts.has_normals() ? &pts.normals[i] : nullptr,
-                  pts.has_colors() ? &pts.colors[i] : nullptr, pts.has_classes() ? &pts.classes[i] : nullptr);
+                  pts.has_colors() ? &pts.colors[i] : nullptr,
+                  pts.has_classes() ? &pts.classes[i] : nullptr);
   o.flush();
   file.commit();
 }

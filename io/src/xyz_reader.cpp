@@ -59,25 +59,29 @@ class XyzReader final : public ReaderBase {
       std::uint64_t idx = points_read_ + b.positions.size();
       if (tok_.size() == 1) {
         std::uint64_t n;
-        if (!parse_u64(tok_[0], n)) in_.fail("bad line " + std::to_string(line_no_) + ": '" + line.substr(0, 60) + "'");
+        if (!parse_u64(tok_[0], n))
+          in_.fail("bad line " + std::to_string(line_no_) + ": '" + line.substr(0, 60) + "'");
         declared_ += n;
         has_declared_ = true;
         continue;
       }
       if (tok_.size() < min_cols_)
-        in_.fail("line " + std::to_string(line_no_) + ": expected " + std::to_string(min_cols_) + " values, found " +
-                 std::to_string(tok_.size()));
+        in_.fail("line " + std::to_string(line_no_) + ": expected " + std::to_string(min_cols_) +
+                 " values, found " + std::to_string(tok_.size()));
       for (std::size_t k = 0; k < min_cols_; ++k)
         if (!parse_double(tok_[k], v_[k]))
-          in_.fail("invalid number '" + std::string(tok_[k].substr(0, 32)) + "' at line " + std::to_string(line_no_));
+          in_.fail("invalid number '" + std::string(tok_[k].substr(0, 32)) + "' at line " +
+                   std::to_string(line_no_));
       Vec3d p{v_[0], v_[1], v_[2]};
       std::string bad = check_finite(p.data(), idx);
       if (!bad.empty()) in_.fail(bad);
       b.positions.push_back(p);
       if (nrm_ >= 0)
-        b.normals.push_back({static_cast<float>(v_[nrm_]), static_cast<float>(v_[nrm_ + 1]), static_cast<float>(v_[nrm_ + 2])});
+        b.normals.push_back({static_cast<float>(v_[nrm_]), static_cast<float>(v_[nrm_ + 1]),
+                             static_cast<float>(v_[nrm_ + 2])});
       if (rgb_ >= 0)
-        b.colors.push_back({color_to_u8(v_[rgb_], false), color_to_u8(v_[rgb_ + 1], false), color_to_u8(v_[rgb_ + 2], false)});
+        b.colors.push_back({color_to_u8(v_[rgb_], false), color_to_u8(v_[rgb_ + 1], false),
+                            color_to_u8(v_[rgb_ + 2], false)});
     }
     points_read_ += b.positions.size();
     if (b.positions.empty()) finish();
@@ -85,7 +89,9 @@ class XyzReader final : public ReaderBase {
   }
 
   double progress() const override {
-    return in_.size() ? std::min(1.0, static_cast<double>(in_.tell()) / static_cast<double>(in_.size())) : 1.0;
+    return in_.size()
+               ? std::min(1.0, static_cast<double>(in_.tell()) / static_cast<double>(in_.size()))
+               : 1.0;
   }
 
  private:
@@ -108,7 +114,7 @@ class XyzReader final : public ReaderBase {
         continue;  // reported with its line number when streaming reaches it
       }
       if (tok_.size() == 1) continue;  // PTS count
-      if (tok_.size() < 3) continue;  // reported when streaming reaches it
+      if (tok_.size() < 3) continue;   // reported when streaming reaches it
       if (cols == 0) cols = tok_.size();
       std::vector<double> r(tok_.size());
       for (std::size_t k = 0; k < tok_.size(); ++k) parse_double(tok_[k], r[k]);
@@ -117,8 +123,10 @@ class XyzReader final : public ReaderBase {
     if (rows.empty()) in_.fail("no points with x y z values (not a point cloud?)");
     min_cols_ = 3;
     if (cols == 6) {
-      if (colour_like(rows, 3)) rgb_ = 3;
-      else nrm_ = 3;
+      if (colour_like(rows, 3))
+        rgb_ = 3;
+      else
+        nrm_ = 3;
       min_cols_ = 6;
     } else if (cols == 7) {
       if (colour_like(rows, 4)) rgb_ = 4;  // x y z intensity r g b
@@ -143,8 +151,8 @@ class XyzReader final : public ReaderBase {
     finished_ = true;
     if (has_declared_ && declared_ != points_read_) {
       if (declared_ > points_read_)
-        in_.fail("truncated: header declares " + std::to_string(declared_) + " points but the file holds only " +
-                 std::to_string(points_read_));
+        in_.fail("truncated: header declares " + std::to_string(declared_) +
+                 " points but the file holds only " + std::to_string(points_read_));
       in_.fail("header declares " + std::to_string(declared_) + " points but the file holds " +
                std::to_string(points_read_));
     }
@@ -162,6 +170,8 @@ class XyzReader final : public ReaderBase {
 
 }  // namespace
 
-std::unique_ptr<ReaderBase> open_xyz(const std::string& path) { return std::make_unique<XyzReader>(path); }
+std::unique_ptr<ReaderBase> open_xyz(const std::string& path) {
+  return std::make_unique<XyzReader>(path);
+}
 
 }  // namespace citylod::io::detail

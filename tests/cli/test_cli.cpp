@@ -38,7 +38,8 @@ std::string quote(const std::string& s) {
 Result run(const std::string& args) {
   const std::string d = tmp_dir();
   const std::string out = d + "/stdout.txt", err = d + "/stderr.txt";
-  std::string cmd = quote(CITYLOD_BINARY) + " " + args + " >" + quote(out) + " 2>" + quote(err) + " </dev/null";
+  std::string cmd =
+      quote(CITYLOD_BINARY) + " " + args + " >" + quote(out) + " 2>" + quote(err) + " </dev/null";
   int st = std::system(cmd.c_str());
   Result r;
   r.code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + (WIFSIGNALED(st) ? WTERMSIG(st) : 0);
@@ -47,7 +48,9 @@ Result run(const std::string& args) {
   return r;
 }
 
-std::string shared(const std::string& rel) { return std::string(CITYLOD_SHARED_DATA) + "/" + rel; }
+std::string shared(const std::string& rel) {
+  return std::string(CITYLOD_SHARED_DATA) + "/" + rel;
+}
 
 std::string write_tmp(const std::string& name, const std::string& bytes) {
   std::string p = tmp_dir() + "/" + name;
@@ -153,7 +156,8 @@ TEST(Cli, InfoAutzenCrsInFeet) {
   REQUIRE_SHARED(p);
   Result r = run("info " + quote(p));
   EXPECT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("crs:            NAD_1983_HARN_Lambert_Conformal_Conic"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("crs:            NAD_1983_HARN_Lambert_Conformal_Conic"), std::string::npos)
+      << r.out;
   EXPECT_NE(r.out.find("linear unit:    foot"), std::string::npos) << r.out;
   Result j = run("info -j " + quote(p));
   auto doc = nlohmann::json::parse(j.out);
@@ -183,7 +187,8 @@ TEST(Cli, InfoAllSharedFiles) {
   }
   EXPECT_GE(n, 11);
   // Several files at once: one JSON array.
-  Result many = run("info --json " + quote(dir + "/las/sample_c.las") + " " + quote(dir + "/las/autzen_trim.las"));
+  Result many = run("info --json " + quote(dir + "/las/sample_c.las") + " " +
+                    quote(dir + "/las/autzen_trim.las"));
   EXPECT_EQ(many.code, 0);
   EXPECT_EQ(nlohmann::json::parse(many.out).size(), 2u);
 }
@@ -192,8 +197,9 @@ TEST(Cli, InfoBadInputsFailWithOneLine) {
   struct Case {
     std::string path, reason;
   };
-  std::string ply_hdr = "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
-                        "property float y\nproperty float z\nend_header\n";
+  std::string ply_hdr =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n";
   std::string truncated = write_tmp("truncated.ply", ply_hdr + std::string(12 * 40, '\0'));
   // A LAS 1.2 file whose header claims more points than it holds.
   std::string las;
@@ -211,9 +217,11 @@ TEST(Cli, InfoBadInputsFailWithOneLine) {
       {truncated, "truncated: header declares 100 points but the file holds only 40"},
       {write_tmp("nan.xyz", "1 2 3\nnan 2 3\n"), "NaN coordinate at point #1"},
       {write_tmp("empty.ply", ""), "empty file"},
-      {write_tmp("badface.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"), "face #0 references vertex 7"},
+      {write_tmp("badface.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"),
+       "face #0 references vertex 7"},
   };
-  if (!lying.empty()) cases.push_back({lying, "truncated: header declares 14408 points but the file holds only"});
+  if (!lying.empty())
+    cases.push_back({lying, "truncated: header declares 14408 points but the file holds only"});
   for (const auto& c : cases) {
     Result r = run("info " + quote(c.path));
     EXPECT_EQ(r.code, 1) << c.path << "\n" << r.err;

@@ -28,9 +28,11 @@ inline std::string write_file(const std::string& name, const std::string& bytes)
   return p;
 }
 
-inline std::string shared(const std::string& rel) { return std::string(CITYLOD_SHARED_DATA) + "/" + rel; }
+inline std::string shared(const std::string& rel) {
+  return std::string(CITYLOD_SHARED_DATA) + "/" + rel;
+}
 
-#define CITYLOD_REQUIRE_SHARED(path)                                                   \
+#define CITYLOD_REQUIRE_SHARED(path) \
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << (path)
 
 /// Runs `fn`, expects an IoError whose what() contains `needle`; returns what().
@@ -40,7 +42,8 @@ std::string expect_io_error(Fn fn, const std::string& needle) {
     fn();
   } catch (const IoError& e) {
     std::string w = e.what();
-    EXPECT_NE(w.find(needle), std::string::npos) << "message: " << w << "\nexpected to contain: " << needle;
+    EXPECT_NE(w.find(needle), std::string::npos)
+        << "message: " << w << "\nexpected to contain: " << needle;
     EXPECT_EQ(w.find('\n'), std::string::npos) << "message must be one line: " << w;
     return w;
   } catch (const std::exception& e) {
@@ -115,7 +118,9 @@ inline std::string make_las(const LasSpec& sp) {
   std::uint32_t nvlr = 0;
   auto add_vlr = [&](std::uint16_t id, const std::string& payload) {
     vlrs.put<std::uint16_t>(0).fixed("LASF_Projection", 16).put<std::uint16_t>(id);
-    vlrs.put<std::uint16_t>(static_cast<std::uint16_t>(payload.size())).fixed("test", 32).str(payload);
+    vlrs.put<std::uint16_t>(static_cast<std::uint16_t>(payload.size()))
+        .fixed("test", 32)
+        .str(payload);
     ++nvlr;
   };
   if (!sp.geokeys.empty()) {
@@ -125,7 +130,8 @@ inline std::string make_las(const LasSpec& sp) {
   }
   if (!sp.wkt.empty() && !sp.wkt_in_evlr) add_vlr(2112, sp.wkt + std::string(1, '\0'));
   const std::uint32_t point_offset = header_size + static_cast<std::uint32_t>(vlrs.data().size());
-  const std::uint64_t declared = sp.declared >= 0 ? static_cast<std::uint64_t>(sp.declared) : sp.points.size();
+  const std::uint64_t declared =
+      sp.declared >= 0 ? static_cast<std::uint64_t>(sp.declared) : sp.points.size();
 
   Bytes pts;
   double mn[3] = {1e300, 1e300, 1e300}, mx[3] = {-1e300, -1e300, -1e300};
@@ -133,19 +139,22 @@ inline std::string make_las(const LasSpec& sp) {
     Bytes rec;
     double c[3] = {p.x, p.y, p.z};
     for (int a = 0; a < 3; ++a) {
-      rec.put<std::int32_t>(static_cast<std::int32_t>(std::llround((c[a] - sp.offset[a]) / sp.scale)));
+      rec.put<std::int32_t>(
+          static_cast<std::int32_t>(std::llround((c[a] - sp.offset[a]) / sp.scale)));
       mn[a] = std::min(mn[a], c[a]);
       mx[a] = std::max(mx[a], c[a]);
     }
     rec.put<std::uint16_t>(100);  // intensity
     if (sp.point_format < 6) {
-      rec.put<std::uint8_t>(0x09);                               // return 1 of 1
-      rec.put<std::uint8_t>(static_cast<std::uint8_t>(p.cls & 0x1F) | 0x20);  // class + synthetic flag
+      rec.put<std::uint8_t>(0x09);  // return 1 of 1
+      rec.put<std::uint8_t>(static_cast<std::uint8_t>(p.cls & 0x1F) |
+                            0x20);  // class + synthetic flag
       rec.put<std::int8_t>(0).put<std::uint8_t>(0).put<std::uint16_t>(7);
       if (sp.point_format == 1 || sp.point_format == 3) rec.put<double>(12345.5);
       if (sp.point_format == 2 || sp.point_format == 3) rec.put(p.r).put(p.g).put(p.b);
     } else {
-      rec.put<std::uint8_t>(0x11).put<std::uint8_t>(0).put<std::uint8_t>(p.cls).put<std::uint8_t>(0);
+      rec.put<std::uint8_t>(0x11).put<std::uint8_t>(0).put<std::uint8_t>(p.cls).put<std::uint8_t>(
+          0);
       rec.put<std::int16_t>(0).put<std::uint16_t>(7).put<double>(12345.5);
       if (sp.point_format == 7 || sp.point_format == 8) rec.put(p.r).put(p.g).put(p.b);
       if (sp.point_format == 8) rec.put<std::uint16_t>(0);
@@ -174,8 +183,10 @@ inline std::string make_las(const LasSpec& sp) {
   h.put<std::uint8_t>(static_cast<std::uint8_t>(sp.point_format | (sp.compressed_bit ? 0x80 : 0)));
   h.put<std::uint16_t>(static_cast<std::uint16_t>(rl));
   std::uint32_t legacy = 0;
-  if (sp.legacy >= 0) legacy = static_cast<std::uint32_t>(sp.legacy);
-  else if (sp.point_format < 6 && declared <= 0xFFFFFFFFull) legacy = static_cast<std::uint32_t>(declared);
+  if (sp.legacy >= 0)
+    legacy = static_cast<std::uint32_t>(sp.legacy);
+  else if (sp.point_format < 6 && declared <= 0xFFFFFFFFull)
+    legacy = static_cast<std::uint32_t>(declared);
   h.put<std::uint32_t>(legacy);
   for (int i = 0; i < 5; ++i) h.put<std::uint32_t>(i == 0 ? legacy : 0);
   for (int a = 0; a < 3; ++a) h.put<double>(sp.scale);

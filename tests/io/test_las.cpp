@@ -72,9 +72,12 @@ TEST(LasReader, Las14Format6FullClassByteAnd64BitCount) {
   s.point_format = 6;
   s.points = grid(20);
   s.points[3].cls = 40;  // > 31: only representable in formats 6-10
-  s.wkt = "COMPD_CS[\"Amersfoort / RD New + NAP height\",PROJCS[\"Amersfoort / RD New\",GEOGCS[\"Amersfoort\"],"
-          "UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]],AUTHORITY[\"EPSG\",\"28992\"]],"
-          "VERT_CS[\"NAP height\",UNIT[\"metre\",1],AUTHORITY[\"EPSG\",\"5709\"]],AUTHORITY[\"EPSG\",\"7415\"]]";
+  s.wkt =
+      "COMPD_CS[\"Amersfoort / RD New + NAP height\",PROJCS[\"Amersfoort / RD "
+      "New\",GEOGCS[\"Amersfoort\"],"
+      "UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]],AUTHORITY[\"EPSG\",\"28992\"]],"
+      "VERT_CS[\"NAP "
+      "height\",UNIT[\"metre\",1],AUTHORITY[\"EPSG\",\"5709\"]],AUTHORITY[\"EPSG\",\"7415\"]]";
   s.wkt_in_evlr = true;
   std::string p = write_file("pf6.las", make_las(s));
   FileInfo h = read_header(p);
@@ -114,7 +117,8 @@ TEST(LasReader, OtherPointFormatsAndVersions) {
 TEST(LasReader, GeoTiffKeysFeet) {
   LasSpec s;
   s.points = grid(3);
-  // version 1.1.0, 4 keys: GTModelType, ProjectedCSType 2992, ProjLinearUnits 9002, VerticalUnits 9003
+  // version 1.1.0, 4 keys: GTModelType, ProjectedCSType 2992, ProjLinearUnits 9002, VerticalUnits
+  // 9003
   s.geokeys = {1, 1, 0, 4, 1024, 0, 1, 1, 3072, 0, 1, 2992, 3076, 0, 1, 9002, 4099, 0, 1, 9003};
   FileInfo h = read_header(write_file("feet.las", make_las(s)));
   EXPECT_TRUE(h.has_crs());
@@ -129,8 +133,9 @@ TEST(LasReader, TruncatedAndLyingCounts) {
   s.points = grid(10);
   s.declared = 25;
   std::string p = write_file("lie_more.las", make_las(s));
-  std::string w = expect_io_error([&] { PointReader::open(p); },
-                                  "truncated: header declares 25 points but the file holds only 10");
+  std::string w =
+      expect_io_error([&] { PointReader::open(p); },
+                      "truncated: header declares 25 points but the file holds only 10");
   EXPECT_EQ(w.rfind(p + ": ", 0), 0u);
 
   s.declared = 4;
@@ -156,23 +161,27 @@ TEST(LasReader, TruncatedAndLyingCounts) {
                   "legacy point count 9 and 64-bit point count 10 disagree");
 
   std::string hdr = make_las(s).substr(0, 100);
-  expect_io_error([&] { PointReader::open(write_file("short_header.las", hdr)); }, "truncated: LAS header");
+  expect_io_error([&] { PointReader::open(write_file("short_header.las", hdr)); },
+                  "truncated: LAS header");
 }
 
 TEST(LasReader, BadHeaderFields) {
   LasSpec s;
   s.points = grid(3);
   s.scale = 0.0;
-  expect_io_error([&] { PointReader::open(write_file("scale0.las", make_las(s))); }, "scale factor");
+  expect_io_error([&] { PointReader::open(write_file("scale0.las", make_las(s))); },
+                  "scale factor");
   LasSpec r;
   r.points = grid(3);
   std::string bytes = make_las(r);
   bytes[105] = 10;  // record length 10 < 28
   bytes[106] = 0;
-  expect_io_error([&] { PointReader::open(write_file("rl.las", bytes)); }, "point record length 10 is smaller");
+  expect_io_error([&] { PointReader::open(write_file("rl.las", bytes)); },
+                  "point record length 10 is smaller");
   bytes = make_las(r);
   bytes[104] = 11;
-  expect_io_error([&] { PointReader::open(write_file("pf11.las", bytes)); }, "unsupported LAS point format 11");
+  expect_io_error([&] { PointReader::open(write_file("pf11.las", bytes)); },
+                  "unsupported LAS point format 11");
   bytes = make_las(r);
   bytes[100] = 3;  // 3 VLRs that are not there
   expect_io_error([&] { PointReader::open(write_file("vlr.las", bytes)); }, "VLR #0");

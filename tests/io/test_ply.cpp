@@ -30,15 +30,19 @@ const char* kAsciiMesh =
 
 // Binary PLY with shuffled property order and mixed types, preceded by an
 // element that must be skipped.
-std::string binary_ply(bool big_endian, std::size_t n, std::size_t declared, bool with_faces = false) {
+std::string binary_ply(bool big_endian, std::size_t n, std::size_t declared,
+                       bool with_faces = false) {
   Bytes b(big_endian);
   b.str("ply\nformat ");
   b.str(big_endian ? "binary_big_endian" : "binary_little_endian");
   b.str(" 1.0\nelement camera 2\nproperty float fov\nproperty list uchar int tags\n");
   b.str("element vertex " + std::to_string(declared) + "\n");
-  b.str("property uchar red\nproperty double x\nproperty short label\nproperty double y\nproperty float z\n");
+  b.str(
+      "property uchar red\nproperty double x\nproperty short label\nproperty double y\nproperty "
+      "float z\n");
   b.str("property uchar green\nproperty uchar blue\nproperty uint classification\n");
-  if (with_faces) b.str("element face 1\nproperty uchar flags\nproperty list uchar uint vertex_index\n");
+  if (with_faces)
+    b.str("element face 1\nproperty uchar flags\nproperty list uchar uint vertex_index\n");
   b.str("end_header\n");
   // camera records: fov + list of tags
   b.put<float>(60.0f).put<std::uint8_t>(2).put<std::int32_t>(1).put<std::int32_t>(2);
@@ -52,7 +56,12 @@ std::string binary_ply(bool big_endian, std::size_t n, std::size_t declared, boo
     b.put<std::uint8_t>(200).put<std::uint8_t>(7);
     b.put<std::uint32_t>(static_cast<std::uint32_t>(i % 3 == 0 ? 6 : 2));
   }
-  if (with_faces) b.put<std::uint8_t>(0).put<std::uint8_t>(3).put<std::uint32_t>(0).put<std::uint32_t>(1).put<std::uint32_t>(2);
+  if (with_faces)
+    b.put<std::uint8_t>(0)
+        .put<std::uint8_t>(3)
+        .put<std::uint32_t>(0)
+        .put<std::uint32_t>(1)
+        .put<std::uint32_t>(2);
   return b.data();
 }
 
@@ -135,8 +144,9 @@ TEST(PlyReader, StreamsInBoundedBatches) {
 
 TEST(PlyReader, TruncatedBinary) {
   std::string p = write_file("trunc.ply", binary_ply(false, 50, 100));
-  std::string w = expect_io_error([&] { PointReader::open(p); },
-                                  "truncated: header declares 100 points but the file holds only 50");
+  std::string w =
+      expect_io_error([&] { PointReader::open(p); },
+                      "truncated: header declares 100 points but the file holds only 50");
   EXPECT_EQ(w.rfind(p, 0), 0u) << "message starts with the file name";
 }
 
@@ -144,21 +154,25 @@ TEST(PlyReader, TruncatedBinaryCutMidRecord) {
   std::string bytes = binary_ply(false, 20, 20);
   bytes.resize(bytes.size() - 10);
   std::string p = write_file("trunc_mid.ply", bytes);
-  expect_io_error([&] { PointReader::open(p); }, "truncated: header declares 20 points but the file holds only 19");
+  expect_io_error([&] { PointReader::open(p); },
+                  "truncated: header declares 20 points but the file holds only 19");
 }
 
 TEST(PlyReader, TruncatedAscii) {
   std::string s = kAsciiMesh;
   s = s.substr(0, s.find("0 1 0 0 0 1 10"));  // keeps 3 vertices
   std::string p = write_file("trunc_ascii.ply", s);
-  expect_io_error([&] { read_points(p); }, "truncated: header declares 5 points but the file holds only 3");
+  expect_io_error([&] { read_points(p); },
+                  "truncated: header declares 5 points but the file holds only 3");
 }
 
 TEST(PlyReader, HeaderCountTooSmallIsDetectedByScan) {
   std::string p = write_file("lying_small.ply", binary_ply(false, 30, 20));
   expect_io_error([&] { scan_file(p); }, "header counts lie");
-  std::string a = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
-                  "end_header\n1 2 3\n4 5 6\n7 8 9\n";
+  std::string a =
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float "
+      "z\n"
+      "end_header\n1 2 3\n4 5 6\n7 8 9\n";
   std::string pa = write_file("lying_small_ascii.ply", a);
   expect_io_error([&] { scan_file(pa); }, "header counts lie");
 }
@@ -168,18 +182,24 @@ TEST(PlyReader, HugeDeclaredCountDoesNotAllocate) {
   auto pos = bytes.find("element vertex 3");
   bytes.replace(pos, 16, "element vertex 18446744073709551615");
   std::string p = write_file("huge.ply", bytes);
-  expect_io_error([&] { PointReader::open(p); }, "truncated: header declares 18446744073709551615 points");
+  expect_io_error([&] { PointReader::open(p); },
+                  "truncated: header declares 18446744073709551615 points");
 }
 
 TEST(PlyReader, NanCoordinate) {
-  std::string s = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                  "end_header\n1 2 3\n4 5 6\n7 nan 9\n";
+  std::string s =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float "
+      "z\n"
+      "end_header\n1 2 3\n4 5 6\n7 nan 9\n";
   std::string p = write_file("nan.ply", s);
   expect_io_error([&] { read_points(p); }, "NaN coordinate at point #2");
   Bytes b;
-  b.str("ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty double x\nproperty double y\n"
-        "property double z\nend_header\n");
-  b.put<double>(1).put<double>(2).put<double>(3).put<double>(INFINITY).put<double>(0).put<double>(0);
+  b.str(
+      "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty double x\nproperty double "
+      "y\n"
+      "property double z\nend_header\n");
+  b.put<double>(1).put<double>(2).put<double>(3).put<double>(INFINITY).put<double>(0).put<double>(
+      0);
   std::string pb = write_file("inf.ply", b.data());
   expect_io_error([&] { read_points(pb); }, "infinite coordinate at point #1");
 }
@@ -188,7 +208,8 @@ TEST(PlyReader, FaceIndexOutOfRange) {
   std::string s = kAsciiMesh;
   s.replace(s.find("3 0 1 4"), 7, "3 0 1 9");
   std::string p = write_file("bad_index.ply", s);
-  expect_io_error([&] { read_mesh(p); }, "face #1 references vertex 9 but the file has only 5 vertices");
+  expect_io_error([&] { read_mesh(p); },
+                  "face #1 references vertex 9 but the file has only 5 vertices");
   expect_io_error([&] { scan_file(p); }, "face #1 references vertex 9");
   std::string neg = kAsciiMesh;
   neg.replace(neg.find("3 0 1 4"), 7, "3 0 -1 4");
@@ -197,23 +218,37 @@ TEST(PlyReader, FaceIndexOutOfRange) {
 }
 
 TEST(PlyReader, MalformedHeaders) {
-  expect_io_error([&] { PointReader::open(write_file("noend.ply", "ply\nformat ascii 1.0\nelement vertex 1\n")); },
-                  "no end_header");
   expect_io_error(
       [&] {
-        PointReader::open(write_file("nox.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float y\n"
-                                                "property float z\nend_header\n1 2\n"));
+        PointReader::open(write_file("noend.ply", "ply\nformat ascii 1.0\nelement vertex 1\n"));
+      },
+      "no end_header");
+  expect_io_error(
+      [&] {
+        PointReader::open(write_file("nox.ply",
+                                     "ply\nformat ascii 1.0\nelement vertex 1\nproperty float y\n"
+                                     "property float z\nend_header\n1 2\n"));
       },
       "lacks x, y or z");
   expect_io_error(
       [&] {
-        PointReader::open(write_file("badtype.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\n"
-                                                    "end_header\n"));
+        PointReader::open(
+            write_file("badtype.ply",
+                       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\n"
+                       "end_header\n"));
       },
       "unknown PLY property type");
-  expect_io_error([&] { PointReader::open(write_file("badfmt.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n")); },
-                  "unknown PLY format");
-  expect_io_error([&] { read_mesh(write_file("pc.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
-                                                      "property float y\nproperty float z\nend_header\n1 2 3\n")); },
-                  "no face element");
+  expect_io_error(
+      [&] {
+        PointReader::open(
+            write_file("badfmt.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n"));
+      },
+      "unknown PLY format");
+  expect_io_error(
+      [&] {
+        read_mesh(write_file("pc.ply",
+                             "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                             "property float y\nproperty float z\nend_header\n1 2 3\n"));
+      },
+      "no face element");
 }

@@ -36,7 +36,8 @@ TEST(ObjReader, VertexFormsNegativeIndicesAndPolygons) {
 
 TEST(ObjReader, BadIndices) {
   std::string p = write_file("oob.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 4\n");
-  expect_io_error([&] { read_mesh(p); }, "face #0 references vertex 4 but the file has only 3 vertices");
+  expect_io_error([&] { read_mesh(p); },
+                  "face #0 references vertex 4 but the file has only 3 vertices");
   expect_io_error([&] { scan_file(p); }, "face #0 references vertex 4");
   std::string pn = write_file("oobneg.obj", "v 0 0 0\nv 1 0 0\nf -1 -2 -3\n");
   expect_io_error([&] { read_mesh(pn); }, "references vertex -3 but the file has only 2 vertices");
@@ -60,13 +61,16 @@ TEST(OffReader, VariantsCommentsAndCountsOnFirstLine) {
   EXPECT_EQ(info.point_count, 4u);
   EXPECT_EQ(info.face_count, 4u);
 
-  std::string pn = write_file("n.off", "NOFF 3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n");
+  std::string pn =
+      write_file("n.off", "NOFF 3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n");
   PointSet a = read_points(pn);
   ASSERT_TRUE(a.has_normals());
   EXPECT_FLOAT_EQ(a.normals[1][2], 1.0f);
 
-  std::string pc = write_file("c.off", "COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n"
-                                       "4 0 1 2 0\n");
+  std::string pc =
+      write_file("c.off",
+                 "COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n"
+                 "4 0 1 2 0\n");
   // A quad whose last corner repeats vertex 0: still valid.
   PointSet c = read_points(pc);
   ASSERT_TRUE(c.has_colors());
@@ -78,10 +82,12 @@ TEST(OffReader, VariantsCommentsAndCountsOnFirstLine) {
 TEST(OffReader, Errors) {
   expect_io_error([&] { read_points(write_file("t.off", "OFF\n5 0 0\n0 0 0\n1 1 1\n")); },
                   "truncated: header declares 5 points but the file holds only 2");
-  expect_io_error([&] { read_mesh(write_file("i.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n")); },
-                  "face #0 references vertex 3 but the file has only 3 vertices");
-  expect_io_error([&] { read_mesh(write_file("f.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")); },
-                  "truncated: header declares 2 faces but the file holds only 1");
+  expect_io_error(
+      [&] { read_mesh(write_file("i.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n")); },
+      "face #0 references vertex 3 but the file has only 3 vertices");
+  expect_io_error(
+      [&] { read_mesh(write_file("f.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")); },
+      "truncated: header declares 2 faces but the file holds only 1");
   expect_io_error([&] { read_points(write_file("c.off", "OFF\nthree 1 0\n")); }, "bad OFF counts");
   expect_io_error([&] { read_points(write_file("h.off", "OFF\n99999999999 1 0\n0 0 0\n")); },
                   "truncated: header declares 99999999999 points but the file holds only 1");
@@ -107,7 +113,8 @@ TEST(XyzReader, Layouts) {
   EXPECT_FALSE(c.has_normals());
   EXPECT_EQ(c.colors[0][1], 128);
 
-  PointSet pts = read_points(write_file("l.pts", "2\n1 2 3 -1200 10 20 30\n4 5 6 -1100 40 50 60\n"));
+  PointSet pts =
+      read_points(write_file("l.pts", "2\n1 2 3 -1200 10 20 30\n4 5 6 -1100 40 50 60\n"));
   ASSERT_EQ(pts.size(), 2u);
   ASSERT_TRUE(pts.has_colors());
   EXPECT_EQ(pts.colors[1][2], 60);
@@ -127,7 +134,10 @@ TEST(XyzReader, Layouts) {
 TEST(XyzReader, Errors) {
   expect_io_error([&] { read_points(write_file("t.pts", "5\n1 2 3\n4 5 6\n")); },
                   "truncated: header declares 5 points but the file holds only 2");
-  expect_io_error([&] { read_points(write_file("nan.xyz", "1 2 3\nnan 1 1\n")); }, "NaN coordinate at point #1");
-  expect_io_error([&] { read_points(write_file("short.xyz", "1 2 3\n4 5\n")); }, "line 2: expected 3 values, found 2");
-  expect_io_error([&] { read_points(write_file("word.xyz", "1 2 3\n4 five 6\n")); }, "invalid number 'five' at line 2");
+  expect_io_error([&] { read_points(write_file("nan.xyz", "1 2 3\nnan 1 1\n")); },
+                  "NaN coordinate at point #1");
+  expect_io_error([&] { read_points(write_file("short.xyz", "1 2 3\n4 5\n")); },
+                  "line 2: expected 3 values, found 2");
+  expect_io_error([&] { read_points(write_file("word.xyz", "1 2 3\n4 five 6\n")); },
+                  "invalid number 'five' at line 2");
 }

@@ -79,7 +79,7 @@ class ArgParser {
 
   bool has(const std::string& name) const;  ///< flag set, or option given
   std::string get(const std::string& name) const;
-  double get_double(const std::string& name) const;   ///< throws UsageError if not a number
+  double get_double(const std::string& name) const;  ///< throws UsageError if not a number
   std::int64_t get_int(const std::string& name) const;
   const std::vector<std::string>& positionals() const { return positionals_; }
 

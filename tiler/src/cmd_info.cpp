@@ -47,16 +47,19 @@ void print_text(const io::FileInfo& i) {
   if (!i.version.empty()) format += " " + i.version;
   if (!i.encoding.empty()) format += " (" + i.encoding + ")";
   row("format:", format);
-  if (i.compressed) row("compressed:", "LASzip (points not decoded; convert with 'pdal translate in.laz out.las')");
+  if (i.compressed)
+    row("compressed:", "LASzip (points not decoded; convert with 'pdal translate in.laz out.las')");
   if (i.las_point_format >= 0)
-    row("point format:", std::to_string(i.las_point_format) + " (" + std::to_string(i.las_record_length) + " bytes per point)");
+    row("point format:", std::to_string(i.las_point_format) + " (" +
+                             std::to_string(i.las_record_length) + " bytes per point)");
   row(i.has_faces ? "vertices:" : "points:", std::to_string(i.point_count));
   if (i.has_faces) row("faces:", std::to_string(i.face_count));
   if (!i.bbox.empty()) {
     const char* src = i.bbox_from_header ? " (from header)" : "";
     row("bbox min:", vec(i.bbox.min, "%.3f") + src);
     row("bbox max:", vec(i.bbox.max, "%.3f") + src);
-    io::Vec3d ext{i.bbox.max[0] - i.bbox.min[0], i.bbox.max[1] - i.bbox.min[1], i.bbox.max[2] - i.bbox.min[2]};
+    io::Vec3d ext{i.bbox.max[0] - i.bbox.min[0], i.bbox.max[1] - i.bbox.min[1],
+                  i.bbox.max[2] - i.bbox.min[2]};
     row("extent:", vec(ext, "%.3f"));
   }
   auto attrs = attributes(i);
@@ -69,7 +72,8 @@ void print_text(const io::FileInfo& i) {
   if (!i.class_counts.empty()) {
     std::printf("  classes:\n");
     for (const auto& [code, n] : i.class_counts) {
-      double pct = i.point_count ? 100.0 * static_cast<double>(n) / static_cast<double>(i.point_count) : 0;
+      double pct =
+          i.point_count ? 100.0 * static_cast<double>(n) / static_cast<double>(i.point_count) : 0;
       const char* name = io::las_class_name(code);
       std::printf("    %3d %-22s %10llu  %5.1f%%\n", code, *name ? name : "(unassigned)",
                   static_cast<unsigned long long>(n), pct);
@@ -85,7 +89,8 @@ void print_text(const io::FileInfo& i) {
       if (i.vertical_epsg) row("vertical crs:", "EPSG:" + std::to_string(i.vertical_epsg));
       if (!i.linear_unit.empty()) row("linear unit:", unit_text(i));
       if (!i.vertical_unit.empty()) row("vertical unit:", i.vertical_unit);
-      if (!i.crs_wkt.empty()) row("wkt:", i.crs_wkt.size() > 60 ? i.crs_wkt.substr(0, 57) + "..." : i.crs_wkt);
+      if (!i.crs_wkt.empty())
+        row("wkt:", i.crs_wkt.size() > 60 ? i.crs_wkt.substr(0, 57) + "..." : i.crs_wkt);
     }
   }
   if (!i.system_id.empty()) row("system id:", i.system_id);
@@ -124,7 +129,8 @@ nlohmann::json to_json(const io::FileInfo& i) {
     nlohmann::json c;
     c["name"] = i.crs_name;
     c["epsg"] = i.epsg ? nlohmann::json(i.epsg) : nlohmann::json(nullptr);
-    c["vertical_epsg"] = i.vertical_epsg ? nlohmann::json(i.vertical_epsg) : nlohmann::json(nullptr);
+    c["vertical_epsg"] =
+        i.vertical_epsg ? nlohmann::json(i.vertical_epsg) : nlohmann::json(nullptr);
     c["linear_unit"] = i.linear_unit;
     c["linear_unit_m"] = i.linear_unit_m;
     c["vertical_unit"] = i.vertical_unit;
@@ -141,8 +147,10 @@ nlohmann::json to_json(const io::FileInfo& i) {
 int cmd_info(ArgParser& args) {
   args.usage("FILE...")
       .describe(
-          "Streams each file (bounded memory) and prints its format, point/vertex and face counts, bounding box,\n"
-          "attributes, LAS point format, scale/offset, class counts and CRS. Formats: PLY, OBJ, OFF, XYZ/PTS,\n"
+          "Streams each file (bounded memory) and prints its format, point/vertex and face counts, "
+          "bounding box,\n"
+          "attributes, LAS point format, scale/offset, class counts and CRS. Formats: PLY, OBJ, "
+          "OFF, XYZ/PTS,\n"
           "LAS 1.0-1.4 (LAZ: header only).")
       .flag("json", 'j', "print JSON (one object, or an array for several files)")
       .flag("header-only", 0, "read only the header: no streaming, bbox and counts as declared")
@@ -175,7 +183,8 @@ int cmd_info(ArgParser& args) {
       ++failures;
     }
   }
-  if (json && !all.empty()) std::printf("%s\n", (args.positionals().size() == 1 ? all[0] : all).dump(2).c_str());
+  if (json && !all.empty())
+    std::printf("%s\n", (args.positionals().size() == 1 ? all[0] : all).dump(2).c_str());
   return failures ? 1 : 0;
 }
 

@@ -23,8 +23,10 @@ std::string human_count(double v) {
     v /= 1000.0;
     ++i;
   }
-  if (i == 0) std::snprintf(b, sizeof b, "%.0f", v);
-  else std::snprintf(b, sizeof b, v < 10 ? "%.2f%s" : (v < 100 ? "%.1f%s" : "%.0f%s"), v, suffix[i]);
+  if (i == 0)
+    std::snprintf(b, sizeof b, "%.0f", v);
+  else
+    std::snprintf(b, sizeof b, v < 10 ? "%.2f%s" : (v < 100 ? "%.1f%s" : "%.0f%s"), v, suffix[i]);
   return b;
 }
 
@@ -33,9 +35,12 @@ std::string duration(double s) {
   if (!(s >= 0) || s > 1e7) return "--";
   char b[32];
   long t = std::lround(s);
-  if (t >= 3600) std::snprintf(b, sizeof b, "%ldh%02ldm", t / 3600, (t / 60) % 60);
-  else if (t >= 60) std::snprintf(b, sizeof b, "%ldm%02lds", t / 60, t % 60);
-  else std::snprintf(b, sizeof b, "%lds", t);
+  if (t >= 3600)
+    std::snprintf(b, sizeof b, "%ldh%02ldm", t / 3600, (t / 60) % 60);
+  else if (t >= 60)
+    std::snprintf(b, sizeof b, "%ldm%02lds", t / 60, t % 60);
+  else
+    std::snprintf(b, sizeof b, "%lds", t);
   return b;
 }
 }  // namespace
@@ -54,11 +59,14 @@ Progress::~Progress() {
   }
 }
 
-void Progress::advance(std::uint64_t n) { set_done(done_ + n); }
+void Progress::advance(std::uint64_t n) {
+  set_done(done_ + n);
+}
 
 void Progress::set_done(std::uint64_t done) {
   done_ = done;
-  if (total_ > 0) fraction_ = std::min(1.0, static_cast<double>(done_) / static_cast<double>(total_));
+  if (total_ > 0)
+    fraction_ = std::min(1.0, static_cast<double>(done_) / static_cast<double>(total_));
   draw(false);
 }
 
@@ -95,7 +103,9 @@ void Progress::draw(bool final) {
   std::string rate;
   if (elapsed > 0 && !unit_.empty() && done_ > 0)
     rate = human_count(static_cast<double>(done_) / elapsed) + " " + unit_ + "/s";
-  std::string eta = final ? duration(elapsed) : (fraction_ > 0.001 ? duration(elapsed * (1 - fraction_) / fraction_) : "--");
+  std::string eta =
+      final ? duration(elapsed)
+            : (fraction_ > 0.001 ? duration(elapsed * (1 - fraction_) / fraction_) : "--");
   std::string what = label_ + (stage_.empty() ? "" : " (" + stage_ + ")");
   char pct[16];
   std::snprintf(pct, sizeof pct, "%5.1f%%", 100.0 * fraction_);
@@ -105,8 +115,8 @@ void Progress::draw(bool final) {
     int fill = static_cast<int>(fraction_ * width + 0.5);
     std::string bar(static_cast<std::size_t>(fill), '#');
     bar.resize(width, '.');
-    std::fprintf(stderr, "\r\033[K%s [%s] %s  %s  %s %s", what.c_str(), bar.c_str(), pct, rate.c_str(),
-                 final ? "in" : "ETA", eta.c_str());
+    std::fprintf(stderr, "\r\033[K%s [%s] %s  %s  %s %s", what.c_str(), bar.c_str(), pct,
+                 rate.c_str(), final ? "in" : "ETA", eta.c_str());
     if (final) {
       std::fputc('\n', stderr);
       detail::g_bar_on_screen = false;

@@ -23,10 +23,10 @@ class Progress {
   Progress(const Progress&) = delete;
   Progress& operator=(const Progress&) = delete;
 
-  void advance(std::uint64_t n);                        ///< n more units done
-  void set_done(std::uint64_t done);                    ///< absolute units done
+  void advance(std::uint64_t n);                              ///< n more units done
+  void set_done(std::uint64_t done);                          ///< absolute units done
   void update(double fraction, const char* stage = nullptr);  ///< fraction in [0,1]
-  void finish();                                        ///< final line (idempotent)
+  void finish();                                              ///< final line (idempotent)
 
   /// Adapter for library callbacks; `self` is a Progress*. Always returns true.
   static bool callback(double fraction, const char* stage, void* self);

@@ -38,40 +38,41 @@ Format detect_format(const std::string& path);
 struct FileInfo {
   std::string path;
   Format format = Format::unknown;
-  std::string format_name;        ///< "PLY", "LAS", ...
-  std::string version;            ///< "1.2" for LAS, "1.0" for PLY, "" if none
-  std::string encoding;           ///< PLY: "ascii", "binary_little_endian", ...; text/binary otherwise
+  std::string format_name;  ///< "PLY", "LAS", ...
+  std::string version;      ///< "1.2" for LAS, "1.0" for PLY, "" if none
+  std::string encoding;     ///< PLY: "ascii", "binary_little_endian", ...; text/binary otherwise
   std::uint64_t point_count = 0;  ///< points (point clouds) or vertices (meshes)
   std::uint64_t face_count = 0;   ///< faces as stored (polygons, not triangles)
   bool has_faces = false;         ///< the file has a face element / face records
 
-  BBox3 bbox;                      ///< computed by streaming (scan_file) or taken from the header
+  BBox3 bbox;                     ///< computed by streaming (scan_file) or taken from the header
   bool bbox_from_header = false;  ///< true when bbox comes from the LAS header (not scanned)
   bool scanned = false;           ///< true after scan_file() streamed every point
 
   bool has_normals = false;
   bool has_colors = false;
   bool has_classes = false;
-  std::vector<std::string> extra_attributes;  ///< attributes read but not kept (intensity, label, ...)
+  std::vector<std::string>
+      extra_attributes;  ///< attributes read but not kept (intensity, label, ...)
 
   // LAS / LAZ
-  int las_point_format = -1;          ///< 0..10, -1 if not LAS
+  int las_point_format = -1;  ///< 0..10, -1 if not LAS
   std::uint32_t las_record_length = 0;
   Vec3d scale{0, 0, 0};
   Vec3d offset{0, 0, 0};
-  bool compressed = false;            ///< LASzip
+  bool compressed = false;                    ///< LASzip
   std::map<int, std::uint64_t> class_counts;  ///< class code -> points (LAS, after scan)
   std::string system_id;
   std::string generating_software;
 
   // CRS, if the file carries one (LAS VLR/EVLR)
-  std::string crs_wkt;       ///< OGC WKT (record 2112), verbatim
-  std::string crs_name;      ///< PROJCS/GEOGCS name from WKT, or GeoTIFF citation
-  int epsg = 0;              ///< from GeoTIFF keys (3072 projected, else 2048 geographic) or WKT AUTHORITY
-  int vertical_epsg = 0;     ///< GeoTIFF VerticalCSTypeGeoKey 4096
-  std::string linear_unit;   ///< "metre", "foot", "US survey foot", ... ("" = unknown)
-  double linear_unit_m = 0;  ///< metres per unit (0 = unknown)
-  std::string vertical_unit; ///< GeoTIFF VerticalUnitsGeoKey 4099
+  std::string crs_wkt;   ///< OGC WKT (record 2112), verbatim
+  std::string crs_name;  ///< PROJCS/GEOGCS name from WKT, or GeoTIFF citation
+  int epsg = 0;  ///< from GeoTIFF keys (3072 projected, else 2048 geographic) or WKT AUTHORITY
+  int vertical_epsg = 0;      ///< GeoTIFF VerticalCSTypeGeoKey 4096
+  std::string linear_unit;    ///< "metre", "foot", "US survey foot", ... ("" = unknown)
+  double linear_unit_m = 0;   ///< metres per unit (0 = unknown)
+  std::string vertical_unit;  ///< GeoTIFF VerticalUnitsGeoKey 4099
   bool has_crs() const { return !crs_wkt.empty() || epsg != 0 || !crs_name.empty(); }
 };
 

@@ -41,9 +41,9 @@ struct BBox3 {
 /// or has exactly positions.size() entries.
 struct PointSet {
   std::vector<Vec3d> positions;
-  std::vector<Vec3f> normals;            ///< empty or one per point
-  std::vector<Rgb8> colors;              ///< empty or one per point (8 bit per channel)
-  std::vector<std::uint8_t> classes;     ///< empty or one per point (ASPRS class for LAS)
+  std::vector<Vec3f> normals;         ///< empty or one per point
+  std::vector<Rgb8> colors;           ///< empty or one per point (8 bit per channel)
+  std::vector<std::uint8_t> classes;  ///< empty or one per point (ASPRS class for LAS)
 
   std::size_t size() const { return positions.size(); }
   bool empty() const { return positions.empty(); }

@@ -9,9 +9,9 @@
 namespace citylod::io {
 
 struct PlyWriteOptions {
-  bool binary = true;           ///< binary_little_endian; false = ascii
-  bool double_precision = true; ///< x y z as double (keeps georeferenced coordinates exact)
-  std::string comment;          ///< optional "comment" header line
+  bool binary = true;            ///< binary_little_endian; false = ascii
+  bool double_precision = true;  ///< x y z as double (keeps georeferenced coordinates exact)
+  std::string comment;           ///< optional "comment" header line
 };
 
 /// Points with their optional normals (nx ny nz float), colours (red green
