@@ -215,7 +215,9 @@ class LasReader final : public ReaderBase {
     const std::uint64_t avail = end > point_offset ? end - point_offset : 0;
     if (!info_.compressed) {
       if (count > avail / record_length) truncated(avail / record_length);
-      if (n_evlr == 0 && avail / record_length > count)
+      const bool waveform =
+          pf == 4 || pf == 5 || pf == 9 || pf == 10;  // packets may follow the points
+      if (n_evlr == 0 && !waveform && avail / record_length > count)
         in_.fail("header declares " + std::to_string(count) + " points but the file holds " +
                  std::to_string(avail / record_length) + " (header point count is wrong)");
     }
