@@ -1,0 +1,506 @@
+// split_scene(): synthetic scenes (clusters, footprints, meshes, cell borders,
+// halo growth, idempotence, atomicity) and the real data sets when present.
+#include "../../tiler/src/split.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+
+#include "../../tiler/src/footprints.hpp"
+#include "citylod/io/reader.hpp"
+#include "citylod/io/workdir.hpp"
+#include "citylod/io/writers.hpp"
+#include "fixtures/las_writer.hpp"
+#include "fixtures/synthetic_city.hpp"
+
+namespace fs = std::filesystem;
+using namespace citylod;
+using citylod::tiler::SplitOptions;
+using citylod::tiler::SplitReport;
+
+namespace {
+
+const std::string kData = CITYLOD_SHARED_DATA;
+const std::string kFixtures = std::string(CITYLOD_SOURCE_DIR) + "/tests/fixtures";
+
+fs::path tmp_dir(const std::string& name) {
+  fs::path p = fs::path(CITYLOD_TEST_TMP) / ("split_" + name);
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p;
+}
+
+bool have(const std::string& rel) { return fs::exists(kData + "/" + rel); }
+
+/// Index of the synthetic box whose outline contains the chunk's bbox centre, or -1.
+int box_of(const test::SynthCity& c, const io::ChunkRecord& r) {
+  const double x = 0.5 * (r.bbox_min[0] + r.bbox_max[0]), y = 0.5 * (r.bbox_min[1] + r.bbox_max[1]);
+  for (std::size_t i = 0; i < c.boxes.size(); ++i)
+    if (x >= c.boxes[i].x0 && x <= c.boxes[i].x1 && y >= c.boxes[i].y0 && y <= c.boxes[i].y1) return int(i);
+  return -1;
+}
+
+SplitOptions local_options(const std::string& input, const fs::path& work) {
+  SplitOptions o;
+  o.inputs = {input};
+  o.work_dir = work.string();
+  o.origin = "52.0,4.36,45.0";
+  o.cell_size = 50;
+  o.halo = 10;
+  return o;
+}
+
+// ------------------------------------------------------------------ footprints
+TEST(SplitFootprints, ReadsFixture) {
+  int skipped = -1;
+  auto set = tiler::read_footprints_geojson(kFixtures + "/delft_bgt_pand.geojson", &skipped);
+  EXPECT_EQ(set.crs, "EPSG:28992");
+  EXPECT_EQ(set.footprints.size(), 160u);
+  EXPECT_EQ(skipped, 0);
+  std::set<std::string> ids;
+  for (const auto& f : set.footprints) {
+    ids.insert(f.id);
+    EXPECT_GT(f.area(), 1.0) << f.id;
+    EXPECT_GT(tiler::signed_area(f.main_ring()), 0) << "exterior ring is CCW";
+    const auto c = f.centroid();
+    EXPECT_GE(c[0], f.bbox[0]);
+    EXPECT_LE(c[0], f.bbox[2]);
+  }
+  EXPECT_EQ(ids.size(), 160u);
+  EXPECT_EQ(ids.count("503100000000035"), 1u);
+}
+
+TEST(SplitFootprints, PolygonWithHoleAndMultiPolygon) {
+  const fs::path dir = tmp_dir("fp_geom");
+  const std::string path = (dir / "f.geojson").string();
+  std::ofstream(path) << R"({"type":"FeatureCollection","features":[
+    {"type":"Feature","properties":{"id":7},"geometry":{"type":"Polygon","coordinates":[
+      [[0,0],[0,10],[10,10],[10,0],[0,0]], [[4,4],[6,4],[6,6],[4,6],[4,4]]]}},
+    {"type":"Feature","id":"m","properties":{},"geometry":{"type":"MultiPolygon","coordinates":[
+      [[[20,0],[22,0],[22,2],[20,2],[20,0]]], [[[30,0],[31,0],[31,1],[30,0]]]]}},
+    {"type":"Feature","properties":{"id":"pt"},"geometry":{"type":"Point","coordinates":[1,2]}}]})";
+  int skipped = 0;
+  auto set = tiler::read_footprints_geojson(path, &skipped);
+  ASSERT_EQ(set.footprints.size(), 2u);
+  EXPECT_EQ(skipped, 1);
+  const auto& a = set.footprints[0];
+  EXPECT_EQ(a.id, "7");
+  EXPECT_NEAR(a.area(), 96.0, 1e-9);
+  EXPECT_TRUE(tiler::point_in_footprint(a, {1, 1}));
+  EXPECT_FALSE(tiler::point_in_footprint(a, {5, 5}));  // in the hole
+  EXPECT_NEAR(tiler::distance_to_footprint(a, {12, 5}), 2.0, 1e-12);
+  const auto& m = set.footprints[1];
+  EXPECT_EQ(m.id, "m");
+  EXPECT_EQ(m.polygons.size(), 2u);
+  EXPECT_NEAR(m.area(), 4.5, 1e-9);
+  EXPECT_EQ(m.main_ring().size(), 4u);
+}
+
+TEST(SplitFootprints, MalformedFilesThrowWithThePath) {
+  const fs::path dir = tmp_dir("fp_bad");
+  const std::string p1 = (dir / "a.geojson").string();
+  std::ofstream(p1) << "{\"type\": \"FeatureCollection\", \"features\": [";
+  try {
+    tiler::read_footprints_geojson(p1);
+    FAIL();
+  } catch (const io::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find(p1), std::string::npos);
+  }
+  EXPECT_THROW(tiler::read_footprints_geojson((dir / "missing.geojson").string()), io::IoError);
+}
+
+TEST(SplitGeometry, ConvexHull) {
+  auto h = tiler::convex_hull({{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0.5, 0.5}, {0.5, 0}});
+  ASSERT_EQ(h.size(), 4u);
+  EXPECT_NEAR(tiler::signed_area(h), 1.0, 1e-12);
+}
+
+TEST(SplitOptions, MemorySizes) {
+  EXPECT_EQ(tiler::parse_memory_size("2G"), 2ull << 30);
+  EXPECT_EQ(tiler::parse_memory_size("512M"), 512ull << 20);
+  EXPECT_EQ(tiler::parse_memory_size("1.5GiB"), 3ull << 29);
+  EXPECT_EQ(tiler::parse_memory_size("1048576"), 1ull << 20);
+  EXPECT_THROW(tiler::parse_memory_size("lots"), std::invalid_argument);
+  EXPECT_THROW(tiler::parse_memory_size("2X"), std::invalid_argument);
+  SplitOptions o;
+  EXPECT_THROW(o.validate(), std::invalid_argument);  // no inputs
+  o.inputs = {"a.las"};
+  o.work_dir = "w";
+  EXPECT_NO_THROW(o.validate());
+  o.crs = "EPSG:28992";
+  o.origin = "52,4,0";
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+}
+
+// ------------------------------------------------------------------ synthetic scenes
+class SplitSynthetic : public ::testing::Test {
+ protected:
+  test::SynthCity city;
+  std::vector<std::size_t> box_points;
+  std::string write_points(const fs::path& dir, bool with_classes) {
+    io::PointSet ps = test::make_city_points(city, &box_points);
+    if (!with_classes) ps.classes.clear();
+    const std::string p = (dir / (with_classes ? "city_cls.ply" : "city.ply")).string();
+    io::write_ply(p, ps);
+    return p;
+  }
+};
+
+TEST_F(SplitSynthetic, ClustersWithoutClassesFindBuildingsAndRejectTrees) {
+  const fs::path dir = tmp_dir("synth_noclass");
+  const std::string in = write_points(dir, false);
+  SplitOptions o = local_options(in, dir / "work");
+  const SplitReport r = tiler::split_scene(o);
+  EXPECT_FALSE(r.up_to_date);
+  const io::Manifest m = io::read_manifest(o.work_dir);
+  ASSERT_EQ(m.chunks.size(), city.boxes.size());
+  std::set<int> seen;
+  for (const auto& c : m.chunks) {
+    EXPECT_EQ(c.id.rfind("b-", 0), 0u);
+    EXPECT_EQ(c.status, "pending");
+    EXPECT_EQ(c.source, "cluster");
+    const int b = box_of(city, c);
+    ASSERT_GE(b, 0) << c.id;
+    seen.insert(b);
+    EXPECT_NEAR(c.ground_z, 0.0, 0.1);
+    EXPECT_NEAR(c.bbox_max[2], city.boxes[std::size_t(b)].h, 0.1);
+    EXPECT_GE(c.outline.size(), 4u);
+    // chunk file: relative coordinates, the whole building (roof + walls above min height)
+    const io::PointSet pts = io::read_points(io::chunk_path(o.work_dir, c.id));
+    EXPECT_EQ(pts.size(), c.points);
+    EXPECT_EQ(io::hash_file(io::chunk_path(o.work_dir, c.id)), c.content_hash);
+    for (const auto& p : pts.positions) {
+      EXPECT_LT(std::abs(p[0]), 60.0);
+      EXPECT_LT(std::abs(p[1]), 60.0);
+    }
+  }
+  EXPECT_EQ(seen.size(), city.boxes.size());
+  EXPECT_GE(r.clusters_rejected, 1u) << "tree crowns are clusters too, and must be rejected";
+  EXPECT_GE(r.halo_growths, 1u) << "building C is longer than cell + halo";
+  EXPECT_NEAR(m.scene.origin_lat, 52.0, 1e-12);
+  EXPECT_NEAR(m.scene.origin_lon, 4.36, 1e-12);
+  EXPECT_NEAR(m.scene.origin_h, 45.0, 1e-9);
+  EXPECT_FALSE(fs::exists(fs::path(o.work_dir) / (".split.tmp." + std::to_string(::getpid()))));
+}
+
+TEST_F(SplitSynthetic, BuildingsOnCellBordersAreWholeAndOwnedOnce) {
+  const fs::path dir = tmp_dir("synth_borders");
+  const std::string in = write_points(dir, true);
+  for (double cell : {50.0, 35.0}) {
+    SplitOptions o = local_options(in, dir / ("work" + std::to_string(int(cell))));
+    o.cell_size = cell;
+    tiler::split_scene(o);
+    const io::Manifest m = io::read_manifest(o.work_dir);
+    ASSERT_EQ(m.chunks.size(), city.boxes.size()) << "cell " << cell;
+    for (const auto& c : m.chunks) {
+      const int b = box_of(city, c);
+      ASSERT_GE(b, 0);
+      // classes present -> every class-6 point of the box is in its chunk
+      EXPECT_EQ(c.points, box_points[std::size_t(b)]) << "box " << city.boxes[std::size_t(b)].id << " cell " << cell;
+    }
+  }
+}
+
+TEST_F(SplitSynthetic, IgnoreClassesGivesTheSameBuildings) {
+  const fs::path dir = tmp_dir("synth_ignore");
+  const std::string in = write_points(dir, true);
+  SplitOptions o = local_options(in, dir / "work");
+  o.ignore_classes = true;
+  const SplitReport r = tiler::split_scene(o);
+  const io::Manifest m = io::read_manifest(o.work_dir);
+  EXPECT_EQ(m.chunks.size(), city.boxes.size());
+  for (const auto& c : m.chunks) {
+    const io::PointSet pts = io::read_points(io::chunk_path(o.work_dir, c.id));
+    ASSERT_TRUE(pts.has_classes());
+    std::size_t trees = 0;
+    for (auto k : pts.classes) trees += k == 5;
+    EXPECT_EQ(trees, 0u) << c.id;
+  }
+  EXPECT_NE(r.class_mode.find("no classes"), std::string::npos);
+}
+
+TEST_F(SplitSynthetic, FootprintsAssignPointsAndReportEveryFootprint) {
+  const fs::path dir = tmp_dir("synth_fp");
+  const std::string in = write_points(dir, false);
+  const std::string fp = (dir / "fp.geojson").string();
+  std::ofstream(fp) << test::city_footprints_geojson(
+      city, {{"E", 170, 10, 190, 20, 0} /* empty ground */, {"Z", 900, 900, 910, 910, 0} /* elsewhere */});
+  SplitOptions o = local_options(in, dir / "work");
+  o.footprints = fp;
+  const SplitReport r = tiler::split_scene(o);
+  EXPECT_EQ(r.footprints_total, 5u);
+  EXPECT_EQ(r.footprints_in_scene, 4u);
+  EXPECT_EQ(r.footprints_with_chunk, 3u);
+  const io::Manifest m = io::read_manifest(o.work_dir);
+  std::map<std::string, io::ChunkRecord> by_id;
+  for (const auto& c : m.chunks) by_id[c.id] = c;
+  ASSERT_EQ(by_id.size(), 4u);
+  for (const char* id : {"fp-A", "fp-B", "fp-C"}) {
+    ASSERT_TRUE(by_id.count(id)) << id;
+    EXPECT_EQ(by_id[id].status, "pending");
+    EXPECT_EQ(by_id[id].outline.size(), 4u);
+    EXPECT_GT(by_id[id].points, 500u);
+    EXPECT_TRUE(fs::exists(io::chunk_path(o.work_dir, id)));
+  }
+  EXPECT_EQ(by_id["fp-E"].status, "skipped");
+  EXPECT_FALSE(by_id["fp-E"].reason.empty());
+}
+
+TEST_F(SplitSynthetic, MeshScenesSplitTriangles) {
+  const fs::path dir = tmp_dir("synth_mesh");
+  const io::TriangleMesh mesh = test::make_city_mesh(city);
+  const std::string in = (dir / "city_mesh.ply").string();
+  io::write_ply(in, mesh);
+  SplitOptions o = local_options(in, dir / "work");
+  const SplitReport r = tiler::split_scene(o);
+  EXPECT_EQ(r.triangles, mesh.triangles.size());
+  const io::Manifest m = io::read_manifest(o.work_dir);
+  ASSERT_EQ(m.chunks.size(), city.boxes.size());
+  for (const auto& c : m.chunks) {
+    const int b = box_of(city, c);
+    ASSERT_GE(b, 0);
+    const auto& bx = city.boxes[std::size_t(b)];
+    const std::size_t roof = std::size_t(2 * std::lround((bx.x1 - bx.x0) / 0.5) * std::lround((bx.y1 - bx.y0) / 0.5));
+    EXPECT_GE(c.triangles, roof) << bx.id;
+    const io::TriangleMesh cm = io::read_mesh(io::chunk_path(o.work_dir, c.id));
+    EXPECT_EQ(cm.triangles.size(), c.triangles);
+    EXPECT_EQ(cm.vertices.size(), c.points);
+  }
+}
+
+TEST_F(SplitSynthetic, RerunIsUpToDateAndOptionChangesResplit) {
+  const fs::path dir = tmp_dir("synth_rerun");
+  const std::string in = write_points(dir, true);
+  SplitOptions o = local_options(in, dir / "work");
+  tiler::split_scene(o);
+  const auto mtime = fs::last_write_time(io::manifest_path(o.work_dir));
+  const SplitReport again = tiler::split_scene(o);
+  EXPECT_TRUE(again.up_to_date);
+  EXPECT_EQ(again.chunks, city.boxes.size());
+  EXPECT_EQ(fs::last_write_time(io::manifest_path(o.work_dir)), mtime);
+  o.seg.min_area = 13;
+  EXPECT_FALSE(tiler::split_scene(o).up_to_date);
+  // Deleting a chunk file makes it stale too.
+  const io::Manifest m = io::read_manifest(o.work_dir);
+  fs::remove(io::chunk_path(o.work_dir, m.chunks[0].id));
+  EXPECT_FALSE(tiler::split_scene(o).up_to_date);
+  EXPECT_TRUE(fs::exists(io::chunk_path(o.work_dir, m.chunks[0].id)));
+}
+
+TEST_F(SplitSynthetic, FailedRunLeavesWorkUntouched) {
+  const fs::path dir = tmp_dir("synth_fail");
+  const std::string good = write_points(dir, true);
+  SplitOptions o = local_options(good, dir / "work");
+  tiler::split_scene(o);
+  const std::string manifest_before = [&] {
+    std::ifstream f(io::manifest_path(o.work_dir));
+    return std::string(std::istreambuf_iterator<char>(f), {});
+  }();
+  // Truncated copy of the input.
+  const std::string bad = (dir / "bad.ply").string();
+  fs::copy_file(good, bad);
+  fs::resize_file(bad, fs::file_size(bad) - 1000);
+  o.inputs = {bad};
+  EXPECT_THROW(tiler::split_scene(o), io::IoError);
+  std::ifstream f(io::manifest_path(o.work_dir));
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f), {}), manifest_before);
+  for (const auto& e : fs::directory_iterator(o.work_dir))
+    EXPECT_TRUE(e.path().filename() == "manifest.json" || e.path().filename() == "chunks") << e.path();
+  // A new WORK is not created at all when the run fails.
+  SplitOptions o2 = local_options(bad, dir / "fresh");
+  EXPECT_THROW(tiler::split_scene(o2), io::IoError);
+  EXPECT_FALSE(fs::exists(dir / "fresh"));
+}
+
+TEST_F(SplitSynthetic, LasHeaderBoxAndCrsChecks) {
+  const fs::path dir = tmp_dir("synth_las");
+  // The synthetic city placed in RD New near Delft.
+  const io::PointSet ps = test::make_city_points(city);
+  const std::string las = (dir / "city.las").string();
+  {
+    test::LasWriter w(las, {0.001, 0.001, 0.001}, {85000, 447000, 0});
+    for (std::size_t k = 0; k < ps.size(); ++k)
+      w.add(ps.positions[k][0] + 85000, ps.positions[k][1] + 447400, ps.positions[k][2], ps.classes[k]);
+    w.close();
+  }
+  SplitOptions o;
+  o.inputs = {las};
+  o.work_dir = (dir / "work").string();
+  o.crs = "EPSG:28992";
+  o.cell_size = 60;
+  const SplitReport r = tiler::split_scene(o);
+  EXPECT_EQ(r.chunks, city.boxes.size());
+  EXPECT_NEAR(r.origin_lat, 52.0, 0.05);
+  EXPECT_NEAR(r.origin_lon, 4.36, 0.05);
+  // No CRS in the file and none given.
+  o.crs.clear();
+  o.work_dir = (dir / "nocrs").string();
+  try {
+    tiler::split_scene(o);
+    FAIL();
+  } catch (const io::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find(las), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("--crs"), std::string::npos);
+  }
+  // A CRS whose area does not contain the data (UTM zone 10N: western North America).
+  o.crs = "EPSG:32610";
+  EXPECT_THROW(tiler::split_scene(o), io::IoError);
+  o.crs = "EPSG:99999";
+  EXPECT_THROW(tiler::split_scene(o), io::IoError);
+  EXPECT_FALSE(fs::exists(dir / "nocrs"));
+}
+
+// ------------------------------------------------------------------ real data
+struct ChunkStats {
+  std::size_t points = 0, class6 = 0;
+};
+
+ChunkStats class_stats(const std::string& work, const io::ChunkRecord& c) {
+  const io::PointSet pts = io::read_points(io::chunk_path(work, c.id));
+  ChunkStats s;
+  s.points = pts.size();
+  for (auto k : pts.classes) s.class6 += k == 6;
+  return s;
+}
+
+TEST(SplitRealData, DelftWithAndWithoutFootprints) {
+  if (!have("delft/ahn3_cropped_2.las")) GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("delft");
+  const std::string las = kData + "/delft/ahn3_cropped_2.las";
+  const std::string fp = kFixtures + "/delft_bgt_pand.geojson";
+
+  // With footprints.
+  SplitOptions o;
+  o.inputs = {las};
+  o.crs = "EPSG:28992";
+  o.work_dir = (dir / "fp").string();
+  o.footprints = fp;
+  const SplitReport r1 = tiler::split_scene(o);
+  std::printf("[delft footprints] %zu in scene, %zu inside the tile, %zu of those got a chunk; %zu chunks\n",
+              r1.footprints_in_scene, r1.footprints_inside, r1.footprints_inside_with_chunk, r1.chunks);
+  ASSERT_GT(r1.footprints_inside, 0u);
+  EXPECT_GE(double(r1.footprints_inside_with_chunk), 0.95 * double(r1.footprints_inside));
+
+  // Without footprints, classes used; then classes ignored (PCA features).
+  for (bool ignore : {false, true}) {
+    SplitOptions oc = o;
+    oc.footprints.clear();
+    oc.ignore_classes = ignore;
+    oc.work_dir = (dir / (ignore ? "noclass" : "class")).string();
+    const SplitReport r = tiler::split_scene(oc);
+    const io::Manifest m = io::read_manifest(oc.work_dir);
+    // Footprints inside the tile that some chunk covers (footprint centroid inside a chunk outline),
+    // chunks that are not buildings (< 50 % class-6 points).
+    const io::Manifest mf = io::read_manifest(o.work_dir);
+    std::size_t covered = 0, inside = 0;
+    for (const auto& rec : mf.chunks) {  // footprint records carry the footprint outline (ENU)
+      if (rec.outline.size() < 3) continue;
+      bool in_tile = true;
+      double cx = 0, cy = 0;
+      for (const auto& v : rec.outline) {
+        in_tile = in_tile && v[0] >= r.bbox.min[0] && v[0] <= r.bbox.max[0] && v[1] >= r.bbox.min[1] &&
+                  v[1] <= r.bbox.max[1];
+        cx += v[0];
+        cy += v[1];
+      }
+      if (!in_tile) continue;
+      cx /= double(rec.outline.size());
+      cy /= double(rec.outline.size());
+      ++inside;
+      for (const auto& c : m.chunks)
+        if (tiler::point_in_ring(c.outline, {cx, cy})) {
+          ++covered;
+          break;
+        }
+    }
+    std::size_t not_building = 0;
+    for (const auto& c : m.chunks) {
+      const ChunkStats s = class_stats(oc.work_dir, c);
+      if (2 * s.class6 < s.points) ++not_building;
+    }
+    std::printf("[delft %s] %zu chunks, %zu not buildings (<50%% class 6); %zu of %zu footprints inside the tile covered by a chunk; "
+                "%zu clusters rejected\n",
+                ignore ? "ignoring classes" : "classes", m.chunks.size(), not_building, covered, inside,
+                r.clusters_rejected);
+    EXPECT_LE(double(not_building), 0.05 * double(m.chunks.size()) + 0.5);
+    EXPECT_GE(double(covered), 0.9 * double(inside));
+  }
+}
+
+TEST(SplitRealData, AutzenFeetAreConverted) {
+  if (!have("las/autzen_trim.las")) GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("autzen");
+  SplitOptions o;
+  o.inputs = {kData + "/las/autzen_trim.las"};
+  o.work_dir = (dir / "work").string();
+  const SplitReport r = tiler::split_scene(o);  // CRS from the WKT in the file
+  bool feet = false;
+  for (const auto& n : r.notes) feet |= n.find("foot") != std::string::npos;
+  EXPECT_TRUE(feet);
+  const io::Manifest m = io::read_manifest(o.work_dir);
+  EXPECT_FALSE(m.scene.crs.empty());
+  EXPECT_NEAR(m.scene.origin_lat, 44.06, 0.05);
+  EXPECT_NEAR(m.scene.origin_lon, -123.07, 0.05);
+  // 1177 ft x 563 ft = 359 m x 172 m
+  for (const auto& c : m.chunks) {
+    EXPECT_LT(c.bbox_max[0] - c.bbox_min[0], 120.0);
+    EXPECT_GT(c.bbox_min[0], -190.0);
+    EXPECT_LT(c.bbox_max[0], 190.0);
+    EXPECT_GT(c.bbox_min[1], -95.0);
+    EXPECT_LT(c.bbox_max[1], 95.0);
+    EXPECT_LT(c.bbox_max[2] - c.ground_z, 30.0) << "heights in metres";
+  }
+  std::printf("[autzen] %zu chunks, %zu clusters rejected\n", m.chunks.size(), r.clusters_rejected);
+}
+
+TEST(SplitRealData, SampleCRoofWithOrigin) {
+  if (!have("las/sample_c.las")) GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("sample_c");
+  SplitOptions o;
+  o.inputs = {kData + "/las/sample_c.las"};
+  o.work_dir = (dir / "work").string();
+  o.origin = "40.0,-105.0,1600";
+  tiler::split_scene(o);
+  const io::Manifest m = io::read_manifest(o.work_dir);
+  ASSERT_GE(m.chunks.size(), 1u);
+  std::size_t biggest = 0;
+  for (const auto& c : m.chunks) biggest = std::max<std::size_t>(biggest, c.points);
+  std::printf("[sample_c] %zu chunks, largest %zu points\n", m.chunks.size(), biggest);
+  EXPECT_GE(biggest, 10000u);  // the roof (12,525 class-6 points)
+}
+
+TEST(SplitRealData, City3dBlockBuildingsWithoutTrees) {
+  if (!have("ahn3_block/city3d_001.ply")) GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("city3d");
+  SplitOptions o;
+  o.inputs = {kData + "/ahn3_block/city3d_001.ply"};
+  o.work_dir = (dir / "work").string();
+  o.origin = "52.0,4.37,45";
+  const SplitReport r = tiler::split_scene(o);
+  const io::Manifest m = io::read_manifest(o.work_dir);
+  // The footprint file holds the outlines of the buildings of the block.
+  const io::PolygonMesh fp = io::read_polygon_mesh(kData + "/ahn3_block/city3d_001_footprint.obj");
+  std::size_t inside = 0;
+  for (const auto& c : m.chunks) {
+    const double cx = 0.5 * (c.bbox_min[0] + c.bbox_max[0]), cy = 0.5 * (c.bbox_min[1] + c.bbox_max[1]);
+    for (const auto& f : fp.faces) {
+      tiler::Ring ring;
+      for (auto v : f) ring.push_back({fp.vertices[v][0], fp.vertices[v][1]});
+      if (tiler::point_in_ring(ring, {cx, cy})) {
+        ++inside;
+        break;
+      }
+    }
+  }
+  std::printf("[city3d_001] %zu footprints, %zu chunks (%zu inside a footprint), %zu clusters rejected\n",
+              fp.faces.size(), m.chunks.size(), inside, r.clusters_rejected);
+  EXPECT_EQ(m.chunks.size(), fp.faces.size());
+  EXPECT_EQ(inside, m.chunks.size());
+}
+
+}  // namespace
