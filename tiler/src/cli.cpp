@@ -21,6 +21,7 @@ namespace citylod::tiler {
 // To add a subcommand: write tiler/src/cmd_<name>.cpp defining
 // `int cmd_<name>(ArgParser&)`, declare it here and add one row to kCommands.
 int cmd_info(ArgParser& args);
+int cmd_split(ArgParser& args);
 int cmd_assemble(ArgParser& args);
 int cmd_serve(ArgParser& args);
 
@@ -34,6 +35,7 @@ struct Command {
 
 const Command kCommands[] = {
     {"info", "print format, counts, bounding box, attributes and CRS of point cloud / mesh files", cmd_info},
+    {"split", "stream a georeferenced scene into per-building chunks (WORK/chunks, manifest.json)", cmd_split},
     {"assemble", "turn the per-building LOD models of a work directory into a 3D Tiles 1.1 tileset", cmd_assemble},
     {"serve", "serve a tileset and the CesiumJS viewer on 127.0.0.1 (offline)", cmd_serve},
 };
