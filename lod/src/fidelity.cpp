@@ -68,60 +68,89 @@ std::vector<P3> sample_triangles(const TriVec& tris, int n) {
 
 }  // namespace
 
-Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s, double diag,
-                          int model_samples) {
+using Traits = CGAL::Search_traits_3<K>;
+using Search = CGAL::Orthogonal_k_neighbor_search<Traits>;
+
+struct FidelityMeter::Impl {
+  double scale = 100.0;
+  int samples = 20000;
+  bool mesh = false;
+  TriVec itris;                    // input triangles (mesh input)
+  std::unique_ptr<Tree> itree;     // AABB on them
+  std::vector<P3> ipoints;         // input points (cloud input)
+  std::unique_ptr<Search::Tree> kd;
+  std::vector<P3> e2_points;       // input samples used for e2
+  std::vector<double> e2_weights;
+};
+
+FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double diag, int samples)
+    : impl_(std::make_unique<Impl>()) {
+  auto& I = *impl_;
+  I.scale = diag > 0 ? 100.0 / diag : 100.0;
+  I.samples = std::max(1, samples);
+  I.mesh = in.is_mesh();
+  if (I.mesh) I.itris = triangles_of(in.points, in.triangles);
+  if (!I.itris.empty()) {
+    I.itree = std::make_unique<Tree>(I.itris.begin(), I.itris.end());
+    I.itree->accelerate_distance_queries();
+    (void)I.itree->squared_distance(P3(0, 0, 0));  // forces the lazy builds: later queries are read-only
+  } else {
+    I.ipoints.reserve(s.points.size());
+    for (const auto& q : s.points) I.ipoints.push_back(toP(q));
+    I.kd = std::make_unique<Search::Tree>(I.ipoints.begin(), I.ipoints.end());
+    I.kd->build();
+  }
+  const std::size_t n = s.points.size();
+  const std::size_t stride = std::max<std::size_t>(1, (n + std::size_t(I.samples) - 1) / std::size_t(I.samples));
+  for (std::size_t i = 0; i < n; i += stride) {
+    I.e2_points.push_back(toP(s.points[i]));
+    I.e2_weights.push_back((I.mesh && i < s.weights.size()) ? s.weights[i] : 1.0);
+  }
+}
+
+FidelityMeter::~FidelityMeter() = default;
+
+Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
+  const auto& I = *impl_;
   Fidelity f;
   const TriVec mtris = triangles_of(model.vertices, model.triangles);
-  if (mtris.empty() || s.points.empty()) {
+  if (mtris.empty() || I.e2_points.empty()) {
     f.e1 = f.e2 = f.hausdorff = -1;
     return f;
   }
-  const double scale = diag > 0 ? 100.0 / diag : 100.0;
-  const std::vector<P3> msamples = sample_triangles(mtris, std::max(1, model_samples));
-
-  // e1: model -> input.
+  // e1: model -> input, area-uniform samples of the model.
+  const std::vector<P3> msamples = sample_triangles(mtris, I.samples);
   double sum1 = 0, max1 = 0;
-  TriVec itris;
-  if (in.is_mesh()) itris = triangles_of(in.points, in.triangles);
-  if (!itris.empty()) {
-    Tree tree(itris.begin(), itris.end());
-    tree.accelerate_distance_queries();
-    for (const auto& q : msamples) {
-      const double d2 = CGAL::to_double(tree.squared_distance(q));
-      sum1 += d2;
-      max1 = std::max(max1, d2);
+  for (const auto& q : msamples) {
+    double d2;
+    if (I.itree) {
+      d2 = CGAL::to_double(I.itree->squared_distance(q));
+    } else {
+      Search search(*I.kd, q, 1);
+      d2 = search.begin()->second;
     }
-  } else {
-    using Traits = CGAL::Search_traits_3<K>;
-    using Search = CGAL::Orthogonal_k_neighbor_search<Traits>;
-    std::vector<P3> ip;
-    ip.reserve(s.points.size());
-    for (const auto& q : s.points) ip.push_back(toP(q));
-    Search::Tree kd(ip.begin(), ip.end());
-    kd.build();
-    for (const auto& q : msamples) {
-      Search search(kd, q, 1);
-      const double d2 = search.begin()->second;
-      sum1 += d2;
-      max1 = std::max(max1, d2);
-    }
+    sum1 += d2;
+    max1 = std::max(max1, d2);
   }
-  f.e1 = std::sqrt(sum1 / msamples.size()) * scale;
-
-  // e2: input -> model (mesh: its area-weighted samples; cloud: its points).
+  f.e1 = std::sqrt(sum1 / double(msamples.size())) * I.scale;
+  // e2: input -> model.
   Tree mtree(mtris.begin(), mtris.end());
   mtree.accelerate_distance_queries();
   double sum2 = 0, wsum = 0, max2 = 0;
-  for (std::size_t i = 0; i < s.points.size(); ++i) {
-    const double w = (in.is_mesh() && i < s.weights.size()) ? s.weights[i] : 1.0;
-    const double d2 = CGAL::to_double(mtree.squared_distance(toP(s.points[i])));
-    sum2 += w * d2;
-    wsum += w;
+  for (std::size_t i = 0; i < I.e2_points.size(); ++i) {
+    const double d2 = CGAL::to_double(mtree.squared_distance(I.e2_points[i]));
+    sum2 += I.e2_weights[i] * d2;
+    wsum += I.e2_weights[i];
     max2 = std::max(max2, d2);
   }
-  f.e2 = wsum > 0 ? std::sqrt(sum2 / wsum) * scale : -1;
+  f.e2 = wsum > 0 ? std::sqrt(sum2 / wsum) * I.scale : -1;
   f.hausdorff = std::sqrt(std::max(max1, max2));
   return f;
+}
+
+Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s, double diag,
+                          int model_samples) {
+  return FidelityMeter(in, s, diag, model_samples).measure(model);
 }
 
 }  // namespace citylod::lod::detail

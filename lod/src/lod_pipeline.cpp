@@ -288,8 +288,12 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   // Fidelity of every model against the input (e1, e2 in % of the bbox diagonal).
   progress(0.9, "metrics");
   const auto tm = Clock::now();
-  for (auto& m : R.models) {
-    const Fidelity f = measure_fidelity(m.mesh, in, samples, diag, params.metrics.samples);
+  const FidelityMeter meter(in, samples, diag, params.metrics.samples);
+  const long nm = long(R.models.size());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, params.threads))
+  for (long i = 0; i < nm; ++i) {
+    auto& m = R.models[size_t(i)];
+    const Fidelity f = meter.measure(m.mesh);
     m.e1 = f.e1;
     m.e2 = f.e2;
     m.hausdorff = f.hausdorff;

@@ -75,6 +75,7 @@ void visit(P& p, F&& f) {
   f("alpha.alpha", p.alpha.alpha);
   f("bsp.bbox_enlarge", p.bsp.bbox_enlarge);
   f("bsp.max_cells", p.bsp.max_cells);
+  f("bsp.baseline", p.bsp.baseline);
   f("labels.rays_per_cell", p.labels.rays_per_cell);
   f("ioview.separation_coverage", p.ioview.separation_coverage);
   f("ioview.min_principal_area", p.ioview.min_principal_area);
@@ -90,6 +91,7 @@ void visit(P& p, F&& f) {
   f("tree.merge_k", p.tree.merge_k);
   f("tree.label_volume_ratio", p.tree.label_volume_ratio);
   f("tree.interpolation_ratio", p.tree.interpolation_ratio);
+  f("tree.interpolation_floor", p.tree.interpolation_floor);
   f("budget.time_budget_s", p.budget.time_budget_s);
   f("closure.enabled", p.closure.enabled);
   f("closure.wall_fraction_min", p.closure.wall_fraction_min);
@@ -135,6 +137,8 @@ void LodParams::validate() const {
   check(tree.merge_k >= 1, "tree.merge_k", "must be >= 1");
   check(ratio(tree.label_volume_ratio), "tree.label_volume_ratio", "must be in (0, 1]");
   check(ratio(tree.interpolation_ratio), "tree.interpolation_ratio", "must be in (0, 1]");
+  check(std::isfinite(tree.interpolation_floor) && tree.interpolation_floor >= 0 && tree.interpolation_floor < 1,
+        "tree.interpolation_floor", "must be in [0, 1)");
   check(std::isfinite(budget.time_budget_s) && budget.time_budget_s >= 0, "budget.time_budget_s", "must be >= 0");
   check(ratio(closure.wall_fraction_min), "closure.wall_fraction_min", "must be in (0, 1]");
   check(pos(closure.outline_alpha), "closure.outline_alpha", "must be > 0");

@@ -6,6 +6,7 @@
 #include "citylod/lod/lod.hpp"
 
 #include <array>
+#include <memory>
 #include <vector>
 
 namespace citylod::lod::detail {
@@ -67,5 +68,19 @@ void regularize_principal(std::vector<Primitive>& prims, const std::vector<int>&
 struct Fidelity { double e1 = 0, e2 = 0, hausdorff = 0; };
 Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s,
                           double diag, int model_samples);
+
+/// The same, for many models of one building: the input's search structures
+/// are built once. e2 uses at most `samples` input samples (an even stride
+/// over them, weights kept). measure() is const and thread-safe.
+class FidelityMeter {
+ public:
+  FidelityMeter(const BuildingInput& in, const Samples& s, double diag, int samples);
+  ~FidelityMeter();
+  Fidelity measure(const TriangleMesh& model) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace citylod::lod::detail

@@ -169,7 +169,7 @@ std::vector<Candidate> traverse(const LodTree& tree, const Bsp& bsp, const TreeP
   };
 
   rebuild();
-  double last_sum = sum;
+  double last_sum = sum, level_start_sum = sum;
   while (st.level < tree.num_levels) {
     if (std::chrono::steady_clock::now() > deadline)
       throw LodError("traversal", "time budget exceeded");
@@ -184,7 +184,7 @@ std::vector<Candidate> traverse(const LodTree& tree, const Bsp& bsp, const TreeP
       ++st.level;
       if (st.level < tree.num_levels) {
         rebuild();
-        last_sum = sum;
+        last_sum = level_start_sum = sum;
       }
       continue;
     }
@@ -200,7 +200,8 @@ std::vector<Candidate> traverse(const LodTree& tree, const Bsp& bsp, const TreeP
       sum += d;
     }
     if (sum < 0) sum = 0;
-    if (!heap.empty() && sum > eps && sum < p.interpolation_ratio * last_sum) {
+    if (!heap.empty() && sum > eps && sum < p.interpolation_ratio * last_sum &&
+        sum >= p.interpolation_floor * level_start_sum) {
       extract(ModelKind::Interpolation);
       last_sum = sum;
     }

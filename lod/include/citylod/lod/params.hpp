@@ -66,6 +66,10 @@ struct TreeParams {
   int merge_k = 10;                    ///< K: clusters with < K primitives per structure -> one multi-branch LOD-node
   double label_volume_ratio = 0.65;    ///< node labelled in when >= 65 % of its leaf volume is in
   double interpolation_ratio = 0.80;   ///< new interpolation model when the diff sum < 80 % of the last model's
+  /// (ours) no interpolation model once the diff sum is below this fraction of
+  /// the level's initial diff sum: the remaining changes are too small to see,
+  /// and without it the 80 % rule yields one model per 20 % of an ever smaller tail.
+  double interpolation_floor = 0.02;
 };
 
 /// Work bounds per building; hitting one gives a recorded fallback.
@@ -82,7 +86,7 @@ struct ClosureParams {
 
 /// Evaluation (e1/e2 RMSE).
 struct MetricParams {
-  int samples = 20000;                 ///< samples on each model for e1
+  int samples = 20000;                 ///< samples on each model for e1; at most this many input samples for e2
 };
 
 struct LodParams {
