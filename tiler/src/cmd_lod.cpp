@@ -1,6 +1,8 @@
 // `citylod lod INPUT --out DIR`: the LOD-Tree of one building (paper Section 4).
 #include "cli_common.hpp"
 #include "lod_io.hpp"
+#include "lod_stage.hpp"
+#include "supervise.hpp"
 
 #include "citylod/lod/lod.hpp"
 
@@ -50,18 +52,53 @@ void apply_config(lod::LodParams& p, const std::string& path) {
   }
 }
 
+void print_stage_progress(std::size_t done, std::size_t total, void* self) {
+  static_cast<Progress*>(self)->update(double(done) / double(std::max<std::size_t>(1, total)), "buildings");
+}
+
+int run_work_dir(ArgParser& args, const std::string& work, lod::LodParams params) {
+  LodStageOptions o;
+  o.work_dir = work;
+  o.threads = std::max(1, int(params.threads));
+  o.params = params;
+  if (args.has("shard")) {
+    try {
+      parse_shard(args.get("shard"), o.shard_index, o.shard_count);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  }
+  if (args.has("building")) o.only = {args.get("building")};
+  return supervise(work, [&]() {
+    Progress progress("lod");
+    const LodStageReport r = run_lod_stage(o, &print_stage_progress, &progress);
+    progress.finish();
+    std::ostringstream msg;
+    msg << "lod: " << r.total << " buildings (" << r.computed << " computed, " << r.reused
+        << " reused): " << r.ok << " ok, " << r.fallback << " fallback, " << r.failed << " failed in "
+        << r.seconds << " s";
+    log_info(msg.str());
+    for (const auto& [id, why] : r.problems) log_warn("lod: " + id + ": " + why);
+    return 0;
+  });
+}
+
 }  // namespace
 
 int cmd_lod(ArgParser& args) {
-  args.usage("INPUT")
+  args.usage("INPUT | WORK")
       .describe(
           "Build the LOD-Tree of one building (a point cloud with or without normals, or a\n"
           "triangle mesh) and write its candidate LOD models (anchor and interpolation) as\n"
-          "OBJ (merged polygons) and PLY (triangles) in the input frame, with report.json.");
-  args.option("out", 'o', "DIR", "output directory (created)");
+          "OBJ (merged polygons) and PLY (triangles) in the input frame, with report.json.\n"
+          "Given a work directory made by 'citylod split', process all its buildings\n"
+          "(in parallel, resumable, a fallback model for any building that fails).");
+  args.option("out", 'o', "DIR", "output directory (single building)");
+  args.option("shard", 0, "I/N", "work directory: process only shard I of N (0-based), e.g. for Slurm arrays");
+  args.option("building", 'b', "ID", "work directory: recompute only this building");
   args.option("set", 's', "NAME=VALUE[,...]", "override parameters, e.g. planes.epsilon=0.2,tree.merge_k=8");
   args.option("config", 'c', "FILE", "JSON object of parameters (as written to params.json)");
-  args.option("threads", 't', "N", "threads inside the building (results do not depend on it)", "1");
+  args.option("threads", 't', "N", "threads (single building: inside it; work directory: buildings at once)", "1");
   args.flag("dump-planes", 0, "write planes.ply: plane inliers coloured by level set");
   args.flag("baseline", 0, "also build the plain BSP-Tree (area order, binary) and report its cuts");
   args.flag("print-params", 0, "print every parameter with its value and exit");
@@ -83,8 +120,9 @@ int cmd_lod(ArgParser& args) {
     return 0;
   }
   if (args.positionals().empty()) throw UsageError("missing INPUT");
-  if (!args.has("out")) throw UsageError("missing --out DIR");
   const std::string input = args.positionals()[0];
+  if (std::filesystem::is_directory(input)) return run_work_dir(args, input, params);
+  if (!args.has("out")) throw UsageError("missing --out DIR");
   const std::string out = args.get("out");
 
   LoadedBuilding b = load_building(input);
