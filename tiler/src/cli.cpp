@@ -22,6 +22,7 @@ namespace citylod::tiler {
 // `int cmd_<name>(ArgParser&)`, declare it here and add one row to kCommands.
 int cmd_info(ArgParser& args);
 int cmd_split(ArgParser& args);
+int cmd_lod(ArgParser& args);
 int cmd_assemble(ArgParser& args);
 int cmd_serve(ArgParser& args);
 
@@ -36,6 +37,7 @@ struct Command {
 const Command kCommands[] = {
     {"info", "print format, counts, bounding box, attributes and CRS of point cloud / mesh files", cmd_info},
     {"split", "stream a georeferenced scene into per-building chunks (WORK/chunks, manifest.json)", cmd_split},
+    {"lod", "build the LOD-Tree of one building: anchor and interpolation models (OBJ/PLY) + report", cmd_lod},
     {"assemble", "turn the per-building LOD models of a work directory into a 3D Tiles 1.1 tileset", cmd_assemble},
     {"serve", "serve a tileset and the CesiumJS viewer on 127.0.0.1 (offline)", cmd_serve},
 };
