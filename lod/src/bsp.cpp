@@ -4,6 +4,7 @@
 #include "bsp_impl.hpp"
 
 #include <CGAL/Exact_integer.h>
+#include <gmpxx.h>
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
 
@@ -11,6 +12,7 @@
 #include <cmath>
 #include <map>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 
 namespace citylod::lod::detail {
@@ -96,29 +98,71 @@ int BspData::sign(int vi, int P) {
 }
 
 int BspData::cut(int a, int b, int S, int E, int P) {
-  const CutKey key{std::min(a, b), std::max(a, b), P};
+  // The point is the intersection of the 3 planes: memoized by the plane triple,
+  // so that every cell (and polygon piece) cutting the same line by the same
+  // plane gets the same vertex.
+  int t[3] = {S, E, P};
+  std::sort(t, t + 3);
+  const CutKey key{t[0], t[1], t[2]};
+  auto add_common = [&](Vertex& x) {
+    for (int q : verts[a].planes)
+      if (std::find(verts[b].planes.begin(), verts[b].planes.end(), q) != verts[b].planes.end() &&
+          std::find(x.planes.begin(), x.planes.end(), q) == x.planes.end())
+        x.planes.push_back(q);
+  };
   auto it = cut_memo.find(key);
-  if (it != cut_memo.end()) return it->second;
+  if (it != cut_memo.end()) {
+    add_common(verts[it->second]);
+    return it->second;
+  }
   const auto res = CGAL::intersection(planes[S], planes[E], planes[P]);
   const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
   if (!pt) throw std::logic_error("Bsp: edge does not cross the cutting plane in one point");
-  std::vector<int> on;
-  on.reserve(4);
-  for (int q : verts[a].planes)
-    if (std::find(verts[b].planes.begin(), verts[b].planes.end(), q) != verts[b].planes.end()) on.push_back(q);
-  on.push_back(S);
-  on.push_back(E);
-  on.push_back(P);
-  const int id = add_vertex(*pt, {S, E, P}, std::move(on));
+  const int id = add_vertex(*pt, {S, E, P}, {S, E, P});
+  add_common(verts[id]);
   cut_memo.emplace(key, id);
   return id;
 }
 
+namespace {
+
+// GMP scratch integers for exact_coords_of (allocated once per thread, grown as needed).
+struct DetScratch {
+  mpz_t m[3][4], t, D, N[3];
+  DetScratch() {
+    for (auto& r : m)
+      for (auto& x : r) mpz_init2(x, 256);
+    mpz_init2(t, 512);
+    mpz_init2(D, 512);
+    for (auto& x : N) mpz_init2(x, 512);
+  }
+  ~DetScratch() {
+    for (auto& r : m)
+      for (auto& x : r) mpz_clear(x);
+    mpz_clear(t);
+    mpz_clear(D);
+    for (auto& x : N) mpz_clear(x);
+  }
+  DetScratch(const DetScratch&) = delete;
+  DetScratch& operator=(const DetScratch&) = delete;
+  // out = det of columns (c0, c1, c2) of m
+  void det3(mpz_t out, int c0, int c1, int c2) {
+    mpz_set_ui(out, 0);
+    const int r[3][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}};  // even permutations of the rows
+    for (const auto& p : r) {
+      mpz_mul(t, m[p[1]][c1], m[p[2]][c2]);
+      mpz_submul(t, m[p[1]][c2], m[p[2]][c1]);
+      mpz_addmul(out, m[p[0]][c0], t);
+    }
+  }
+};
+
+}  // namespace
+
 bool BspData::exact_coords_of(const std::array<int, 3>& def, FT out[3]) const {
-  using Z = CGAL::Exact_integer;
   using ET = FT::ET;
   // scale each plane row by a power of two so that its coefficients are integers
-  Z m[3][4];
+  int shift[3];
   for (int r = 0; r < 3; ++r) {
     const auto& c = dplanes[def[r]];
     int emin = INT32_MAX, emax = INT32_MIN;
@@ -129,6 +173,7 @@ bool BspData::exact_coords_of(const std::array<int, 3>& def, FT out[3]) const {
       emin = std::min(emin, e - 53);
       emax = std::max(emax, e);
     }
+    shift[r] = -emin;
     if (emax - emin > 1000) {  // cannot scale in double: let CGAL do it
       const auto res = CGAL::intersection(planes[def[0]], planes[def[1]], planes[def[2]]);
       const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
@@ -136,21 +181,28 @@ bool BspData::exact_coords_of(const std::array<int, 3>& def, FT out[3]) const {
       for (int t = 0; t < 3; ++t) out[t] = FT(CGAL::exact(pt->cartesian(t)));
       return true;
     }
-    for (int t = 0; t < 4; ++t) m[r][t] = Z(std::ldexp(c[t], -emin));
   }
-  auto det3 = [&](int c0, int c1, int c2) -> Z {
-    return m[0][c0] * (m[1][c1] * m[2][c2] - m[1][c2] * m[2][c1]) -
-           m[1][c0] * (m[0][c1] * m[2][c2] - m[0][c2] * m[2][c1]) +
-           m[2][c0] * (m[0][c1] * m[1][c2] - m[0][c2] * m[1][c1]);
-  };
-  const Z D = det3(0, 1, 2);
-  if (D == 0) return false;
+  thread_local DetScratch S;
+  for (int r = 0; r < 3; ++r)
+    for (int t = 0; t < 4; ++t) mpz_set_d(S.m[r][t], std::ldexp(dplanes[def[r]][t], shift[r]));
+  S.det3(S.D, 0, 1, 2);
+  if (mpz_sgn(S.D) == 0) return false;
   // A x = -d  =>  x_k = -det(A with column k replaced by d) / det(A)
-  const ET den(D);
-  const Z nx = det3(3, 1, 2), ny = det3(0, 3, 2), nz = det3(0, 1, 3);
-  out[0] = FT(ET(-nx) / den);
-  out[1] = FT(ET(-ny) / den);
-  out[2] = FT(ET(-nz) / den);
+  S.det3(S.N[0], 3, 1, 2);
+  S.det3(S.N[1], 0, 3, 2);
+  S.det3(S.N[2], 0, 1, 3);
+  for (int k = 0; k < 3; ++k) {
+    mpz_neg(S.N[k], S.N[k]);
+    if constexpr (std::is_same_v<ET, mpq_class>) {
+      mpq_class q;
+      mpz_set(q.get_num_mpz_t(), S.N[k]);
+      mpz_set(q.get_den_mpz_t(), S.D);
+      q.canonicalize();
+      out[k] = FT(q);
+    } else {
+      out[k] = FT(ET(CGAL::Exact_integer(mpz_class(S.N[k]))) / ET(CGAL::Exact_integer(mpz_class(S.D))));
+    }
+  }
   return true;
 }
 

@@ -29,6 +29,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <deque>
 #include <map>
 #include <stdexcept>
@@ -54,17 +55,14 @@ using Fb = CGAL::Constrained_triangulation_face_base_2<K, Fbb>;
 using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
 using CDT = CGAL::Constrained_Delaunay_triangulation_2<K, Tds, CGAL::No_constraint_intersection_requiring_constructions_tag>;
 
-struct Less2 {
-  bool operator()(const Point2& a, const Point2& b) const { return CGAL::compare_xy(a, b) == CGAL::SMALLER; }
-};
-struct Less3 {
-  bool operator()(const Point3& a, const Point3& b) const { return CGAL::compare_xyz(a, b) == CGAL::SMALLER; }
-};
-
 struct Prof {
   const bool on = std::getenv("CITYLOD_BSP_PROF") != nullptr;
   double t = now();
-  static double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+  static double now() {
+    timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);  // CPU time: the machine may be loaded
+    return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+  }
   void lap(const char* what) {
     if (!on) return;
     const double n = now();
@@ -141,10 +139,44 @@ struct PlaneCtx {
   }
 };
 
+/// Key of an exact point by the intervals of its coordinates. All the points
+/// welded here are built from exact rational leaves, whose intervals are the
+/// tightest ones: equal points have identical keys, so exact comparisons are
+/// only needed inside a bucket.
+template <int N>
+struct IKey {
+  std::array<double, 2 * N> v;
+  bool operator<(const IKey& o) const { return v < o.v; }
+};
+inline IKey<2> ikey(const Point2& p) {
+  const auto& a = CGAL::approx(p);
+  return {{a.x().inf(), a.x().sup(), a.y().inf(), a.y().sup()}};
+}
+inline IKey<3> ikey(const Point3& p) {
+  const auto& a = CGAL::approx(p);
+  return {{a.x().inf(), a.x().sup(), a.y().inf(), a.y().sup(), a.z().inf(), a.z().sup()}};
+}
+
+/// Exact welding of points (Point2 or Point3) into ids.
+template <class Pt, int N>
+struct Welder {
+  std::map<IKey<N>, std::vector<int>> buckets;
+  /// id of an equal point already added, or -1
+  int find(const Pt& p, const std::vector<Pt>& pts) const {
+    auto it = buckets.find(ikey(p));
+    if (it == buckets.end()) return -1;
+    for (int id : it->second)
+      if (pts[id] == p) return id;
+    return -1;
+  }
+  void add(const Pt& p, int id) { buckets[ikey(p)].push_back(id); }
+};
+
 /// Plane-local point table (exact welding).
 struct LocalPts {
   std::vector<EvPt> pts;
-  std::map<Point2, int, Less2> idx;
+  std::vector<Point2> xy;
+  Welder<Point2, 2> idx;
   std::unordered_map<int, int> byvid;
   std::map<std::array<int, 3>, int> bydef;
   int get(const EvPt& e) {
@@ -157,15 +189,14 @@ struct LocalPts {
       auto it = bydef.find(key);
       if (it != bydef.end()) return it->second;
     }
-    int id;
-    auto it = idx.find(e.p);
-    if (it != idx.end()) {
-      id = it->second;
+    int id = idx.find(e.p, xy);
+    if (id >= 0) {
       if (pts[id].vid < 0 && e.vid >= 0) pts[id].vid = e.vid;
     } else {
       id = int(pts.size());
       pts.push_back(e);
-      idx.emplace(e.p, id);
+      xy.push_back(e.p);
+      idx.add(e.p, id);
     }
     if (e.vid >= 0)
       byvid.emplace(e.vid, id);
@@ -177,27 +208,44 @@ struct LocalPts {
 
 enum : unsigned { AL = 1, AR = 2, BL = 4, BR = 8 };
 
+struct Iv {
+  EvPt s, e;
+  unsigned fl;
+};
+
+/// Buffers reused across edges (fewer small allocations).
+struct Scratch {
+  std::vector<Iv> ivs;
+  std::vector<int> o;
+  std::vector<EvPt> cr, ev, u;
+  std::vector<unsigned> fl;
+  std::vector<int> li;
+};
+
 /// Boundary of R+ = A - B (out[0]) and R- = B - A (out[1]) along edge ei of face fi,
 /// as directed segments (region on the left in 2D) between local points.
 void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const std::vector<int>& cand, LocalPts& L,
-                   std::vector<std::pair<int, int>> out[2]) {
+                   std::vector<std::pair<int, int>> out[2], Scratch& S) {
   const F2& f = F[fi];
   const int n = int(f.p.size());
   const EvPt P{f.p[ei], f.vid[ei]};
   const EvPt Q{f.p[(ei + 1) % n], f.vid[(ei + 1) % n]};
   const int E = f.ep[ei];  // the edge's line is this plane's intersection with E
-  const bool asc = CGAL::compare_xy(P.p, Q.p) == CGAL::SMALLER;
-  auto less = [asc](const Point2& x, const Point2& y) {
-    const auto c = CGAL::compare_xy(x, y);
-    return asc ? c == CGAL::SMALLER : c == CGAL::LARGER;
+  // order along the edge: by the coordinate along which it extends most (the
+  // points compared are on the edge's line, so one coordinate decides)
+  const Eigen::Vector2d dap = f.ap[(ei + 1) % n] - f.ap[ei];
+  const bool byx = std::abs(dap.x()) >= std::abs(dap.y());
+  const bool asc = byx ? CGAL::compare_x(P.p, Q.p) == CGAL::SMALLER : CGAL::compare_y(P.p, Q.p) == CGAL::SMALLER;
+  auto cmp = [byx](const EvPt& x, const EvPt& y) {
+    if (x.vid >= 0 ? x.vid == y.vid : (y.vid < 0 && x.def == y.def)) return CGAL::EQUAL;  // same point
+    return byx ? CGAL::compare_x(x.p, y.p) : CGAL::compare_y(x.p, y.p);
   };
-  struct Iv {
-    EvPt s, e;
-    unsigned fl;
-  };
-  std::vector<Iv> ivs;
-  std::vector<int> o;
-  std::vector<EvPt> cr;
+  auto less = [&](const EvPt& x, const EvPt& y) { return cmp(x, y) == (asc ? CGAL::SMALLER : CGAL::LARGER); };
+  auto same = [&](const EvPt& x, const EvPt& y) { return cmp(x, y) == CGAL::EQUAL; };
+  auto& ivs = S.ivs;
+  auto& o = S.o;
+  auto& cr = S.cr;
+  ivs.clear();
   for (int g : cand) {
     if (g == fi) continue;
     const F2& G = F[g];
@@ -226,7 +274,7 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
         }
       }
       if (cr.size() != 2) throw std::logic_error("Bsp::extract: a convex face crosses a line in != 2 points");
-      if (less(cr[1].p, cr[0].p)) std::swap(cr[0], cr[1]);
+      if (less(cr[1], cr[0])) std::swap(cr[0], cr[1]);
       s = cr[0];
       e = cr[1];
       fl = G.a ? (AL | AR) : (BL | BR);
@@ -234,7 +282,7 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
       cr.clear();
       for (int j = 0; j < m; ++j)
         if (o[j] == 0) cr.push_back({G.p[j], G.vid[j]});
-      if (less(cr[1].p, cr[0].p)) std::swap(cr[0], cr[1]);
+      if (less(cr[1], cr[0])) std::swap(cr[0], cr[1]);
       s = cr[0];
       e = cr[1];
       fl = pos ? (G.a ? AL : BL) : (G.a ? AR : BR);
@@ -242,21 +290,25 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
       continue;
     }
     // clip to [P, Q]
-    if (less(s.p, P.p)) s = P;
-    if (less(Q.p, e.p)) e = Q;
-    if (!less(s.p, e.p)) continue;
+    if (less(s, P)) s = P;
+    if (less(Q, e)) e = Q;
+    if (!less(s, e)) continue;
     ivs.push_back({s, e, fl});
   }
-  std::vector<EvPt> ev{P, Q};
+  auto& ev = S.ev;
+  ev.clear();
+  ev.push_back(P);
+  ev.push_back(Q);
   for (const auto& iv : ivs) {
     ev.push_back(iv.s);
     ev.push_back(iv.e);
   }
-  std::stable_sort(ev.begin(), ev.end(), [&](const EvPt& x, const EvPt& y) { return less(x.p, y.p); });
+  std::stable_sort(ev.begin(), ev.end(), less);
   {
-    std::vector<EvPt> u;
+    auto& u = S.u;
+    u.clear();
     for (const auto& x : ev) {
-      if (!u.empty() && CGAL::compare_xy(u.back().p, x.p) == CGAL::EQUAL) {
+      if (!u.empty() && same(u.back(), x)) {
         if (u.back().vid < 0) u.back().vid = x.vid;
         continue;
       }
@@ -265,16 +317,15 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
     ev.swap(u);
   }
   const int np = int(ev.size()) - 1;
-  std::vector<unsigned> fl(np, f.a ? AL : BL);
-  auto index_of = [&](const Point2& x) {
-    return int(std::lower_bound(ev.begin(), ev.end(), x, [&](const EvPt& a, const Point2& b) { return less(a.p, b); }) -
-               ev.begin());
-  };
+  auto& fl = S.fl;
+  fl.assign(np, f.a ? AL : BL);
+  auto index_of = [&](const EvPt& x) { return int(std::lower_bound(ev.begin(), ev.end(), x, less) - ev.begin()); };
   for (const auto& iv : ivs) {
-    const int is = index_of(iv.s.p), ie = index_of(iv.e.p);
+    const int is = index_of(iv.s), ie = index_of(iv.e);
     for (int j = is; j < ie; ++j) fl[j] |= iv.fl;
   }
-  std::vector<int> li(ev.size(), -1);
+  auto& li = S.li;
+  li.assign(ev.size(), -1);
   auto lid = [&](int j) {
     if (li[j] < 0) li[j] = L.get(ev[j]);
     return li[j];
@@ -409,8 +460,37 @@ struct Extracted {
   std::vector<Group> groups;
 };
 
-// One extraction pass with fixed labels.
-Extracted extract_once(const BspData& I, const std::vector<int>& partition, const std::vector<char>& inside) {
+/// The inside nodes, with every pair of inside siblings replaced by their parent
+/// (recursively): same solid, fewer and larger faces.
+std::vector<int> collapse_inside(const BspData& I, const std::vector<int>& partition, const std::vector<char>& inside) {
+  std::vector<char> mark(I.nodes.size(), 0);
+  std::deque<int> work;
+  for (size_t i = 0; i < partition.size(); ++i)
+    if (inside[i]) {
+      mark[partition[i]] = 1;
+      work.push_back(partition[i]);
+    }
+  while (!work.empty()) {
+    const int n = work.front();
+    work.pop_front();
+    if (!mark[n]) continue;
+    const int p = I.nodes[n].parent;
+    if (p < 0) continue;
+    const auto& ch = I.nodes[p].children;
+    if (mark[ch[0]] && mark[ch[1]]) {
+      mark[ch[0]] = mark[ch[1]] = 0;
+      mark[p] = 1;
+      work.push_back(p);
+    }
+  }
+  std::vector<int> out;
+  for (int n = 0; n < int(mark.size()); ++n)
+    if (mark[n]) out.push_back(n);
+  return out;
+}
+
+// One extraction pass: the boundary of the union of the cells `in_nodes`.
+Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes) {
   Extracted X;
   Prof prof;
   // exact coordinates of the BSP vertices used, computed once per pass
@@ -422,11 +502,11 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
     I.exact_coords(v, c.data());
     return exact.emplace(v, std::move(c)).first->second;
   };
+  std::unordered_map<int, Point2> proj[3];  // projected BSP vertices, per dropped axis
   // --- faces per plane
   std::map<int, std::vector<F2>> byplane;
-  for (size_t i = 0; i < partition.size(); ++i) {
-    if (!inside[i]) continue;
-    const Cell& c = I.cells[partition[i]];
+  for (int node : in_nodes) {
+    const Cell& c = I.cells[node];
     for (const auto& f : c.faces) {
       const int pl = f.poly.plane;
       const int side = f.cell_pos ? -1 : 1;
@@ -442,27 +522,40 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
         std::reverse(g.vid.begin(), g.vid.end());
         for (int i = 0; i < n; ++i) g.ep[i] = f.poly.e[(2 * n - 2 - i) % n];
       }
+      g.p.reserve(g.vid.size());
+      g.ap.reserve(g.vid.size());
       for (int v : g.vid) {
-        const auto& p = coords(v);
-        g.p.emplace_back(p[u], p[w]);
+        auto it = proj[k].find(v);
+        if (it == proj[k].end()) {
+          const auto& p = coords(v);
+          it = proj[k].emplace(v, Point2(p[u], p[w])).first;
+        }
+        g.p.push_back(it->second);
         g.ap.emplace_back(I.verts[v].approx[u], I.verts[v].approx[w]);
       }
       byplane[pl].push_back(std::move(g));
     }
   }
+  if (prof.on) {
+    size_t nf = 0;
+    for (const auto& bp : byplane) nf += bp.second.size();
+    std::fprintf(stderr, "  [bsp extract] %zu inside nodes (collapsed), %zu faces on %zu planes, %zu vertices\n", in_nodes.size(), nf,
+                 byplane.size(), exact.size());
+  }
   prof.lap("gather");
 
-  std::map<Point3, int, Less3> weld;
+  Welder<Point3, 3> weld;
   auto gid = [&](const Point3& p) {
-    auto it = weld.find(p);
-    if (it != weld.end()) return it->second;
-    const int id = int(X.pts.size());
+    int id = weld.find(p, X.pts);
+    if (id >= 0) return id;
+    id = int(X.pts.size());
     X.pts.push_back(p);
-    weld.emplace(p, id);
+    weld.add(p, id);
     return id;
   };
 
   using Box2 = CGAL::Box_intersection_d::Box_with_info_d<double, 2, int>;
+  Scratch scratch;
   for (auto& [pl, faces0] : byplane) {
     // identical faces from both sides cancel
     std::vector<F2> F;
@@ -516,7 +609,7 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
     std::vector<std::pair<int, int>> segs[2];
     for (int e = 0; e < int(erefs.size()); ++e) {
       std::sort(cand[e].begin(), cand[e].end());
-      edge_boundary(C, F, erefs[e].first, erefs[e].second, cand[e], L, segs);
+      edge_boundary(C, F, erefs[e].first, erefs[e].second, cand[e], L, segs, scratch);
     }
     // loops per side; lift to 3D
     for (int si = 0; si < 2; ++si) {
@@ -689,6 +782,9 @@ Extracted extract_once(const BspData& I, const std::vector<int>& partition, cons
 // Undirected edges used by more than two triangles.
 std::vector<std::pair<int, int>> nonmanifold_edges(const Extracted& X) {
   std::vector<std::pair<int, int>> edges;
+  size_t nt = 0;
+  for (const auto& G : X.groups) nt += G.tris.size();
+  edges.reserve(nt);
   for (const auto& G : X.groups)
     for (size_t i = 0; i + 2 < G.tris.size(); i += 3)
       for (int e = 0; e < 3; ++e) {
@@ -729,7 +825,7 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
   std::vector<std::pair<Vec3, Vec3>> bbox;  // lazily filled
   const int max_rounds = 64;
   for (int round = 0;; ++round) {
-    X = extract_once(D, partition, inside);
+    X = extract_once(D, collapse_inside(D, partition, inside));
     const auto bad = nonmanifold_edges(X);
     if (bad.empty() || round >= max_rounds) break;
     if (bbox.empty()) {
