@@ -77,23 +77,31 @@ RayLabeller::~RayLabeller() = default;
 
 std::vector<std::vector<char>> RayLabeller::label(const std::vector<Vec3>& centres, int num_levels,
                                                   int threads) const {
+  std::vector<std::vector<Vec3>> origins;
+  origins.reserve(centres.size());
+  for (const auto& c : centres) origins.push_back({c});
+  return label(origins, num_levels, threads);
+}
+
+std::vector<std::vector<char>> RayLabeller::label(const std::vector<std::vector<Vec3>>& origins,
+                                                  int num_levels, int threads) const {
   const auto& I = *impl_;
   const int L = std::max(1, num_levels);
-  std::vector<std::vector<char>> out(centres.size(), std::vector<char>(static_cast<size_t>(L), 0));
+  std::vector<std::vector<char>> out(origins.size(), std::vector<char>(static_cast<size_t>(L), 0));
   if (I.tris.empty()) return out;
   const int nrays = static_cast<int>(I.dirs.size());
-  const long n = static_cast<long>(centres.size());
+  const long n = static_cast<long>(origins.size());
 
 #pragma omp parallel for schedule(dynamic, 16) num_threads(std::max(1, threads))
   for (long c = 0; c < n; ++c) {
-    const Vec3& o = centres[static_cast<size_t>(c)];
-    const Point origin(o.x(), o.y(), o.z());
+    const auto& cell_origins = origins[static_cast<size_t>(c)];
     std::vector<int> votes_in(static_cast<size_t>(L), 0);
     std::vector<std::pair<double, int>> hits;
     std::vector<typename Tree::template Intersection_and_primitive_id<Ray>::Type> raw;
     for (int r = 0; r < nrays; ++r) {
       const Vec3& u = I.dirs[static_cast<size_t>(r)];
-      const Ray ray(origin, K::Vector_3(u.x(), u.y(), u.z()));
+      const Vec3& o = cell_origins[static_cast<size_t>(r) % cell_origins.size()];
+      const Ray ray(Point(o.x(), o.y(), o.z()), K::Vector_3(u.x(), u.y(), u.z()));
       hits.clear();
       raw.clear();
       I.tree.all_intersections(ray, std::back_inserter(raw));

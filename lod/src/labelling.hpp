@@ -33,6 +33,12 @@ class RayLabeller {
   std::vector<std::vector<char>> label(const std::vector<Vec3>& centres, int num_levels,
                                        int threads) const;
 
+  /// The same with several ray origins per cell (the rays are spread over
+  /// them in turn): thin cells that reach far out of the building are judged
+  /// by where their volume is, not by one centre point.
+  std::vector<std::vector<char>> label(const std::vector<std::vector<Vec3>>& origins, int num_levels,
+                                       int threads) const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
