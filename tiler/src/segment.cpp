@@ -10,6 +10,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 namespace citylod::tiler {
@@ -51,6 +52,22 @@ double GroundGrid::at(double x, double y) const {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// Smallest extent of a convex polygon over all directions (an edge direction is optimal).
+double hull_width(const Ring& h) {
+  if (h.size() < 3) return 0.0;
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    const Vec2& a = h[i];
+    const Vec2& b = h[(i + 1) % h.size()];
+    const double len = std::hypot(b[0] - a[0], b[1] - a[1]);
+    if (len <= 0) continue;
+    double far = 0;
+    for (const Vec2& v : h) far = std::max(far, std::abs((b[0] - a[0]) * (v[1] - a[1]) - (b[1] - a[1]) * (v[0] - a[0])) / len);
+    best = std::min(best, far);
+  }
+  return std::isfinite(best) ? best : 0.0;
+}
 
 // Min (or max) over a (2r+1)-window along rows then columns; +inf cells are empty and ignored.
 void window_filter(std::vector<float>& z, int nx, int ny, int r, bool take_min) {
@@ -253,6 +270,53 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
   ec.setInputCloud(flat);
   ec.extract(found);
 
+  // Edges and ridges look like foliage to the PCA (their neighbourhood spans two
+  // planes), which cuts walls from roofs and roof halves apart. Foliage-like points
+  // within reach of clustered points join them, and bridge the clusters they touch.
+  std::vector<int> parent(found.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
+  std::function<int(int)> root = [&](int i) { return parent[std::size_t(i)] == i ? i : parent[std::size_t(i)] = root(parent[std::size_t(i)]); };
+  std::vector<int> label(n, -1);
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (int m : found[c].indices) label[cand[std::size_t(m)]] = int(c);
+  std::vector<std::pair<std::uint32_t, int>> attached;  // foliage point -> cluster
+  if (mode != ClassMode::buildings && !found.empty()) {
+    pcl::PointCloud<pcl::PointXYZ>::Ptr c3(new pcl::PointCloud<pcl::PointXYZ>);
+    c3->resize(cand.size());
+    for (std::size_t m = 0; m < cand.size(); ++m) {
+      const auto& q = pos[cand[m]];
+      (*c3)[m] = pcl::PointXYZ(float(q[0] - cx), float(q[1] - cy), float(q[2] - cz));
+    }
+    pcl::KdTreeFLANN<pcl::PointXYZ> t3;
+    t3.setInputCloud(c3);
+    const double reach = 1.5 * p.cluster_tolerance;
+    std::vector<int> nn;
+    std::vector<float> d2;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!out.foliage[k] || out.hag[k] < p.min_height) continue;
+      if (have_cls && non_building_class(cls[k])) continue;
+      const pcl::PointXYZ q(float(pos[k][0] - cx), float(pos[k][1] - cy), float(pos[k][2] - cz));
+      if (t3.radiusSearch(q, reach, nn, d2) <= 0) continue;
+      int first = -1;
+      for (int m : nn) {
+        const int l = label[cand[std::size_t(m)]];
+        if (l < 0) continue;
+        if (first < 0) first = l;
+        else if (root(l) != root(first)) parent[std::size_t(root(l))] = root(first);
+      }
+      if (first >= 0) attached.push_back({std::uint32_t(k), first});
+    }
+  }
+  std::vector<std::vector<std::uint32_t>> groups(found.size());
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (int m : found[c].indices) groups[std::size_t(root(int(c)))].push_back(cand[std::size_t(m)]);
+  for (const auto& [k, c] : attached) {
+    groups[std::size_t(root(c))].push_back(k);
+    label[k] = root(c);
+  }
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (int m : found[c].indices) label[cand[std::size_t(m)]] = root(int(c));
+
   // Foliage points above building height, bucketed for the vegetation ratio.
   const double bucket = 2.0;
   const int bx = std::max(1, int(std::ceil((region[2] - region[0]) / bucket)) + 1);
@@ -268,16 +332,18 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
       }
   }
 
-  for (const auto& pi : found) {
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    if (groups[g].empty()) continue;
     Cluster c;
-    c.members.reserve(pi.indices.size());
+    c.members.reserve(groups[g].size());
     std::vector<Vec2> xy;
-    xy.reserve(pi.indices.size());
+    xy.reserve(groups[g].size());
     double sx = 0, sy = 0, sz = 0;
     std::size_t planar = 0;
-    for (int m : pi.indices) {
-      const std::uint32_t k = cand[std::size_t(m)];
+    c.anchor = pos[groups[g].front()];
+    for (const std::uint32_t k : groups[g]) {
       c.members.push_back(k);
+      if (pos[k] < c.anchor) c.anchor = pos[k];
       sx += pos[k][0];
       sy += pos[k][1];
       sz += pos[k][2];
@@ -290,6 +356,7 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
     c.centroid = {sx / cnt, sy / cnt, sz / cnt};
     c.hull = convex_hull(std::move(xy));
     c.area = c.hull.size() >= 3 ? signed_area(c.hull) : 0.0;
+    c.width = hull_width(c.hull);
     c.planar_fraction = double(planar) / cnt;
     if (!buckets.empty() && c.hull.size() >= 3) {
       double xmin = 1e300, ymin = 1e300, xmax = -1e300, ymax = -1e300;
@@ -307,7 +374,7 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
       for (int j = j0; j <= j1; ++j)
         for (int i = i0; i <= i1; ++i)
           for (std::uint32_t k : buckets[std::size_t(j) * std::size_t(bx) + std::size_t(i)])
-            if (point_in_ring(c.hull, {pos[k][0], pos[k][1]})) ++inside;
+            if (label[k] != int(g) && point_in_ring(c.hull, {pos[k][0], pos[k][1]})) ++inside;
       c.vegetation_ratio = double(inside) / cnt;
     }
     char why[160] = "";
@@ -315,6 +382,12 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
       std::snprintf(why, sizeof why, "small (%.1f m2 < %.1f m2)", c.area, p.min_area);
     else if (c.height < p.min_building_height)
       std::snprintf(why, sizeof why, "low (%.1f m < %.1f m above ground)", c.height, p.min_building_height);
+    else if (c.width < p.min_width)
+      std::snprintf(why, sizeof why, "narrow (%.1f m < %.1f m wide)", c.width, p.min_width);
+    else if (mode != ClassMode::buildings && c.height < p.low_height &&
+             (c.vegetation_ratio > p.low_max_vegetation_ratio || c.planar_fraction < p.low_min_planar_fraction))
+      std::snprintf(why, sizeof why, "low object (%.1f m high, %.0f%% foliage, %.0f%% planar)", c.height,
+                    100 * c.vegetation_ratio, 100 * c.planar_fraction);
     else if (mode != ClassMode::buildings && c.vegetation_ratio > p.max_vegetation_ratio)
       std::snprintf(why, sizeof why, "vegetation (%.0f%% foliage-like points in its outline)",
                     100 * c.vegetation_ratio);

@@ -35,6 +35,12 @@ struct SegmentParams {
   double max_scatter = 0.04;        ///< lambda3/lambda1 above which a point looks like foliage
   double max_vegetation_ratio = 0.5;  ///< rejected when foliage points in its hull / members exceed this
   double min_planar_fraction = 0.6; ///< rejected when fewer cluster points have planarity > 0.5
+  double min_width = 3.0;           ///< narrower clusters (2D hull width) are vehicles, hedges, walls
+  /// Without a building class, clusters lower than this (buses, vans, hedges, sheds under trees) must
+  /// also have at most `low_max_vegetation_ratio` foliage and `low_min_planar_fraction` planar points.
+  double low_height = 5.0;
+  double low_max_vegetation_ratio = 0.1;
+  double low_min_planar_fraction = 0.7;
 };
 
 /// Height grid over a region (ENU metres), aligned to multiples of the resolution
@@ -50,8 +56,12 @@ struct GroundGrid {
 struct Cluster {
   std::vector<std::uint32_t> members;  ///< indices into the cell's points
   io::Vec3d centroid{0, 0, 0};
+  /// Lexicographically smallest member position: exact, the same in every view that
+  /// holds the whole cluster, so it decides which cell owns the cluster.
+  io::Vec3d anchor{0, 0, 0};
   Ring hull;                           ///< 2D convex hull, CCW
   double area = 0;                     ///< hull area
+  double width = 0;                    ///< hull width (smallest extent over all directions)
   double height = 0;                   ///< max height above ground
   double vegetation_ratio = 0;         ///< foliage-like points inside the hull / members
   double planar_fraction = 0;          ///< members with planarity > 0.5 / members

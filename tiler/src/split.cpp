@@ -90,7 +90,8 @@ std::string SplitOptions::canonical() const {
     << ";min_pts=" << seg.min_cluster_points << ";min_area=" << seg.min_area
     << ";min_bh=" << seg.min_building_height << ";k=" << seg.feature_neighbours
     << ";max_scatter=" << seg.max_scatter << ";max_veg=" << seg.max_vegetation_ratio
-    << ";min_planar=" << seg.min_planar_fraction;
+    << ";min_planar=" << seg.min_planar_fraction << ";min_width=" << seg.min_width << ";low=" << seg.low_height
+    << "," << seg.low_max_vegetation_ratio << "," << seg.low_min_planar_fraction;
   return o.str();
 }
 
@@ -768,6 +769,10 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
 void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
   const double c = cell_;
   const double cx0 = key.first * c, cy0 = key.second * c, cx1 = cx0 + c, cy1 = cy0 + c;
+  // Exact ownership: the cell holding the cluster's anchor point.
+  auto owns = [&](const Cluster& cl) {
+    return spill.key(cl.anchor[0], cl.anchor[1]) == key;
+  };
   double halo = opt_.halo;
   RegionPoints pts;
   CellSegmentation seg;
@@ -792,7 +797,7 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
     bool truncated = false;
     for (const auto& cl : seg.clusters) {
       if (!cl.building) continue;
-      if (cl.centroid[0] < cx0 || cl.centroid[0] >= cx1 || cl.centroid[1] < cy0 || cl.centroid[1] >= cy1) continue;
+      if (!owns(cl)) continue;
       for (std::uint32_t k : cl.members) {
         const Vec3d& p = pts.pos[k];
         if ((p[0] - box[0] < tol && box[0] > bbox_enu_.min[0]) || (box[2] - p[0] < tol && box[2] < bbox_enu_.max[0]) ||
@@ -813,13 +818,13 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
     ++rep_.halo_growths;
   }
   for (const auto& cl : seg.clusters) {
-    if (cl.centroid[0] < cx0 || cl.centroid[0] >= cx1 || cl.centroid[1] < cy0 || cl.centroid[1] >= cy1) continue;
+    if (!owns(cl)) continue;
     {
       char line[256];
       std::snprintf(line, sizeof line,
-                    "cluster at (%.1f, %.1f): %zu points, area %.1f m2, height %.1f m, foliage ratio %.2f, "
+                    "cluster at (%.1f, %.1f): %zu points, area %.1f m2, width %.1f m, height %.1f m, foliage ratio %.2f, "
                     "planar %.2f: %s",
-                    cl.centroid[0], cl.centroid[1], cl.members.size(), cl.area, cl.height, cl.vegetation_ratio,
+                    cl.centroid[0], cl.centroid[1], cl.members.size(), cl.area, cl.width, cl.height, cl.vegetation_ratio,
                     cl.planar_fraction, cl.building ? "building" : cl.reject_reason.c_str());
       rep_.cluster_log.push_back(line);
     }
