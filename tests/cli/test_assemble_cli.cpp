@@ -32,13 +32,13 @@ std::string tmp_dir(const std::string& name) {
   return p.string();
 }
 
-struct Run {
+struct Proc {
   int code = -1;
   std::string output;  // stdout + stderr
 };
 
-Run run(const std::string& cmd) {
-  Run r;
+Proc run(const std::string& cmd) {
+  Proc r;
   FILE* p = popen((cmd + " 2>&1").c_str(), "r");
   if (!p) return r;
   char buf[4096];
@@ -66,7 +66,7 @@ const std::string& city_tileset() {
     const std::string work = tmp_dir("city");
     write_work(work, synthetic_manifest(), synthetic_city(50, 3));
     const std::string out = work + "/tileset";
-    const Run r = run(q(kBin) + " assemble " + q(work) + " --out " + q(out));
+    const Proc r = run(q(kBin) + " assemble " + q(work) + " --out " + q(out));
     EXPECT_EQ(r.code, 0) << r.output;
     std::printf("%s", r.output.c_str());
     return out;
@@ -88,10 +88,10 @@ TEST(AssembleCli, EveryGlbPassesTheKhronosValidator) {
   // Also the quantized variant.
   const std::string work = tmp_dir("quantized");
   write_work(work, synthetic_manifest(), synthetic_city(12, 4));
-  const Run a = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(work + "/tileset") + " --quantize");
+  const Proc a = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(work + "/tileset") + " --quantize");
   ASSERT_EQ(a.code, 0) << a.output;
-  for (const std::string dir : {out, work + "/tileset"}) {
-    const Run r = run("node " + q((kNode / "validate-glb.mjs").string()) + " " + q(dir) + " --report " +
+  for (const std::string& dir : {out, work + "/tileset"}) {
+    const Proc r = run("node " + q((kNode / "validate-glb.mjs").string()) + " " + q(dir) + " --report " +
                       q(dir + "/../validator-report.json"));
     std::printf("%s", r.output.c_str());
     EXPECT_EQ(r.code, 0) << r.output;
@@ -101,7 +101,7 @@ TEST(AssembleCli, EveryGlbPassesTheKhronosValidator) {
 
 TEST(AssembleCli, BadInputGivesClearErrors) {
   const std::string dir = tmp_dir("bad");
-  Run r = run(q(kBin) + " assemble " + q(dir) + " --out " + q(dir + "/out"));
+  Proc r = run(q(kBin) + " assemble " + q(dir) + " --out " + q(dir + "/out"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.output.find("manifest.json"), std::string::npos) << r.output;
 
@@ -131,7 +131,7 @@ TEST(AssembleCli, AKilledRunNeverLeavesAHalfTileset) {
   write_work(work, synthetic_manifest(), synthetic_city(300, 4));
   const std::string out = work + "/tileset";
   const auto t0 = std::chrono::steady_clock::now();
-  const Run first = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(out));
+  const Proc first = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(out));
   ASSERT_EQ(first.code, 0) << first.output;
   const double full = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("[ measure  ] 300 buildings x 4 models: %.2f s (citylod assemble, wall clock)\n", full);
@@ -153,7 +153,7 @@ TEST(AssembleCli, AKilledRunNeverLeavesAHalfTileset) {
     EXPECT_TRUE(chk.problems.empty()) << "killed at " << frac << ": " << chk.problems.front();
   }
   // The next run cleans up and succeeds.
-  const Run again = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(out));
+  const Proc again = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(out));
   EXPECT_EQ(again.code, 0) << again.output;
   EXPECT_TRUE(check_tileset(out).problems.empty());
 }
@@ -222,7 +222,7 @@ TEST(ViewerCli, HeadlessChromiumLoadsAndRefinesTiles) {
   const std::string& out = city_tileset();
   const std::string shots = (fs::path(CITYLOD_TEST_TMP) / "assemble_cli" / "viewer").string();
   fs::remove_all(shots);
-  const Run r = run("node " + q((kNode / "viewer-test.mjs").string()) + " --citylod " + q(kBin) + " --tileset " +
+  const Proc r = run("node " + q((kNode / "viewer-test.mjs").string()) + " --citylod " + q(kBin) + " --tileset " +
                     q(out) + " --out " + q(shots) + " --timeout-ms 300000");
   std::printf("%s", r.output.c_str());
   ASSERT_NE(r.code, 77) << r.output;
