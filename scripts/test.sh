@@ -14,7 +14,11 @@ for a in "$@"; do
   esac
 done
 
-if ((install)); then scripts/install-deps.sh --with-test-tools; fi
+if ((install)); then
+  scripts/install-deps.sh --with-test-tools
+  # glTF validator, headless viewer test, CesiumJS (npm registry; tests skip without them)
+  scripts/install-node-tools.sh || echo "test.sh: node tools not installed; the validator and viewer tests will skip" >&2
+fi
 jobs=$(nproc)
 
 echo "== Release build + full test suite"
