@@ -19,6 +19,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <unordered_map>
+#include <vector>
 
 #include "citylod/geo/georef.hpp"
 #include "citylod/geo/units.hpp"
@@ -140,11 +141,14 @@ struct SpillRec {
 static_assert(sizeof(SpillRec) == 48, "spill record layout");
 constexpr std::uint64_t kNoSrc = ~0ull;
 
-/// Grid of cells spilled to per-cell files, appended in batches.
+/// Grid of cells spilled to per-cell files. Points collect in one fixed buffer;
+/// when it is full it is sorted by cell and each run is appended to its cell's file.
 class Spiller {
  public:
   Spiller(fs::path dir, double cell, std::size_t budget_records)
-      : dir_(std::move(dir)), cell_(cell), budget_(std::max<std::size_t>(budget_records, 4096)) {}
+      : dir_(std::move(dir)), cell_(cell), budget_(std::max<std::size_t>(budget_records, 4096)) {
+    buf_.reserve(budget_);
+  }
 
   CellKey key(double x, double y) const {
     return {static_cast<int>(std::floor(x / cell_)), static_cast<int>(std::floor(y / cell_))};
@@ -153,25 +157,30 @@ class Spiller {
     return dir_ / (std::to_string(k.first) + "_" + std::to_string(k.second) + ".bin");
   }
   void add(const SpillRec& r) {
-    auto& v = buf_[key(r.x, r.y)];
-    v.push_back(r);
-    if (++buffered_ >= budget_) flush();
+    buf_.push_back(r);
+    if (buf_.size() >= budget_) flush();
   }
   void flush() {
-    for (auto& [k, v] : buf_) {
-      if (v.empty()) continue;
+    std::sort(buf_.begin(), buf_.end(),
+              [this](const SpillRec& a, const SpillRec& b) { return key(a.x, a.y) < key(b.x, b.y); });
+    for (std::size_t i = 0; i < buf_.size();) {
+      const CellKey k = key(buf_[i].x, buf_[i].y);
+      std::size_t j = i + 1;
+      while (j < buf_.size() && key(buf_[j].x, buf_[j].y) == k) ++j;
       const fs::path p = file(k);
       std::FILE* f = std::fopen(p.c_str(), "ab");
       if (!f) throw IoError(p.string(), std::string("cannot open spill file: ") + std::strerror(errno));
-      const std::size_t n = std::fwrite(v.data(), sizeof(SpillRec), v.size(), f);
-      const bool ok = std::fclose(f) == 0 && n == v.size();
+      const std::size_t n = std::fwrite(buf_.data() + i, sizeof(SpillRec), j - i, f);
+      const bool ok = std::fclose(f) == 0 && n == j - i;
       if (!ok) throw IoError(p.string(), std::string("cannot write spill file: ") + std::strerror(errno));
-      counts_[k] += v.size();
-      bytes_ += v.size() * sizeof(SpillRec);
+      counts_[k] += j - i;
+      bytes_ += (j - i) * sizeof(SpillRec);
+      i = j;
     }
-    buf_.clear();  // frees every batch: memory stays bounded by the budget
-    buffered_ = 0;
+    buf_.clear();
   }
+  /// Frees the buffer (after the last flush).
+  void release() { std::vector<SpillRec>().swap(buf_); }
   const std::map<CellKey, std::uint64_t>& counts() const { return counts_; }
   std::uint64_t bytes() const { return bytes_; }
   double cell() const { return cell_; }
@@ -180,8 +189,7 @@ class Spiller {
   fs::path dir_;
   double cell_;
   std::size_t budget_;
-  std::size_t buffered_ = 0;
-  std::unordered_map<CellKey, std::vector<SpillRec>, CellKeyHash> buf_;
+  std::vector<SpillRec> buf_;
   std::map<CellKey, std::uint64_t> counts_;
   std::uint64_t bytes_ = 0;
 };
@@ -576,6 +584,7 @@ void Splitter::pass2_spill(Spiller& spill) {
     rep_.points += first;
   }
   spill.flush();
+  spill.release();
   if (bbox_enu_.empty()) throw IoError(label, "no points");
 
   // A LAS header box that lies: check the area of use again with the real box.
@@ -1045,7 +1054,9 @@ SplitReport Splitter::run() {
   rep_.origin_h = o[2];
 
   staging_ = std::make_unique<Staging>(opt_.work_dir);
-  const std::size_t spill_budget = static_cast<std::size_t>(0.25 * double(opt_.memory_limit) / sizeof(SpillRec));
+  // The spill buffer only batches writes: a quarter of the budget, at most 32 MiB.
+  const double spill_bytes = std::min(0.25 * double(opt_.memory_limit), 32.0 * 1024 * 1024);
+  const std::size_t spill_budget = static_cast<std::size_t>(spill_bytes / sizeof(SpillRec));
   Spiller spill(staging_->spill(), cell_, spill_budget);
   pass2_spill(spill);
   if (!opt_.footprints.empty()) load_footprints();
