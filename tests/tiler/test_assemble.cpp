@@ -183,6 +183,31 @@ TEST(Assemble, OutputIsDeterministicWhateverTheThreads) {
   fs::remove_all(work + ".b");
 }
 
+TEST(Assemble, SingleModelBuildingsGiveALeafRoot) {
+  // Before the LOD engine: one watertight model per building (extruded outlines).
+  const std::string work = tmp_dir("single");
+  write_work(work, synthetic_manifest(), synthetic_city(9, 1));
+  const auto st = tiler::assemble(work, work + ".out", quiet_params());
+  EXPECT_EQ(st.tiles, 1u);
+  const TilesetCheck chk = check_tileset(work + ".out");
+  for (const auto& pr : chk.problems) ADD_FAILURE() << pr;
+  const auto ts = nlohmann::json::parse(read_bytes(work + ".out/tileset.json"));
+  EXPECT_EQ(ts["root"]["geometricError"], 0.0);
+  EXPECT_GT(ts["geometricError"].get<double>(), 10.0);  // a building's size
+}
+
+TEST(Assemble, ChainsOfDifferentLengthsShareTheTree) {
+  const std::string work = tmp_dir("mixed");
+  auto city = synthetic_city(16, 4);
+  for (std::size_t i = 0; i < city.size(); i += 3) city[i].models.resize(1 + i % 3);
+  write_work(work, synthetic_manifest(), city);
+  const auto st = tiler::assemble(work, work + ".out", quiet_params());
+  EXPECT_EQ(st.buildings, 16u);
+  const TilesetCheck chk = check_tileset(work + ".out");
+  for (const auto& pr : chk.problems) ADD_FAILURE() << pr;
+  EXPECT_EQ(chk.depth, 3);
+}
+
 TEST(Assemble, TileBudgetSplitsTiles) {
   const std::string work = tmp_dir("budget");
   write_work(work, synthetic_manifest(), synthetic_city(64, 3));
