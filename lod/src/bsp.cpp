@@ -98,29 +98,36 @@ int BspData::sign(int vi, int P) {
 }
 
 int BspData::cut(int a, int b, int S, int E, int P) {
-  // The point is the intersection of the 3 planes: memoized by the plane triple,
-  // so that every cell (and polygon piece) cutting the same line by the same
-  // plane gets the same vertex.
+  // Memoized by the edge (a,b) and P, so that the faces sharing an edge get the
+  // same vertex, and by the plane triple, so that every cell (and polygon
+  // piece) cutting the same line by the same plane shares it too. (The edge
+  // memo is needed: an edge may lie on more than two planes, and its faces may
+  // name different edge planes for it.)
+  const CutKey ekey{std::min(a, b), std::max(a, b), P};
+  auto ie = cut_memo.find(ekey);
+  if (ie != cut_memo.end()) return ie->second;
   int t[3] = {S, E, P};
   std::sort(t, t + 3);
-  const CutKey key{t[0], t[1], t[2]};
+  const CutKey tkey{t[0], t[1], t[2]};
   auto add_common = [&](Vertex& x) {
     for (int q : verts[a].planes)
       if (std::find(verts[b].planes.begin(), verts[b].planes.end(), q) != verts[b].planes.end() &&
           std::find(x.planes.begin(), x.planes.end(), q) == x.planes.end())
         x.planes.push_back(q);
   };
-  auto it = cut_memo.find(key);
-  if (it != cut_memo.end()) {
-    add_common(verts[it->second]);
-    return it->second;
+  auto it = triple_memo.find(tkey);
+  int id;
+  if (it != triple_memo.end()) {
+    id = it->second;
+  } else {
+    const auto res = CGAL::intersection(planes[S], planes[E], planes[P]);
+    const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
+    if (!pt) throw std::logic_error("Bsp: edge does not cross the cutting plane in one point");
+    id = add_vertex(*pt, {S, E, P}, {S, E, P});
+    triple_memo.emplace(tkey, id);
   }
-  const auto res = CGAL::intersection(planes[S], planes[E], planes[P]);
-  const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
-  if (!pt) throw std::logic_error("Bsp: edge does not cross the cutting plane in one point");
-  const int id = add_vertex(*pt, {S, E, P}, {S, E, P});
   add_common(verts[id]);
-  cut_memo.emplace(key, id);
+  cut_memo.emplace(ekey, id);
   return id;
 }
 
@@ -540,6 +547,8 @@ Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered,
   }
   I.cut_memo.clear();
   I.cut_memo.rehash(0);
+  I.triple_memo.clear();
+  I.triple_memo.rehash(0);
 }
 
 Bsp::~Bsp() = default;

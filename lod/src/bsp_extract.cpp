@@ -233,8 +233,10 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
   const int E = f.ep[ei];  // the edge's line is this plane's intersection with E
   // order along the edge: by the coordinate along which it extends most (the
   // points compared are on the edge's line, so one coordinate decides)
+  // (exactly: an edge may be tiny, its approximate direction meaningless)
   const Eigen::Vector2d dap = f.ap[(ei + 1) % n] - f.ap[ei];
-  const bool byx = std::abs(dap.x()) >= std::abs(dap.y());
+  const bool dx0 = CGAL::compare_x(P.p, Q.p) == CGAL::EQUAL, dy0 = !dx0 && CGAL::compare_y(P.p, Q.p) == CGAL::EQUAL;
+  const bool byx = !dx0 && (dy0 || std::abs(dap.x()) >= std::abs(dap.y()));
   const bool asc = byx ? CGAL::compare_x(P.p, Q.p) == CGAL::SMALLER : CGAL::compare_y(P.p, Q.p) == CGAL::SMALLER;
   auto cmp = [byx](const EvPt& x, const EvPt& y) {
     if (x.vid >= 0 ? x.vid == y.vid : (y.vid < 0 && x.def == y.def)) return CGAL::EQUAL;  // same point
@@ -735,6 +737,7 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes) {
     }
     mark_domains(cdt);
     int ndom = 0;
+    std::vector<std::vector<int>> dom_tris, dom_loops;
     for (auto f0 = cdt.finite_faces_begin(); f0 != cdt.finite_faces_end(); ++f0) {
       if (f0->info().nesting % 2 != 1 || f0->info().domain >= 0) continue;
       const int dom = ndom++;
@@ -764,8 +767,18 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes) {
       dloops.erase(std::unique(dloops.begin(), dloops.end()), dloops.end());
       if (flip)
         for (size_t i = 0; i < dtris.size(); i += 3) std::swap(dtris[i + 1], dtris[i + 2]);
-      if (dloops.size() == 1) {
-        std::vector<int> face = G.loops[dloops[0]];
+      dom_tris.push_back(std::move(dtris));
+      dom_loops.push_back(std::move(dloops));
+    }
+    // a loop touching itself at a vertex may bound several domains: then those
+    // domains are output as triangles, not as the loop
+    std::vector<int> loop_doms(G.loops.size(), 0);
+    for (const auto& dl : dom_loops)
+      for (int l : dl) ++loop_doms[l];
+    for (int d = 0; d < ndom; ++d) {
+      const auto& dtris = dom_tris[d];
+      if (dom_loops[d].size() == 1 && loop_doms[dom_loops[d][0]] == 1) {
+        std::vector<int> face = G.loops[dom_loops[d][0]];
         if (flip) std::reverse(face.begin(), face.end());
         G.faces.push_back(std::move(face));
       } else {

@@ -79,7 +79,8 @@ struct BspData {
   std::vector<std::array<double, 4>> dplanes;     ///< their (unit) double coefficients
   int n_split_planes = 6;                         ///< planes() = dplanes[0, n_split_planes)
   std::vector<Vertex> verts;
-  std::unordered_map<CutKey, int, CutKeyHash> cut_memo;
+  std::unordered_map<CutKey, int, CutKeyHash> cut_memo;     ///< (edge endpoints, plane) -> vertex
+  std::unordered_map<CutKey, int, CutKeyHash> triple_memo;  ///< sorted plane triple -> vertex
   std::vector<BspNode> nodes;
   std::vector<Cell> cells;                        ///< one polyhedron per node
   bool cap_hit = false;
@@ -96,7 +97,8 @@ struct BspData {
   bool exact_coords_of(const std::array<int, 3>& def, FT out[3]) const;
   /// Exact sign of vertex v w.r.t. table plane P (cached).
   int sign(int v, int P);
-  /// Vertex where edge (a,b) (on planes S and E) crosses P; memoized by (a,b,P).
+  /// Vertex where edge (a,b) (on planes S and E) crosses P; memoized by (a,b,P)
+  /// and by the plane triple.
   int cut(int a, int b, int S, int E, int P);
   /// Split a convex polygon by P; parts with a strictly negative (positive)
   /// vertex go to *neg (*pos) (either may be null). Unused outputs are cleared.
