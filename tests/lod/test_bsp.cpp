@@ -391,7 +391,9 @@ TEST(Bsp, CoplanarDuplicatesMerged) {
   EXPECT_EQ(a.leaves().size(), 4u);
   // the duplicate's piece lies on the split plane: consumed, never splits
   for (const auto& n : b.nodes()) {
-    if (!n.is_leaf()) EXPECT_NE(n.split_primitive, 2);
+    if (!n.is_leaf()) {
+      EXPECT_NE(n.split_primitive, 2);
+    }
   }
 }
 
@@ -512,4 +514,119 @@ TEST(Bsp, Deterministic) {
     EXPECT_EQ(ia[i].b, ib[i].b);
     EXPECT_EQ(ia[i].area, ib[i].area);
   }
+}
+
+namespace {
+
+// Building-like polygons: axis-aligned rectangles on a grid, gable roof pairs
+// (two planes through a common ridge line, sometimes on the box boundary),
+// tilted polygons, and near-duplicate planes (offset 1e-13, merged).
+std::vector<BspPolygon> building_like(unsigned seed, int n, double L, int kind) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  std::vector<BspPolygon> out;
+  auto g = [&](int q) { return std::round(U(rng) * q) / q * L; };
+  for (int i = 0; int(out.size()) < n; ++i) {
+    const int t = kind == 0 ? i % 3 : int(U(rng) * 3);
+    if (t == 0) {
+      const int axis = int(U(rng) * 3) % 3;
+      double a0 = g(6), a1 = g(6), b0 = g(6), b1 = g(6);
+      if (a0 > a1) std::swap(a0, a1);
+      if (b0 > b1) std::swap(b0, b1);
+      if (a1 - a0 < 0.1 * L) a1 = a0 + 0.3 * L;
+      if (b1 - b0 < 0.1 * L) b1 = b0 + 0.3 * L;
+      out.push_back(rect(axis, g(6), a0, a1, b0, b1, i));
+    } else if (t == 1) {
+      const double xr = g(6), h = g(6), s = 0.5 + U(rng), y0 = g(6), y1 = y0 + 0.4 * L;
+      for (int side : {-1, 1}) {
+        Vec3 nrm(s * side, 0, 1);
+        nrm.normalize();
+        BspPolygon p;
+        p.polygon = {Vec3(xr, y0, h), Vec3(xr + side * 0.3 * L, y0, h - s * 0.3 * L),
+                     Vec3(xr + side * 0.3 * L, y1, h - s * 0.3 * L), Vec3(xr, y1, h)};
+        p.primitive = i;
+        p.plane = {nrm.x(), nrm.y(), nrm.z(), -nrm.dot(Vec3(xr, 0, h))};
+        out.push_back(p);
+      }
+    } else {
+      Vec3 nrm(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5);
+      if (nrm.norm() < 1e-3) nrm = Vec3(1, 1, 1);
+      nrm.normalize();
+      const Vec3 c(g(4), g(4), g(4));
+      const Vec3 a = nrm.unitOrthogonal(), b = nrm.cross(a);
+      const double r = (0.2 + 0.5 * U(rng)) * L;
+      const int k = 3 + int(U(rng) * 5);
+      BspPolygon p;
+      for (int j = 0; j < k; ++j) {
+        const double tt = 2 * M_PI * j / k + 0.3 * U(rng);
+        p.polygon.push_back(c + r * (std::cos(tt) * a + std::sin(tt) * b));
+      }
+      p.primitive = i;
+      p.plane = {nrm.x(), nrm.y(), nrm.z(), -nrm.dot(c)};
+      out.push_back(p);
+      if (U(rng) < 0.2) {
+        BspPolygon q = p;
+        q.plane[3] += 1e-13;
+        for (auto& v : q.polygon) v += 0.1 * a;
+        out.push_back(q);
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Bsp, GableRidgeOnBoxFaceThenCut) {
+  // regression: an edge lying on 3 planes (ridge on the box top face), its two
+  // faces naming different edge planes; the cut by y = 5 must share the vertex
+  const double s = 0.76970758677521134, c = 0.63839660937436082;
+  BspPolygon r1, r2;
+  r1.plane = {-s, 0, c, -5.1011201157849229};
+  r1.polygon = {Vec3(1.6666666666666665, 1.6666666666666665, 10), Vec3(-1.3333333333333335, 1.6666666666666665, 6.3829338589554663),
+                Vec3(-1.3333333333333335, 5.6666666666666661, 6.3829338589554663), Vec3(1.6666666666666665, 5.6666666666666661, 10)};
+  r2.plane = {s, 0, c, -7.6668120717022941};
+  r2.polygon = {Vec3(1.6666666666666665, 1.6666666666666665, 10), Vec3(4.6666666666666661, 1.6666666666666665, 6.3829338589554663),
+                Vec3(4.6666666666666661, 5.6666666666666661, 6.3829338589554663), Vec3(1.6666666666666665, 5.6666666666666661, 10)};
+  r1.primitive = r2.primitive = 1;
+  std::vector<BspPolygon> polys{r1, r2, rect(1, 5, 1.6666666666666665, 8.3333333333333339, 1.6666666666666665, 3.333333333333333, 6)};
+  Bsp bsp(Vec3(0, 0, 0), Vec3(10, 10, 10), polys, 0);
+  const auto leaves = bsp.leaves();
+  double total = 0;
+  for (int l : leaves) total += bsp.nodes()[l].volume;
+  EXPECT_NEAR(total, 1000.0, 1e-9);
+  for (size_t i = 0; i < leaves.size(); ++i) {
+    std::vector<char> in(leaves.size(), 0);
+    in[i] = 1;
+    const auto surf = bsp.extract(leaves, in);
+    expect_good_surface(surf, "gable leaf");
+    EXPECT_NEAR(mesh_volume(surf.triangles), bsp.nodes()[leaves[i]].volume, 1e-9);
+  }
+}
+
+TEST(Bsp, BuildingLikeStress) {
+  const double L = 10;
+  int configs = 0;
+  for (unsigned seed = 1; seed <= 12; ++seed)
+    for (int kind = 0; kind < 2; ++kind)
+      for (int lab = 0; lab < 2; ++lab) {
+        const auto polys = building_like(seed * 3 + kind, 25, L, kind);
+        Bsp bsp(Vec3(0, 0, 0), Vec3(L, L, L), polys, 0);
+        const auto leaves = bsp.leaves();
+        std::mt19937 rng(seed * 77 + lab);
+        std::vector<char> in(leaves.size());
+        for (size_t i = 0; i < leaves.size(); ++i) {
+          const Vec3 c = bsp.nodes()[leaves[i]].center;
+          in[i] = lab == 0 ? char(rng() % 2)
+                           : char((c - Vec3(4, 5, 5)).norm() < 3.0 || (c.z() < 4 && c.x() > 3 && c.y() > 2 && c.y() < 7));
+        }
+        const BspSurface surf = bsp.extract(leaves, in);
+        const MeshReport r = check_mesh(surf.triangles);
+        ASSERT_TRUE(r.closed && r.oriented && !r.degenerate) << "seed " << seed << " kind " << kind << " lab " << lab;
+        ASSERT_TRUE(polygon_mesh_closed(surf.polygons)) << "seed " << seed << " kind " << kind << " lab " << lab;
+        const double vin = sum_inside_volume(bsp, leaves, surf.inside);
+        ASSERT_NEAR(mesh_volume(surf.triangles), vin, 1e-6 * std::max(1.0, vin)) << "seed " << seed;
+        ++configs;
+      }
+  EXPECT_EQ(configs, 48);
 }
