@@ -34,6 +34,8 @@ using io::Vec3d;
 void AssembleParams::validate() const {
   if (max_tile_triangles < 1) throw std::invalid_argument("max_tile_triangles must be >= 1");
   if (max_tile_bytes < 1024) throw std::invalid_argument("max_tile_bytes must be >= 1024");
+  if (!(tile_extent_factor >= 0) || !std::isfinite(tile_extent_factor))
+    throw std::invalid_argument("tile_extent_factor must be >= 0");
   if (!(min_change_m >= 0) || !std::isfinite(min_change_m)) throw std::invalid_argument("min_change_m must be >= 0");
   if (!(hausdorff_tolerance_m > 0) || !std::isfinite(hausdorff_tolerance_m))
     throw std::invalid_argument("hausdorff_tolerance_m must be > 0");
@@ -222,7 +224,7 @@ class TreeBuilder {
     tiles[0].name = "r";
     tiles[0].error = tileset_error;
     std::vector<std::vector<Item>> groups;
-    partition(first, true, groups);
+    partition(first, max_extent(tileset_error), groups);
     for (std::size_t k = 0; k < groups.size(); ++k) {
       const std::size_t c = make_tile(groups[k], "r_" + std::to_string(k));
       tiles[0].children.push_back(c);
@@ -266,10 +268,21 @@ class TreeBuilder {
     return out;
   }
 
-  /// Groups of `items` for sibling tiles: one quadrant split when `split`,
-  /// then further splits of every group over budget.
-  void partition(const std::vector<Item>& items, bool split, std::vector<std::vector<Item>>& out) const {
-    if (items.size() <= 1 || (!split && fits(items))) {
+  /// xy diagonal of the buildings' boxes (all their kept models).
+  double extent(const std::vector<Item>& items) const {
+    BBox3 b;
+    for (const auto& it : items) b.add(bs_[it.b].bbox);
+    return std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1]);
+  }
+
+  double max_extent(double error) const {
+    return p_.tile_extent_factor > 0 ? p_.tile_extent_factor * error : std::numeric_limits<double>::infinity();
+  }
+
+  /// Groups of `items` for sibling tiles: quadrant splits (repeated) while a
+  /// group is over the glb budget or wider than `max_extent`.
+  void partition(const std::vector<Item>& items, double max_extent, std::vector<std::vector<Item>>& out) const {
+    if (items.size() <= 1 || (fits(items) && extent(items) <= max_extent)) {
       out.push_back(items);
       return;
     }
@@ -283,7 +296,7 @@ class TreeBuilder {
       const auto mid = items.begin() + long(items.size() / 2);
       q = {std::vector<Item>(items.begin(), mid), std::vector<Item>(mid, items.end())};
     }
-    for (const auto& g : q) partition(g, false, out);
+    for (const auto& g : q) partition(g, max_extent, out);
   }
 
   std::size_t make_tile(const std::vector<Item>& items, const std::string& name) {
@@ -317,7 +330,7 @@ class TreeBuilder {
       for (auto& it : next)
         if (it.m + 1 < bs_[it.b].models.size()) ++it.m;
       std::vector<std::vector<Item>> groups;
-      partition(next, true, groups);
+      partition(next, max_extent(tiles[id].error), groups);
       for (std::size_t k = 0; k < groups.size(); ++k) {
         const std::size_t c = make_tile(groups[k], name + "_" + std::to_string(k));
         tiles[id].children.push_back(c);

@@ -28,6 +28,12 @@ namespace citylod::tiler {
 struct AssembleParams {
   std::size_t max_tile_triangles = 250000;  ///< per glb
   std::size_t max_tile_bytes = 4u << 20;    ///< geometry bytes per glb (vertices + indices)
+  /// The children of a tile with geometric error e cover at most
+  /// tile_extent_factor * e metres (xy diagonal of their buildings) each, so
+  /// tiles shrink with their error and a close-up never loads a far-reaching
+  /// tile (a tile is loaded from roughly 40 e away at the default SSE of 16).
+  /// 0 = no extent limit (only the budgets split).
+  double tile_extent_factor = 50;
   /// An interpolation model is kept only if its Hausdorff distance to the
   /// previous kept model and to the next anchor are both >= this (metres).
   double min_change_m = 0.1;

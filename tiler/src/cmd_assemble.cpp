@@ -21,6 +21,8 @@ int cmd_assemble(ArgParser& args) {
   args.option("out", 'o', "DIR", "output tileset directory");
   args.option("max-triangles", 0, "N", "triangle budget of one tile glb", "250000");
   args.option("max-bytes", 0, "BYTES", "geometry byte budget of one tile glb", "4194304");
+  args.option("extent-factor", 0, "F",
+              "children of a tile with error e span at most F*e metres each (0 = only the budgets split)", "50");
   args.option("min-change", 0, "M",
               "keep an interpolation model only if it differs by >= M metres (Hausdorff) from its "
               "kept neighbours",
@@ -44,6 +46,7 @@ int cmd_assemble(ArgParser& args) {
   if (threads < 0) throw UsageError("--threads must be >= 0");
   p.max_tile_triangles = std::size_t(max_tris);
   p.max_tile_bytes = std::size_t(max_bytes);
+  p.tile_extent_factor = args.get_double("extent-factor");
   p.min_change_m = args.get_double("min-change");
   p.hausdorff_tolerance_m = args.get_double("hausdorff-tolerance");
   p.quantize = args.has("quantize");
