@@ -1,6 +1,7 @@
 // split_bench: out-of-core behaviour of `citylod split`.
 //
-//   split_bench [--input FILE.las] [--crs EPSG:28992] [--memory-limit 128M] [--copies 1,4,16] [--tmp DIR]
+//   split_bench [--input FILE.las] [--crs EPSG:28992] [--memory-limit 128M] [--copies 1,4,16]
+//   [--tmp DIR]
 //
 // For each N, writes a LAS holding N shifted copies of the input (a sqrt(N) x sqrt(N)
 // grid of tiles), then runs split_scene() on it in a fresh process (this program
@@ -38,7 +39,8 @@ struct Args {
   std::string tmp = (fs::temp_directory_path() / "citylod_split_bench").string();
 };
 
-int child(const std::string& las, const std::string& work, const std::string& crs, const std::string& mem) {
+int child(const std::string& las, const std::string& work, const std::string& crs,
+          const std::string& mem) {
   tiler::SplitOptions o;
   o.inputs = {las};
   o.work_dir = work;
@@ -47,8 +49,8 @@ int child(const std::string& las, const std::string& work, const std::string& cr
   o.force = true;
   try {
     const tiler::SplitReport r = tiler::split_scene(o);
-    std::printf("%llu %zu %zu %.3f %zu\n", static_cast<unsigned long long>(r.points), r.chunks, r.cells, r.seconds,
-                r.max_region_points);
+    std::printf("%llu %zu %zu %.3f %zu\n", static_cast<unsigned long long>(r.points), r.chunks,
+                r.cells, r.seconds, r.max_region_points);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "split_bench child: %s\n", e.what());
@@ -61,14 +63,16 @@ std::uint64_t make_tiled(const std::string& in, const std::string& out, int n) {
   const io::FileInfo h = io::read_header(in);
   const int side = static_cast<int>(std::ceil(std::sqrt(double(n))));
   const double dx = h.bbox.max[0] - h.bbox.min[0] + 20, dy = h.bbox.max[1] - h.bbox.min[1] + 20;
-  test::LasWriter w(out, {0.001, 0.001, 0.001}, {std::floor(h.bbox.min[0]), std::floor(h.bbox.min[1]), 0});
+  test::LasWriter w(out, {0.001, 0.001, 0.001},
+                    {std::floor(h.bbox.min[0]), std::floor(h.bbox.min[1]), 0});
   for (int c = 0; c < n; ++c) {
     const double ox = (c % side) * dx, oy = (c / side) * dy;
     auto r = io::PointReader::open(in);
     io::PointSet b;
     while (r->read(b, 1 << 16) > 0)
       for (std::size_t k = 0; k < b.size(); ++k)
-        w.add(b.positions[k][0] + ox, b.positions[k][1] + oy, b.positions[k][2], b.has_classes() ? b.classes[k] : 1);
+        w.add(b.positions[k][0] + ox, b.positions[k][1] + oy, b.positions[k][2],
+              b.has_classes() ? b.classes[k] : 1);
   }
   const std::uint64_t count = w.count();
   w.close();
@@ -78,21 +82,28 @@ std::uint64_t make_tiled(const std::string& in, const std::string& out, int n) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc == 6 && std::string(argv[1]) == "--child") return child(argv[2], argv[3], argv[4], argv[5]);
+  if (argc == 6 && std::string(argv[1]) == "--child")
+    return child(argv[2], argv[3], argv[4], argv[5]);
   Args a;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string k = argv[i], v = argv[i + 1];
-    if (k == "--input") a.input = v;
-    else if (k == "--crs") a.crs = v;
-    else if (k == "--memory-limit") a.memory = v;
-    else if (k == "--tmp") a.tmp = v;
+    if (k == "--input")
+      a.input = v;
+    else if (k == "--crs")
+      a.crs = v;
+    else if (k == "--memory-limit")
+      a.memory = v;
+    else if (k == "--tmp")
+      a.tmp = v;
     else if (k == "--copies") {
       a.copies.clear();
       std::stringstream ss(v);
       std::string t;
       while (std::getline(ss, t, ',')) a.copies.push_back(std::stoi(t));
     } else {
-      std::fprintf(stderr, "usage: split_bench [--input LAS] [--crs CRS] [--memory-limit SIZE] [--copies 1,4,16] [--tmp DIR]\n");
+      std::fprintf(stderr,
+                   "usage: split_bench [--input LAS] [--crs CRS] [--memory-limit SIZE] [--copies "
+                   "1,4,16] [--tmp DIR]\n");
       return 2;
     }
   }
@@ -101,10 +112,11 @@ int main(int argc, char** argv) {
     return 1;
   }
   fs::create_directories(a.tmp);
-  std::printf("split_bench: input %s, --crs %s, --memory-limit %s, %u hardware threads\n", a.input.c_str(),
-              a.crs.c_str(), a.memory.c_str(), std::thread::hardware_concurrency());
-  std::printf("%4s %12s %10s %8s %8s %10s %10s %12s %7s %12s\n", "N", "points", "input MB", "chunks", "cells",
-              "wall s", "cpu s", "points/s", "RSS MB", "max region");
+  std::printf("split_bench: input %s, --crs %s, --memory-limit %s, %u hardware threads\n",
+              a.input.c_str(), a.crs.c_str(), a.memory.c_str(),
+              std::thread::hardware_concurrency());
+  std::printf("%4s %12s %10s %8s %8s %10s %10s %12s %7s %12s\n", "N", "points", "input MB",
+              "chunks", "cells", "wall s", "cpu s", "points/s", "RSS MB", "max region");
   double rss1 = 0, rss_last = 0;
   for (int n : a.copies) {
     const std::string las = (fs::path(a.tmp) / ("tiled_" + std::to_string(n) + ".las")).string();
@@ -117,8 +129,8 @@ int main(int argc, char** argv) {
     if (pid == 0) {
       dup2(pipefd[1], 1);
       close(pipefd[0]);
-      execl("/proc/self/exe", argv[0], "--child", las.c_str(), work.c_str(), a.crs.c_str(), a.memory.c_str(),
-            static_cast<char*>(nullptr));
+      execl("/proc/self/exe", argv[0], "--child", las.c_str(), work.c_str(), a.crs.c_str(),
+            a.memory.c_str(), static_cast<char*>(nullptr));
       _exit(127);
     }
     close(pipefd[1]);
@@ -130,7 +142,8 @@ int main(int argc, char** argv) {
     int status = 0;
     struct rusage ru {};
     wait4(pid, &status, 0, &ru);
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
       std::fprintf(stderr, "split_bench: split failed for N=%d\n", n);
       return 1;
@@ -139,17 +152,19 @@ int main(int argc, char** argv) {
     std::size_t chunks = 0, cells = 0, region = 0;
     double secs = 0;
     std::sscanf(out.c_str(), "%llu %zu %zu %lf %zu", &points, &chunks, &cells, &secs, &region);
-    const double cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+    const double cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+                       1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
     const double rss = double(ru.ru_maxrss) / 1024.0;  // KiB -> MiB
     if (rss1 == 0) rss1 = rss;
     rss_last = rss;
     std::printf("%4d %12llu %10.1f %8zu %8zu %10.2f %10.2f %12.0f %7.1f %12zu\n", n, points,
-                double(fs::file_size(las)) / 1e6, chunks, cells, wall, cpu, double(pts) / wall, rss, region);
+                double(fs::file_size(las)) / 1e6, chunks, cells, wall, cpu, double(pts) / wall, rss,
+                region);
     std::fflush(stdout);
     fs::remove(las);
     fs::remove_all(work);
   }
-  std::printf("peak RSS N=%d / N=%d: %.2fx (%s 1.5x)\n", a.copies.back(), a.copies.front(), rss_last / rss1,
-              rss_last / rss1 < 1.5 ? "<" : ">=");
+  std::printf("peak RSS N=%d / N=%d: %.2fx (%s 1.5x)\n", a.copies.back(), a.copies.front(),
+              rss_last / rss1, rss_last / rss1 < 1.5 ? "<" : ">=");
   return 0;
 }

@@ -21,13 +21,13 @@ namespace {
 
 const std::string kData = CITYLOD_SHARED_DATA;
 
-struct Run {
+struct CliRun {
   int code = -1;
   std::string out;  // stdout + stderr
 };
 
-Run run(const std::string& args) {
-  Run r;
+CliRun run(const std::string& args) {
+  CliRun r;
   const std::string cmd = std::string(CITYLOD_BINARY) + " " + args + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -46,10 +46,12 @@ fs::path tmp_dir(const std::string& name) {
   return p;
 }
 
-std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
+std::string q(const fs::path& p) {
+  return "'" + p.string() + "'";
+}
 
 /// The error line of a failed run: exactly one "citylod: error:" line naming `file`.
-void expect_one_line_error(const Run& r, const std::string& file, const std::string& reason) {
+void expect_one_line_error(const CliRun& r, const std::string& file, const std::string& reason) {
   EXPECT_EQ(r.code, 1) << r.out;
   std::size_t lines = 0, pos = 0;
   std::string err;
@@ -64,7 +66,9 @@ void expect_one_line_error(const Run& r, const std::string& file, const std::str
 }
 
 /// Nothing of a failed run may remain: the work dir is absent (it did not exist before).
-void expect_no_work(const fs::path& work) { EXPECT_FALSE(fs::exists(work)) << work; }
+void expect_no_work(const fs::path& work) {
+  EXPECT_FALSE(fs::exists(work)) << work;
+}
 
 std::string write_city_ply(const fs::path& dir) {
   test::SynthCity city;
@@ -74,9 +78,10 @@ std::string write_city_ply(const fs::path& dir) {
 }
 
 TEST(SplitCli, HelpListsTheOptions) {
-  const Run r = run("split --help");
+  const CliRun r = run("split --help");
   EXPECT_EQ(r.code, 0);
-  for (const char* opt : {"--crs", "--origin", "--geoid", "--footprints", "--memory-limit", "--cell-size", "--out"})
+  for (const char* opt :
+       {"--crs", "--origin", "--geoid", "--footprints", "--memory-limit", "--cell-size", "--out"})
     EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
   EXPECT_EQ(run("split").code, 2);
   EXPECT_EQ(run("split x.ply").code, 2) << "--out is required";
@@ -87,8 +92,9 @@ TEST(SplitCli, SplitsThenUpToDate) {
   const fs::path dir = tmp_dir("ok");
   const std::string in = write_city_ply(dir);
   const fs::path work = dir / "work";
-  const std::string args = "split " + q(in) + " --origin 52,4.36,45 --cell-size 50 --halo 10 -o " + q(work);
-  Run r = run(args);
+  const std::string args =
+      "split " + q(in) + " --origin 52,4.36,45 --cell-size 50 --halo 10 -o " + q(work);
+  CliRun r = run(args);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("3 chunks"), std::string::npos) << r.out;
   const io::Manifest m = io::read_manifest(work.string());
@@ -124,13 +130,15 @@ TEST(SplitCli, BadInputs) {
   expect_no_work(work);
 
   // NaN / Inf coordinates.
-  for (double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+  for (double bad :
+       {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     io::PointSet ps;
     for (int i = 0; i < 100; ++i) ps.positions.push_back({double(i), 0, 0});
     ps.positions[50][1] = bad;
     const fs::path f = dir / (std::isnan(bad) ? "nan.ply" : "inf.ply");
     io::write_ply(f.string(), ps);
-    expect_one_line_error(run("split " + q(f) + tail), f.string(), std::isnan(bad) ? "NaN" : "infinite");
+    expect_one_line_error(run("split " + q(f) + tail), f.string(),
+                          std::isnan(bad) ? "NaN" : "infinite");
     expect_no_work(work);
   }
 
@@ -140,12 +148,14 @@ TEST(SplitCli, BadInputs) {
   auto write_las = [&](const fs::path& f, std::int64_t lie) {
     test::LasWriter w(f.string(), {0.001, 0.001, 0.001}, {85000, 447000, 0});
     for (std::size_t k = 0; k < ps.size(); ++k)
-      w.add(ps.positions[k][0] + 85000, ps.positions[k][1] + 447400, ps.positions[k][2], ps.classes[k]);
+      w.add(ps.positions[k][0] + 85000, ps.positions[k][1] + 447400, ps.positions[k][2],
+            ps.classes[k]);
     w.close(lie);
   };
   const fs::path lies = dir / "lies.las";
   write_las(lies, std::int64_t(ps.size()) - 1000);
-  expect_one_line_error(run("split " + q(lies) + " --crs EPSG:28992 -o " + q(work)), lies.string(), "point count");
+  expect_one_line_error(run("split " + q(lies) + " --crs EPSG:28992 -o " + q(work)), lies.string(),
+                        "point count");
   expect_no_work(work);
 
   const fs::path las = dir / "city.las";
@@ -153,12 +163,15 @@ TEST(SplitCli, BadInputs) {
   const fs::path tlas = dir / "truncated.las";
   fs::copy_file(las, tlas);
   fs::resize_file(tlas, fs::file_size(tlas) - 28 * 500 - 3);
-  expect_one_line_error(run("split " + q(tlas) + " --crs EPSG:28992 -o " + q(work)), tlas.string(), "truncated");
+  expect_one_line_error(run("split " + q(tlas) + " --crs EPSG:28992 -o " + q(work)), tlas.string(),
+                        "truncated");
   expect_no_work(work);
 
-  expect_one_line_error(run("split " + q(las) + " --crs EPSG:99999 -o " + q(work)), las.string(), "99999");
+  expect_one_line_error(run("split " + q(las) + " --crs EPSG:99999 -o " + q(work)), las.string(),
+                        "99999");
   expect_no_work(work);
-  expect_one_line_error(run("split " + q(las) + " --crs EPSG:2056 -o " + q(work)), las.string(), "area of use");
+  expect_one_line_error(run("split " + q(las) + " --crs EPSG:2056 -o " + q(work)), las.string(),
+                        "area of use");
   expect_no_work(work);
   expect_one_line_error(run("split " + q(las) + " -o " + q(work)), las.string(), "no CRS");
   expect_no_work(work);
@@ -172,11 +185,13 @@ TEST(SplitCli, BadInputs) {
     std::ifstream f(io::manifest_path(work.string()));
     return std::string(std::istreambuf_iterator<char>(f), {});
   }();
-  expect_one_line_error(run("split " + q(tlas) + " --crs EPSG:28992 -o " + q(work)), tlas.string(), "truncated");
+  expect_one_line_error(run("split " + q(tlas) + " --crs EPSG:28992 -o " + q(work)), tlas.string(),
+                        "truncated");
   std::ifstream f(io::manifest_path(work.string()));
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f), {}), before);
   for (const auto& e : fs::directory_iterator(work))
-    EXPECT_TRUE(e.path().filename() == "manifest.json" || e.path().filename() == "chunks") << e.path();
+    EXPECT_TRUE(e.path().filename() == "manifest.json" || e.path().filename() == "chunks")
+        << e.path();
 }
 
 TEST(SplitCli, DelftWithFootprintsAndGeoid) {
@@ -184,8 +199,8 @@ TEST(SplitCli, DelftWithFootprintsAndGeoid) {
   if (!fs::exists(las)) GTEST_SKIP() << "shared data not found: " << kData;
   const fs::path dir = tmp_dir("delft");
   const std::string fp = std::string(CITYLOD_SOURCE_DIR) + "/tests/fixtures/delft_bgt_pand.geojson";
-  const Run r = run("split " + q(las) + " --crs EPSG:28992 --geoid egm96 --footprints " + q(fp) + " -o " +
-                    q(dir / "work"));
+  const CliRun r = run("split " + q(las) + " --crs EPSG:28992 --geoid egm96 --footprints " + q(fp) +
+                       " -o " + q(dir / "work"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("EGM96"), std::string::npos) << r.out;
   const io::Manifest m = io::read_manifest((dir / "work").string());

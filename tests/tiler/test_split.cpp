@@ -35,13 +35,16 @@ fs::path tmp_dir(const std::string& name) {
   return p;
 }
 
-bool have(const std::string& rel) { return fs::exists(kData + "/" + rel); }
+bool have(const std::string& rel) {
+  return fs::exists(kData + "/" + rel);
+}
 
 /// Index of the synthetic box whose outline contains the chunk's bbox centre, or -1.
 int box_of(const test::SynthCity& c, const io::ChunkRecord& r) {
   const double x = 0.5 * (r.bbox_min[0] + r.bbox_max[0]), y = 0.5 * (r.bbox_min[1] + r.bbox_max[1]);
   for (std::size_t i = 0; i < c.boxes.size(); ++i)
-    if (x >= c.boxes[i].x0 && x <= c.boxes[i].x1 && y >= c.boxes[i].y0 && y <= c.boxes[i].y1) return int(i);
+    if (x >= c.boxes[i].x0 && x <= c.boxes[i].x1 && y >= c.boxes[i].y0 && y <= c.boxes[i].y1)
+      return int(i);
   return -1;
 }
 
@@ -200,7 +203,8 @@ TEST_F(SplitSynthetic, BuildingsOnCellBordersAreWholeAndOwnedOnce) {
       const int b = box_of(city, c);
       ASSERT_GE(b, 0);
       // classes present -> every class-6 point of the box is in its chunk
-      EXPECT_EQ(c.points, box_points[std::size_t(b)]) << "box " << city.boxes[std::size_t(b)].id << " cell " << cell;
+      EXPECT_EQ(c.points, box_points[std::size_t(b)])
+          << "box " << city.boxes[std::size_t(b)].id << " cell " << cell;
     }
   }
 }
@@ -228,7 +232,8 @@ TEST_F(SplitSynthetic, FootprintsAssignPointsAndReportEveryFootprint) {
   const std::string in = write_points(dir, false);
   const std::string fp = (dir / "fp.geojson").string();
   std::ofstream(fp) << test::city_footprints_geojson(
-      city, {{"E", 170, 10, 190, 20, 0} /* empty ground */, {"Z", 900, 900, 910, 910, 0} /* elsewhere */});
+      city, {{"E", 170, 10, 190, 20, 0} /* empty ground */,
+             {"Z", 900, 900, 910, 910, 0} /* elsewhere */});
   SplitOptions o = local_options(in, dir / "work");
   o.footprints = fp;
   const SplitReport r = tiler::split_scene(o);
@@ -264,7 +269,8 @@ TEST_F(SplitSynthetic, MeshScenesSplitTriangles) {
     const int b = box_of(city, c);
     ASSERT_GE(b, 0);
     const auto& bx = city.boxes[std::size_t(b)];
-    const std::size_t roof = std::size_t(2 * std::lround((bx.x1 - bx.x0) / 0.5) * std::lround((bx.y1 - bx.y0) / 0.5));
+    const std::size_t roof =
+        std::size_t(2 * std::lround((bx.x1 - bx.x0) / 0.5) * std::lround((bx.y1 - bx.y0) / 0.5));
     EXPECT_GE(c.triangles, roof) << bx.id;
     const io::TriangleMesh cm = io::read_mesh(io::chunk_path(o.work_dir, c.id));
     EXPECT_EQ(cm.triangles.size(), c.triangles);
@@ -309,7 +315,8 @@ TEST_F(SplitSynthetic, FailedRunLeavesWorkUntouched) {
   std::ifstream f(io::manifest_path(o.work_dir));
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f), {}), manifest_before);
   for (const auto& e : fs::directory_iterator(o.work_dir))
-    EXPECT_TRUE(e.path().filename() == "manifest.json" || e.path().filename() == "chunks") << e.path();
+    EXPECT_TRUE(e.path().filename() == "manifest.json" || e.path().filename() == "chunks")
+        << e.path();
   // A new WORK is not created at all when the run fails.
   SplitOptions o2 = local_options(bad, dir / "fresh");
   EXPECT_THROW(tiler::split_scene(o2), io::IoError);
@@ -324,7 +331,8 @@ TEST_F(SplitSynthetic, LasHeaderBoxAndCrsChecks) {
   {
     test::LasWriter w(las, {0.001, 0.001, 0.001}, {85000, 447000, 0});
     for (std::size_t k = 0; k < ps.size(); ++k)
-      w.add(ps.positions[k][0] + 85000, ps.positions[k][1] + 447400, ps.positions[k][2], ps.classes[k]);
+      w.add(ps.positions[k][0] + 85000, ps.positions[k][1] + 447400, ps.positions[k][2],
+            ps.classes[k]);
     w.close();
   }
   SplitOptions o;
@@ -346,7 +354,8 @@ TEST_F(SplitSynthetic, LasHeaderBoxAndCrsChecks) {
     EXPECT_NE(std::string(e.what()).find(las), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("--crs"), std::string::npos);
   }
-  // A CRS whose area does not contain the data (Swiss LV95: these numbers lie far west of Switzerland).
+  // A CRS whose area does not contain the data (Swiss LV95: these numbers lie far west of
+  // Switzerland).
   o.crs = "EPSG:2056";
   try {
     tiler::split_scene(o);
@@ -385,8 +394,10 @@ TEST(SplitRealData, DelftWithAndWithoutFootprints) {
   o.work_dir = (dir / "fp").string();
   o.footprints = fp;
   const SplitReport r1 = tiler::split_scene(o);
-  std::printf("[delft footprints] %zu in scene, %zu inside the tile, %zu of those got a chunk; %zu chunks\n",
-              r1.footprints_in_scene, r1.footprints_inside, r1.footprints_inside_with_chunk, r1.chunks);
+  std::printf(
+      "[delft footprints] %zu in scene, %zu inside the tile, %zu of those got a chunk; %zu "
+      "chunks\n",
+      r1.footprints_in_scene, r1.footprints_inside, r1.footprints_inside_with_chunk, r1.chunks);
   ASSERT_GT(r1.footprints_inside, 0u);
   EXPECT_GE(double(r1.footprints_inside_with_chunk), 0.95 * double(r1.footprints_inside));
 
@@ -398,8 +409,8 @@ TEST(SplitRealData, DelftWithAndWithoutFootprints) {
     oc.work_dir = (dir / (ignore ? "noclass" : "class")).string();
     const SplitReport r = tiler::split_scene(oc);
     const io::Manifest m = io::read_manifest(oc.work_dir);
-    // Footprints inside the tile that some chunk covers (footprint centroid inside a chunk outline),
-    // chunks that are not buildings (< 50 % class-6 points).
+    // Footprints inside the tile that some chunk covers (footprint centroid inside a chunk
+    // outline), chunks that are not buildings (< 50 % class-6 points).
     const io::Manifest mf = io::read_manifest(o.work_dir);
     std::size_t covered = 0, inside = 0;
     for (const auto& rec : mf.chunks) {  // footprint records carry the footprint outline (ENU)
@@ -407,8 +418,8 @@ TEST(SplitRealData, DelftWithAndWithoutFootprints) {
       bool in_tile = true;
       double cx = 0, cy = 0;
       for (const auto& v : rec.outline) {
-        in_tile = in_tile && v[0] >= r.bbox.min[0] && v[0] <= r.bbox.max[0] && v[1] >= r.bbox.min[1] &&
-                  v[1] <= r.bbox.max[1];
+        in_tile = in_tile && v[0] >= r.bbox.min[0] && v[0] <= r.bbox.max[0] &&
+                  v[1] >= r.bbox.min[1] && v[1] <= r.bbox.max[1];
         cx += v[0];
         cy += v[1];
       }
@@ -427,10 +438,12 @@ TEST(SplitRealData, DelftWithAndWithoutFootprints) {
       const ChunkStats s = class_stats(oc.work_dir, c);
       if (2 * s.class6 < s.points) ++not_building;
     }
-    std::printf("[delft %s] %zu chunks, %zu not buildings (<50%% class 6); %zu of %zu footprints inside the tile covered by a chunk; "
-                "%zu clusters rejected\n",
-                ignore ? "ignoring classes" : "classes", m.chunks.size(), not_building, covered, inside,
-                r.clusters_rejected);
+    std::printf(
+        "[delft %s] %zu chunks, %zu not buildings (<50%% class 6); %zu of %zu footprints inside "
+        "the tile covered by a chunk; "
+        "%zu clusters rejected\n",
+        ignore ? "ignoring classes" : "classes", m.chunks.size(), not_building, covered, inside,
+        r.clusters_rejected);
     EXPECT_LE(double(not_building), 0.05 * double(m.chunks.size()) + 0.5);
     EXPECT_GE(double(covered), 0.9 * double(inside));
   }
@@ -510,11 +523,13 @@ TEST(SplitRealData, City3dBlockBuildingsWithoutTrees) {
       ++mostly_inside;
       fp_points = pts.size();
     }
-    std::printf("[city3d_001] chunk %s: %zu points, %.0f%% inside the footprint\n", c.id.c_str(), pts.size(),
-                100.0 * double(in) / double(pts.size()));
+    std::printf("[city3d_001] chunk %s: %zu points, %.0f%% inside the footprint\n", c.id.c_str(),
+                pts.size(), 100.0 * double(in) / double(pts.size()));
   }
-  std::printf("[city3d_001] %zu footprint(s), %zu chunks, %zu mostly inside a footprint, %zu clusters rejected\n",
-              fp.faces.size(), m.chunks.size(), mostly_inside, r.clusters_rejected);
+  std::printf(
+      "[city3d_001] %zu footprint(s), %zu chunks, %zu mostly inside a footprint, %zu clusters "
+      "rejected\n",
+      fp.faces.size(), m.chunks.size(), mostly_inside, r.clusters_rejected);
   EXPECT_EQ(mostly_inside, fp.faces.size()) << "each footprinted building is one chunk";
   EXPECT_GT(fp_points, 10000u);
   EXPECT_LE(m.chunks.size(), fp.faces.size() + 2);

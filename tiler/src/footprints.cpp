@@ -174,7 +174,8 @@ Vec2 Footprint::centroid() const {
 namespace {
 
 Ring parse_ring(const std::string& path, const json& j) {
-  if (!j.is_array()) throw io::IoError(path, "malformed GeoJSON: a ring is not an array of positions");
+  if (!j.is_array())
+    throw io::IoError(path, "malformed GeoJSON: a ring is not an array of positions");
   Ring r;
   r.reserve(j.size());
   for (const auto& pos : j) {
@@ -190,12 +191,15 @@ Ring parse_ring(const std::string& path, const json& j) {
 }
 
 Polygon2 parse_polygon(const std::string& path, const json& coords) {
-  if (!coords.is_array()) throw io::IoError(path, "malformed GeoJSON: Polygon coordinates are not an array");
+  if (!coords.is_array())
+    throw io::IoError(path, "malformed GeoJSON: Polygon coordinates are not an array");
   Polygon2 p;
   for (const auto& ring : coords) {
     Ring r = parse_ring(path, ring);
-    if (r.size() >= 3) p.rings.push_back(std::move(r));
-    else if (p.rings.empty()) return {};  // degenerate exterior: drop the polygon
+    if (r.size() >= 3)
+      p.rings.push_back(std::move(r));
+    else if (p.rings.empty())
+      return {};  // degenerate exterior: drop the polygon
   }
   normalise(p);
   return p;
@@ -267,7 +271,8 @@ FootprintSet read_footprints_geojson(const std::string& path, int* skipped) {
   } else if (type == "Polygon" || type == "MultiPolygon") {
     features.push_back(json{{"type", "Feature"}, {"geometry", root}});
   } else {
-    throw io::IoError(path, "unsupported GeoJSON type '" + type + "' (expected a FeatureCollection)");
+    throw io::IoError(path,
+                      "unsupported GeoJSON type '" + type + "' (expected a FeatureCollection)");
   }
 
   int n_skipped = 0;

@@ -26,7 +26,7 @@ struct Footprint {
   void update_bbox();
   /// Exterior ring of the largest polygon (for ChunkRecord::outline).
   const Ring& main_ring() const;
-  double area() const;  ///< sum of polygon areas (holes subtracted)
+  double area() const;    ///< sum of polygon areas (holes subtracted)
   Vec2 centroid() const;  ///< area-weighted centroid of the exterior rings
 };
 
@@ -41,13 +41,14 @@ struct FootprintSet {
 FootprintSet read_footprints_geojson(const std::string& path, int* skipped = nullptr);
 
 // ------------------------------------------------------------------ 2D geometry
-double signed_area(const Ring& r);                ///< > 0 when CCW
-double polygon_area(const Polygon2& p);           ///< exterior minus holes
-bool point_in_ring(const Ring& r, const Vec2& p); ///< even-odd rule
+double signed_area(const Ring& r);                        ///< > 0 when CCW
+double polygon_area(const Polygon2& p);                   ///< exterior minus holes
+bool point_in_ring(const Ring& r, const Vec2& p);         ///< even-odd rule
 bool point_in_polygon(const Polygon2& p, const Vec2& q);  ///< inside exterior, outside holes
 bool point_in_footprint(const Footprint& f, const Vec2& q);
-double distance_to_ring(const Ring& r, const Vec2& p);    ///< to the boundary
-double distance_to_footprint(const Footprint& f, const Vec2& p);  ///< 0 inside, else to the boundary
+double distance_to_ring(const Ring& r, const Vec2& p);  ///< to the boundary
+double distance_to_footprint(const Footprint& f,
+                             const Vec2& p);  ///< 0 inside, else to the boundary
 /// Orients exterior rings CCW and holes CW, drops repeated closing vertices.
 void normalise(Polygon2& p);
 /// 2D convex hull, CCW, no collinear points (Andrew's monotone chain).

@@ -17,9 +17,12 @@ namespace citylod::tiler {
 
 const char* class_mode_name(ClassMode m) {
   switch (m) {
-    case ClassMode::none: return "no classes (DTM by grid-minimum opening, vegetation by PCA features)";
-    case ClassMode::ground: return "ground class 2 (vegetation by PCA features)";
-    case ClassMode::buildings: return "ground class 2 and building class 6";
+    case ClassMode::none:
+      return "no classes (DTM by grid-minimum opening, vegetation by PCA features)";
+    case ClassMode::ground:
+      return "ground class 2 (vegetation by PCA features)";
+    case ClassMode::buildings:
+      return "ground class 2 and building class 6";
   }
   return "";
 }
@@ -36,7 +39,8 @@ bool non_building_class(std::uint8_t c) {
     case 11:  // road surface
     case 18:  // high noise
       return true;
-    default: return false;
+    default:
+      return false;
   }
 }
 
@@ -46,7 +50,8 @@ double GroundGrid::at(double x, double y) const {
   int j = static_cast<int>(std::floor((y - y0) / res));
   i = std::clamp(i, 0, nx - 1);
   j = std::clamp(j, 0, ny - 1);
-  return z[static_cast<std::size_t>(j) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(i)];
+  return z[static_cast<std::size_t>(j) * static_cast<std::size_t>(nx) +
+           static_cast<std::size_t>(i)];
 }
 
 namespace {
@@ -63,7 +68,9 @@ double hull_width(const Ring& h) {
     const double len = std::hypot(b[0] - a[0], b[1] - a[1]);
     if (len <= 0) continue;
     double far = 0;
-    for (const Vec2& v : h) far = std::max(far, std::abs((b[0] - a[0]) * (v[1] - a[1]) - (b[1] - a[1]) * (v[0] - a[0])) / len);
+    for (const Vec2& v : h)
+      far = std::max(far,
+                     std::abs((b[0] - a[0]) * (v[1] - a[1]) - (b[1] - a[1]) * (v[0] - a[0])) / len);
     best = std::min(best, far);
   }
   return std::isfinite(best) ? best : 0.0;
@@ -179,9 +186,10 @@ GroundGrid build_dtm(const std::vector<io::Vec3d>& pos, const std::vector<std::u
 
 }  // namespace
 
-CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vector<std::uint8_t>& cls,
-                              ClassMode mode, const SegmentParams& p,
-                              const std::array<double, 4>& region, bool cluster) {
+CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
+                              const std::vector<std::uint8_t>& cls, ClassMode mode,
+                              const SegmentParams& p, const std::array<double, 4>& region,
+                              bool cluster) {
   CellSegmentation out;
   const std::size_t n = pos.size();
   out.dtm = build_dtm(pos, cls, mode, p, region);
@@ -205,7 +213,8 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
   if (mode != ClassMode::buildings) {
     std::vector<std::uint32_t> idx;
     for (std::size_t k = 0; k < n; ++k)
-      if (!out.ground[k] && out.hag[k] > p.ground_tolerance && !(have_cls && non_building_class(cls[k])))
+      if (!out.ground[k] && out.hag[k] > p.ground_tolerance &&
+          !(have_cls && non_building_class(cls[k])))
         idx.push_back(static_cast<std::uint32_t>(k));
     const int kk = std::min<int>(p.feature_neighbours, static_cast<int>(idx.size()));
     if (kk >= 5) {
@@ -222,11 +231,13 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
       for (std::size_t m = 0; m < idx.size(); ++m) {
         const int found = tree.nearestKSearch((*cloud)[m], kk, nn, d2);
         Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (int t = 0; t < found; ++t) mean += (*cloud)[std::size_t(nn[std::size_t(t)])].getVector3fMap().cast<double>();
+        for (int t = 0; t < found; ++t)
+          mean += (*cloud)[std::size_t(nn[std::size_t(t)])].getVector3fMap().cast<double>();
         mean /= std::max(1, found);
         Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
         for (int t = 0; t < found; ++t) {
-          const Eigen::Vector3d d = (*cloud)[std::size_t(nn[std::size_t(t)])].getVector3fMap().cast<double>() - mean;
+          const Eigen::Vector3d d =
+              (*cloud)[std::size_t(nn[std::size_t(t)])].getVector3fMap().cast<double>() - mean;
           cov += d * d.transpose();
         }
         Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
@@ -275,7 +286,9 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
   // within reach of clustered points join them, and bridge the clusters they touch.
   std::vector<int> parent(found.size());
   for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
-  std::function<int(int)> root = [&](int i) { return parent[std::size_t(i)] == i ? i : parent[std::size_t(i)] = root(parent[std::size_t(i)]); };
+  std::function<int(int)> root = [&](int i) {
+    return parent[std::size_t(i)] == i ? i : parent[std::size_t(i)] = root(parent[std::size_t(i)]);
+  };
   std::vector<int> label(n, -1);
   for (std::size_t c = 0; c < found.size(); ++c)
     for (int m : found[c].indices) label[cand[std::size_t(m)]] = int(c);
@@ -301,15 +314,18 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
       for (int m : nn) {
         const int l = label[cand[std::size_t(m)]];
         if (l < 0) continue;
-        if (first < 0) first = l;
-        else if (root(l) != root(first)) parent[std::size_t(root(l))] = root(first);
+        if (first < 0)
+          first = l;
+        else if (root(l) != root(first))
+          parent[std::size_t(root(l))] = root(first);
       }
       if (first >= 0) attached.push_back({std::uint32_t(k), first});
     }
   }
   std::vector<std::vector<std::uint32_t>> groups(found.size());
   for (std::size_t c = 0; c < found.size(); ++c)
-    for (int m : found[c].indices) groups[std::size_t(root(int(c)))].push_back(cand[std::size_t(m)]);
+    for (int m : found[c].indices)
+      groups[std::size_t(root(int(c)))].push_back(cand[std::size_t(m)]);
   for (const auto& [k, c] : attached) {
     groups[std::size_t(root(c))].push_back(k);
     label[k] = root(c);
@@ -381,18 +397,21 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos, const std::vect
     if (c.area < p.min_area)
       std::snprintf(why, sizeof why, "small (%.1f m2 < %.1f m2)", c.area, p.min_area);
     else if (c.height < p.min_building_height)
-      std::snprintf(why, sizeof why, "low (%.1f m < %.1f m above ground)", c.height, p.min_building_height);
+      std::snprintf(why, sizeof why, "low (%.1f m < %.1f m above ground)", c.height,
+                    p.min_building_height);
     else if (c.width < p.min_width)
       std::snprintf(why, sizeof why, "narrow (%.1f m < %.1f m wide)", c.width, p.min_width);
     else if (mode != ClassMode::buildings && c.height < p.low_height &&
-             (c.vegetation_ratio > p.low_max_vegetation_ratio || c.planar_fraction < p.low_min_planar_fraction))
-      std::snprintf(why, sizeof why, "low object (%.1f m high, %.0f%% foliage, %.0f%% planar)", c.height,
-                    100 * c.vegetation_ratio, 100 * c.planar_fraction);
+             (c.vegetation_ratio > p.low_max_vegetation_ratio ||
+              c.planar_fraction < p.low_min_planar_fraction))
+      std::snprintf(why, sizeof why, "low object (%.1f m high, %.0f%% foliage, %.0f%% planar)",
+                    c.height, 100 * c.vegetation_ratio, 100 * c.planar_fraction);
     else if (mode != ClassMode::buildings && c.vegetation_ratio > p.max_vegetation_ratio)
       std::snprintf(why, sizeof why, "vegetation (%.0f%% foliage-like points in its outline)",
                     100 * c.vegetation_ratio);
     else if (mode != ClassMode::buildings && c.planar_fraction < p.min_planar_fraction)
-      std::snprintf(why, sizeof why, "vegetation (only %.0f%% planar points)", 100 * c.planar_fraction);
+      std::snprintf(why, sizeof why, "vegetation (only %.0f%% planar points)",
+                    100 * c.planar_fraction);
     c.reject_reason = why;
     c.building = c.reject_reason.empty();
     out.clusters.push_back(std::move(c));

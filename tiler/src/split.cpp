@@ -46,35 +46,46 @@ std::uint64_t parse_memory_size(const std::string& s) {
   std::string unit = s.substr(used);
   for (auto& c : unit) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   double mul = 1;
-  if (unit.empty() || unit == "B") mul = 1;
-  else if (unit == "K" || unit == "KB" || unit == "KIB") mul = 1024.0;
-  else if (unit == "M" || unit == "MB" || unit == "MIB") mul = 1024.0 * 1024;
-  else if (unit == "G" || unit == "GB" || unit == "GIB") mul = 1024.0 * 1024 * 1024;
-  else if (unit == "T" || unit == "TB" || unit == "TIB") mul = 1024.0 * 1024 * 1024 * 1024;
-  else throw std::invalid_argument("--memory-limit: unknown unit '" + unit + "' in '" + s + "'");
-  if (!(v > 0) || !std::isfinite(v)) throw std::invalid_argument("--memory-limit: must be positive");
+  if (unit.empty() || unit == "B")
+    mul = 1;
+  else if (unit == "K" || unit == "KB" || unit == "KIB")
+    mul = 1024.0;
+  else if (unit == "M" || unit == "MB" || unit == "MIB")
+    mul = 1024.0 * 1024;
+  else if (unit == "G" || unit == "GB" || unit == "GIB")
+    mul = 1024.0 * 1024 * 1024;
+  else if (unit == "T" || unit == "TB" || unit == "TIB")
+    mul = 1024.0 * 1024 * 1024 * 1024;
+  else
+    throw std::invalid_argument("--memory-limit: unknown unit '" + unit + "' in '" + s + "'");
+  if (!(v > 0) || !std::isfinite(v))
+    throw std::invalid_argument("--memory-limit: must be positive");
   return static_cast<std::uint64_t>(v * mul);
 }
 
 void SplitOptions::validate() const {
   auto positive = [](double v, const char* name) {
-    if (!(v > 0) || !std::isfinite(v)) throw std::invalid_argument(std::string(name) + " must be a positive number");
+    if (!(v > 0) || !std::isfinite(v))
+      throw std::invalid_argument(std::string(name) + " must be a positive number");
   };
   if (inputs.empty()) throw std::invalid_argument("no input file");
   if (work_dir.empty()) throw std::invalid_argument("--out WORK is required");
   if (!crs.empty() && !origin.empty())
-    throw std::invalid_argument("--crs and --origin exclude each other (--origin is for data in a local metric frame)");
+    throw std::invalid_argument(
+        "--crs and --origin exclude each other (--origin is for data in a local metric frame)");
   if (!geoid.empty() && geoid != "egm96")
     throw std::invalid_argument("--geoid: only 'egm96' is supported, got '" + geoid + "'");
   if (!geoid.empty() && !origin.empty())
-    throw std::invalid_argument("--geoid needs a CRS; with --origin heights are relative to the given ellipsoidal H");
+    throw std::invalid_argument(
+        "--geoid needs a CRS; with --origin heights are relative to the given ellipsoidal H");
   positive(cell_size, "--cell-size");
   positive(halo, "--halo");
   positive(seg.cluster_tolerance, "--cluster-tolerance");
   positive(seg.dtm_resolution, "dtm resolution");
   if (max_halo < halo) throw std::invalid_argument("--max-halo must be >= --halo");
   if (footprint_buffer < 0) throw std::invalid_argument("--footprint-buffer must be >= 0");
-  if (memory_limit < (64ull << 20)) throw std::invalid_argument("--memory-limit must be at least 64M");
+  if (memory_limit < (64ull << 20))
+    throw std::invalid_argument("--memory-limit must be at least 64M");
   if (seg.min_height < 0) throw std::invalid_argument("--min-height must be >= 0");
   if (seg.min_area < 0) throw std::invalid_argument("--min-area must be >= 0");
 }
@@ -82,17 +93,19 @@ void SplitOptions::validate() const {
 std::string SplitOptions::canonical() const {
   std::ostringstream o;
   o.precision(17);
-  o << "v=1;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid << ";footprints=" << footprints
-    << ";footprint_buffer=" << footprint_buffer << ";memory_limit=" << memory_limit << ";cell=" << cell_size
-    << ";halo=" << halo << ";max_halo=" << max_halo << ";ignore_classes=" << ignore_classes
+  o << "v=1;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
+    << ";footprints=" << footprints << ";footprint_buffer=" << footprint_buffer
+    << ";memory_limit=" << memory_limit << ";cell=" << cell_size << ";halo=" << halo
+    << ";max_halo=" << max_halo << ";ignore_classes=" << ignore_classes
     << ";min_footprint_points=" << min_footprint_points << ";dtm_res=" << seg.dtm_resolution
     << ";dtm_window=" << seg.dtm_window << ";ground_tol=" << seg.ground_tolerance
     << ";min_height=" << seg.min_height << ";tol=" << seg.cluster_tolerance
     << ";min_pts=" << seg.min_cluster_points << ";min_area=" << seg.min_area
     << ";min_bh=" << seg.min_building_height << ";k=" << seg.feature_neighbours
     << ";max_scatter=" << seg.max_scatter << ";max_veg=" << seg.max_vegetation_ratio
-    << ";min_planar=" << seg.min_planar_fraction << ";min_width=" << seg.min_width << ";low=" << seg.low_height
-    << "," << seg.low_max_vegetation_ratio << "," << seg.low_min_planar_fraction;
+    << ";min_planar=" << seg.min_planar_fraction << ";min_width=" << seg.min_width
+    << ";low=" << seg.low_height << "," << seg.low_max_vegetation_ratio << ","
+    << seg.low_min_planar_fraction;
   return o.str();
 }
 
@@ -119,7 +132,9 @@ std::string fingerprint(const std::string& path) {
 
 std::string sanitize_id(const std::string& s) {
   std::string r;
-  for (char c : s) r += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.') ? c : '_';
+  for (char c : s)
+    r +=
+        (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.') ? c : '_';
   if (r.empty() || r[0] == '.') r = "_" + r;
   return r.substr(0, 120);
 }
@@ -127,7 +142,8 @@ std::string sanitize_id(const std::string& s) {
 using CellKey = std::pair<int, int>;
 struct CellKeyHash {
   std::size_t operator()(const CellKey& k) const {
-    return std::hash<long long>()((static_cast<long long>(k.first) << 32) ^ static_cast<unsigned>(k.second));
+    return std::hash<long long>()((static_cast<long long>(k.first) << 32) ^
+                                  static_cast<unsigned>(k.second));
   }
 };
 
@@ -140,6 +156,7 @@ struct SpillRec {
 };
 static_assert(sizeof(SpillRec) == 48, "spill record layout");
 constexpr std::uint64_t kNoSrc = ~0ull;
+constexpr double kMeshSamplesPerM2 = 4.0;  ///< triangle samples per m^2 (plus each centroid)
 
 /// Grid of cells spilled to per-cell files. Points collect in one fixed buffer;
 /// when it is full it is sorted by cell and each run is appended to its cell's file.
@@ -161,18 +178,21 @@ class Spiller {
     if (buf_.size() >= budget_) flush();
   }
   void flush() {
-    std::sort(buf_.begin(), buf_.end(),
-              [this](const SpillRec& a, const SpillRec& b) { return key(a.x, a.y) < key(b.x, b.y); });
+    std::sort(buf_.begin(), buf_.end(), [this](const SpillRec& a, const SpillRec& b) {
+      return key(a.x, a.y) < key(b.x, b.y);
+    });
     for (std::size_t i = 0; i < buf_.size();) {
       const CellKey k = key(buf_[i].x, buf_[i].y);
       std::size_t j = i + 1;
       while (j < buf_.size() && key(buf_[j].x, buf_[j].y) == k) ++j;
       const fs::path p = file(k);
       std::FILE* f = std::fopen(p.c_str(), "ab");
-      if (!f) throw IoError(p.string(), std::string("cannot open spill file: ") + std::strerror(errno));
+      if (!f)
+        throw IoError(p.string(), std::string("cannot open spill file: ") + std::strerror(errno));
       const std::size_t n = std::fwrite(buf_.data() + i, sizeof(SpillRec), j - i, f);
       const bool ok = std::fclose(f) == 0 && n == j - i;
-      if (!ok) throw IoError(p.string(), std::string("cannot write spill file: ") + std::strerror(errno));
+      if (!ok)
+        throw IoError(p.string(), std::string("cannot write spill file: ") + std::strerror(errno));
       counts_[k] += j - i;
       bytes_ += (j - i) * sizeof(SpillRec);
       i = j;
@@ -286,7 +306,8 @@ class Stages {
   explicit Stages(const SplitProgressFn& fn) : fn_(fn) {}
   void report(double begin, double end, double f, const char* stage) {
     if (!fn_) return;
-    if (!fn_(begin + (end - begin) * std::clamp(f, 0.0, 1.0), stage)) throw IoError("split", "cancelled");
+    if (!fn_(begin + (end - begin) * std::clamp(f, 0.0, 1.0), stage))
+      throw IoError("split", "cancelled");
   }
 
  private:
@@ -302,7 +323,9 @@ struct InputInfo {
 
 std::string crs_spec_of(const io::FileInfo& i) {
   if (!i.crs_wkt.empty()) return i.crs_wkt;
-  if (i.epsg) return "EPSG:" + std::to_string(i.epsg) + (i.vertical_epsg ? "+" + std::to_string(i.vertical_epsg) : "");
+  if (i.epsg)
+    return "EPSG:" + std::to_string(i.epsg) +
+           (i.vertical_epsg ? "+" + std::to_string(i.vertical_epsg) : "");
   return {};
 }
 
@@ -320,7 +343,7 @@ std::string inputs_label(const std::vector<InputInfo>& in) {
 /// A chunk being assembled, before the file is written.
 struct PendingChunk {
   io::ChunkRecord rec;
-  std::vector<std::uint64_t> mesh_vertices;  ///< mesh scenes: vertex references
+  std::vector<std::uint64_t> mesh_refs;  ///< mesh scenes: triangle of each member sample
 };
 
 double median(std::vector<double> v) {
@@ -345,11 +368,13 @@ class Splitter {
   void load_footprints();
   void pass3_cells(const Spiller& spill);
   void process_cell_clusters(const Spiller& spill, const CellKey& key);
-  void process_cell_footprints(const Spiller& spill, const CellKey& key, const std::vector<std::size_t>& owned);
+  void process_cell_footprints(const Spiller& spill, const CellKey& key,
+                               const std::vector<std::size_t>& owned);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
                           std::size_t max_points);
-  void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg, const std::vector<std::uint32_t>& members,
-                  const std::string& id, const std::string& source, Ring outline);
+  void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
+                  const std::vector<std::uint32_t>& members, const std::string& id,
+                  const std::string& source, Ring outline);
   void write_mesh_chunks();
   std::string unique_id(std::string id);
 
@@ -359,11 +384,11 @@ class Splitter {
   std::unique_ptr<Staging> staging_;
 
   std::vector<InputInfo> inputs_;
-  std::string crs_spec_;                   // recorded in the manifest
+  std::string crs_spec_;  // recorded in the manifest
   std::optional<geo::Crs> crs_;
   std::optional<geo::Georef> georef_;
-  io::BBox3 bbox_crs_;                      // union of input boxes (CRS units)
-  io::BBox3 bbox_enu_;                      // after pass 2
+  io::BBox3 bbox_crs_;  // union of input boxes (CRS units)
+  io::BBox3 bbox_enu_;  // after pass 2
   std::uint64_t total_points_ = 0;
   bool has_normals_ = true, has_colors_ = true, has_classes_ = true;
   std::uint64_t class_hist_[256] = {};
@@ -371,10 +396,11 @@ class Splitter {
   double cell_ = 100;
   std::size_t region_budget_points_ = 0;
 
-  std::vector<io::TriangleMesh> meshes_;    // mesh scenes (in memory), ENU
-  std::vector<std::vector<std::int32_t>> vertex_label_;
+  std::vector<io::TriangleMesh> meshes_;               // mesh scenes (in memory), ENU
+  std::vector<std::vector<std::int32_t>> tri_label_;   // mesh triangle -> chunk
+  std::vector<std::vector<std::uint32_t>> tri_votes_;  // samples behind that choice
 
-  std::vector<Footprint> fps_;              // ENU, those meeting the data bbox
+  std::vector<Footprint> fps_;  // ENU, those meeting the data bbox
   std::vector<char> fp_inside_;
   std::map<CellKey, std::vector<std::size_t>> fp_owned_;
   std::unordered_map<CellKey, std::vector<std::size_t>, CellKeyHash> fp_index_;  // 2D bucket index
@@ -393,12 +419,15 @@ void Splitter::pass1_headers() {
     in.info = io::read_header(p);
     in.mesh = in.info.has_faces;
     if (in.info.compressed)
-      throw IoError(p, "LAZ is not decoded; convert it first (e.g. 'pdal translate in.laz out.las')");
+      throw IoError(p,
+                    "LAZ is not decoded; convert it first (e.g. 'pdal translate in.laz out.las')");
     if (in.info.point_count == 0) throw IoError(p, "no points (empty file)");
     inputs_.push_back(std::move(in));
   }
-  const bool any_mesh = std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; });
-  const bool any_points = std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return !i.mesh; });
+  const bool any_mesh =
+      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; });
+  const bool any_points =
+      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return !i.mesh; });
   if (any_mesh && any_points)
     throw std::invalid_argument("mixing meshes and point clouds in one split is not supported");
 
@@ -445,9 +474,12 @@ void Splitter::georeference() {
       for (const auto& in : inputs_) {
         const std::string s = crs_spec_of(in.info);
         if (s.empty())
-          throw IoError(in.path, "no CRS in the file; pass --crs EPSG:nnnn (or --origin LAT,LON,H for local data)");
+          throw IoError(
+              in.path,
+              "no CRS in the file; pass --crs EPSG:nnnn (or --origin LAT,LON,H for local data)");
         if (!crs_spec_.empty() && s != crs_spec_)
-          throw IoError(in.path, "its CRS differs from that of " + inputs_.front().path + "; pass --crs");
+          throw IoError(in.path,
+                        "its CRS differs from that of " + inputs_.front().path + "; pass --crs");
         crs_spec_ = s;
       }
     }
@@ -459,16 +491,21 @@ void Splitter::georeference() {
     rep_.crs = crs_->label();
     const auto& hu = crs_->horizontal_unit();
     if (std::abs(hu.to_si - 1.0) > 1e-12)
-      rep_.notes.push_back("coordinates in " + hu.name + " (" + fmt("%.10g", hu.to_si) + " m) converted to metres");
+      rep_.notes.push_back("coordinates in " + hu.name + " (" + fmt("%.10g", hu.to_si) +
+                           " m) converted to metres");
     const auto& vu = crs_->vertical_unit();
     if (std::abs(vu.to_si - 1.0) > 1e-12)
-      rep_.notes.push_back("heights in " + vu.name + " (" + fmt("%.10g", vu.to_si) + " m) converted to metres");
+      rep_.notes.push_back("heights in " + vu.name + " (" + fmt("%.10g", vu.to_si) +
+                           " m) converted to metres");
     if (opt_.geoid == "egm96")
       rep_.notes.push_back("heights orthometric -> ellipsoidal via EGM96");
     else if (!crs_->has_vertical_datum())
-      rep_.notes.push_back("heights taken as ellipsoidal (no vertical datum; use --geoid egm96 for orthometric heights)");
+      rep_.notes.push_back(
+          "heights taken as ellipsoidal (no vertical datum; use --geoid egm96 for orthometric "
+          "heights)");
     for (const auto& w : georef_->warnings()) rep_.notes.push_back(w);
-    for (const auto& w : geo::check_units(*crs_, to_eigen(bbox_crs_)).warnings) rep_.notes.push_back(w);
+    for (const auto& w : geo::check_units(*crs_, to_eigen(bbox_crs_)).warnings)
+      rep_.notes.push_back(w);
   } catch (const geo::GeoError& e) {
     throw IoError(label, e.what());
   }
@@ -480,14 +517,17 @@ void Splitter::georeference() {
 constexpr double kRegionBytesPerPoint = 400;
 
 void Splitter::choose_cell_size() {
-  region_budget_points_ = static_cast<std::size_t>(0.45 * double(opt_.memory_limit) / kRegionBytesPerPoint);
+  region_budget_points_ =
+      static_cast<std::size_t>(0.45 * double(opt_.memory_limit) / kRegionBytesPerPoint);
   cell_ = opt_.cell_size;
   // Density from the header counts over the (CRS) box, in points per m^2 (units converted).
   double to_m = 1;
   if (crs_) to_m = crs_->horizontal_unit().to_si;
-  const double area = std::max(1.0, (bbox_crs_.max[0] - bbox_crs_.min[0]) * (bbox_crs_.max[1] - bbox_crs_.min[1]) * to_m * to_m);
+  const double area = std::max(1.0, (bbox_crs_.max[0] - bbox_crs_.min[0]) *
+                                        (bbox_crs_.max[1] - bbox_crs_.min[1]) * to_m * to_m);
   const double density = double(total_points_) / area;
-  while (cell_ > 10 && (cell_ + 2 * opt_.halo) * (cell_ + 2 * opt_.halo) * density > 0.5 * double(region_budget_points_))
+  while (cell_ > 10 && (cell_ + 2 * opt_.halo) * (cell_ + 2 * opt_.halo) * density >
+                           0.5 * double(region_budget_points_))
     cell_ *= 0.5;
   if (cell_ != opt_.cell_size)
     rep_.notes.push_back("cell size reduced to " + fmt("%.1f", cell_) + " m to fit --memory-limit");
@@ -511,7 +551,8 @@ void Splitter::pass2_spill(Spiller& spill) {
       for (std::size_t k = 0; k < batch.size(); ++k) {
         const Vec3d& p = batch.positions[k];
         if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
-          throw IoError(in.path, "point #" + std::to_string(first_src + k) + " has no valid local coordinates (CRS transform failed)");
+          throw IoError(in.path, "point #" + std::to_string(first_src + k) +
+                                     " has no valid local coordinates (CRS transform failed)");
         bbox_enu_.add(p);
         SpillRec r{};
         r.x = p[0];
@@ -535,6 +576,34 @@ void Splitter::pass2_spill(Spiller& spill) {
         spill.add(r);
       }
     };
+    // Mesh samples: `refs[k]` is the triangle of sample k.
+    auto push_refs = [&](io::PointSet& batch, const std::vector<std::uint64_t>& refs,
+                         std::size_t input) {
+      for (std::size_t k = 0; k < batch.size(); ++k) {
+        const Vec3d& p = batch.positions[k];
+        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+          throw IoError(in.path,
+                        "triangle #" + std::to_string(refs[k]) + " has no valid local coordinates");
+        bbox_enu_.add(p);
+        SpillRec r{};
+        r.x = p[0];
+        r.y = p[1];
+        r.z = p[2];
+        if (has_normals_) {
+          r.nx = batch.normals[k][0];
+          r.ny = batch.normals[k][1];
+          r.nz = batch.normals[k][2];
+        }
+        if (has_colors_) {
+          r.r = batch.colors[k][0];
+          r.g = batch.colors[k][1];
+          r.b = batch.colors[k][2];
+        }
+        r.src = (std::uint64_t(input) << 40) | refs[k];
+        spill.add(r);
+      }
+      batch.clear();
+    };
     auto to_local = [&](std::vector<Vec3d>& v) {
       if (v.empty()) return;
       for (const auto& p : v) seen_crs.add(p);
@@ -549,21 +618,56 @@ void Splitter::pass2_spill(Spiller& spill) {
       // Meshes are split in memory: check that they fit.
       const double need = double(in.info.point_count) * 200.0 + double(in.info.face_count) * 60.0;
       if (need > 0.5 * double(opt_.memory_limit))
-        throw IoError(in.path, "mesh of " + std::to_string(in.info.point_count) + " vertices needs ~" +
-                                   fmt("%.0f", need / 1048576) + " MiB (meshes are split in memory); raise --memory-limit");
+        throw IoError(in.path, "mesh of " + std::to_string(in.info.point_count) +
+                                   " vertices needs ~" + fmt("%.0f", need / 1048576) +
+                                   " MiB (meshes are split in memory); raise --memory-limit");
       io::TriangleMesh mesh = io::read_mesh(in.path);
       to_local(mesh.vertices);
+      if (has_normals_ && mesh.normals.size() != mesh.vertices.size()) has_normals_ = false;
+      if (has_colors_ && mesh.colors.size() != mesh.vertices.size()) has_colors_ = false;
+      // Triangles are sampled (centroid + ~kMeshSamplesPerM2 per m^2): the samples are
+      // segmented like points and vote for their triangle's building.
       io::PointSet ps;
-      ps.positions = mesh.vertices;
-      if (has_normals_) ps.normals = mesh.normals;
-      if (has_colors_) ps.colors = mesh.colors;
-      if (has_normals_ && ps.normals.size() != ps.positions.size()) has_normals_ = false, ps.normals.clear();
-      if (has_colors_ && ps.colors.size() != ps.positions.size()) has_colors_ = false, ps.colors.clear();
-      push(ps, 0, true);
+      std::vector<std::uint64_t> tri_of;  // sample -> triangle, per batch
+      std::uint64_t rng = 0x9E3779B97F4A7C15ULL;
+      auto uni = [&rng]() {
+        rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
+        return double(rng >> 11) / double(1ull << 53);
+      };
+      for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const auto& tri = mesh.triangles[t];
+        const Vec3d& p0 = mesh.vertices[tri[0]];
+        const Vec3d& p1 = mesh.vertices[tri[1]];
+        const Vec3d& p2 = mesh.vertices[tri[2]];
+        const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
+        const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
+        const double area = 0.5 * e1.cross(e2).norm();
+        const std::size_t n = 1 + static_cast<std::size_t>(std::min(1e6, area * kMeshSamplesPerM2));
+        for (std::size_t k = 0; k < n; ++k) {
+          double u = 1.0 / 3, v = 1.0 / 3;
+          if (k > 0) {
+            u = uni();
+            v = uni();
+            if (u + v > 1) u = 1 - u, v = 1 - v;
+          }
+          ps.positions.push_back({p0[0] + u * e1[0] + v * e2[0], p0[1] + u * e1[1] + v * e2[1],
+                                  p0[2] + u * e1[2] + v * e2[2]});
+          if (has_normals_) ps.normals.push_back(mesh.normals[tri[0]]);
+          if (has_colors_) ps.colors.push_back(mesh.colors[tri[0]]);
+          tri_of.push_back(t);
+        }
+        if (ps.size() >= (1u << 16)) {
+          push_refs(ps, tri_of, ii);
+          tri_of.clear();
+        }
+      }
+      if (!ps.empty()) push_refs(ps, tri_of, ii);
       rep_.points += mesh.vertices.size();
       rep_.triangles += mesh.triangles.size();
-      vertex_label_.resize(ii + 1);
-      vertex_label_[ii].assign(mesh.vertices.size(), -1);
+      tri_label_.resize(ii + 1);
+      tri_label_[ii].assign(mesh.triangles.size(), -1);
+      tri_votes_.resize(ii + 1);
+      tri_votes_[ii].assign(mesh.triangles.size(), 0);
       meshes_.resize(ii + 1);
       meshes_[ii] = std::move(mesh);
       stages_.report(a, b, 1.0, "ingest");
@@ -589,11 +693,13 @@ void Splitter::pass2_spill(Spiller& spill) {
 
   // A LAS header box that lies: check the area of use again with the real box.
   if (crs_) {
-    const double ex = std::max(bbox_crs_.max[0] - bbox_crs_.min[0], bbox_crs_.max[1] - bbox_crs_.min[1]);
+    const double ex =
+        std::max(bbox_crs_.max[0] - bbox_crs_.min[0], bbox_crs_.max[1] - bbox_crs_.min[1]);
     const double tol = 1e-6 * std::max(1.0, ex) + 0.01;
     bool outside = false;
     for (int a = 0; a < 3; ++a)
-      if (seen_crs.min[a] < bbox_crs_.min[a] - tol || seen_crs.max[a] > bbox_crs_.max[a] + tol) outside = true;
+      if (seen_crs.min[a] < bbox_crs_.min[a] - tol || seen_crs.max[a] > bbox_crs_.max[a] + tol)
+        outside = true;
     if (outside) {
       rep_.notes.push_back("points lie outside the header bounding box of " + label);
       try {
@@ -607,10 +713,14 @@ void Splitter::pass2_spill(Spiller& spill) {
   }
 
   // How classes can be used.
-  if (opt_.ignore_classes || !has_classes_) mode_ = ClassMode::none;
-  else if (class_hist_[2] > 0 && class_hist_[6] > 0) mode_ = ClassMode::buildings;
-  else if (class_hist_[2] > 0) mode_ = ClassMode::ground;
-  else mode_ = ClassMode::none;
+  if (opt_.ignore_classes || !has_classes_)
+    mode_ = ClassMode::none;
+  else if (class_hist_[2] > 0 && class_hist_[6] > 0)
+    mode_ = ClassMode::buildings;
+  else if (class_hist_[2] > 0)
+    mode_ = ClassMode::ground;
+  else
+    mode_ = ClassMode::none;
   rep_.class_mode = class_mode_name(mode_);
   rep_.bbox = bbox_enu_;
   rep_.spill_bytes = spill.bytes();
@@ -621,7 +731,9 @@ void Splitter::load_footprints() {
   int skipped = 0;
   FootprintSet set = read_footprints_geojson(opt_.footprints, &skipped);
   rep_.footprints_total = set.footprints.size();
-  if (skipped) rep_.notes.push_back(std::to_string(skipped) + " footprint features without polygon geometry ignored");
+  if (skipped)
+    rep_.notes.push_back(std::to_string(skipped) +
+                         " footprint features without polygon geometry ignored");
   // To ENU: through the scene georef when the file has no CRS or the scene's; else via WGS84.
   std::unique_ptr<geo::Transformer> other;
   try {
@@ -670,15 +782,17 @@ void Splitter::load_footprints() {
     const Vec2 c = fps_[i].centroid();
     fp_owned_[{int(std::floor(c[0] / cell_)), int(std::floor(c[1] / cell_))}].push_back(i);
     const auto& b = fps_[i].bbox;
-    for (int bx = int(std::floor((b[0] - buf) / fp_bucket_)); bx <= int(std::floor((b[2] + buf) / fp_bucket_)); ++bx)
-      for (int by = int(std::floor((b[1] - buf) / fp_bucket_)); by <= int(std::floor((b[3] + buf) / fp_bucket_)); ++by)
+    for (int bx = int(std::floor((b[0] - buf) / fp_bucket_));
+         bx <= int(std::floor((b[2] + buf) / fp_bucket_)); ++bx)
+      for (int by = int(std::floor((b[1] - buf) / fp_bucket_));
+           by <= int(std::floor((b[3] + buf) / fp_bucket_)); ++by)
         fp_index_[{bx, by}].push_back(i);
   }
 }
 
 // ---------------------------------------------------------------------- pass 3
-std::size_t Splitter::load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
-                                  std::size_t max_points) {
+std::size_t Splitter::load_region(const Spiller& spill, const std::array<double, 4>& box,
+                                  RegionPoints& out, std::size_t max_points) {
   out = RegionPoints{};
   out.box = box;
   const double c = spill.cell();
@@ -697,7 +811,8 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
       if (!spill.counts().count({i, j})) continue;
       const fs::path p = spill.file({i, j});
       std::FILE* f = std::fopen(p.c_str(), "rb");
-      if (!f) throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
+      if (!f)
+        throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
       std::size_t got;
       while ((got = std::fread(buf.data(), sizeof(SpillRec), buf.size(), f)) > 0) {
         for (std::size_t k = 0; k < got; ++k) {
@@ -751,7 +866,7 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
   rec.points = members.size();
   rec.status = "pending";
   if (!meshes_.empty()) {
-    for (std::uint32_t k : members) pc.mesh_vertices.push_back(pts.src[k]);
+    for (std::uint32_t k : members) pc.mesh_refs.push_back(pts.src[k]);
     chunks_.push_back(std::move(pc));
     return;
   }
@@ -779,9 +894,7 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
   const double c = cell_;
   const double cx0 = key.first * c, cy0 = key.second * c, cx1 = cx0 + c, cy1 = cy0 + c;
   // Exact ownership: the cell holding the cluster's anchor point.
-  auto owns = [&](const Cluster& cl) {
-    return spill.key(cl.anchor[0], cl.anchor[1]) == key;
-  };
+  auto owns = [&](const Cluster& cl) { return spill.key(cl.anchor[0], cl.anchor[1]) == key; };
   double halo = opt_.halo;
   RegionPoints pts;
   CellSegmentation seg;
@@ -790,15 +903,19 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
     const std::size_t n = load_region(spill, box, pts, region_budget_points_);
     if (n > region_budget_points_) {
       if (halo > opt_.halo) {  // keep the previous (smaller) result
-        rep_.notes.push_back("cell " + std::to_string(key.first) + "," + std::to_string(key.second) +
+        rep_.notes.push_back("cell " + std::to_string(key.first) + "," +
+                             std::to_string(key.second) +
                              ": a building larger than the halo was cut (memory limit)");
-        const std::array<double, 4> prev{cx0 - halo / 2, cy0 - halo / 2, cx1 + halo / 2, cy1 + halo / 2};
+        const std::array<double, 4> prev{cx0 - halo / 2, cy0 - halo / 2, cx1 + halo / 2,
+                                         cy1 + halo / 2};
         load_region(spill, prev, pts, ~std::size_t(0));
         seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, prev, true);
         break;
       }
-      throw IoError(opt_.work_dir, "cell " + std::to_string(key.first) + "," + std::to_string(key.second) + " holds " +
-                                       std::to_string(n) + " points, more than --memory-limit allows; lower --cell-size");
+      throw IoError(opt_.work_dir,
+                    "cell " + std::to_string(key.first) + "," + std::to_string(key.second) +
+                        " holds " + std::to_string(n) +
+                        " points, more than --memory-limit allows; lower --cell-size");
     }
     seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, true);
     // Does an owned building touch an edge of the region behind which there is data?
@@ -809,8 +926,10 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
       if (!owns(cl)) continue;
       for (std::uint32_t k : cl.members) {
         const Vec3d& p = pts.pos[k];
-        if ((p[0] - box[0] < tol && box[0] > bbox_enu_.min[0]) || (box[2] - p[0] < tol && box[2] < bbox_enu_.max[0]) ||
-            (p[1] - box[1] < tol && box[1] > bbox_enu_.min[1]) || (box[3] - p[1] < tol && box[3] < bbox_enu_.max[1])) {
+        if ((p[0] - box[0] < tol && box[0] > bbox_enu_.min[0]) ||
+            (box[2] - p[0] < tol && box[2] < bbox_enu_.max[0]) ||
+            (p[1] - box[1] < tol && box[1] > bbox_enu_.min[1]) ||
+            (box[3] - p[1] < tol && box[3] < bbox_enu_.max[1])) {
           truncated = true;
           break;
         }
@@ -819,7 +938,8 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
     }
     if (!truncated || halo >= opt_.max_halo) {
       if (truncated)
-        rep_.notes.push_back("cell " + std::to_string(key.first) + "," + std::to_string(key.second) +
+        rep_.notes.push_back("cell " + std::to_string(key.first) + "," +
+                             std::to_string(key.second) +
                              ": a building larger than --max-halo was cut");
       break;
     }
@@ -831,10 +951,12 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
     {
       char line[256];
       std::snprintf(line, sizeof line,
-                    "cluster at (%.1f, %.1f): %zu points, area %.1f m2, width %.1f m, height %.1f m, foliage ratio %.2f, "
+                    "cluster at (%.1f, %.1f): %zu points, area %.1f m2, width %.1f m, height %.1f "
+                    "m, foliage ratio %.2f, "
                     "planar %.2f: %s",
-                    cl.centroid[0], cl.centroid[1], cl.members.size(), cl.area, cl.width, cl.height, cl.vegetation_ratio,
-                    cl.planar_fraction, cl.building ? "building" : cl.reject_reason.c_str());
+                    cl.centroid[0], cl.centroid[1], cl.members.size(), cl.area, cl.width, cl.height,
+                    cl.vegetation_ratio, cl.planar_fraction,
+                    cl.building ? "building" : cl.reject_reason.c_str());
       rep_.cluster_log.push_back(line);
     }
     if (!cl.building) {
@@ -855,19 +977,20 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
 void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
                                        const std::vector<std::size_t>& owned) {
   const double c = cell_;
-  std::array<double, 4> box{key.first * c - opt_.halo, key.second * c - opt_.halo, (key.first + 1) * c + opt_.halo,
-                            (key.second + 1) * c + opt_.halo};
+  std::array<double, 4> box{key.first * c - opt_.halo, key.second * c - opt_.halo,
+                            (key.first + 1) * c + opt_.halo, (key.second + 1) * c + opt_.halo};
   const double margin = opt_.footprint_buffer + opt_.halo;
   for (std::size_t i : owned) {
     const auto& b = fps_[i].bbox;
-    box = {std::min(box[0], b[0] - margin), std::min(box[1], b[1] - margin), std::max(box[2], b[2] + margin),
-           std::max(box[3], b[3] + margin)};
+    box = {std::min(box[0], b[0] - margin), std::min(box[1], b[1] - margin),
+           std::max(box[2], b[2] + margin), std::max(box[3], b[3] + margin)};
   }
   RegionPoints pts;
   const std::size_t n = load_region(spill, box, pts, region_budget_points_);
   if (n > region_budget_points_)
-    throw IoError(opt_.work_dir, "cell " + std::to_string(key.first) + "," + std::to_string(key.second) + " holds " +
-                                     std::to_string(n) + " points, more than --memory-limit allows; lower --cell-size");
+    throw IoError(opt_.work_dir, "cell " + std::to_string(key.first) + "," +
+                                     std::to_string(key.second) + " holds " + std::to_string(n) +
+                                     " points, more than --memory-limit allows; lower --cell-size");
   const CellSegmentation seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, false);
   std::map<std::size_t, std::vector<std::uint32_t>> members;
   const std::set<std::size_t> mine(owned.begin(), owned.end());
@@ -882,13 +1005,15 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       if (seg.foliage[k] && seg.hag[k] >= opt_.seg.min_height) continue;
     }
     const Vec2 q{pts.pos[k][0], pts.pos[k][1]};
-    auto it = fp_index_.find({int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))});
+    auto it =
+        fp_index_.find({int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))});
     if (it == fp_index_.end()) continue;
     std::size_t best = SIZE_MAX;
     double best_d = std::numeric_limits<double>::infinity();
     for (std::size_t i : it->second) {  // increasing index: ties go to the first footprint
       const auto& b = fps_[i].bbox;
-      if (q[0] < b[0] - buf || q[0] > b[2] + buf || q[1] < b[1] - buf || q[1] > b[3] + buf) continue;
+      if (q[0] < b[0] - buf || q[0] > b[2] + buf || q[1] < b[1] - buf || q[1] > b[3] + buf)
+        continue;
       const double d = distance_to_footprint(fps_[i], q);
       if (d < best_d) {
         best = i;
@@ -897,7 +1022,8 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       }
     }
     if (best_d > buf) continue;
-    if (best != SIZE_MAX && mine.count(best)) members[best].push_back(static_cast<std::uint32_t>(k));
+    if (best != SIZE_MAX && mine.count(best))
+      members[best].push_back(static_cast<std::uint32_t>(k));
   }
   for (std::size_t i : owned) {
     const auto it = members.find(i);
@@ -907,8 +1033,9 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       pc.rec.id = unique_id("fp-" + sanitize_id(fps_[i].id));
       pc.rec.source = "footprint:" + fps_[i].id;
       pc.rec.status = "skipped";
-      pc.rec.reason = count == 0 ? "no building points inside the footprint"
-                                 : "only " + std::to_string(count) + " building points inside the footprint";
+      pc.rec.reason =
+          count == 0 ? "no building points inside the footprint"
+                     : "only " + std::to_string(count) + " building points inside the footprint";
       const Ring& r = fps_[i].main_ring();
       pc.rec.outline = r;
       const Vec2 ce = fps_[i].centroid();
@@ -934,43 +1061,32 @@ void Splitter::pass3_cells(const Spiller& spill) {
   }
   rep_.cells = spill.counts().size();
   for (std::size_t i = 0; i < cells.size(); ++i) {
-    if (opt_.footprints.empty()) process_cell_clusters(spill, cells[i]);
-    else process_cell_footprints(spill, cells[i], fp_owned_.at(cells[i]));
+    if (opt_.footprints.empty())
+      process_cell_clusters(spill, cells[i]);
+    else
+      process_cell_footprints(spill, cells[i], fp_owned_.at(cells[i]));
     stages_.report(0.5, 0.97, double(i + 1) / double(cells.size()), "segment");
   }
 }
 
-// Mesh scenes: a triangle goes to the chunk holding most of its vertices (or
-// the only labelled one when its centroid lies inside that chunk's outline).
+// Mesh scenes: a triangle goes to the chunk holding most of its samples.
 void Splitter::write_mesh_chunks() {
-  for (std::size_t c = 0; c < chunks_.size(); ++c)
-    for (std::uint64_t s : chunks_[c].mesh_vertices)
-      vertex_label_[std::size_t(s >> 40)][std::size_t(s & ((1ull << 40) - 1))] = static_cast<std::int32_t>(c);
-  std::vector<std::vector<std::pair<std::size_t, std::size_t>>> tris(chunks_.size());  // (mesh, triangle)
-  for (std::size_t m = 0; m < meshes_.size(); ++m) {
-    const auto& mesh = meshes_[m];
-    const auto& lab = vertex_label_[m];
-    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-      const auto& tri = mesh.triangles[t];
-      const std::int32_t l[3] = {lab[tri[0]], lab[tri[1]], lab[tri[2]]};
-      std::int32_t pick = -1;
-      if (l[0] >= 0 && (l[0] == l[1] || l[0] == l[2])) pick = l[0];
-      else if (l[1] >= 0 && l[1] == l[2]) pick = l[1];
-      else {
-        for (std::int32_t x : l) {
-          if (x < 0) continue;
-          const auto& ring = chunks_[std::size_t(x)].rec.outline;
-          const Vec2 ce{(mesh.vertices[tri[0]][0] + mesh.vertices[tri[1]][0] + mesh.vertices[tri[2]][0]) / 3,
-                        (mesh.vertices[tri[0]][1] + mesh.vertices[tri[1]][1] + mesh.vertices[tri[2]][1]) / 3};
-          if (ring.size() >= 3 && point_in_ring(ring, ce)) {
-            pick = x;
-            break;
-          }
-        }
+  for (std::size_t c = 0; c < chunks_.size(); ++c) {
+    std::unordered_map<std::uint64_t, std::uint32_t> votes;
+    for (std::uint64_t s : chunks_[c].mesh_refs) ++votes[s];
+    for (const auto& [s, n] : votes) {
+      const std::size_t m = std::size_t(s >> 40), t = std::size_t(s & ((1ull << 40) - 1));
+      if (n > tri_votes_[m][t]) {
+        tri_votes_[m][t] = n;
+        tri_label_[m][t] = static_cast<std::int32_t>(c);
       }
-      if (pick >= 0) tris[std::size_t(pick)].push_back({m, t});
     }
   }
+  std::vector<std::vector<std::pair<std::size_t, std::size_t>>> tris(
+      chunks_.size());  // (mesh, tri)
+  for (std::size_t m = 0; m < meshes_.size(); ++m)
+    for (std::size_t t = 0; t < tri_label_[m].size(); ++t)
+      if (tri_label_[m][t] >= 0) tris[std::size_t(tri_label_[m][t])].push_back({m, t});
   for (std::size_t c = 0; c < chunks_.size(); ++c) {
     io::ChunkRecord& rec = chunks_[c].rec;
     if (rec.status != "pending") continue;
@@ -987,7 +1103,8 @@ void Splitter::write_mesh_chunks() {
       std::array<std::uint32_t, 3> nt{};
       for (int v = 0; v < 3; ++v) {
         const std::uint32_t vi = mesh.triangles[t][std::size_t(v)];
-        auto [it, fresh] = remap.emplace(std::make_pair(m, vi), static_cast<std::uint32_t>(out.vertices.size()));
+        auto [it, fresh] =
+            remap.emplace(std::make_pair(m, vi), static_cast<std::uint32_t>(out.vertices.size()));
         if (fresh) {
           const Vec3d& p = mesh.vertices[vi];
           bb.add(p);
@@ -1002,7 +1119,8 @@ void Splitter::write_mesh_chunks() {
     rec.bbox_min = bb.min;
     rec.bbox_max = bb.max;
     rec.origin = {0.5 * (bb.min[0] + bb.max[0]), 0.5 * (bb.min[1] + bb.max[1]), rec.ground_z};
-    for (auto& v : out.vertices) v = {v[0] - rec.origin[0], v[1] - rec.origin[1], v[2] - rec.origin[2]};
+    for (auto& v : out.vertices)
+      v = {v[0] - rec.origin[0], v[1] - rec.origin[1], v[2] - rec.origin[2]};
     rec.points = out.vertices.size();
     rec.triangles = out.triangles.size();
     const std::string path = (staging_->chunks() / (rec.id + ".ply")).string();
@@ -1029,7 +1147,8 @@ SplitReport Splitter::run() {
       const io::Manifest old = io::read_manifest(opt_.work_dir);
       bool ok = old.scene.inputs == abs_inputs && old.scene.options == canonical;
       for (const auto& c : old.chunks)
-        if (ok && c.status != "skipped" && !fs::exists(io::chunk_path(opt_.work_dir, c.id))) ok = false;
+        if (ok && c.status != "skipped" && !fs::exists(io::chunk_path(opt_.work_dir, c.id)))
+          ok = false;
       if (ok) {
         rep_.up_to_date = true;
         rep_.crs = old.scene.crs.size() > 40 ? old.scene.crs.substr(0, 37) + "..." : old.scene.crs;

@@ -42,12 +42,12 @@ struct SplitOptions {
   std::string footprints;           ///< GeoJSON footprints ("" = cluster the points)
   double footprint_buffer = 0.5;    ///< m, points this close outside a footprint belong to it
   std::uint64_t memory_limit = 2ull << 30;  ///< bytes
-  double cell_size = 100;           ///< m (reduced automatically when the density needs it)
-  double halo = 20;                 ///< m around each cell
-  double max_halo = 120;            ///< m, growth limit for buildings larger than the halo
-  bool ignore_classes = false;      ///< segment as if the input had no LAS classes
-  bool force = false;               ///< re-split even when up to date
-  int min_footprint_points = 10;    ///< fewer -> the footprint's record is "skipped"
+  double cell_size = 100;                   ///< m (reduced automatically when the density needs it)
+  double halo = 20;                         ///< m around each cell
+  double max_halo = 120;                    ///< m, growth limit for buildings larger than the halo
+  bool ignore_classes = false;              ///< segment as if the input had no LAS classes
+  bool force = false;                       ///< re-split even when up to date
+  int min_footprint_points = 10;            ///< fewer -> the footprint's record is "skipped"
   SegmentParams seg;
 
   /// Throws std::invalid_argument naming the option.
@@ -58,24 +58,24 @@ struct SplitOptions {
 
 struct SplitReport {
   bool up_to_date = false;
-  std::string crs;                 ///< label of the CRS used ("" for --origin)
+  std::string crs;  ///< label of the CRS used ("" for --origin)
   double origin_lon = 0, origin_lat = 0, origin_h = 0;
-  std::uint64_t points = 0;        ///< points / vertices read
-  std::uint64_t triangles = 0;     ///< mesh triangles read
-  io::BBox3 bbox;                  ///< scene ENU box of the data (metres)
-  std::string class_mode;          ///< how classes were used
-  double cell_size = 0;            ///< cell size actually used
-  std::size_t cells = 0;           ///< non-empty cells
-  std::size_t halo_growths = 0;    ///< cells reprocessed with a larger halo
+  std::uint64_t points = 0;           ///< points / vertices read
+  std::uint64_t triangles = 0;        ///< mesh triangles read
+  io::BBox3 bbox;                     ///< scene ENU box of the data (metres)
+  std::string class_mode;             ///< how classes were used
+  double cell_size = 0;               ///< cell size actually used
+  std::size_t cells = 0;              ///< non-empty cells
+  std::size_t halo_growths = 0;       ///< cells reprocessed with a larger halo
   std::size_t max_region_points = 0;  ///< largest cell + halo held in memory
   std::uint64_t spill_bytes = 0;
-  std::size_t chunks = 0;          ///< chunk files written
+  std::size_t chunks = 0;  ///< chunk files written
   std::size_t clusters_rejected = 0;
   std::map<std::string, std::size_t> rejected_by;  ///< "small", "low", "vegetation" -> count
-  std::size_t footprints_total = 0;       ///< in the file
-  std::size_t footprints_in_scene = 0;    ///< bbox meets the data bbox
-  std::size_t footprints_inside = 0;      ///< entirely inside the data bbox
-  std::size_t footprints_with_chunk = 0;  ///< of those in the scene
+  std::size_t footprints_total = 0;                ///< in the file
+  std::size_t footprints_in_scene = 0;             ///< bbox meets the data bbox
+  std::size_t footprints_inside = 0;               ///< entirely inside the data bbox
+  std::size_t footprints_with_chunk = 0;           ///< of those in the scene
   std::size_t footprints_inside_with_chunk = 0;
   std::vector<std::string> notes;  ///< also in the manifest's scene notes
   /// One line per owned cluster: centroid, size, features, decision (for --log-level debug).
