@@ -60,22 +60,20 @@ bool node_tools_installed() {
   GTEST_SKIP() << "tests/node/node_modules is absent: run scripts/install-node-tools.sh to enable the node-based " \
                   "checks"
 
-/// A synthetic city assembled once per test binary (50 buildings x 3 models).
-const std::string& city_tileset() {
-  static const std::string out = [] {
-    const std::string work = tmp_dir("city");
-    write_work(work, synthetic_manifest(), synthetic_city(50, 3));
-    const std::string out = work + "/tileset";
-    const Proc r = run(q(kBin) + " assemble " + q(work) + " --out " + q(out));
-    EXPECT_EQ(r.code, 0) << r.output;
-    std::printf("%s", r.output.c_str());
-    return out;
-  }();
+/// A synthetic city (50 buildings x 3 models) assembled by the binary, in a
+/// directory of the calling test's own (ctest runs the tests in parallel).
+std::string city_tileset(const std::string& name) {
+  const std::string work = tmp_dir(name);
+  write_work(work, synthetic_manifest(), synthetic_city(50, 3));
+  const std::string out = work + "/tileset";
+  const Proc r = run(q(kBin) + " assemble " + q(work) + " --out " + q(out));
+  EXPECT_EQ(r.code, 0) << r.output;
+  std::printf("%s", r.output.c_str());
   return out;
 }
 
 TEST(AssembleCli, WritesAValidTileset) {
-  const std::string& out = city_tileset();
+  const std::string out = city_tileset("valid");
   const TilesetCheck chk = check_tileset(out);
   for (const auto& p : chk.problems) ADD_FAILURE() << p;
   EXPECT_GE(chk.content_tiles, 5);
@@ -84,7 +82,7 @@ TEST(AssembleCli, WritesAValidTileset) {
 
 TEST(AssembleCli, EveryGlbPassesTheKhronosValidator) {
   REQUIRE_NODE_TOOLS();
-  const std::string& out = city_tileset();
+  const std::string out = city_tileset("validator");
   // Also the quantized variant.
   const std::string work = tmp_dir("quantized");
   write_work(work, synthetic_manifest(), synthetic_city(12, 4));
@@ -181,7 +179,7 @@ std::string http_get(int port, const std::string& path) {
 }
 
 TEST(ServeCli, ServesTilesetAndViewerOnLoopback) {
-  const std::string& out = city_tileset();
+  const std::string out = city_tileset("serve");
   int pipefd[2];
   ASSERT_EQ(pipe(pipefd), 0);
   const pid_t pid = fork();
@@ -219,7 +217,7 @@ TEST(ViewerCli, HeadlessChromiumLoadsAndRefinesTiles) {
   REQUIRE_NODE_TOOLS();
   if (!fs::exists("/usr/bin/chromium"))
     GTEST_SKIP() << "chromium is not installed (/usr/bin/chromium; apt-get install chromium): browser test skipped";
-  const std::string& out = city_tileset();
+  const std::string out = city_tileset("viewer_city");
   const std::string shots = (fs::path(CITYLOD_TEST_TMP) / "assemble_cli" / "viewer").string();
   fs::remove_all(shots);
   const Proc r = run("node " + q((kNode / "viewer-test.mjs").string()) + " --citylod " + q(kBin) + " --tileset " +

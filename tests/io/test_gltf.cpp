@@ -10,7 +10,8 @@ namespace citylod::test {
 namespace {
 
 GlbFile parse(const std::string& bytes) {
-  const fs::path p = fs::path(CITYLOD_TEST_TMP) / "gltf" / "t.glb";
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path p = fs::path(CITYLOD_TEST_TMP) / "gltf" / (std::string(info->name()) + ".glb");
   fs::create_directories(p.parent_path());
   io::atomic_write_file(p.string(), bytes);
   return read_glb(p.string());
