@@ -187,7 +187,8 @@ TEST(Assemble, SingleModelBuildingsGiveALeafRoot) {
   // Before the LOD engine: one watertight model per building (extruded outlines).
   const std::string work = tmp_dir("single");
   write_work(work, synthetic_manifest(), synthetic_city(9, 1));
-  const auto st = tiler::assemble(work, work + ".out", quiet_params());
+  const auto st = tiler::assemble(work, work + ".out/", quiet_params());  // trailing slash
+  EXPECT_FALSE(fs::exists(work + ".out/.partial"));
   EXPECT_EQ(st.tiles, 1u);
   const TilesetCheck chk = check_tileset(work + ".out");
   for (const auto& pr : chk.problems) ADD_FAILURE() << pr;

@@ -423,8 +423,9 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir, 
   if (!std::isfinite(sc.origin_lat) || !std::isfinite(sc.origin_lon) || std::fabs(sc.origin_lat) > 90 ||
       std::fabs(sc.origin_lon) > 180 || !std::isfinite(sc.origin_h))
     throw io::IoError(io::manifest_path(work_dir), "scene origin is not a valid longitude/latitude/height");
-  const fs::path out = fs::absolute(out_dir).lexically_normal();
-  if (out.filename().empty()) throw io::IoError(out_dir, "not a valid output directory");
+  fs::path out = fs::absolute(out_dir).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();  // "DIR/"
+  if (out.filename().empty() || out == out.root_path()) throw io::IoError(out_dir, "not a valid output directory");
   check_output_dir(out, params.force);
 
   // ---- 1. buildings
