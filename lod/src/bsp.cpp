@@ -75,7 +75,7 @@ int BspData::add_vertex(const Point3& p, const std::array<int, 3>& def, std::vec
   Vertex v;
   v.p = p;
   v.def = def;
-  v.approx = Vec3(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
+  v.approx = Vec3(CGAL::to_double(p.x()) + 0.0, CGAL::to_double(p.y()) + 0.0, CGAL::to_double(p.z()) + 0.0);  // no -0
   std::sort(on_planes.begin(), on_planes.end());
   on_planes.erase(std::unique(on_planes.begin(), on_planes.end()), on_planes.end());
   v.planes = std::move(on_planes);

@@ -882,7 +882,8 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
   // --- convert once
   S.polygons.vertices.resize(X.pts.size());
   for (size_t i = 0; i < X.pts.size(); ++i)
-    S.polygons.vertices[i] = Vec3(CGAL::to_double(X.pts[i].x()), CGAL::to_double(X.pts[i].y()), CGAL::to_double(X.pts[i].z()));
+    S.polygons.vertices[i] =
+        Vec3(CGAL::to_double(X.pts[i].x()) + 0.0, CGAL::to_double(X.pts[i].y()) + 0.0, CGAL::to_double(X.pts[i].z()) + 0.0);
   S.triangles.vertices = S.polygons.vertices;
   for (const Group& G : X.groups) {
     S.merged_regions += G.regions;
