@@ -25,6 +25,8 @@ int cmd_split(ArgParser& args);
 int cmd_lod(ArgParser& args);
 int cmd_assemble(ArgParser& args);
 int cmd_serve(ArgParser& args);
+int cmd_tile(ArgParser& args);
+int cmd_rebuild(ArgParser& args);
 
 namespace {
 
@@ -39,6 +41,8 @@ const Command kCommands[] = {
     {"split", "stream a georeferenced scene into per-building chunks (WORK/chunks, manifest.json)", cmd_split},
     {"lod", "build the LOD-Tree of one building: anchor and interpolation models (OBJ/PLY) + report", cmd_lod},
     {"assemble", "turn the per-building LOD models of a work directory into a 3D Tiles 1.1 tileset", cmd_assemble},
+    {"tile", "one-command city run: split -> lod -> assemble, parallel, resumable (DIR/work, DIR/tileset)", cmd_tile},
+    {"rebuild", "recompute one building of a 'tile' output (--set) or pin its models (--select), update the tileset", cmd_rebuild},
     {"serve", "serve a tileset and the CesiumJS viewer on 127.0.0.1 (offline)", cmd_serve},
 };
 

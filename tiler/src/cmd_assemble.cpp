@@ -5,6 +5,7 @@
 
 #include "assemble.hpp"
 #include "cli_common.hpp"
+#include "stage_options.hpp"
 
 namespace citylod::tiler {
 
@@ -19,46 +20,18 @@ int cmd_assemble(ArgParser& args) {
           "of a building, for the viewer's LOD slider) and buildings.json. The output is\n"
           "staged in TILESET_DIR.partial and swapped in when complete. See docs/3dtiles.md.");
   args.option("out", 'o', "DIR", "output tileset directory");
-  args.option("max-triangles", 0, "N", "triangle budget of one tile glb", "250000");
-  args.option("max-bytes", 0, "BYTES", "geometry byte budget of one tile glb", "4194304");
-  args.option("extent-factor", 0, "F",
-              "children of a tile with error e span at most F*e metres each (0 = only the budgets split)", "50");
-  args.option("min-change", 0, "M",
-              "keep an interpolation model only if it differs by >= M metres (Hausdorff) from its "
-              "kept neighbours",
-              "0.1");
-  args.option("hausdorff-tolerance", 0, "M", "accuracy of the Hausdorff distances between models, metres", "0.1");
-  args.flag("quantize", 0, "KHR_mesh_quantization: int16 positions and normals (smaller glbs)");
-  args.flag("no-building-models", 0, "do not write buildings/*.glb (the viewer's LOD slider needs them)");
-  args.flag("skip-missing", 0, "skip buildings without LOD models (warning) instead of failing");
+  declare_assemble_options(args);
   args.flag("force", 0, "replace TILESET_DIR even if it is not a citylod tileset");
   args.option("threads", 't', "N", "threads (0 = all cores); the output does not depend on it", "0");
   args.positional("WORK", "work directory (manifest.json, lod/<id>/)", Arity::one);
   if (!args.parse()) return 0;
   if (!args.has("out")) throw UsageError("missing --out TILESET_DIR");
 
-  AssembleParams p;
-  const auto max_tris = args.get_int("max-triangles");
-  const auto max_bytes = args.get_int("max-bytes");
   const auto threads = args.get_int("threads");
-  if (max_tris < 1) throw UsageError("--max-triangles must be >= 1");
-  if (max_bytes < 1024) throw UsageError("--max-bytes must be >= 1024");
   if (threads < 0) throw UsageError("--threads must be >= 0");
-  p.max_tile_triangles = std::size_t(max_tris);
-  p.max_tile_bytes = std::size_t(max_bytes);
-  p.tile_extent_factor = args.get_double("extent-factor");
-  p.min_change_m = args.get_double("min-change");
-  p.hausdorff_tolerance_m = args.get_double("hausdorff-tolerance");
-  p.quantize = args.has("quantize");
-  p.building_models = !args.has("no-building-models");
-  p.skip_missing = args.has("skip-missing");
+  AssembleParams p = parse_assemble_options(args);
   p.force = args.has("force");
   p.threads = int(threads);
-  try {
-    p.validate();
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(e.what());
-  }
 
   const std::string work = args.positionals().at(0);
   const std::string out = args.get("out");

@@ -2,6 +2,7 @@
 #include "cli_common.hpp"
 #include "lod_io.hpp"
 #include "lod_stage.hpp"
+#include "stage_options.hpp"
 #include "supervise.hpp"
 
 #include "citylod/lod/lod.hpp"
@@ -15,42 +16,6 @@
 namespace citylod::tiler {
 
 namespace {
-
-/// Applies "name=value[,name=value...]" to the parameters.
-void apply_settings(lod::LodParams& p, const std::string& list) {
-  std::stringstream ss(list);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (item.empty()) continue;
-    const auto eq = item.find('=');
-    if (eq == std::string::npos) throw UsageError("--set expects NAME=VALUE, got '" + item + "'");
-    try {
-      p.set(item.substr(0, eq), item.substr(eq + 1));
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(std::string("--set: ") + e.what());
-    }
-  }
-}
-
-/// Reads a JSON object {"planes.epsilon": 0.2, ...} (the format of params.json).
-void apply_config(lod::LodParams& p, const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw std::runtime_error(path + ": cannot open the config file");
-  nlohmann::json j;
-  try {
-    f >> j;
-  } catch (const std::exception& e) {
-    throw std::runtime_error(path + ": not valid JSON (" + e.what() + ")");
-  }
-  if (!j.is_object()) throw std::runtime_error(path + ": expected a JSON object of parameters");
-  for (const auto& [k, v] : j.items()) {
-    try {
-      p.set(k, v.is_string() ? v.get<std::string>() : v.dump());
-    } catch (const std::invalid_argument& e) {
-      throw std::runtime_error(path + ": " + e.what());
-    }
-  }
-}
 
 void print_stage_progress(std::size_t done, std::size_t total, void* self) {
   static_cast<Progress*>(self)->update(double(done) / double(std::max<std::size_t>(1, total)), "buildings");
@@ -96,8 +61,7 @@ int cmd_lod(ArgParser& args) {
   args.option("out", 'o', "DIR", "output directory (single building)");
   args.option("shard", 0, "I/N", "work directory: process only shard I of N (0-based), e.g. for Slurm arrays");
   args.option("building", 'b', "ID", "work directory: recompute only this building");
-  args.option("set", 's', "NAME=VALUE[,...]", "override parameters, e.g. planes.epsilon=0.2,tree.merge_k=8");
-  args.option("config", 'c', "FILE", "JSON object of parameters (as written to params.json)");
+  declare_lod_param_options(args);
   args.option("threads", 't', "N", "threads (single building: inside it; work directory: buildings at once)", "1");
   args.flag("dump-planes", 0, "write planes.ply: plane inliers coloured by level set");
   args.flag("baseline", 0, "also build the plain BSP-Tree (area order, binary) and report its cuts");
@@ -105,9 +69,7 @@ int cmd_lod(ArgParser& args) {
   args.positional("INPUT", "building: PLY/OBJ/OFF/XYZ/LAS", Arity::optional_one);
   if (!args.parse()) return 0;
 
-  lod::LodParams params;
-  if (args.has("config")) apply_config(params, args.get("config"));
-  if (args.has("set")) apply_settings(params, args.get("set"));
+  lod::LodParams params = parse_lod_params(args);
   params.threads = int(args.get_int("threads"));
   if (args.has("baseline")) params.bsp.baseline = true;
   try {
