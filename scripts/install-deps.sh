@@ -11,7 +11,7 @@ build_pkgs=(
   libproj-dev proj-data proj-bin libtinygltf-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libmeshoptimizer-dev libomp-dev
 )
-test_pkgs=(chromium gdal-bin gnuplot-nox)
+test_pkgs=(chromium gdal-bin gnuplot-nox slurm-wlm munge)
 # Node.js/npm: use the machine's own if present (Debian's npm conflicts with a
 # nodejs installed from elsewhere); otherwise Debian's.
 if ! command -v npm >/dev/null 2>&1; then test_pkgs+=(nodejs npm); fi

@@ -125,7 +125,9 @@ int cmd_rebuild(ArgParser& args) {
   if (rec->status == "skipped")
     throw std::runtime_error("building '" + id + "' was skipped by split (" + rec->reason + "); nothing to rebuild");
 
-  Overrides ov = read_overrides(work);
+  const Overrides old = read_overrides(work);
+  Overrides ov = old;
+  const std::string report = (fs::path(io::lod_dir(work, id)) / "report.json").string();
   BuildingOverride& bo = ov[id];
   const bool recompute = args.has("set") || args.has("reset") || !args.has("select");
   if (args.has("reset")) bo.set.clear();
@@ -150,7 +152,6 @@ int cmd_rebuild(ArgParser& args) {
   }
   if (args.has("select")) bo.select = parse_select(args.get("select"));
 
-  const std::string report = (fs::path(io::lod_dir(work, id)) / "report.json").string();
   const std::string report_before = fs::exists(report) ? io::hash_file(report) : "";
   write_overrides(work, ov);
 
@@ -163,7 +164,14 @@ int cmd_rebuild(ArgParser& args) {
     if (rc != 0) throw std::runtime_error(work + ": the LOD stage failed for '" + id + "' (exit " + std::to_string(rc) + ")");
   }
   for (const auto& w : apply_model_selections(work, ov)) {
-    if (w.rfind(id + ":", 0) == 0) throw std::runtime_error(w);
+    if (w.rfind(id + ":", 0) == 0 && args.has("select")) {
+      // A selection that does not fit this building's models is not kept.
+      bo.select = old.count(id) ? old.at(id).select : std::vector<int>{};
+      write_overrides(work, ov);
+      apply_model_selections(work, ov);
+      throw std::runtime_error(id + ": --select " + args.get("select") +
+                               ": these steps are not among its models or include no anchor (see " + report + ")");
+    }
     log_warn(w);
   }
   const std::string report_after = fs::exists(report) ? io::hash_file(report) : "";
