@@ -56,6 +56,8 @@ class Bsp {
   /// carried into both children; the splitting piece and pieces lying on the
   /// split plane are consumed. Planes equal up to 1e-12 are merged. Stops
   /// splitting when `max_leaves` leaves exist (cap_hit() then true).
+  /// max_leaves <= 0: no limit. Polygons on a box face, of no area, or missing
+  /// the open box are ignored; each polygon is clipped to the box.
   Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves);
   ~Bsp();
   Bsp(Bsp&&) noexcept;
@@ -76,7 +78,8 @@ class Bsp {
   /// (inside[i] labels partition[i]; the outside of the box is out). Output is
   /// closed, outward-oriented, edge-manifold (non-manifold edges are removed by
   /// relabelling the smallest adjacent out-node in), free of self-intersections
-  /// and T-junctions; coplanar faces merged. Deterministic.
+  /// and T-junctions; coplanar faces merged. Deterministic. Thread-safe
+  /// (const; several threads may extract from one Bsp concurrently).
   BspSurface extract(const std::vector<int>& partition, std::vector<char> inside) const;
 
  private:
