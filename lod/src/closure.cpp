@@ -199,7 +199,15 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     zmin = std::min(zmin, s.points[i].z());
     zmax = std::max(zmax, s.points[i].z());
   }
-  if (total_w <= 0 || wall_w / total_w >= p.wall_fraction_min) return 0;
+  if (total_w <= 0) return 0;
+  const bool walls_missing = wall_w / total_w < p.wall_fraction_min;
+  // An open bottom (facade scans, meshes standing on a terrain sheet) lets the
+  // ray labelling leak as much as missing walls do: close it with a base plane
+  // unless a downward-facing horizontal primitive already lies at the bottom.
+  bool has_floor = false;
+  for (const auto& pr : prims)
+    if (pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5 && !pr.inferred) has_floor = true;
+  if (!walls_missing && has_floor) return 0;
 
   // Outline (CCW in xy).
   std::vector<Vec2> outline;
@@ -250,6 +258,8 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     prims.push_back(std::move(g));
     ++added;
   }
+
+  if (!walls_missing) return added;  // walls were scanned: only the base was missing
 
   // Walls: one per outline edge, outward = right of the CCW edge direction.
   for (std::size_t i = 0; i < outline.size(); ++i) {

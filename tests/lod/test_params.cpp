@@ -23,6 +23,7 @@ TEST(LodParams, DefaultsAreThePapers) {
   EXPECT_EQ(p.tree.merge_k, 10);
   EXPECT_DOUBLE_EQ(p.tree.label_volume_ratio, 0.65);
   EXPECT_DOUBLE_EQ(p.tree.interpolation_ratio, 0.80);
+  EXPECT_DOUBLE_EQ(p.tree.interpolation_floor, 0.02);  // ours, not the paper's
   EXPECT_EQ(p.labels.rays_per_cell, 100);
   EXPECT_NO_THROW(p.validate());
 }
@@ -91,9 +92,10 @@ TEST(LodParams, ItemsRoundTrip) {
   for (const auto& kv : items) EXPECT_TRUE(names.insert(kv.first).second) << "duplicate " << kv.first;
   for (const char* n : {"planes.epsilon", "alpha.alpha", "tree.merge_k", "tree.interpolation_ratio",
                         "labels.rays_per_cell", "regularization.enabled", "threads", "closure.outline_alpha",
-                        "metrics.samples", "bsp.max_cells", "budget.time_budget_s", "normals.k_neighbors"})
+                        "metrics.samples", "bsp.max_cells", "budget.time_budget_s", "normals.k_neighbors",
+                        "bsp.baseline", "tree.interpolation_floor"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 30u);
+  EXPECT_EQ(items.size(), 32u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");

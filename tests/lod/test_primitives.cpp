@@ -303,11 +303,31 @@ TEST(Closure, RoofOnlyBoxGetsGroundAndFourWalls) {
     EXPECT_NEAR(zmax, 6, 1e-9);
     for (const auto& t : w.alpha_tris) EXPECT_GT((t[1] - t[0]).cross(t[2] - t[0]).dot(w.normal), 0);
   }
-  // Not applied when walls are present.
+  // Not applied when walls and a floor are present.
   const auto full = T::sample_box(Vec3(0, 0, 0), Vec3(10, 8, 6), 0.2);
   const Samples sf = make_samples(full.input, {});
-  std::vector<Primitive> pf;
+  std::vector<Primitive> pf = detect_planes(full.input, sf, {});
   EXPECT_EQ(close_building(full.input, sf, {}, pf), 0);
+}
+
+TEST(Closure, OpenBottomGetsABasePlaneOnly) {
+  // A box scanned without its floor (facades + roof): one base plane at the bottom, no walls.
+  auto b = T::sample_box(Vec3(0, 0, 0), Vec3(10, 8, 6), 0.2);
+  BuildingInput in;
+  for (size_t i = 0; i < b.input.points.size(); ++i)
+    if (!(b.input.normals[i].z() < -0.9)) {
+      in.points.push_back(b.input.points[i]);
+      in.normals.push_back(b.input.normals[i]);
+    }
+  const Samples s = make_samples(in, {});
+  std::vector<Primitive> prims = detect_planes(in, s, {});
+  ASSERT_EQ(prims.size(), 5u);
+  ASSERT_EQ(close_building(in, s, {}, prims), 1);
+  const Primitive& g = prims.back();
+  EXPECT_TRUE(g.inferred);
+  EXPECT_NEAR(g.normal.z(), -1, 1e-12);
+  EXPECT_NEAR(g.d, 0, 1e-9);
+  EXPECT_NEAR(g.alpha_area, 80, 3.0);
 }
 
 TEST(Closure, FootprintIsUsedWhenGiven) {
