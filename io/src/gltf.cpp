@@ -141,7 +141,14 @@ struct BinWriter {
 
 }  // namespace
 
-const char* to_string(LodKind k) { return k == LodKind::anchor ? "anchor" : "interpolation"; }
+const char* to_string(LodKind k) {
+  switch (k) {
+    case LodKind::anchor: return "anchor";
+    case LodKind::interpolation: return "interpolation";
+    case LodKind::fallback: return "fallback";
+  }
+  return "?";
+}
 
 SurfaceClass classify_normal(const Vec3d& n) {
   if (n[2] >= 0.34) return SurfaceClass::roof;  // slope below ~70 degrees
@@ -419,7 +426,7 @@ std::string GlbBuilder::glb() const {
       {"building_id", prop("STRING", nullptr, "building (chunk) id of the work directory")},
       {"lod_kind", obj({{"type", str("ENUM")},
                         {"enumType", str("LodKind")},
-                        {"description", str("anchor or interpolation model of the LOD-Tree")}})},
+                        {"description", str("anchor or interpolation model of the LOD-Tree, or the fallback outline")}})},
       {"level", prop("SCALAR", "INT32", "LOD-Tree level set of the model")},
       {"step", prop("SCALAR", "INT32", "traversal step that produced the model")},
       {"model_index", prop("SCALAR", "INT32", "index in the building's kept models, 0 = coarsest")},
@@ -429,7 +436,8 @@ std::string GlbBuilder::glb() const {
       {"geometric_error", prop("SCALAR", "FLOAT32", "distance to the finest model, metres")},
   };
   Value::Array enum_values{obj({{"name", str("anchor")}, {"value", Value(0)}}),
-                           obj({{"name", str("interpolation")}, {"value", Value(1)}})};
+                           obj({{"name", str("interpolation")}, {"value", Value(1)}}),
+                           obj({{"name", str("fallback")}, {"value", Value(2)}})};
   Value::Object schema{
       {"id", str("citylod")},
       {"classes", obj({{"building", obj({{"name", str("Building LOD model")}, {"properties", obj(class_props)}})}})},

@@ -56,37 +56,52 @@ TEST(AssembleMetrics, HausdorffOfKnownShapes) {
 }
 
 TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {
+  // box (A) -> house (I) -> [I identical to the next anchor] -> house + annex (A) -> + chimney (A)
   const auto chain = lod_chain(12, 9, 8, 4);
   std::vector<tiler::ModelEntry> entries;
   std::vector<TriangleMesh> meshes;
   for (const auto& m : chain) {
-    entries.push_back({"x", m.kind == "anchor", m.level, m.step});
+    entries.push_back({"x", m.kind == "anchor", m.level, m.step * 2});
     meshes.push_back(m.mesh);
   }
-  // An interpolation identical to the following anchor: no new look.
-  entries.insert(entries.begin() + 2, {"dup", false, 1, 1});
+  entries.insert(entries.begin() + 2, {"dup", false, 1, 3});
   meshes.insert(meshes.begin() + 2, chain[2].mesh);
-  entries[3].step = 2;  // keep steps increasing: box(0) annex(1) dup(1) house(2) chimney(3)
-  const tiler::ModelChoice c = tiler::choose_models(entries, meshes, 0.1, 0.25);
-  ASSERT_EQ(c.kept.size(), 4u);
+  const tiler::ModelChoice c = tiler::choose_models(entries, meshes, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3, 4}));
   ASSERT_EQ(c.error_m.size(), 4u);
+  // box: the chimney top is 4.5 m above its roof; house: the 4 m annex is
+  // missing; house + annex: the chimney's top edge is 1.5 m above the ridge
+  // and 0.5 m beside it.
+  EXPECT_NEAR(c.hausdorff_m[0], 4.5, 1e-6);
+  EXPECT_NEAR(c.hausdorff_m[1], 4.0, 1e-6);
+  EXPECT_NEAR(c.hausdorff_m[2], std::sqrt(2.5), 0.05);
   EXPECT_EQ(c.error_m.back(), 0.0);
   for (std::size_t i = 1; i < c.error_m.size(); ++i) EXPECT_LT(c.error_m[i], c.error_m[i - 1]);
-  // The chimney (4.5 m above the eave, ~3.2 m from the roof slope) is the
-  // difference of the house to the finest model.
-  EXPECT_GT(c.hausdorff_m[2], 3.0);
-  EXPECT_LT(c.hausdorff_m[2], 4.5);
+}
+
+TEST(AssembleMetrics, DropsInterpolationsThatDoNotGetCloser) {
+  // box -> box + annex -> house + annex + ridge chimney: the annex does not
+  // lower the worst distance (the chimney), so the interpolation is dropped.
+  const auto c4 = lod_chain(12, 9, 8, 4);
+  TriangleMesh box_annex;
+  add_box(box_annex, 0, 0, 0, 12, 9, 8);
+  add_box(box_annex, 12, 0, 0, 16, 4.5, 4);
+  const auto c = tiler::choose_models({{"a", true, 0, 0}, {"b", false, 1, 1}, {"c", true, 2, 2}},
+                                      {c4[0].mesh, box_annex, c4[3].mesh}, 0.1, 0.05);
+  EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 2}));
 }
 
 TEST(AssembleMetrics, ErrorsStrictlyDecreaseEvenWhenDistancesDoNot) {
-  // Two anchors equal to the finest one: distances 0, errors still > 0.
-  const TriangleMesh a = box_mesh(0, 0, 0, 10, 10, 10);
-  std::vector<tiler::ModelEntry> e{{"a", true, 0, 0}, {"b", true, 1, 1}, {"c", true, 2, 2}};
-  const auto c = tiler::choose_models(e, {a, a, a}, 0.1, 0.5);
-  ASSERT_EQ(c.kept.size(), 3u);
-  EXPECT_NEAR(c.error_m[0], 0.02, 1e-12);
-  EXPECT_NEAR(c.error_m[1], 0.01, 1e-12);
+  // Anchors 2 m and 3 m away from the finest, in that order: the coarser one
+  // is charged the finer one's error + 1 cm. Identical anchors count once.
+  const TriangleMesh fin = box_mesh(0, 0, 0, 10, 10, 10);
+  std::vector<tiler::ModelEntry> e{{"a", true, 0, 0}, {"b", true, 1, 1}, {"c", true, 2, 2}, {"d", true, 3, 3}};
+  const auto c = tiler::choose_models(
+      e, {box_mesh(2, 0, 0, 12, 10, 10), box_mesh(3, 0, 0, 13, 10, 10), fin, fin}, 0.1, 0.05);
+  EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3}));
+  ASSERT_EQ(c.error_m.size(), 3u);
+  EXPECT_NEAR(c.error_m[0], 3.01, 1e-9);
+  EXPECT_NEAR(c.error_m[1], 3.0, 1e-9);
   EXPECT_EQ(c.error_m[2], 0.0);
 }
 
@@ -195,6 +210,21 @@ TEST(Assemble, SingleModelBuildingsGiveALeafRoot) {
   const auto ts = nlohmann::json::parse(read_bytes(work + ".out/tileset.json"));
   EXPECT_EQ(ts["root"]["geometricError"], 0.0);
   EXPECT_GT(ts["geometricError"].get<double>(), 10.0);  // a building's size
+}
+
+TEST(Assemble, FallbackModelsAreShown) {
+  // The LOD engine writes one "fallback" model (extruded outline) when a
+  // building's reconstruction fails.
+  const std::string work = tmp_dir("fallback");
+  auto city = synthetic_city(3, 3);
+  city[1].models.resize(1);
+  city[1].models[0].kind = "fallback";
+  write_work(work, synthetic_manifest(), city);
+  tiler::assemble(work, work + ".out", quiet_params());
+  const TilesetCheck chk = check_tileset(work + ".out");
+  for (const auto& pr : chk.problems) ADD_FAILURE() << pr;
+  const auto index = nlohmann::json::parse(read_bytes(work + ".out/buildings.json"));
+  EXPECT_EQ(index["buildings"]["b-0001"]["models"][0]["kind"], "fallback");
 }
 
 TEST(Assemble, ChainsOfDifferentLengthsShareTheTree) {

@@ -83,33 +83,42 @@ struct SynthBuilding {
   bool write_report = true;
 };
 
-/// LOD chain of building `i` (w x d footprint, h walls): box (anchor L0) ->
-/// box + annex (interpolation) -> gable house + annex (anchor L1) [-> + chimney
-/// (anchor L2) when n >= 4]. Every model is closed and outward oriented.
+/// LOD chain of a building (w x d footprint, h walls), every model closed and
+/// outward oriented, each one closer (Hausdorff) to the finest than the last:
+///   n <= 3: box (anchor L0) -> box + annex (interpolation) -> gable house + annex (anchor L1)
+///   n >= 4: box (anchor L0) -> gable house (interpolation) -> house + annex (anchor L1)
+///           -> + chimney on the ridge (anchor L2)
 inline std::vector<SynthModel> lod_chain(double w, double d, double h, int n) {
+  auto annex = [&](TriangleMesh& m) { add_box(m, w, 0, 0, w + 4, d / 2, h * 0.5); };
   std::vector<SynthModel> out;
   SynthModel m0{"anchor", 0, 0, {}};
   add_box(m0.mesh, 0, 0, 0, w, d, h);
   out.push_back(m0);
-  if (n >= 2) {
+  if (n <= 1) return out;
+  if (n <= 3) {
     SynthModel m1{"interpolation", 1, 1, {}};
     add_box(m1.mesh, 0, 0, 0, w, d, h);
-    add_box(m1.mesh, w, 0, 0, w + 4, d / 2, h * 0.5);  // annex
+    annex(m1.mesh);
     out.push_back(m1);
+    if (n == 3) {
+      SynthModel m2{"anchor", 1, 2, {}};
+      add_house(m2.mesh, w, d, h, 3.0);
+      annex(m2.mesh);
+      out.push_back(m2);
+    }
+    return out;
   }
-  if (n >= 3) {
-    SynthModel m2{"anchor", 1, 2, {}};
-    add_house(m2.mesh, w, d, h, 3.0);
-    add_box(m2.mesh, w, 0, 0, w + 4, d / 2, h * 0.5);
-    out.push_back(m2);
-  }
-  if (n >= 4) {
-    SynthModel m3{"anchor", 2, 3, {}};
-    add_house(m3.mesh, w, d, h, 3.0);
-    add_box(m3.mesh, w, 0, 0, w + 4, d / 2, h * 0.5);
-    add_box(m3.mesh, w * 0.3, d * 0.1, h, w * 0.3 + 1, d * 0.1 + 1, h + 4.5);  // chimney
-    out.push_back(m3);
-  }
+  SynthModel m1{"interpolation", 1, 1, {}};
+  add_house(m1.mesh, w, d, h, 3.0);
+  out.push_back(m1);
+  SynthModel m2{"anchor", 1, 2, {}};
+  add_house(m2.mesh, w, d, h, 3.0);
+  annex(m2.mesh);
+  out.push_back(m2);
+  SynthModel m3{"anchor", 2, 3, {}};
+  m3.mesh = m2.mesh;
+  add_box(m3.mesh, w * 0.3, d / 2 - 0.5, h + 2, w * 0.3 + 1, d / 2 + 0.5, h + 4.5);  // 1.5 m above the ridge
+  out.push_back(m3);
   return out;
 }
 

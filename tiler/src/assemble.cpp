@@ -135,6 +135,7 @@ Building load_building(const std::string& work, const io::ChunkRecord& rec, cons
   }
   std::vector<ModelEntry> entries;
   std::vector<io::TriangleMesh> meshes;
+  std::vector<io::LodKind> kinds;
   int index = 0;
   for (const auto& m : rep["models"]) {
     if (!m.is_object() || !m.contains("file") || !m["file"].is_string())
@@ -143,9 +144,12 @@ Building load_building(const std::string& work, const io::ChunkRecord& rec, cons
     const fs::path f = m["file"].get<std::string>();
     e.file = (f.is_absolute() ? f : fs::path(dir) / f).string();
     const std::string kind = m.value("kind", std::string("anchor"));
-    if (kind != "anchor" && kind != "interpolation")
+    if (kind != "anchor" && kind != "interpolation" && kind != "fallback")
       throw io::IoError(report_path, "model " + std::to_string(index) + ": unknown kind '" + kind + "'");
-    e.anchor = kind == "anchor";
+    e.anchor = kind != "interpolation";
+    kinds.push_back(kind == "anchor" ? io::LodKind::anchor
+                    : kind == "fallback" ? io::LodKind::fallback
+                                         : io::LodKind::interpolation);
     e.level = m.value("level", 0);
     e.step = m.value("step", index);
     if (!fs::exists(e.file)) throw io::IoError(e.file, "model listed in " + report_path + " is missing");
@@ -161,7 +165,7 @@ Building load_building(const std::string& work, const io::ChunkRecord& rec, cons
     const io::TriangleMesh& mesh = meshes[k];
     KeptModel km;
     km.file = entries[k].file;
-    km.kind = entries[k].anchor ? io::LodKind::anchor : io::LodKind::interpolation;
+    km.kind = kinds[k];
     km.level = entries[k].level;
     km.step = entries[k].step;
     km.error_m = choice.error_m[i];

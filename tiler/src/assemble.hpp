@@ -35,7 +35,8 @@ struct AssembleParams {
   /// 0 = no extent limit (only the budgets split).
   double tile_extent_factor = 50;
   /// An interpolation model is kept only if its Hausdorff distance to the
-  /// previous kept model and to the next anchor are both >= this (metres).
+  /// previous kept model and to the next anchor are both >= this, and it is
+  /// this much closer to the finest model than the previous kept one (metres).
   double min_change_m = 0.1;
   /// Tolerance of the Hausdorff distances (metres).
   double hausdorff_tolerance_m = 0.1;
@@ -88,7 +89,7 @@ double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, 
 /// One model listed in report.json.
 struct ModelEntry {
   std::string file;   ///< path of the PLY
-  bool anchor = true;
+  bool anchor = true;  ///< anchor or fallback (the outline written when reconstruction fails)
   int level = 0, step = 0;
 };
 
@@ -99,10 +100,12 @@ struct ModelChoice {
   std::vector<double> hausdorff_m;  ///< raw Hausdorff distance to the finest model
 };
 
-/// Chooses the kept chain: the models sorted by step; the finest model is the
-/// last anchor; every anchor is kept; an interpolation is kept when it differs
-/// by >= min_change_m from the previous kept model and from the next anchor.
-/// error_m = max(Hausdorff to the finest, next kept error + 1 cm).
+/// Chooses the kept chain (docs/3dtiles.md): the models sorted by step; the
+/// finest model is the last anchor; every anchor is kept unless it is the same
+/// surface as the next anchor (Hausdorff < 1 mm); an interpolation is kept when
+/// it differs by >= min_change_m from the previous kept model and from the next
+/// anchor and is >= min_change_m closer to the finest model than the previous
+/// kept one. error_m = max(Hausdorff to the finest, next kept error + 1 cm).
 ModelChoice choose_models(const std::vector<ModelEntry>& entries, const std::vector<io::TriangleMesh>& meshes,
                           double min_change_m, double tolerance_m);
 

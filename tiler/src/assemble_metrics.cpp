@@ -58,7 +58,14 @@ class TriangleTree {
   }
 
   double distance2(const Vec3d& p) const {
+    std::uint32_t tri;
+    return nearest(p, tri);
+  }
+
+  /// Squared distance from p to the mesh and the nearest triangle.
+  double nearest(const Vec3d& p, std::uint32_t& tri) const {
     double best = std::numeric_limits<double>::infinity();
+    tri = 0;
     if (nodes_.empty()) return best;
     std::array<std::uint32_t, 128> stack;
     std::size_t top = 0;
@@ -70,7 +77,11 @@ class TriangleTree {
         for (std::uint32_t i = n.first; i < n.first + n.count; ++i) {
           const auto& t = mesh_.triangles[order_[i]];
           const Vec3d q = closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]], mesh_.vertices[t[2]]);
-          best = std::min(best, norm2(sub(p, q)));
+          const double d2 = norm2(sub(p, q));
+          if (d2 < best) {
+            best = d2;
+            tri = order_[i];
+          }
         }
       } else {
         // Nearer child last so it is popped first.
@@ -86,6 +97,12 @@ class TriangleTree {
       }
     }
     return best;
+  }
+
+  /// Distance from p to triangle `tri` of the mesh.
+  double distance_to(const Vec3d& p, std::uint32_t tri) const {
+    const auto& t = mesh_.triangles[tri];
+    return std::sqrt(norm2(sub(p, closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]], mesh_.vertices[t[2]]))));
   }
 
  private:
@@ -159,10 +176,12 @@ double vertex_distance(const io::TriangleMesh& a, const TriangleTree& tb) {
 
 /// Raises `best` to the directed Hausdorff distance h(A -> B) = max over the
 /// surface of A of the distance to B, to within `tol`, by branch and bound on
-/// A's triangles: the distance to B is 1-Lipschitz, so on a triangle with
-/// centroid g and radius R (centroid to farthest vertex) it is at most
-/// d(g) + R. Triangles that cannot beat `best` by more than `tol` are dropped,
-/// the others split in four. `best` starts at what is already known (the other
+/// A's triangles. Upper bounds of the distance to B on a triangle with
+/// centroid g: d(g) + R (the distance is 1-Lipschitz; R = centroid to farthest
+/// vertex), and max_i d_T(v_i) for T the triangle of B nearest to g (the
+/// distance to one triangle is convex, so its maximum is at a vertex, and
+/// d_B <= d_T). Triangles that cannot beat `best` by more than `tol` are
+/// dropped, the others split in four. `best` starts at what is already known (the other
 /// direction, the vertices), so the large surfaces two LOD models share are
 /// dropped at once. Stops once best >= stop_above.
 void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, double stop_above, double& best) {
@@ -178,10 +197,13 @@ void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, dou
     const Vec3d g{(t.a[0] + t.b[0] + t.c[0]) / 3, (t.a[1] + t.b[1] + t.c[1]) / 3, (t.a[2] + t.b[2] + t.c[2]) / 3};
     const double r = std::sqrt(std::max({norm2(sub(t.a, g)), norm2(sub(t.b, g)), norm2(sub(t.c, g))}));
     if (r <= tol * 0.5) continue;  // within tol of its (evaluated) vertices
-    const double dg = std::sqrt(tb.distance2(g));
+    std::uint32_t near;
+    const double dg = std::sqrt(tb.nearest(g, near));
     --budget;
     best = std::max(best, dg);
     if (dg + r <= best + tol) continue;
+    if (std::max({tb.distance_to(t.a, near), tb.distance_to(t.b, near), tb.distance_to(t.c, near)}) <= best + tol)
+      continue;
     const Vec3d ab{(t.a[0] + t.b[0]) / 2, (t.a[1] + t.b[1]) / 2, (t.a[2] + t.b[2]) / 2};
     const Vec3d bc{(t.b[0] + t.c[0]) / 2, (t.b[1] + t.c[1]) / 2, (t.b[2] + t.c[2]) / 2};
     const Vec3d ca{(t.c[0] + t.a[0]) / 2, (t.c[1] + t.a[1]) / 2, (t.c[2] + t.a[2]) / 2};
@@ -200,6 +222,7 @@ double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, 
                           double stop_above) {
   if (a.triangles.empty() || b.triangles.empty()) return std::numeric_limits<double>::infinity();
   if (!(tolerance > 0)) throw std::invalid_argument("hausdorff_distance: tolerance must be > 0");
+  if (a.vertices == b.vertices && a.triangles == b.triangles) return 0.0;  // the same model (common)
   const TriangleTree ta(a), tb(b);
   double best = std::max(vertex_distance(a, tb), vertex_distance(b, ta));
   directed(a, tb, tolerance, stop_above, best);
@@ -227,31 +250,48 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries, const std::vec
   order.resize(size_t(finest_pos) + 1);
   const std::size_t finest = order.back();
 
+  // Distance of every candidate to the finest model.
+  std::vector<double> to_finest(entries.size(), 0.0);
+  for (std::size_t m : order)
+    if (m != finest && !meshes[m].triangles.empty())
+      to_finest[m] = hausdorff_distance(meshes[m], meshes[finest], tolerance_m);
+  auto next_anchor_after = [&](std::size_t i) {
+    for (std::size_t j = i + 1; j < order.size(); ++j)
+      if (entries[order[j]].anchor && !meshes[order[j]].triangles.empty()) return order[j];
+    return finest;
+  };
+  constexpr double kSame = 1e-3;  // metres: the same surface
+
   // Walk coarse -> fine.
   std::vector<std::size_t> kept;
   for (std::size_t i = 0; i < order.size(); ++i) {
     const std::size_t m = order[i];
     if (meshes[m].triangles.empty()) continue;
-    if (m == finest || entries[m].anchor) {
+    if (m == finest) {
       kept.push_back(m);
       continue;
     }
-    if (!kept.empty() && hausdorff_distance(meshes[m], meshes[kept.back()], tolerance_m, min_change_m) < min_change_m)
+    const std::size_t next_anchor = next_anchor_after(i);
+    if (entries[m].anchor) {
+      // Every anchor, unless it is the very same model as the next one.
+      if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, kSame) >= kSame) kept.push_back(m);
       continue;
-    std::size_t next_anchor = finest;
-    for (std::size_t j = i + 1; j < order.size(); ++j)
-      if (entries[order[j]].anchor && !meshes[order[j]].triangles.empty()) {
-        next_anchor = order[j];
-        break;
-      }
+    }
+    // An interpolation changes the look when it differs from the previous kept
+    // model and from the next anchor, and brings the building closer to its
+    // finest model (a lower error: otherwise a client refines both at once).
+    if (!kept.empty()) {
+      const std::size_t prev = kept.back();
+      if (to_finest[m] > to_finest[prev] - min_change_m) continue;
+      if (hausdorff_distance(meshes[m], meshes[prev], tolerance_m, min_change_m) < min_change_m) continue;
+    }
     if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, min_change_m) < min_change_m) continue;
     kept.push_back(m);
   }
   out.kept = kept;
   out.hausdorff_m.resize(kept.size());
   out.error_m.resize(kept.size());
-  for (std::size_t i = 0; i < kept.size(); ++i)
-    out.hausdorff_m[i] = kept[i] == finest ? 0.0 : hausdorff_distance(meshes[kept[i]], meshes[finest], tolerance_m);
+  for (std::size_t i = 0; i < kept.size(); ++i) out.hausdorff_m[i] = to_finest[kept[i]];
   // Strictly decreasing, 0 only for the finest: a coarser model whose distance
   // happens to be smaller than a finer one's is charged the finer error + 1 cm.
   double next = 0;

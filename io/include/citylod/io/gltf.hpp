@@ -24,8 +24,10 @@
 
 namespace citylod::io {
 
-enum class LodKind : std::uint8_t { anchor = 0, interpolation = 1 };
-const char* to_string(LodKind k);  ///< "anchor" | "interpolation"
+/// Kind of a LOD model; `fallback` is the extruded outline the LOD engine
+/// writes when a building's reconstruction fails.
+enum class LodKind : std::uint8_t { anchor = 0, interpolation = 1, fallback = 2 };
+const char* to_string(LodKind k);  ///< "anchor" | "interpolation" | "fallback"
 
 /// One row of the glb's property table (class "building" of schema "citylod").
 /// A feature is one LOD model of one building.
