@@ -204,10 +204,25 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
   // An open bottom (facade scans, meshes standing on a terrain sheet) lets the
   // ray labelling leak as much as missing walls do: close it with a base plane
   // unless a downward-facing horizontal primitive already lies at the bottom.
-  bool has_floor = false;
-  for (const auto& pr : prims)
-    if (pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5 && !pr.inferred) has_floor = true;
-  if (!walls_missing && has_floor) return 0;
+  // A terrain sheet (a large upward-facing plane at the bottom, as in
+  // photogrammetry meshes cut out of a city model) is not closed: a base under
+  // it would turn the terrain into a plinth that dwarfs the building.
+  bool has_floor = false, on_terrain = false;
+  double xy_area = 0;
+  {
+    Vec2 lo(s.points[0].x(), s.points[0].y()), hi = lo;
+    for (const auto& q : s.points) {
+      lo = lo.cwiseMin(Vec2(q.x(), q.y()));
+      hi = hi.cwiseMax(Vec2(q.x(), q.y()));
+    }
+    xy_area = (hi - lo).prod();
+  }
+  for (const auto& pr : prims) {
+    if (pr.inferred) continue;
+    if (pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5) has_floor = true;
+    if (pr.normal.z() > 0.95 && pr.centroid.z() < zmin + 1.5 && pr.alpha_area > 0.15 * xy_area) on_terrain = true;
+  }
+  if (!walls_missing && (has_floor || on_terrain)) return 0;
 
   // Outline (CCW in xy).
   std::vector<Vec2> outline;

@@ -147,9 +147,10 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   // Roof-only LiDAR: ground + walls through the outline so the building closes.
   if (P.closure.enabled) {
     const int added = close_building(in, samples, P.closure, prims);
-    st.walls_inferred = added > 0;
-    if (added > 0)
-      st.notes.push_back("walls missing: " + std::to_string(added) + " closure planes inferred");
+    st.walls_inferred = added > 1;
+    if (added == 1) st.notes.push_back("open bottom: a base plane was inferred");
+    if (added > 1)
+      st.notes.push_back("walls missing: " + std::to_string(added) + " closure planes inferred (ground + walls)");
   }
   prims.erase(std::remove_if(prims.begin(), prims.end(),
                              [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),

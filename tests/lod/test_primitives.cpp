@@ -326,7 +326,7 @@ TEST(Closure, OpenBottomGetsABasePlaneOnly) {
   const Primitive& g = prims.back();
   EXPECT_TRUE(g.inferred);
   EXPECT_NEAR(g.normal.z(), -1, 1e-12);
-  EXPECT_NEAR(g.d, 0, 1e-9);
+  EXPECT_NEAR(g.d, 0, 0.2);  // at the lowest sample (grid spacing 0.2 m)
   EXPECT_NEAR(g.alpha_area, 80, 3.0);
 }
 
