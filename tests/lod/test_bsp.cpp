@@ -11,6 +11,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <thread>
 
 using citylod::lod::PolygonMesh;
 using citylod::lod::TriangleMesh;
@@ -629,4 +630,21 @@ TEST(Bsp, BuildingLikeStress) {
         ++configs;
       }
   EXPECT_EQ(configs, 48);
+}
+
+TEST(Bsp, ConcurrentExtractFromOneBsp) {
+  const auto polys = building_like(5, 30, 10, 0);
+  const Bsp bsp(Vec3(0, 0, 0), Vec3(10, 10, 10), polys, 0);
+  const auto leaves = bsp.leaves();
+  std::vector<char> in;
+  for (int l : leaves) in.push_back((bsp.nodes()[l].center - Vec3(5, 5, 5)).norm() < 3.5);
+  const BspSurface ref = bsp.extract(leaves, in);
+  std::vector<BspSurface> out(4);
+  std::vector<std::thread> th;
+  for (int t = 0; t < 4; ++t) th.emplace_back([&, t] { out[t] = bsp.extract(leaves, in); });
+  for (auto& x : th) x.join();
+  for (const auto& s : out) {
+    EXPECT_EQ(s.triangles.vertices, ref.triangles.vertices);
+    EXPECT_EQ(s.triangles.triangles, ref.triangles.triangles);
+  }
 }
