@@ -166,13 +166,13 @@ namespace fs = std::filesystem;
 namespace {
 nlohmann::json read_json(const std::string& path) {
   std::ifstream f(path);
-  if (!f) return nlohmann::json();
+  if (!f) return nlohmann::json::object();
   try {
     nlohmann::json j;
     f >> j;
-    return j;
+    return j.is_object() ? j : nlohmann::json::object();
   } catch (...) {
-    return nlohmann::json();
+    return nlohmann::json::object();
   }
 }
 std::string report_path(const std::string& work, const std::string& id) {
@@ -188,6 +188,7 @@ Overrides read_overrides(const std::string& work_dir) {
   const std::string path = overrides_path(work_dir);
   if (!fs::exists(path)) return o;
   const nlohmann::json j = read_json(path);
+  if (j.empty()) throw std::runtime_error(path + ": not valid JSON");
   if (!j.is_object() || !j.contains("buildings") || !j["buildings"].is_object())
     throw std::runtime_error(path + ": not a citylod overrides file");
   for (const auto& [id, b] : j["buildings"].items()) {
@@ -363,7 +364,7 @@ nlohmann::json building_records(const std::string& work_dir, const Overrides& ov
       b["models"] = 0;
     } else {
       const nlohmann::json j = read_json(report_path(work_dir, c.id));
-      if (!j.is_object()) {
+      if (j.empty()) {
         b["status"] = "failed";
         b["reason"] = "no report.json (LOD stage did not finish this building)";
         b["models"] = 0;
