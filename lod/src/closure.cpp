@@ -220,7 +220,8 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
   for (const auto& pr : prims) {
     if (pr.inferred) continue;
     if (pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5) has_floor = true;
-    if (pr.normal.z() > 0.95 && pr.centroid.z() < zmin + 1.5 && pr.alpha_area > 0.15 * xy_area) on_terrain = true;
+    if (pr.normal.z() > 0.95 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin) && pr.alpha_area > 0.15 * xy_area)
+      on_terrain = true;
   }
   if (!walls_missing && (has_floor || on_terrain)) return 0;
 
