@@ -217,12 +217,13 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     }
     xy_area = (hi - lo).prod();
   }
+  double low_up_area = 0;  // upward-facing planes in the lowest quarter of the height range
   for (const auto& pr : prims) {
     if (pr.inferred) continue;
     if (pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5) has_floor = true;
-    if (pr.normal.z() > 0.95 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin) && pr.alpha_area > 0.15 * xy_area)
-      on_terrain = true;
+    if (pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin)) low_up_area += pr.alpha_area;
   }
+  on_terrain = low_up_area > 0.08 * xy_area;
   if (!walls_missing && (has_floor || on_terrain)) return 0;
 
   // Outline (CCW in xy).
