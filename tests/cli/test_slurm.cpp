@@ -103,7 +103,7 @@ struct Cluster {
       << "\nSlurmctldLogFile=" << (dir / "slurmctld.log").string() << "\nSlurmdLogFile=" << (dir / "slurmd.log").string()
       << "\nProctrackType=proctrack/linuxproc\nTaskPlugin=task/none\nSelectType=select/cons_tres\n"
       << "SelectTypeParameters=CR_CPU\nJobAcctGatherType=jobacct_gather/none\nAccountingStorageType=accounting_storage/none\n"
-      << "MpiDefault=none\nReturnToService=2\nSchedulerType=sched/backfill\n"
+      << "MailProg=/bin/true\nMpiDefault=none\nReturnToService=2\nSchedulerType=sched/backfill\n"
       << "NodeName=" << host << " CPUs=" << cpus << " State=UNKNOWN\n"
       << "PartitionName=debug Nodes=" << host << " Default=YES MaxTime=INFINITE State=UP\n";
     f.close();
@@ -112,7 +112,12 @@ struct Cluster {
     for (int i = 0; i < 50 && !fs::exists(dir / "slurmctld.pid"); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     ctld = read_pid(dir / "slurmctld.pid");
-    if (c.code != 0 || ctld <= 0 || sh("scontrol ping").out.find("UP") == std::string::npos) {
+    bool up = false;
+    for (int i = 0; i < 100 && c.code == 0 && ctld > 0 && !up; ++i) {
+      up = sh("scontrol ping").out.find("is UP") != std::string::npos;
+      if (!up) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    if (!up) {
       why_not = "slurmctld could not start: " + c.out + " " + slurp(dir / "slurmctld.log").substr(0, 2000);
       return;
     }

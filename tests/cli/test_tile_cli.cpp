@@ -191,7 +191,8 @@ TEST(TileCli, RebuildChangesOneBuildingAndReportsChangedFiles) {
   const CliRun t = run("tile " + example_args() + " --threads 2 --out " + q(out));
   ASSERT_EQ(t.code, 0) << t.out;
   std::string id;
-  for (const auto& b : read_json(out / "run_report.json")["buildings"])
+  const nlohmann::json run_report = read_json(out / "run_report.json");
+  for (const auto& b : run_report["buildings"])
     if (b["status"] == "ok") {
       id = b["id"];
       break;

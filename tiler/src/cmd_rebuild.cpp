@@ -112,7 +112,8 @@ int cmd_rebuild(ArgParser& args) {
     }
   }
   lod::LodParams global;
-  for (const auto& [k, v] : run.value("lod_params", nlohmann::json::object()).items())
+  const nlohmann::json lod_params = run.value("lod_params", nlohmann::json::object());
+  for (const auto& [k, v] : lod_params.items())
     global.set(k, v.is_string() ? v.get<std::string>() : v.dump());
   AssembleParams ap = assemble_params_from_json(run.value("assemble_params", nlohmann::json::object()));
   ap.threads = int(threads);
