@@ -103,16 +103,19 @@ LevelTriangles alpha_triangles(const std::vector<Primitive>& prims, const std::v
   return t;
 }
 
-/// Ray origins of each leaf: its centre and points halfway to (up to 9 of) its
-/// vertices, so elongated cells are judged along their whole extent.
-std::vector<std::vector<Vec3>> leaf_ray_origins(const Bsp& bsp) {
+/// Ray origins of each leaf: its centre and points halfway to some of its
+/// vertices (max_origins in all), so elongated cells are judged along their extent.
+std::vector<std::vector<Vec3>> leaf_ray_origins(const Bsp& bsp, int max_origins) {
   std::vector<std::vector<Vec3>> out;
   for (int l : bsp.leaves()) {
     const Vec3 c = bsp.nodes()[size_t(l)].center;
     std::vector<Vec3> o{c};
     const auto verts = bsp.cell_vertices(l);
-    const size_t step = std::max<size_t>(1, (verts.size() + 8) / 9);
-    for (size_t i = 0; i < verts.size(); i += step) o.push_back(c + 0.5 * (verts[i] - c));
+    const size_t extra = size_t(std::max(0, max_origins - 1));
+    if (extra > 0) {
+      const size_t step = std::max<size_t>(1, (verts.size() + extra - 1) / extra);
+      for (size_t i = 0; i < verts.size() && o.size() <= extra; i += step) o.push_back(c + 0.5 * (verts[i] - c));
+    }
     out.push_back(std::move(o));
   }
   return out;
@@ -174,7 +177,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   const std::vector<int> all_level0(prims.size(), 0);
   const RayLabeller io_labeller(alpha_triangles(prims, all_level0), P.labels.rays_per_cell);
   std::vector<char> io_labels;
-  for (const auto& l : io_labeller.label(leaf_ray_origins(io_bsp), 1, P.threads)) io_labels.push_back(l[0]);
+  for (const auto& l : io_labeller.label(leaf_ray_origins(io_bsp, P.labels.origins_per_cell), 1, P.threads)) io_labels.push_back(l[0]);
   budget.check("io-view");
   IoView view = analyse_io_view(io_bsp, prims, match_planes(io_bsp, prims), io_labels, P.ioview);
   if (view.core_in < 0) throw LodError("io-view", "no cell labelled inside");
@@ -209,7 +212,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   if (bsp.cap_hit()) st.notes.push_back("LOD-Tree BSP hit the cell cap");
   budget.check("lod-tree");
   const RayLabeller labeller(alpha_triangles(prims, sorted.level_of), P.labels.rays_per_cell);
-  const auto leaf_labels = labeller.label(leaf_ray_origins(bsp), sorted.num_levels, P.threads);
+  const auto leaf_labels = labeller.label(leaf_ray_origins(bsp, P.labels.origins_per_cell), sorted.num_levels, P.threads);
   const LodTree tree = build_tree(bsp, sorted, grouping, leaf_labels, P.tree);
   st.bsp_nodes = int(bsp.nodes().size());
   st.lod_nodes = int(tree.nodes.size());

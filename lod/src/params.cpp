@@ -77,6 +77,7 @@ void visit(P& p, F&& f) {
   f("bsp.max_cells", p.bsp.max_cells);
   f("bsp.baseline", p.bsp.baseline);
   f("labels.rays_per_cell", p.labels.rays_per_cell);
+  f("labels.origins_per_cell", p.labels.origins_per_cell);
   f("ioview.separation_coverage", p.ioview.separation_coverage);
   f("ioview.min_principal_area", p.ioview.min_principal_area);
   f("cluster.area_bandwidth", p.cluster.area_bandwidth);
@@ -107,6 +108,8 @@ void check(bool ok, const char* name, const std::string& why) {
 }  // namespace
 
 void LodParams::validate() const {
+  check(labels.origins_per_cell >= 1 && labels.origins_per_cell <= labels.rays_per_cell, "labels.origins_per_cell",
+        "must be in [1, labels.rays_per_cell]");
   auto pos = [](double v) { return std::isfinite(v) && v > 0; };
   auto ratio = [](double v) { return std::isfinite(v) && v > 0 && v <= 1; };
   auto angle = [](double v) { return std::isfinite(v) && v > 0 && v <= 90; };

@@ -36,6 +36,9 @@ struct BspParams {
 /// In/out labelling by ray casting (Appendix C).
 struct LabelParams {
   int rays_per_cell = 100;       ///< rays per polyhedron, from its centre
+  /// (ours) ray origins per cell: 1 = the paper's centre only; more spreads the
+  /// rays over the centre and points halfway to the cell's vertices.
+  int origins_per_cell = 1;
 };
 
 /// IO-View analysis (Section 4.1).
