@@ -13,6 +13,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <proj.h>
+
 #include <chrono>
 #include <cstdio>
 #include <thread>
@@ -154,6 +156,46 @@ TEST(AssembleCli, AKilledRunNeverLeavesAHalfTileset) {
   const Proc again = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(out));
   EXPECT_EQ(again.code, 0) << again.output;
   EXPECT_TRUE(check_tileset(out).problems.empty());
+}
+
+TEST(AssembleCli, RealDelftBlockSplitLodAssemble) {
+  // The whole chain on real data: AHN3 LiDAR of a Delft block (EPSG:28992).
+  const fs::path las = fs::path(CITYLOD_SHARED_DATA) / "delft" / "ahn3_cropped_2.las";
+  if (!fs::exists(las)) GTEST_SKIP() << "shared data not found: " << las;
+  const std::string dir = tmp_dir("delft");
+  const std::string work = dir + "/work", out = dir + "/tileset";
+  Proc r = run(q(kBin) + " split -q " + q(las.string()) + " --crs EPSG:28992 --out " + q(work));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(q(kBin) + " lod -q " + q(work) + " -t 2");
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(q(kBin) + " assemble " + q(work) + " --out " + q(out));
+  std::printf("%s", r.output.c_str());
+  ASSERT_EQ(r.code, 0) << r.output;
+  const TilesetCheck chk = check_tileset(out);
+  for (const auto& p : chk.problems) ADD_FAILURE() << p;
+  EXPECT_GE(chk.content_tiles, 2);
+  // The root transform puts the ENU origin where PROJ puts the manifest's
+  // origin (RD x, y; ellipsoidal height).
+  const auto man = nlohmann::json::parse(read_bytes(work + "/manifest.json"));
+  const auto ts = nlohmann::json::parse(read_bytes(out + "/tileset.json"));
+  const Eigen::Matrix4d T = matrix_of(ts["root"]["transform"]);
+  const auto& o = man["scene"]["origin_crs"];
+  PJ_CONTEXT* ctx = proj_context_create();
+  PJ* rd = proj_normalize_for_visualization(ctx, proj_create_crs_to_crs(ctx, "EPSG:28992", "EPSG:4326", nullptr));
+  PJ* ec = proj_normalize_for_visualization(ctx, proj_create_crs_to_crs(ctx, "EPSG:4979", "EPSG:4978", nullptr));
+  const PJ_COORD ll = proj_trans(rd, PJ_FWD, proj_coord(o[0].get<double>(), o[1].get<double>(), 0, 0));
+  const PJ_COORD x = proj_trans(ec, PJ_FWD, proj_coord(ll.lp.lam, ll.lp.phi, man["scene"]["origin_h"].get<double>(), 0));
+  proj_destroy(rd);
+  proj_destroy(ec);
+  proj_context_destroy(ctx);
+  const double off = (T.block<3, 1>(0, 3) - Eigen::Vector3d(x.xyz.x, x.xyz.y, x.xyz.z)).norm();
+  std::printf("[ measure  ] Delft block: root origin off PROJ by %.4f m\n", off);
+  EXPECT_LT(off, 0.05);
+  if (node_tools_installed()) {
+    const Proc v = run("node " + q((kNode / "validate-glb.mjs").string()) + " " + q(out));
+    EXPECT_EQ(v.code, 0) << v.output;
+    std::printf("%s", v.output.c_str());
+  }
 }
 
 // ------------------------------------------------------------ serve
