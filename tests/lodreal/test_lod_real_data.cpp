@@ -1,0 +1,92 @@
+// The LOD engine on the real buildings of ../shared/data (issue acceptance):
+// every candidate model closed, edge-manifold, oriented and free of
+// self-intersections; at least 2 anchors and 1 interpolation; the finest
+// anchor's e2 recorded (and bounded where we meet the target).
+#include "support/ply_min.hpp"
+
+#include "citylod/lod/lod.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+using namespace citylod;
+using namespace citylod::lod;
+
+namespace {
+
+std::string data(const std::string& rel) { return std::string(CITYLOD_SHARED_DATA) + "/" + rel; }
+
+/// Recentres on the bbox centre (the engine wants small coordinates).
+void recentre(BuildingInput& in) {
+  Vec3 lo = in.points.front(), hi = lo;
+  for (const auto& p : in.points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Vec3 c = 0.5 * (lo + hi);
+  for (auto& p : in.points) p -= c;
+}
+
+const LodModel* finest_anchor(const LodResult& r) {
+  const LodModel* a = nullptr;
+  for (const auto& m : r.models)
+    if (m.kind == ModelKind::Anchor) a = &m;
+  return a;
+}
+
+void check_building(BuildingInput in, double max_finest_e2) {
+  recentre(in);
+  LodParams p;
+  p.budget.time_budget_s = 0;
+  const LodResult r = build_lod_tree(in, p);
+  ASSERT_EQ(r.status, "ok") << r.reason;
+  int anchors = 0, interps = 0;
+  for (const auto& m : r.models) {
+    SCOPED_TRACE("model " + std::to_string(m.step));
+    anchors += m.kind == ModelKind::Anchor;
+    interps += m.kind == ModelKind::Interpolation;
+    const MeshCheck c = check_mesh(m.mesh);
+    EXPECT_TRUE(c.closed) << c.boundary_edges << " boundary edges";
+    EXPECT_TRUE(c.edge_manifold) << c.nonmanifold_edges << " non-manifold edges";
+    EXPECT_TRUE(c.oriented);
+    EXPECT_FALSE(c.self_intersecting);
+    EXPECT_GT(m.volume, 0);
+  }
+  EXPECT_GE(anchors, 2);
+  EXPECT_GE(interps, 1);
+  const LodModel* f = finest_anchor(r);
+  ASSERT_NE(f, nullptr);
+  std::printf("[%s] %zu models (%d anchors), finest anchor: %zu triangles, e1 %.3f %%, e2 %.3f %%\n",
+              in.name.c_str(), r.models.size(), anchors, f->mesh.triangles.size(), f->e1, f->e2);
+  EXPECT_LE(f->e2, max_finest_e2);
+}
+
+}  // namespace
+
+TEST(LodRealData, Ahn3LidarBuildingWithSawtoothRoofs) {
+  const auto path = data("ahn3_building_lod2/AHN3_13856.ply");
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << path;
+  auto in = test::read_ply_min(path);
+  in.name = "AHN3_13856";
+  check_building(in, 0.5);
+}
+
+TEST(LodRealData, CgalBuildingPointCloud) {
+  const auto path = data("single_building/cgal_building.ply");
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << path;
+  auto in = test::read_ply_min(path);
+  in.name = "cgal_building";
+  // Target 0.5 %; measured 0.594 % (BENCHMARKS.md): bounded at what we reach so a regression fails.
+  check_building(in, 0.65);
+}
+
+TEST(LodRealData, Easy3dNoisyMeshWithTerrain) {
+  const auto path = data("noisy_mesh/easy3d_building.off");
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << path;
+  auto in = test::read_off_min(path);
+  in.name = "easy3d_building";
+  // Target 0.5 %; the input's terrain sheet (~15 % of its area) is not part of
+  // the building, measured 2.66 % (BENCHMARKS.md).
+  check_building(in, 3.0);
+}
