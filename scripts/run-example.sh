@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs the dependencies, builds citylod (Release) and runs the main job on
 # the bundled example scene (examples/delft_small: AHN3 LiDAR of Delft, CC0,
-# EPSG:28992 + NAP heights): split into buildings -> LOD-Tree per building ->
-# 3D Tiles. The tileset lands in out/example/tileset; look at it with
+# EPSG:28992 + NAP heights) with one `citylod tile`: split into buildings ->
+# LOD-Tree per building -> 3D Tiles. The tileset lands in out/example/tileset; look at it with
 #   build/tiler/citylod serve out/example/tileset      (CesiumJS viewer, offline)
 # Usage: scripts/run-example.sh [--no-install]
 set -euo pipefail
@@ -21,12 +21,11 @@ out=out/example
 mkdir -p "$out"
 
 "$citylod" info "$scene"
-"$citylod" split "$scene" --crs EPSG:28992 --geoid egm96 \
-  --footprints examples/delft_small/footprints.geojson --out "$out/work"
-"$citylod" lod "$out/work" --threads "$(nproc)"
-"$citylod" assemble "$out/work" --out "$out/tileset"
+"$citylod" tile "$scene" --crs EPSG:28992 --geoid egm96 \
+  --footprints examples/delft_small/footprints.geojson --threads "$(nproc)" --out "$out"
 
 echo
-echo "Done. Per-building LOD models: $out/work/lod/<id>/model_*.obj (any mesh viewer)"
-echo "3D Tiles tileset:             $out/tileset/tileset.json"
-echo "View it in a browser:         $citylod serve $out/tileset"
+echo "Done. 3D Tiles tileset:          $out/tileset/tileset.json"
+echo "Per-building LOD models:         $out/work/lod/<id>/model_*.obj (any mesh viewer)"
+echo "Run report:                      $out/run_report.json"
+echo "View it in a browser (offline):  $citylod serve $out/tileset"

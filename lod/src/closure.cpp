@@ -200,7 +200,15 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     zmax = std::max(zmax, s.points[i].z());
   }
   if (total_w <= 0) return 0;
-  const bool walls_missing = wall_w / total_w < p.wall_fraction_min;
+  // Walls are missing when few samples face sideways, or when those that do
+  // formed no wall planes (airborne LiDAR: noisy roof edges, a few facade hits).
+  double vertical_area = 0, prim_area = 0;
+  for (const auto& pr : prims) {
+    if (pr.inferred) continue;
+    prim_area += pr.alpha_area;
+    if (std::abs(pr.normal.z()) < 0.3) vertical_area += pr.alpha_area;
+  }
+  const bool walls_missing = wall_w / total_w < p.wall_fraction_min || vertical_area < 0.1 * prim_area;
   // An open bottom (facade scans, meshes standing on a terrain sheet) lets the
   // ray labelling leak as much as missing walls do: close it with a base plane
   // unless a downward-facing horizontal primitive already lies at the bottom.
