@@ -21,15 +21,27 @@ std::string chunk_path(const std::string& w, const std::string& id) {
 }
 std::string lod_dir(const std::string& w, const std::string& id) { return (fs::path(w) / "lod" / id).string(); }
 
-std::string hash_hex(const void* data, std::size_t size, std::uint64_t h) {
+namespace {
+
+std::uint64_t fnv1a(std::uint64_t h, const void* data, std::size_t size) {
   const auto* p = static_cast<const unsigned char*>(data);
   for (std::size_t i = 0; i < size; ++i) {
     h ^= p[i];
     h *= 0x100000001b3ULL;
   }
+  return h;
+}
+
+std::string hex16(std::uint64_t h) {
   char buf[17];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
   return buf;
+}
+
+}  // namespace
+
+std::string hash_hex(const void* data, std::size_t size, std::uint64_t seed) {
+  return hex16(fnv1a(seed, data, size));
 }
 
 std::string hash_file(const std::string& path) {
@@ -37,19 +49,13 @@ std::string hash_file(const std::string& path) {
   if (!f) throw IoError(path, "cannot open for hashing");
   std::uint64_t h = 0xcbf29ce484222325ULL;
   std::vector<char> buf(1 << 16);
-  std::string hex;
   while (f) {
     f.read(buf.data(), std::streamsize(buf.size()));
     const auto n = f.gcount();
     if (n <= 0) break;
-    for (std::streamsize i = 0; i < n; ++i) {
-      h ^= static_cast<unsigned char>(buf[size_t(i)]);
-      h *= 0x100000001b3ULL;
-    }
+    h = fnv1a(h, buf.data(), std::size_t(n));
   }
-  char out[17];
-  std::snprintf(out, sizeof out, "%016llx", static_cast<unsigned long long>(h));
-  return out;
+  return hex16(h);
 }
 
 namespace {

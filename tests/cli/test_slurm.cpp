@@ -3,6 +3,8 @@
 // assemble job (afterok); the tileset must equal a local `citylod tile` run
 // byte for byte. Skips only when slurmctld cannot be started.
 #include <gtest/gtest.h>
+
+#include "support/cli_run.hpp"
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -20,38 +22,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Sh {
-  int code = -1;
-  std::string out;
-};
+using namespace citylod::test;
 
-Sh sh(const std::string& cmd) {
-  Sh r;
-  FILE* p = popen(("(" + cmd + ") 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = pclose(p);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
-
-std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-std::map<std::string, std::string> tree(const fs::path& root) {
-  std::map<std::string, std::string> t;
-  for (const auto& e : fs::recursive_directory_iterator(root))
-    if (e.is_regular_file()) t[fs::relative(e.path(), root).generic_string()] = slurp(e.path());
-  return t;
-}
 
 pid_t read_pid(const fs::path& f) {
   std::ifstream in(f);
@@ -83,7 +55,7 @@ struct Cluster {
       sh("mkdir -p /etc/munge /run/munge /var/log/munge /var/lib/munge && "
          "( [ -s /etc/munge/munge.key ] || dd if=/dev/urandom of=/etc/munge/munge.key bs=1024 count=1 ) && "
          "chown -R munge:munge /etc/munge /run/munge /var/log/munge /var/lib/munge && chmod 400 /etc/munge/munge.key");
-      const Sh m = sh("runuser -u munge -- /usr/sbin/munged && sleep 0.5 && cat /run/munge/munged.pid");
+      const CliRun m = sh("runuser -u munge -- /usr/sbin/munged && sleep 0.5 && cat /run/munge/munged.pid");
       munged = pid_t(std::atol(m.out.c_str()));
       if (sh("munge -n | unmunge").code != 0) {
         why_not = "munged does not work: " + m.out;
@@ -108,7 +80,7 @@ struct Cluster {
       << "PartitionName=debug Nodes=" << host << " Default=YES MaxTime=INFINITE State=UP\n";
     f.close();
     setenv("SLURM_CONF", conf.c_str(), 1);
-    const Sh c = sh("slurmctld -f " + q(conf));
+    const CliRun c = sh("slurmctld -f " + q(conf));
     for (int i = 0; i < 50 && !fs::exists(dir / "slurmctld.pid"); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     ctld = read_pid(dir / "slurmctld.pid");
@@ -152,10 +124,10 @@ TEST(Slurm, ArrayJobTilesetEqualsLocalTileRun) {
   const fs::path ex = fs::path(CITYLOD_SOURCE_DIR) / "examples";
   const std::string input = q(ex / "delft_small" / "delft_small.las") + " --crs EPSG:28992 --footprints " +
                             q(ex / "delft_small" / "footprints.geojson");
-  const Sh local = sh(std::string(CITYLOD_BINARY) + " -q tile " + input + " --threads 2 --out " + q(d / "local"));
+  const CliRun local = sh(std::string(CITYLOD_BINARY) + " -q tile " + input + " --threads 2 --out " + q(d / "local"));
   ASSERT_EQ(local.code, 0) << local.out;
 
-  const Sh sub = sh("WAIT=1 CITYLOD=" + std::string(CITYLOD_BINARY) + " " + q(ex / "slurm" / "submit.sh") + " " +
+  const CliRun sub = sh("WAIT=1 CITYLOD=" + std::string(CITYLOD_BINARY) + " " + q(ex / "slurm" / "submit.sh") + " " +
                     q(d / "slurm") + " 3 " + input);
   std::string logs;
   if (fs::exists(d / "slurm" / "logs"))

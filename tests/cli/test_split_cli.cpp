@@ -1,5 +1,7 @@
 // `citylod split` end to end: the real binary on good and bad inputs.
 #include <gtest/gtest.h>
+
+#include "support/cli_run.hpp"
 #include <sys/wait.h>
 
 #include <cmath>
@@ -19,36 +21,10 @@ using namespace citylod;
 
 namespace {
 
+using namespace citylod::test;
+
+
 const std::string kData = CITYLOD_SHARED_DATA;
-
-struct CliRun {
-  int code = -1;
-  std::string out;  // stdout + stderr
-};
-
-CliRun run(const std::string& args) {
-  CliRun r;
-  const std::string cmd = std::string(CITYLOD_BINARY) + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = pclose(p);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
-
-fs::path tmp_dir(const std::string& name) {
-  fs::path p = fs::path(CITYLOD_TEST_TMP) / ("split_cli_" + name);
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
-}
-
-std::string q(const fs::path& p) {
-  return "'" + p.string() + "'";
-}
 
 /// The error line of a failed run: exactly one "citylod: error:" line naming `file`.
 void expect_one_line_error(const CliRun& r, const std::string& file, const std::string& reason) {
@@ -89,7 +65,7 @@ TEST(SplitCli, HelpListsTheOptions) {
 }
 
 TEST(SplitCli, SplitsThenUpToDate) {
-  const fs::path dir = tmp_dir("ok");
+  const fs::path dir = tmp_dir("split_cli_ok");
   const std::string in = write_city_ply(dir);
   const fs::path work = dir / "work";
   const std::string args =
@@ -111,7 +87,7 @@ TEST(SplitCli, SplitsThenUpToDate) {
 }
 
 TEST(SplitCli, BadInputs) {
-  const fs::path dir = tmp_dir("bad");
+  const fs::path dir = tmp_dir("split_cli_bad");
   const std::string good = write_city_ply(dir);
   const fs::path work = dir / "work";
   const std::string tail = " --origin 52,4.36,45 -o " + q(work);
@@ -197,7 +173,7 @@ TEST(SplitCli, BadInputs) {
 TEST(SplitCli, DelftWithFootprintsAndGeoid) {
   const std::string las = kData + "/delft/ahn3_cropped_2.las";
   if (!fs::exists(las)) GTEST_SKIP() << "shared data not found: " << kData;
-  const fs::path dir = tmp_dir("delft");
+  const fs::path dir = tmp_dir("split_cli_delft");
   const std::string fp = std::string(CITYLOD_SOURCE_DIR) + "/tests/fixtures/delft_bgt_pand.geojson";
   const CliRun r = run("split " + q(las) + " --crs EPSG:28992 --geoid egm96 --footprints " + q(fp) +
                        " -o " + q(dir / "work"));

@@ -2,6 +2,8 @@
 // (examples/delft_small): completion + run report, thread-count determinism,
 // kill -9 and resume, per-building rebuild, bad input.
 #include <gtest/gtest.h>
+
+#include "support/cli_run.hpp"
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -22,52 +24,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int code = -1;
-  std::string out;
-};
+using namespace citylod::test;
 
-CliRun run(const std::string& args) {
-  CliRun r;
-  const std::string cmd = std::string(CITYLOD_BINARY) + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = pclose(p);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
-
-fs::path tmp_dir(const std::string& name) {
-  fs::path p = fs::path(CITYLOD_TEST_TMP) / ("tile_cli_" + name);
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
-}
-
-std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
 
 const fs::path kExample = fs::path(CITYLOD_SOURCE_DIR) / "examples" / "delft_small";
 
 std::string example_args() {
   return q(kExample / "delft_small.las") + " --crs EPSG:28992 --footprints " + q(kExample / "footprints.geojson");
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-/// Relative path -> bytes of every file under root.
-std::map<std::string, std::string> tree(const fs::path& root) {
-  std::map<std::string, std::string> t;
-  for (const auto& e : fs::recursive_directory_iterator(root))
-    if (e.is_regular_file()) t[fs::relative(e.path(), root).generic_string()] = slurp(e.path());
-  return t;
 }
 
 void expect_same_tree(const fs::path& a, const fs::path& b) {
@@ -112,7 +75,7 @@ bool lod_counts(const std::string& log, int& total, int& computed, int& reused) 
 }
 
 TEST(TileCli, ExampleCompletesAndThreadsDoNotChangeTheOutput) {
-  const fs::path d = tmp_dir("threads");
+  const fs::path d = tmp_dir("tile_cli_threads");
   const CliRun a = run("tile " + example_args() + " --threads 1 --out " + q(d / "t1"));
   ASSERT_EQ(a.code, 0) << a.out;
   const CliRun b = run("tile " + example_args() + " --threads 2 --out " + q(d / "t2"));
@@ -142,7 +105,7 @@ TEST(TileCli, ExampleCompletesAndThreadsDoNotChangeTheOutput) {
 }
 
 TEST(TileCli, KilledRunResumesWithoutRecomputingFinishedBuildings) {
-  const fs::path d = tmp_dir("kill");
+  const fs::path d = tmp_dir("tile_cli_kill");
   const CliRun ref = run("tile " + example_args() + " --threads 2 --out " + q(d / "ref"));
   ASSERT_EQ(ref.code, 0) << ref.out;
 
@@ -186,7 +149,7 @@ TEST(TileCli, KilledRunResumesWithoutRecomputingFinishedBuildings) {
 }
 
 TEST(TileCli, RebuildChangesOneBuildingAndReportsChangedFiles) {
-  const fs::path d = tmp_dir("rebuild");
+  const fs::path d = tmp_dir("tile_cli_rebuild");
   const fs::path out = d / "run";
   const CliRun t = run("tile " + example_args() + " --threads 2 --out " + q(out));
   ASSERT_EQ(t.code, 0) << t.out;
@@ -237,7 +200,7 @@ TEST(TileCli, RebuildChangesOneBuildingAndReportsChangedFiles) {
 }
 
 TEST(TileCli, BadInputIsOneErrorLine) {
-  const fs::path d = tmp_dir("bad");
+  const fs::path d = tmp_dir("tile_cli_bad");
   const CliRun r = run("tile " + q(d / "missing.las") + " --crs EPSG:28992 --out " + q(d / "out"));
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
