@@ -547,27 +547,33 @@ void Splitter::pass2_spill(Spiller& spill) {
   for (std::size_t ii = 0; ii < inputs_.size(); ++ii) {
     const InputInfo& in = inputs_[ii];
     const double a = 0.05 + 0.45 * double(ii) / n_in, b = 0.05 + 0.45 * double(ii + 1) / n_in;
+    // Point k of a batch as a spill record (position, normal, colour); grows the ENU bbox.
+    auto to_rec = [&](const io::PointSet& batch, std::size_t k) {
+      const Vec3d& p = batch.positions[k];
+      bbox_enu_.add(p);
+      SpillRec r{};
+      r.x = p[0];
+      r.y = p[1];
+      r.z = p[2];
+      if (has_normals_) {
+        r.nx = batch.normals[k][0];
+        r.ny = batch.normals[k][1];
+        r.nz = batch.normals[k][2];
+      }
+      if (has_colors_) {
+        r.r = batch.colors[k][0];
+        r.g = batch.colors[k][1];
+        r.b = batch.colors[k][2];
+      }
+      return r;
+    };
     auto push = [&](const io::PointSet& batch, std::uint64_t first_src, bool mesh) {
       for (std::size_t k = 0; k < batch.size(); ++k) {
         const Vec3d& p = batch.positions[k];
         if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
           throw IoError(in.path, "point #" + std::to_string(first_src + k) +
                                      " has no valid local coordinates (CRS transform failed)");
-        bbox_enu_.add(p);
-        SpillRec r{};
-        r.x = p[0];
-        r.y = p[1];
-        r.z = p[2];
-        if (has_normals_) {
-          r.nx = batch.normals[k][0];
-          r.ny = batch.normals[k][1];
-          r.nz = batch.normals[k][2];
-        }
-        if (has_colors_) {
-          r.r = batch.colors[k][0];
-          r.g = batch.colors[k][1];
-          r.b = batch.colors[k][2];
-        }
+        SpillRec r = to_rec(batch, k);
         if (has_classes_) {
           r.cls = batch.classes[k];
           ++class_hist_[r.cls];
@@ -584,21 +590,7 @@ void Splitter::pass2_spill(Spiller& spill) {
         if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
           throw IoError(in.path,
                         "triangle #" + std::to_string(refs[k]) + " has no valid local coordinates");
-        bbox_enu_.add(p);
-        SpillRec r{};
-        r.x = p[0];
-        r.y = p[1];
-        r.z = p[2];
-        if (has_normals_) {
-          r.nx = batch.normals[k][0];
-          r.ny = batch.normals[k][1];
-          r.nz = batch.normals[k][2];
-        }
-        if (has_colors_) {
-          r.r = batch.colors[k][0];
-          r.g = batch.colors[k][1];
-          r.b = batch.colors[k][2];
-        }
+        SpillRec r = to_rec(batch, k);
         r.src = (std::uint64_t(input) << 40) | refs[k];
         spill.add(r);
       }
