@@ -159,7 +159,7 @@ int cmd_rebuild(ArgParser& args) {
   if (recompute) {
     // The LOD stage forks (supervise): no OpenMP in this process before it.
     const int rc = supervise(work, [&]() {
-      run_city_lod(work, global, 1, ov, id);
+      run_city_lod(work, global, 1, id);
       return 0;
     });
     if (rc != 0) throw std::runtime_error(work + ": the LOD stage failed for '" + id + "' (exit " + std::to_string(rc) + ")");

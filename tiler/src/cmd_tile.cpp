@@ -121,7 +121,7 @@ int cmd_tile(ArgParser& args) {
   const std::string attempts = (fs::path(work) / ".tile_lod_attempts.jsonl").string();
   fs::remove(attempts);
   const int rc = supervise(work, [&]() {
-    const CityLodReport r = run_city_lod(work, params, int(threads), overrides);
+    const CityLodReport r = run_city_lod(work, params, int(threads));
     std::ofstream f(attempts, std::ios::app);
     f << nlohmann::json{{"total", r.total}, {"computed", r.computed}, {"reused", r.reused}}.dump() << "\n";
     return f ? 0 : 1;

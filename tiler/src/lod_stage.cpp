@@ -1,6 +1,7 @@
 #include "lod_stage.hpp"
 
 #include "lod_io.hpp"
+#include "stage_options.hpp"
 
 #include "citylod/io/atomic_file.hpp"
 #include "citylod/io/error.hpp"
@@ -158,9 +159,14 @@ LodStageReport run_lod_stage(const LodStageOptions& o, LodStageProgress progress
 
   std::mutex mu;
   size_t done = 0;
+  // Per-building parameter overrides (`citylod rebuild --set`, WORK/overrides.json)
+  // apply wherever the stage runs: tile, lod WORK, Slurm shards.
+  const Overrides overrides = read_overrides(o.work_dir);
   auto run_one = [&](const io::ChunkRecord& c) {
     const std::string dir = io::lod_dir(o.work_dir, c.id);
-    const std::string key = lod_key(c.content_hash, params);
+    lod::LodParams bp = params_for(params, overrides, c.id);
+    bp.threads = 1;
+    const std::string key = lod_key(c.content_hash, bp);
     const std::string running = dir + ".running", suspect = dir + ".suspect", crashed = dir + ".crashed";
     std::string status;
     bool reused = false;
@@ -174,7 +180,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, LodStageProgress progress
       const bool crashed_before = fs::exists(crashed);
       io::atomic_write_file(running, c.id + "\n");
       fs::remove(suspect);
-      status = process_building(o.work_dir, c, params, key, crashed_before);
+      status = process_building(o.work_dir, c, bp, key, crashed_before);
       fs::remove(running);
       fs::remove(crashed);
     }

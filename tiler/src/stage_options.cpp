@@ -235,58 +235,24 @@ void city_progress(std::size_t done, std::size_t, void* self) {
 }  // namespace
 
 CityLodReport run_city_lod(const std::string& work_dir, const lod::LodParams& global, int threads,
-                           const Overrides& overrides, const std::string& force_id) {
+                           const std::string& force_id) {
   const auto t0 = std::chrono::steady_clock::now();
   CityLodReport rep;
   const io::Manifest m = io::read_manifest(work_dir);
-  // Pending buildings grouped by their parameter set ("" = the global one).
-  std::map<std::string, std::vector<std::string>> pending;
-  std::map<std::string, lod::LodParams> group_params;
-  for (const auto& c : m.chunks) {
-    if (c.status == "skipped") continue;
-    ++rep.total;
-    lod::LodParams p = params_for(global, overrides, c.id);
-    p.threads = 1;
-    const bool has_override = overrides.count(c.id) && !overrides.at(c.id).set.empty();
-    const std::string key = lod_key(c.content_hash, p);
-    if (c.id != force_id && read_json(report_path(work_dir, c.id)).value("key", "") == key) {
-      ++rep.reused;
-      continue;
-    }
-    const std::string group = has_override ? c.id : "";
-    pending[group].push_back(c.id);
-    group_params.emplace(group, p);
-  }
+  for (const auto& c : m.chunks) rep.total += c.status == "skipped" ? 0 : 1;
+  // run_lod_stage applies WORK/overrides.json per building.
   Progress bar("lod", rep.total, "buildings");
-  StageProgress sp{&bar, rep.reused, rep.total};
-  bar.set_done(rep.reused);
+  StageProgress sp{&bar, 0, rep.total};
   std::size_t ok = 0, fallback = 0, failed = 0;
   std::vector<std::pair<std::string, std::string>> problems;
-  bool any_set = false;
-  for (const auto& [id, b] : overrides) any_set |= !b.set.empty();
-  if (!any_set && force_id.empty() && !pending.empty()) {
-    // Common case: one parameter set; run_lod_stage's own resume check (no `only`
-    // list, which it scans linearly per building).
-    LodStageOptions o;
-    o.work_dir = work_dir;
-    o.params = global;
-    o.threads = std::max(1, threads);
-    sp.offset = 0;
-    const LodStageReport r = run_lod_stage(o, &city_progress, &sp);
-    rep.computed = r.computed;
-    rep.reused = r.reused;
-    pending.clear();
-  }
-  for (const auto& [group, ids] : pending) {
-    LodStageOptions o;
-    o.work_dir = work_dir;
-    o.params = group_params.at(group);
-    o.threads = std::max(1, threads);
-    o.only = ids;  // never empty here: `only` empty would mean every building
-    const LodStageReport r = run_lod_stage(o, &city_progress, &sp);
-    sp.offset += r.total;
-    rep.computed += r.computed;
-  }
+  LodStageOptions o;
+  o.work_dir = work_dir;
+  o.params = global;
+  o.threads = std::max(1, threads);
+  if (!force_id.empty()) o.only = {force_id};  // recompute this one; the others are untouched
+  const LodStageReport r = run_lod_stage(o, &city_progress, &sp);
+  rep.computed = r.computed;
+  rep.reused = force_id.empty() ? r.reused : rep.total - r.computed;
   bar.finish();
   for (const auto& c : m.chunks) {
     if (c.status == "skipped") continue;

@@ -77,7 +77,7 @@ struct CityLodReport {
 /// when up to date. Logs "lod: N buildings (X computed, Y reused) ...".
 /// Runs OpenMP: call it inside supervise().
 CityLodReport run_city_lod(const std::string& work_dir, const lod::LodParams& global, int threads,
-                           const Overrides& overrides, const std::string& force_id = "");
+                           const std::string& force_id = "");
 
 /// Pins the model selections of the overrides in WORK/lod/<id>/report.json:
 /// "models" keeps only the selected steps, the full list is kept in
