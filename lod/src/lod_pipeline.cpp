@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <set>
 #include <sstream>
 
 namespace citylod::lod {
@@ -223,11 +224,21 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   progress(0.6, "traversal");
   const auto t3 = Clock::now();
   const auto candidates = traverse(tree, bsp, P.tree, budget.deadline);
+  // Cells relabelled in by the non-manifold repair of one candidate are
+  // relabelled in the next ones too while they remain in the cut: consecutive
+  // candidates share most of their cells, and each repair round is a full
+  // extraction pass.
+  std::set<int> repaired;
   for (size_t i = 0; i < candidates.size(); ++i) {
     progress(0.6 + 0.3 * double(i) / double(candidates.size()), "extraction");
     budget.check("extraction");
     const auto& c = candidates[i];
-    BspSurface surf = bsp.extract(c.partition, c.inside);
+    std::vector<char> inside = c.inside;
+    for (size_t k = 0; k < inside.size(); ++k)
+      if (!inside[k] && repaired.count(c.partition[k])) inside[k] = 1;
+    BspSurface surf = bsp.extract(c.partition, inside);
+    for (size_t k = 0; k < surf.inside.size(); ++k)
+      if (surf.inside[k] && !c.inside[k]) repaired.insert(c.partition[k]);
     if (surf.triangles.triangles.empty()) continue;  // empty model (nothing inside yet)
     LodModel m;
     m.kind = c.kind;
