@@ -89,7 +89,7 @@ struct ClosureParams {
 
 /// Evaluation (e1/e2 RMSE).
 struct MetricParams {
-  int samples = 20000;                 ///< samples on each model for e1; at most this many input samples for e2
+  int samples = 5000;                  ///< samples on each model for e1; at most this many input samples for e2
 };
 
 struct LodParams {
