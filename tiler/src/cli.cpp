@@ -25,6 +25,7 @@ int cmd_split(ArgParser& args);
 int cmd_lod(ArgParser& args);
 int cmd_assemble(ArgParser& args);
 int cmd_serve(ArgParser& args);
+int cmd_eval(ArgParser& args);
 int cmd_tile(ArgParser& args);
 int cmd_rebuild(ArgParser& args);
 
@@ -44,6 +45,7 @@ const Command kCommands[] = {
     {"tile", "one-command city run: split -> lod -> assemble, parallel, resumable (DIR/work, DIR/tileset)", cmd_tile},
     {"rebuild", "recompute one building of a 'tile' output (--set) or pin its models (--select), update the tileset", cmd_rebuild},
     {"serve", "serve a tileset and the CesiumJS viewer on 127.0.0.1 (offline)", cmd_serve},
+    {"eval", "validity, volume, e1/e2 RMSE and Hausdorff of models against their input", cmd_eval},
 };
 
 }  // namespace

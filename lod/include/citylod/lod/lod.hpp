@@ -101,4 +101,15 @@ struct MeshCheck {
 MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections = true);
 double mesh_volume(const TriangleMesh& mesh);
 
+/// Quality of any model against a reference (`citylod eval`): validity,
+/// volume, e1/e2 RMSE in % of the reference's bbox diagonal (surfaces sampled
+/// by area; a point reference is used as is) and the symmetric Hausdorff
+/// estimate in metres.
+struct ModelEvaluation {
+  MeshCheck check;
+  std::size_t triangles = 0;
+  double volume = 0, e1 = 0, e2 = 0, hausdorff = 0, diagonal = 0;
+};
+ModelEvaluation evaluate_model(const TriangleMesh& model, const BuildingInput& reference, int samples = 20000);
+
 }  // namespace citylod::lod
