@@ -142,8 +142,9 @@ std::string sanitize_id(const std::string& s) {
 using CellKey = std::pair<int, int>;
 struct CellKeyHash {
   std::size_t operator()(const CellKey& k) const {
-    return std::hash<long long>()((static_cast<long long>(k.first) << 32) ^
-                                  static_cast<unsigned>(k.second));
+    // unsigned: shifting a negative cell index is undefined behaviour
+    return std::hash<unsigned long long>()(
+        (static_cast<unsigned long long>(static_cast<unsigned>(k.first)) << 32) ^ static_cast<unsigned>(k.second));
   }
 };
 
