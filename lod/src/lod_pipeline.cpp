@@ -275,6 +275,15 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
 
 }  // namespace
 
+LodResult fallback_result(const BuildingInput& in, const std::string& reason) {
+  LodResult r;
+  r.status = "fallback";
+  r.reason = reason;
+  r.stats.input_points = int(in.points.size());
+  r.stats.input_faces = int(in.triangles.size());
+  r.models.push_back(extruded_outline(in));
+  return r;
+}
 
 LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, ProgressFn progress_fn,
                          void* user) {
@@ -304,10 +313,10 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   try {
     run_method(in, samples, params, progress, budget, R);
   } catch (const std::exception& e) {
-    R.status = "fallback";
-    R.reason = e.what();
-    R.models.clear();
-    R.models.push_back(extruded_outline(in));  // may throw LodError: no area at all
+    LodResult f = fallback_result(in, e.what());  // may throw LodError: no area at all
+    R.status = f.status;
+    R.reason = f.reason;
+    R.models = std::move(f.models);
   }
   // Fidelity of every model against the input (e1, e2 in % of the bbox diagonal).
   progress(0.9, "metrics");

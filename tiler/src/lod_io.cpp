@@ -127,7 +127,8 @@ nlohmann::json lod_report(const lod::LodResult& r, const lod::LodParams& p, cons
 
 std::vector<std::string> write_lod_output(const std::string& dir, const lod::LodResult& r,
                                           const lod::LodParams& p, const std::string& input,
-                                          const io::Vec3d& origin, bool dump_planes) {
+                                          const io::Vec3d& origin, bool dump_planes,
+                                          const nlohmann::json& extra) {
   fs::create_directories(dir);
   std::vector<std::string> files;
   for (const auto& m : r.models) {
@@ -154,7 +155,9 @@ std::vector<std::string> write_lod_output(const std::string& dir, const lod::Lod
   io::atomic_write_file(ppath, params.dump(2) + "\n");
   files.push_back(ppath);
   const std::string rpath = (fs::path(dir) / "report.json").string();
-  io::atomic_write_file(rpath, lod_report(r, p, input).dump(2) + "\n");
+  nlohmann::json report = lod_report(r, p, input);
+  report.update(extra);
+  io::atomic_write_file(rpath, report.dump(2) + "\n");
   files.push_back(rpath);
   return files;
 }

@@ -34,8 +34,10 @@ nlohmann::json lod_report(const lod::LodResult& r, const lod::LodParams& p, cons
 /// Writes DIR/model_<step>_<kind>_L<level>.{obj,ply}, DIR/report.json,
 /// DIR/params.json and, when dump_planes, DIR/planes.ply (inliers coloured by
 /// level set). All files atomically. Returns the list of files written.
+/// `extra` fields are added to report.json (e.g. the resume key of a city run).
 std::vector<std::string> write_lod_output(const std::string& dir, const lod::LodResult& r,
                                           const lod::LodParams& p, const std::string& input,
-                                          const io::Vec3d& origin, bool dump_planes);
+                                          const io::Vec3d& origin, bool dump_planes,
+                                          const nlohmann::json& extra = nlohmann::json::object());
 
 }  // namespace citylod::tiler

@@ -62,51 +62,33 @@ lod::BuildingInput chunk_input(const std::string& work, const io::ChunkRecord& c
   return in;
 }
 
-/// Runs one building and publishes WORK/lod/<id>/ atomically. Never throws for
-/// the building's own trouble: the reason goes into the report.
-std::string process_building(const std::string& work, const io::ChunkRecord& c, const lod::LodParams& p,
-                             const std::string& key, bool crashed_before) {
+struct Outcome {
+  std::string status, reason;
+};
+
+/// Runs one building and publishes WORK/lod/<id>/ atomically (its report.json
+/// carries the resume key). Never throws for the building's own trouble: the
+/// reason goes into the report. A building that crashed an earlier run is not
+/// retried: it gets the engine's fallback model.
+Outcome process_building(const std::string& work, const io::ChunkRecord& c, const lod::LodParams& p,
+                         const std::string& key, bool crashed_before) {
   const std::string dir = io::lod_dir(work, c.id);
   const std::string stage = dir + ".tmp." + std::to_string(::getpid());
   fs::remove_all(stage);
   lod::LodResult r;
-  lod::BuildingInput in;
-  std::string status;
   try {
-    in = chunk_input(work, c);
-    if (crashed_before) throw lod::LodError("lod", "crashed in an earlier run; not retried");
-    r = lod::build_lod_tree(in, p);
-    status = r.status;
-  } catch (const std::exception& e) {
-    // The engine could not even fall back (no points, no area) or the chunk is unreadable.
+    const lod::BuildingInput in = chunk_input(work, c);
+    r = crashed_before ? lod::fallback_result(in, "crashed in an earlier run; not retried")
+                       : lod::build_lod_tree(in, p);
+  } catch (const std::exception& e) {  // unreadable chunk, or no model at all (no points, no area)
     r = lod::LodResult{};
     r.status = "failed";
     r.reason = e.what();
-    status = "failed";
-    if (!in.points.empty()) {
-      try {  // last resort: the engine's fallback on its own
-        lod::LodParams q = p;
-        q.budget.time_budget_s = 1e-9;
-        r = lod::build_lod_tree(in, q);
-        r.reason = e.what();
-        status = r.status = "fallback";
-      } catch (...) {
-      }
-    }
   }
-  write_lod_output(stage, r, p, io::chunk_path(work, c.id), {0, 0, 0}, false);
-  // The key goes last into report.json: its presence marks a finished building.
-  {
-    std::ifstream f(fs::path(stage) / "report.json");
-    nlohmann::json j;
-    f >> j;
-    j["id"] = c.id;
-    j["key"] = key;
-    io::atomic_write_file((fs::path(stage) / "report.json").string(), j.dump(2) + "\n");
-  }
+  write_lod_output(stage, r, p, io::chunk_path(work, c.id), {0, 0, 0}, false, {{"id", c.id}, {"key", key}});
   fs::remove_all(dir);
   fs::rename(stage, dir);
-  return status;
+  return {r.status, r.reason};
 }
 
 }  // namespace
@@ -168,33 +150,28 @@ LodStageReport run_lod_stage(const LodStageOptions& o, LodStageProgress progress
     bp.threads = 1;
     const std::string key = lod_key(c.content_hash, bp);
     const std::string running = dir + ".running", suspect = dir + ".suspect", crashed = dir + ".crashed";
-    std::string status;
+    Outcome out;
     bool reused = false;
     if (o.only.empty() && recorded_key(dir) == key) {
       reused = true;
       std::ifstream f(fs::path(dir) / "report.json");
       nlohmann::json j;
       f >> j;
-      status = j.value("status", "ok");
+      out = {j.value("status", "ok"), j.value("reason", "")};
     } else {
       const bool crashed_before = fs::exists(crashed);
       io::atomic_write_file(running, c.id + "\n");
       fs::remove(suspect);
-      status = process_building(o.work_dir, c, bp, key, crashed_before);
+      out = process_building(o.work_dir, c, bp, key, crashed_before);
       fs::remove(running);
       fs::remove(crashed);
     }
     std::lock_guard<std::mutex> lock(mu);
     (reused ? rep.reused : rep.computed)++;
-    if (status == "ok") ++rep.ok;
-    else if (status == "fallback") ++rep.fallback;
+    if (out.status == "ok") ++rep.ok;
+    else if (out.status == "fallback") ++rep.fallback;
     else ++rep.failed;
-    if (status != "ok") {
-      std::ifstream f(fs::path(dir) / "report.json");
-      nlohmann::json j;
-      f >> j;
-      rep.problems.emplace_back(c.id, j.value("reason", ""));
-    }
+    if (out.status != "ok") rep.problems.emplace_back(c.id, out.reason);
     ++done;
     if (progress) progress(done, rep.total, user);
   };

@@ -90,6 +90,11 @@ struct LodResult {
 LodResult build_lod_tree(const BuildingInput& input, const LodParams& params,
                          ProgressFn progress = nullptr, void* user = nullptr);
 
+/// The fallback result alone (outline extruded to the roof height) with
+/// `reason`, for a building the caller decides not to run (e.g. it crashed the
+/// process before). Throws LodError when the points span no area.
+LodResult fallback_result(const BuildingInput& input, const std::string& reason);
+
 /// Mesh validity, checked by exact edge incidence on vertex indices.
 struct MeshCheck {
   bool closed = false;           ///< every edge has exactly two incident faces (as a set with orientation pairs)
