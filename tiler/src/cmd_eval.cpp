@@ -1,13 +1,13 @@
 // `citylod eval MODEL --ref INPUT`: validity and fidelity of a model (any
 // triangle mesh: ours, QEM, City3D, ...) against the input it represents.
 #include "cli_common.hpp"
+#include "lod_io.hpp"
 
 #include "citylod/io/reader.hpp"
 #include "citylod/lod/lod.hpp"
 
 #include <nlohmann/json.hpp>
 
-#include <cmath>
 #include <cstdio>
 
 namespace citylod::tiler {
@@ -35,25 +35,9 @@ int cmd_eval(ArgParser& args) {
   if (samples < 1) throw UsageError("--samples must be >= 1");
 
   // The reference, moved next to the origin (its bbox centre); models follow.
-  lod::BuildingInput ref;
-  io::Vec3d origin{0, 0, 0};
-  {
-    const io::FileInfo info = io::read_header(ref_path);
-    io::BBox3 box;
-    if (info.has_faces) {
-      const io::TriangleMesh m = io::read_mesh(ref_path);
-      for (const auto& v : m.vertices) box.add(v);
-      for (int k = 0; k < 3; ++k) origin[size_t(k)] = std::round((box.min[size_t(k)] + box.max[size_t(k)]) / 2);
-      for (const auto& v : m.vertices) ref.points.push_back(shifted(v, origin));
-      for (const auto& t : m.triangles) ref.triangles.push_back({int(t[0]), int(t[1]), int(t[2])});
-    } else {
-      const io::PointSet p = io::read_points(ref_path);
-      for (const auto& v : p.positions) box.add(v);
-      if (box.empty()) throw std::runtime_error(ref_path + ": no points");
-      for (int k = 0; k < 3; ++k) origin[size_t(k)] = std::round((box.min[size_t(k)] + box.max[size_t(k)]) / 2);
-      for (const auto& v : p.positions) ref.points.push_back(shifted(v, origin));
-    }
-  }
+  const LoadedBuilding reference = load_building(ref_path);
+  const lod::BuildingInput& ref = reference.input;
+  const io::Vec3d& origin = reference.origin;
   nlohmann::json out = nlohmann::json::array();
   for (const auto& path : args.positionals()) {
     const io::TriangleMesh m = io::read_mesh(path);
