@@ -1,4 +1,5 @@
 // End-to-end tests of the LOD-Tree method on synthetic buildings with exact answers.
+#include "support/lod_models.hpp"
 #include "support/synthetic.hpp"
 
 #include "citylod/lod/lod.hpp"
@@ -13,22 +14,9 @@ using citylod::test::SynthOptions;
 
 namespace {
 
-const LodModel* first_anchor(const LodResult& r) {
-  for (const auto& m : r.models)
-    if (m.kind == ModelKind::Anchor) return &m;
-  return nullptr;
-}
-const LodModel* last_anchor(const LodResult& r) {
-  const LodModel* a = nullptr;
-  for (const auto& m : r.models)
-    if (m.kind == ModelKind::Anchor) a = &m;
-  return a;
-}
-int count(const LodResult& r, ModelKind k) {
-  int n = 0;
-  for (const auto& m : r.models) n += m.kind == k;
-  return n;
-}
+using test::first_anchor;
+using test::last_anchor;
+int count(const LodResult& r, ModelKind k) { return test::count_models(r, k); }
 
 /// Every model closed, oriented, edge-manifold, without self-intersections;
 /// face counts non-decreasing along the candidate set.

@@ -2,6 +2,7 @@
 // every candidate model closed, edge-manifold, oriented and free of
 // self-intersections; at least 2 anchors and 1 interpolation; the finest
 // anchor's e2 recorded (and bounded where we meet the target).
+#include "support/lod_models.hpp"
 #include "support/ply_min.hpp"
 
 #include "citylod/lod/lod.hpp"
@@ -28,24 +29,14 @@ void recentre(BuildingInput& in) {
   for (auto& p : in.points) p -= c;
 }
 
-const LodModel* finest_anchor(const LodResult& r) {
-  const LodModel* a = nullptr;
-  for (const auto& m : r.models)
-    if (m.kind == ModelKind::Anchor) a = &m;
-  return a;
-}
-
 void check_building(BuildingInput in, double max_finest_e2) {
   recentre(in);
   LodParams p;
   p.budget.time_budget_s = 0;
   const LodResult r = build_lod_tree(in, p);
   ASSERT_EQ(r.status, "ok") << r.reason;
-  int anchors = 0, interps = 0;
   for (const auto& m : r.models) {
     SCOPED_TRACE("model " + std::to_string(m.step));
-    anchors += m.kind == ModelKind::Anchor;
-    interps += m.kind == ModelKind::Interpolation;
     const MeshCheck c = check_mesh(m.mesh);
     EXPECT_TRUE(c.closed) << c.boundary_edges << " boundary edges";
     EXPECT_TRUE(c.edge_manifold) << c.nonmanifold_edges << " non-manifold edges";
@@ -53,9 +44,11 @@ void check_building(BuildingInput in, double max_finest_e2) {
     EXPECT_FALSE(c.self_intersecting);
     EXPECT_GT(m.volume, 0);
   }
+  const int anchors = test::count_models(r, ModelKind::Anchor);
+  const int interps = test::count_models(r, ModelKind::Interpolation);
   EXPECT_GE(anchors, 2);
   EXPECT_GE(interps, 1);
-  const LodModel* f = finest_anchor(r);
+  const LodModel* f = test::last_anchor(r);
   ASSERT_NE(f, nullptr);
   std::printf("[%s] %zu models (%d anchors), finest anchor: %zu triangles, e1 %.3f %%, e2 %.3f %%\n",
               in.name.c_str(), r.models.size(), anchors, f->mesh.triangles.size(), f->e1, f->e2);
