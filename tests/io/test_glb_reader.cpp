@@ -1,0 +1,137 @@
+// io::read_glb / parse_glb: what GlbBuilder writes comes back (positions through
+// the node matrix, triangles, feature ids, the property table), plain and
+// quantized; corrupt bytes are an IoError naming the file.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <set>
+
+#include "citylod/io/error.hpp"
+#include "citylod/io/glb_reader.hpp"
+#include "citylod/io/gltf.hpp"
+#include "tiler/test_assemble_support.hpp"
+
+namespace citylod::test {
+namespace {
+
+io::GlbFeature feature(const std::string& id, io::LodKind kind, int step, int index) {
+  io::GlbFeature f;
+  f.building_id = id;
+  f.kind = kind;
+  f.level = 1;
+  f.step = step;
+  f.model_index = index;
+  f.model_count = 3;
+  f.height_m = 6;
+  f.error_m = 0.25;
+  return f;
+}
+
+/// Every stored triangle back in the input frame (y-up -> z-up), per feature.
+std::map<std::int64_t, std::vector<std::array<Vec3d, 3>>> triangles(const io::GlbDocument& d) {
+  std::map<std::int64_t, std::vector<std::array<Vec3d, 3>>> out;
+  for (const auto& p : d.primitives)
+    for (const auto& t : p.triangles) {
+      std::array<Vec3d, 3> tri;
+      for (int k = 0; k < 3; ++k) {
+        const Vec3d y = io::transform_point(p.matrix, p.positions[t[size_t(k)]]);
+        tri[size_t(k)] = {y[0], -y[2], y[1]};
+      }
+      out[p.feature_ids.at(t[0])].push_back(tri);
+    }
+  return out;
+}
+
+void expect_round_trip(bool quantize, double tolerance) {
+  const Vec3d origin{1000.0, 2000.0, 10.0};
+  io::GlbOptions opt;
+  opt.quantize = quantize;
+  io::GlbBuilder b(origin, opt);
+  TriangleMesh a, c;
+  add_box(a, 990, 1995, 10, 1000, 2003, 16);
+  add_house(c, 10, 8, 6, 3);
+  for (auto& v : c.vertices) v = {v[0] + 1005, v[1] + 2001, v[2] + 10};
+  b.add_feature(feature("bldg-a", io::LodKind::anchor, 4, 2), a);
+  b.add_feature(feature("bldg-c", io::LodKind::interpolation, 7, 1), c);
+  const io::GlbDocument d = io::parse_glb(b.glb(), "mem.glb");
+
+  ASSERT_EQ(d.property_tables.size(), 1u);
+  const auto& t = d.property_tables[0];
+  EXPECT_EQ(t.class_name, "building");
+  ASSERT_EQ(t.count, 2u);
+  EXPECT_EQ(t.strings.at("building_id"), (std::vector<std::string>{"bldg-a", "bldg-c"}));
+  EXPECT_EQ(t.strings.at("lod_kind"), (std::vector<std::string>{"anchor", "interpolation"}));
+  EXPECT_EQ(t.numbers.at("step"), (std::vector<double>{4, 7}));
+  EXPECT_EQ(t.numbers.at("model_index"), (std::vector<double>{2, 1}));
+  EXPECT_NEAR(t.numbers.at("geometric_error")[1], 0.25, 1e-7);
+
+  const auto tris = triangles(d);
+  ASSERT_EQ(tris.size(), 2u);
+  EXPECT_EQ(tris.at(0).size(), a.triangles.size());
+  EXPECT_EQ(tris.at(1).size(), c.triangles.size());
+  for (const auto* src : {&a, &c}) {
+    const auto& got = tris.at(src == &a ? 0 : 1);
+    // Every stored corner is a source vertex, every source vertex is stored.
+    std::set<std::size_t> hit;
+    for (const auto& tri : got)
+      for (const auto& p : tri) {
+        double best = 1e9;
+        std::size_t which = 0;
+        for (std::size_t i = 0; i < src->vertices.size(); ++i) {
+          const auto& v = src->vertices[i];
+          const double dd = std::hypot(p[0] - v[0], p[1] - v[1], p[2] - v[2]);
+          if (dd < best) best = dd, which = i;
+        }
+        EXPECT_LT(best, tolerance);
+        hit.insert(which);
+      }
+    EXPECT_EQ(hit.size(), src->vertices.size());
+  }
+  for (const auto& p : d.primitives) EXPECT_EQ(p.property_table, 0);
+}
+
+TEST(GlbReader, RoundTripOfTheWriter) { expect_round_trip(false, 1e-4); }
+
+TEST(GlbReader, RoundTripQuantized) { expect_round_trip(true, 20.0 / 32767 * 2); }
+
+TEST(GlbReader, CorruptBytesNameTheFile) {
+  TriangleMesh a;
+  add_box(a, 0, 0, 0, 1, 1, 1);
+  io::GlbBuilder b({0, 0, 0});
+  b.add_feature(feature("x", io::LodKind::anchor, 0, 0), a);
+  const std::string good = b.glb();
+  auto fails = [](const std::string& bytes, const std::string& what) {
+    try {
+      io::parse_glb(bytes, "tile.glb");
+      ADD_FAILURE() << "no error for " << what;
+    } catch (const io::IoError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("tile.glb: ", 0), 0u) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+    }
+  };
+  fails("", "empty");
+  fails(good.substr(0, good.size() - 7), "truncated");
+  fails("glTF" + good.substr(4, 8) + std::string(good.size() - 12, '\0'), "zeroed chunks");
+  std::string v1 = good;
+  v1[4] = 1;
+  fails(v1, "version 1");
+  // An index past the vertices: the first index of the first primitive := 65535.
+  std::uint32_t jlen;
+  std::memcpy(&jlen, good.data() + 12, 4);
+  const nlohmann::json j = nlohmann::json::parse(good.substr(20, jlen));
+  const auto& acc = j["accessors"][j["meshes"][0]["primitives"][0]["indices"].get<std::size_t>()];
+  ASSERT_EQ(acc["componentType"], 5123);  // uint16
+  const std::size_t at = 20 + jlen + 8 + j["bufferViews"][acc["bufferView"].get<std::size_t>()]["byteOffset"].get<std::size_t>() +
+                         acc.value("byteOffset", std::size_t(0));
+  std::string bad_index = good;
+  bad_index[at] = char(0xff);
+  bad_index[at + 1] = char(0xff);
+  fails(bad_index, "index out of range");
+  EXPECT_NO_THROW(io::parse_glb(good, "tile.glb"));
+  EXPECT_THROW(io::read_glb((fs::path(CITYLOD_TEST_TMP) / "no_such_dir" / "x.glb").string()), io::IoError);
+}
+
+}  // namespace
+}  // namespace citylod::test
