@@ -22,8 +22,7 @@
 #include <thread>
 #include <vector>
 
-#include "citylod/io/reader.hpp"
-#include "fixtures/las_writer.hpp"
+#include "bench_scene.hpp"
 #include "split.hpp"
 
 namespace fs = std::filesystem;
@@ -56,27 +55,6 @@ int child(const std::string& las, const std::string& work, const std::string& cr
     std::fprintf(stderr, "split_bench child: %s\n", e.what());
     return 1;
   }
-}
-
-/// N shifted copies of `in` (CRS units) into one LAS; returns the point count.
-std::uint64_t make_tiled(const std::string& in, const std::string& out, int n) {
-  const io::FileInfo h = io::read_header(in);
-  const int side = static_cast<int>(std::ceil(std::sqrt(double(n))));
-  const double dx = h.bbox.max[0] - h.bbox.min[0] + 20, dy = h.bbox.max[1] - h.bbox.min[1] + 20;
-  test::LasWriter w(out, {0.001, 0.001, 0.001},
-                    {std::floor(h.bbox.min[0]), std::floor(h.bbox.min[1]), 0});
-  for (int c = 0; c < n; ++c) {
-    const double ox = (c % side) * dx, oy = (c / side) * dy;
-    auto r = io::PointReader::open(in);
-    io::PointSet b;
-    while (r->read(b, 1 << 16) > 0)
-      for (std::size_t k = 0; k < b.size(); ++k)
-        w.add(b.positions[k][0] + ox, b.positions[k][1] + oy, b.positions[k][2],
-              b.has_classes() ? b.classes[k] : 1);
-  }
-  const std::uint64_t count = w.count();
-  w.close();
-  return count;
 }
 
 }  // namespace
@@ -121,7 +99,7 @@ int main(int argc, char** argv) {
   for (int n : a.copies) {
     const std::string las = (fs::path(a.tmp) / ("tiled_" + std::to_string(n) + ".las")).string();
     const std::string work = (fs::path(a.tmp) / ("work_" + std::to_string(n))).string();
-    const std::uint64_t pts = make_tiled(a.input, las, n);
+    const std::uint64_t pts = bench::write_tiled_las(a.input, las, n);
     int pipefd[2];
     if (pipe(pipefd) != 0) return 1;
     const auto t0 = std::chrono::steady_clock::now();
