@@ -143,47 +143,54 @@ Vec3d to_zup(const Vec3d& p) { return {p[0], -p[2], p[1]}; }
 /// position in the same node are welded (the writer splits them per face normal).
 std::vector<Group> read_groups(const ContentRef& c) {
   const io::GlbDocument d = io::read_glb(c.file);
-  std::map<std::string, Group> groups;
-  using Key = std::tuple<std::string, int, double, double, double>;  // building, node, position
-  std::map<Key, std::uint32_t> weld;
+  struct Building {
+    Group g;
+    std::map<std::tuple<int, double, double, double>, std::uint32_t> weld;  // node, stored position -> vertex
+  };
+  std::map<std::string, Building> groups;
   for (const auto& p : d.primitives) {
     const io::GlbPropertyTable* table =
         p.property_table >= 0 ? &d.property_tables[std::size_t(p.property_table)] : nullptr;
+    std::map<std::int64_t, Building*> by_feature;  // of this primitive
     for (const auto& t : p.triangles) {
       const std::int64_t f = p.feature_ids.empty() ? -1 : p.feature_ids[t[0]];
-      std::string id = f >= 0 ? "feature-" + std::to_string(f) : "(no feature id)";
-      int model_index = -1, step = -1;
-      std::string kind;
-      if (table && f >= 0 && std::size_t(f) < table->count) {
-        const auto s = table->strings.find("building_id");
-        if (s != table->strings.end()) id = s->second[std::size_t(f)];
-        const auto mi = table->numbers.find("model_index");
-        if (mi != table->numbers.end()) model_index = int(mi->second[std::size_t(f)]);
-        const auto st = table->numbers.find("step");
-        if (st != table->numbers.end()) step = int(st->second[std::size_t(f)]);
-        const auto k = table->strings.find("lod_kind");
-        if (k != table->strings.end()) kind = k->second[std::size_t(f)];
+      auto found = by_feature.find(f);
+      if (found == by_feature.end()) {
+        std::string id = f >= 0 ? "feature-" + std::to_string(f) : "(no feature id)";
+        int model_index = -1, step = -1;
+        std::string kind;
+        if (table && f >= 0 && std::size_t(f) < table->count) {
+          const auto s = table->strings.find("building_id");
+          if (s != table->strings.end()) id = s->second[std::size_t(f)];
+          const auto mi = table->numbers.find("model_index");
+          if (mi != table->numbers.end()) model_index = int(mi->second[std::size_t(f)]);
+          const auto st = table->numbers.find("step");
+          if (st != table->numbers.end()) step = int(st->second[std::size_t(f)]);
+          const auto k = table->strings.find("lod_kind");
+          if (k != table->strings.end()) kind = k->second[std::size_t(f)];
+        }
+        auto [it, fresh] = groups.try_emplace(id);
+        if (fresh) {
+          it->second.g.building = id;
+          it->second.g.model_index = model_index;
+          it->second.g.step = step;
+          it->second.g.kind = kind;
+        }
+        found = by_feature.emplace(f, &it->second).first;
       }
-      auto [it, fresh] = groups.try_emplace(id);
-      Group& g = it->second;
-      if (fresh) {
-        g.building = id;
-        g.model_index = model_index;
-        g.step = step;
-        g.kind = kind;
-      }
+      Building& b = *found->second;
       std::array<std::uint32_t, 3> tri;
       for (int k = 0; k < 3; ++k) {
         const Vec3d& v = p.positions[t[std::size_t(k)]];
-        const auto [w, added] = weld.try_emplace(Key{id, p.node, v[0], v[1], v[2]}, std::uint32_t(g.mesh.vertices.size()));
-        if (added) g.mesh.vertices.push_back(to_zup(io::transform_point(p.matrix, v)));
+        const auto [w, added] = b.weld.try_emplace({p.node, v[0], v[1], v[2]}, std::uint32_t(b.g.mesh.vertices.size()));
+        if (added) b.g.mesh.vertices.push_back(to_zup(io::transform_point(p.matrix, v)));
         tri[std::size_t(k)] = w->second;
       }
-      g.mesh.triangles.push_back(tri);
+      b.g.mesh.triangles.push_back(tri);
     }
   }
   std::vector<Group> out;
-  for (auto& [id, g] : groups) out.push_back(std::move(g));
+  for (auto& [id, b] : groups) out.push_back(std::move(b.g));
   return out;
 }
 
