@@ -214,22 +214,32 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
   // unless a downward-facing horizontal primitive already lies at the bottom.
   // A terrain sheet (a large upward-facing plane at the bottom, as in
   // photogrammetry meshes cut out of a city model) is not closed: a base under
-  // it would turn the terrain into a plinth that dwarfs the building.
+  // it would turn the terrain into a plinth that dwarfs the building. Terrain
+  // reaches the edge of the cut-out scene; interior floors seen through
+  // windows (terrestrial scans) stop at the walls, short of the scene's
+  // bounding box (eaves, cornices, scanned ground strips stick out further).
   bool has_floor = false, on_terrain = false;
   double xy_area = 0;
-  {
-    Vec2 lo(s.points[0].x(), s.points[0].y()), hi = lo;
-    for (const auto& q : s.points) {
-      lo = lo.cwiseMin(Vec2(q.x(), q.y()));
-      hi = hi.cwiseMax(Vec2(q.x(), q.y()));
-    }
-    xy_area = (hi - lo).prod();
+  Vec2 xy_lo(s.points[0].x(), s.points[0].y()), xy_hi = xy_lo;
+  for (const auto& q : s.points) {
+    xy_lo = xy_lo.cwiseMin(Vec2(q.x(), q.y()));
+    xy_hi = xy_hi.cwiseMax(Vec2(q.x(), q.y()));
   }
-  double low_up_area = 0;  // upward-facing planes in the lowest quarter of the height range
+  xy_area = (xy_hi - xy_lo).prod();
+  const double edge_tol = 0.25;  // m: the crop edge is the bounding box
+  auto reaches_edge = [&](const Primitive& pr) {
+    for (const auto& h : pr.hull)
+      if (h.x() < xy_lo.x() + edge_tol || h.x() > xy_hi.x() - edge_tol || h.y() < xy_lo.y() + edge_tol ||
+          h.y() > xy_hi.y() - edge_tol)
+        return true;
+    return false;
+  };
+  double low_up_area = 0;  // upward-facing planes low in the height range reaching the scene's edge
   for (const auto& pr : prims) {
     if (pr.inferred) continue;
     if (pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5) has_floor = true;
-    if (pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin)) low_up_area += pr.alpha_area;
+    if (pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin) && reaches_edge(pr))
+      low_up_area += pr.alpha_area;
   }
   on_terrain = low_up_area > 0.08 * xy_area;
   if (!walls_missing && (has_floor || on_terrain)) return 0;

@@ -69,7 +69,6 @@ RayLabeller::RayLabeller(const LevelTriangles& in, int rays) : impl_(std::make_u
   if (!I.tris.empty()) {
     I.tree.insert(I.tris.cbegin(), I.tris.cend());
     I.tree.build();
-    I.tree.accelerate_distance_queries();
   }
 }
 
@@ -96,43 +95,56 @@ std::vector<std::vector<char>> RayLabeller::label(const std::vector<std::vector<
   for (long c = 0; c < n; ++c) {
     const auto& cell_origins = origins[static_cast<size_t>(c)];
     std::vector<int> votes_in(static_cast<size_t>(L), 0);
-    std::vector<std::pair<double, int>> hits;
-    std::vector<typename Tree::template Intersection_and_primitive_id<Ray>::Type> raw;
+    std::vector<int> grazing;  // triangles a ray lies in: no vote, looked through
     for (int r = 0; r < nrays; ++r) {
       const Vec3& u = I.dirs[static_cast<size_t>(r)];
       const Vec3& o = cell_origins[static_cast<size_t>(r) % cell_origins.size()];
       const Ray ray(Point(o.x(), o.y(), o.z()), K::Vector_3(u.x(), u.y(), u.z()));
-      hits.clear();
-      raw.clear();
-      I.tree.all_intersections(ray, std::back_inserter(raw));
-      for (const auto& h : raw) {
-        const int id = static_cast<int>(h.second - I.tris.cbegin());
-        double t = std::numeric_limits<double>::infinity();
-        if (const Point* p = boost::get<Point>(&h.first)) {
-          t = (Vec3(p->x(), p->y(), p->z()) - o).dot(u);
-        } else if (const K::Segment_3* s = boost::get<K::Segment_3>(&h.first)) {
-          // ray lies in the triangle's plane: grazing, counts as no vote
-          (void)s;
+      // First hit per level: triangles of level <= k count for label k. The
+      // nearest hit of any level decides the labels from its level up; then the
+      // nearest hit among the lower levels only, and so on down to level 0.
+      int bound = L;  // levels [bound, L) already decided
+      grazing.clear();
+      while (bound > 0) {
+        const auto skip = [&](TriIter it) {
+          const int id = static_cast<int>(it - I.tris.cbegin());
+          return I.level[static_cast<size_t>(id)] >= bound ||
+                 std::find(grazing.begin(), grazing.end(), id) != grazing.end();
+        };
+        const auto hit = I.tree.first_intersection(ray, skip);
+        if (!hit) break;
+        const int id = static_cast<int>(hit->second - I.tris.cbegin());
+        if (!boost::get<Point>(&hit->first)) {  // the ray lies in the triangle's plane
+          grazing.push_back(id);
           continue;
         }
-        hits.emplace_back(t, id);
-      }
-      std::sort(hits.begin(), hits.end());
-      // First hit per level: triangles of level <= k count for label k.
-      int lowest_assigned = L;  // levels [lowest_assigned, L) already decided
-      for (const auto& [t, id] : hits) {
         const int lv = I.level[static_cast<size_t>(id)];
-        if (lv >= lowest_assigned) continue;  // also skips levels >= L
         const bool in = I.normals[static_cast<size_t>(id)].dot(u) > 0.0;
-        for (int k = lv; k < lowest_assigned; ++k) votes_in[static_cast<size_t>(k)] += in ? 1 : 0;
-        lowest_assigned = lv;
-        if (lowest_assigned == 0) break;
+        for (int k = lv; k < bound; ++k) votes_in[static_cast<size_t>(k)] += in ? 1 : 0;
+        bound = lv;
       }
     }
     for (int k = 0; k < L; ++k)
       out[static_cast<size_t>(c)][static_cast<size_t>(k)] = (2 * votes_in[static_cast<size_t>(k)] > nrays) ? 1 : 0;
   }
   return out;
+}
+
+std::pair<int, int> RayLabeller::half_space_votes(const Vec3& origin, const Vec3& side) const {
+  const auto& I = *impl_;
+  int in = 0, cast = 0;
+  if (I.tris.empty()) return {0, 0};
+  const Point o(origin.x(), origin.y(), origin.z());
+  for (const auto& u : I.dirs) {
+    if (!(u.dot(side) > 0)) continue;
+    ++cast;
+    const Ray ray(o, K::Vector_3(u.x(), u.y(), u.z()));
+    const auto skip = [&](TriIter it) { return I.level[static_cast<size_t>(it - I.tris.cbegin())] > 0; };
+    const auto hit = I.tree.first_intersection(ray, skip);
+    if (!hit || !boost::get<Point>(&hit->first)) continue;
+    if (I.normals[static_cast<size_t>(hit->second - I.tris.cbegin())].dot(u) > 0.0) ++in;
+  }
+  return {in, cast};
 }
 
 }  // namespace citylod::lod::detail

@@ -39,6 +39,11 @@ class RayLabeller {
   std::vector<std::vector<char>> label(const std::vector<std::vector<Vec3>>& origins, int num_levels,
                                        int threads) const;
 
+  /// Rays of level 0 from `origin` into the half-space `side` points to
+  /// (u.side > 0 only): {rays voting in, rays cast}. Tells which side of a
+  /// surface the triangles around it see as inside.
+  std::pair<int, int> half_space_votes(const Vec3& origin, const Vec3& side) const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -12,6 +12,7 @@
 #include "fallback.hpp"
 #include "ioview.hpp"
 #include "labelling.hpp"
+#include "orient.hpp"
 #include "primitives.hpp"
 #include "tree.hpp"
 
@@ -159,6 +160,14 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   prims.erase(std::remove_if(prims.begin(), prims.end(),
                              [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),
               prims.end());
+  // (ours) Planes whose input normals point into the building are turned round.
+  {
+    OrientParams op = P.orient;
+    op.threads = P.threads;
+    st.planes_turned = orient_primitives(prims, samples, op);
+    if (st.planes_turned > 0)
+      st.notes.push_back(std::to_string(st.planes_turned) + " planes turned round (normals pointed inside)");
+  }
   if (prims.size() < 4) throw LodError("planes", "fewer than 4 usable planes (" + std::to_string(prims.size()) + ")");
   budget.check("planes");
 

@@ -97,6 +97,11 @@ void visit(P& p, F&& f) {
   f("closure.enabled", p.closure.enabled);
   f("closure.wall_fraction_min", p.closure.wall_fraction_min);
   f("closure.outline_alpha", p.closure.outline_alpha);
+  f("orient.enabled", p.orient.enabled);
+  f("orient.points_per_plane", p.orient.points_per_plane);
+  f("orient.rays", p.orient.rays);
+  f("orient.offset", p.orient.offset);
+  f("orient.margin", p.orient.margin);
   f("metrics.samples", p.metrics.samples);
   f("threads", p.threads);
 }
@@ -145,6 +150,10 @@ void LodParams::validate() const {
   check(std::isfinite(budget.time_budget_s) && budget.time_budget_s >= 0, "budget.time_budget_s", "must be >= 0");
   check(ratio(closure.wall_fraction_min), "closure.wall_fraction_min", "must be in (0, 1]");
   check(pos(closure.outline_alpha), "closure.outline_alpha", "must be > 0");
+  check(orient.points_per_plane >= 1, "orient.points_per_plane", "must be >= 1");
+  check(orient.rays >= 2, "orient.rays", "must be >= 2");
+  check(pos(orient.offset), "orient.offset", "must be > 0");
+  check(orient.margin >= 0 && orient.margin < 1, "orient.margin", "must be in [0, 1)");
   check(metrics.samples >= 1, "metrics.samples", "must be >= 1");
   check(threads >= 0, "threads", "must be >= 0 (0 = all cores)");
 }

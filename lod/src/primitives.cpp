@@ -2,7 +2,9 @@
 // regularization of the principal planes.
 #include "primitives.hpp"
 
+#include <CGAL/Constrained_Delaunay_triangulation_2.h>
 #include <CGAL/Delaunay_triangulation_2.h>
+#include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
@@ -375,10 +377,12 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
   // INTERIOR for squared alpha a^2, i.e. those whose circumcircle has a squared
   // radius <= a^2. Computed directly on the triangulation: Alpha_shape_2 first
   // builds the whole alpha spectrum, ~10x slower (3 s for 96k points).
-  using Dt = CGAL::Delaunay_triangulation_2<K>;
+  using DtFb = CGAL::Triangulation_face_base_with_info_2<char, K>;
+  using Dt = CGAL::Delaunay_triangulation_2<K, CGAL::Triangulation_data_structure_2<CGAL::Triangulation_vertex_base_2<K>, DtFb>>;
   Dt dt(pts2.begin(), pts2.end());
   const double a2 = p.alpha * p.alpha;
   if (dt.dimension() == 2) {
+    for (auto f = dt.all_faces_begin(); f != dt.all_faces_end(); ++f) f->info() = 0;
     for (auto f = dt.finite_faces_begin(); f != dt.finite_faces_end(); ++f) {
       const P2& a = f->vertex(0)->point();
       const P2& b = f->vertex(1)->point();
@@ -386,8 +390,51 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
       if (CGAL::squared_radius(a, b, d) > a2) continue;
       const double ar = 0.5 * ((b.x() - a.x()) * (d.y() - a.y()) - (d.x() - a.x()) * (b.y() - a.y()));
       if (!(ar > 0)) continue;  // Delaunay faces are CCW; skip flat ones
-      prim.alpha_tris.push_back({lift(a.x(), a.y()), lift(b.x(), b.y()), lift(d.x(), d.y())});
+      f->info() = 1;
       prim.alpha_area += ar;
+    }
+    // The same region with far fewer triangles (the ray labelling casts
+    // hundreds of thousands of rays at them): a constrained triangulation of
+    // the shape's boundary edges, faces kept at odd nesting levels.
+    using Fb = CGAL::Constrained_triangulation_face_base_2<K, CGAL::Triangulation_face_base_with_info_2<int, K>>;
+    using Tds = CGAL::Triangulation_data_structure_2<CGAL::Triangulation_vertex_base_2<K>, Fb>;
+    using Cdt = CGAL::Constrained_Delaunay_triangulation_2<K, Tds, CGAL::Exact_predicates_tag>;
+    Cdt cdt;
+    for (auto f = dt.finite_faces_begin(); f != dt.finite_faces_end(); ++f) {
+      if (!f->info()) continue;
+      for (int i = 0; i < 3; ++i)
+        if (!f->neighbor(i)->info())
+          cdt.insert_constraint(f->vertex(Dt::ccw(i))->point(), f->vertex(Dt::cw(i))->point());
+    }
+    for (auto f = cdt.all_faces_begin(); f != cdt.all_faces_end(); ++f) f->info() = -1;
+    // Flood fill by nesting level: crossing a constrained edge adds one.
+    std::vector<Cdt::Edge> border;
+    auto fill = [&](Cdt::Face_handle start, int level) {
+      std::vector<Cdt::Face_handle> stack{start};
+      while (!stack.empty()) {
+        const auto f = stack.back();
+        stack.pop_back();
+        if (f->info() != -1) continue;
+        f->info() = level;
+        for (int i = 0; i < 3; ++i) {
+          const auto g = f->neighbor(i);
+          if (g->info() != -1) continue;
+          if (cdt.is_constrained(Cdt::Edge(f, i))) border.emplace_back(f, i);
+          else stack.push_back(g);
+        }
+      }
+    };
+    fill(cdt.infinite_face(), 0);
+    for (std::size_t b = 0; b < border.size(); ++b) {
+      const auto g = border[b].first->neighbor(border[b].second);
+      if (g->info() == -1) fill(g, border[b].first->info() + 1);
+    }
+    for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+      if (f->info() % 2 != 1) continue;
+      const P2& a = f->vertex(0)->point();
+      const P2& b = f->vertex(1)->point();
+      const P2& d = f->vertex(2)->point();
+      prim.alpha_tris.push_back({lift(a.x(), a.y()), lift(b.x(), b.y()), lift(d.x(), d.y())});
     }
   }
   if (prim.alpha_tris.empty()) {

@@ -96,6 +96,7 @@ nlohmann::json lod_report(const lod::LodResult& r, const lod::LodParams& p, cons
                  {"cut_outs", s.cut_outs},           {"clusters", s.clusters},
                  {"level_sets", s.level_sets},       {"ioview_cells", s.ioview_cells},
                  {"bsp_nodes", s.bsp_nodes},         {"lod_nodes", s.lod_nodes},
+                 {"planes_turned", s.planes_turned},
                  {"models", r.models.size()}};
   j["lod_tree_vs_bsp_tree"] = {{"lod_tree_cuts_to_finest", s.lod_tree_cuts_to_finest},
                                {"bsp_tree_nodes", s.baseline_bsp_nodes},

@@ -57,6 +57,7 @@ struct LodStats {
   bool normals_estimated = false;
   bool walls_inferred = false;
   int planes_detected = 0;        ///< P
+  int planes_turned = 0;          ///< planes turned round by the orientation check
   int planes_sorted = 0;          ///< S (after regularization/templates)
   int principal = 0;
   int add_ons = 0, cut_outs = 0;  ///< secondary structures

@@ -87,6 +87,18 @@ struct ClosureParams {
   double outline_alpha = 1.5;          ///< m, 2D alpha radius of the outline of the points
 };
 
+/// (ours) Consistent orientation of the detected planes before IO-View: a
+/// plane whose front the other planes see as clearly more inside than its back
+/// (input normals pointing into the building) is turned round.
+struct OrientParams {
+  bool enabled = true;
+  int points_per_plane = 4;            ///< inlier positions probed per plane
+  int rays = 100;                      ///< ray directions (half of them per side)
+  double offset = 0.1;                 ///< m, probe distance in front of / behind the plane
+  double margin = 0.2;                 ///< front in-fraction must exceed the back's by this much
+  int threads = 1;                     ///< set from LodParams::threads
+};
+
 /// Evaluation (e1/e2 RMSE).
 struct MetricParams {
   int samples = 5000;                  ///< samples on each model for e1; at most this many input samples for e2
@@ -104,6 +116,7 @@ struct LodParams {
   TreeParams tree;
   BudgetParams budget;
   ClosureParams closure;
+  OrientParams orient;
   MetricParams metrics;
   int threads = 1;                     ///< OpenMP threads inside one building (results do not depend on it)
 

@@ -1,0 +1,14 @@
+// Internal: consistent outward orientation of the detected planes (orient.cpp).
+#pragma once
+
+#include "primitives.hpp"
+
+namespace citylod::lod::detail {
+
+/// Turns round the planes whose front (normal side) the other planes' alpha
+/// shapes see as inside (> half the rays vote in) and whose back they see as
+/// outside, by a clear margin. Returns how many.
+/// Deterministic for any thread count.
+int orient_primitives(std::vector<Primitive>& prims, const Samples& s, const OrientParams& p);
+
+}  // namespace citylod::lod::detail
