@@ -685,8 +685,8 @@ std::vector<BspInterface> Bsp::adjacency(const std::vector<int>& partition) cons
   return out;
 }
 
-BspSurface Bsp::extract(const std::vector<int>& partition, std::vector<char> inside) const {
-  return extract_surface(*impl_, partition, std::move(inside));
+BspSurface Bsp::extract(const std::vector<int>& partition, std::vector<char> inside, ExtractCache* cache) const {
+  return extract_surface(*impl_, partition, std::move(inside), cache);
 }
 
 }  // namespace citylod::lod::detail

@@ -39,6 +39,20 @@ struct BspInterface {
   std::vector<Vec3> polygon;     ///< the shared convex polygon (double)
 };
 
+/// Plane regions of earlier extractions, reused when the faces of inside cells
+/// on a plane are unchanged: consecutive LOD candidates differ by a few cells,
+/// so most planes are. One cache per sequence of extractions (not shared
+/// between threads); results are identical with and without it.
+class ExtractCache {
+ public:
+  ExtractCache();
+  ~ExtractCache();
+  ExtractCache(const ExtractCache&) = delete;
+  ExtractCache& operator=(const ExtractCache&) = delete;
+  struct Impl;
+  std::unique_ptr<Impl> impl;
+};
+
 /// Surface extracted from a labelled partition.
 struct BspSurface {
   PolygonMesh polygons;          ///< coplanar faces merged; each face a hole-free CCW (from outside) loop
@@ -80,7 +94,8 @@ class Bsp {
   /// relabelling the smallest adjacent out-node in), free of self-intersections
   /// and T-junctions; coplanar faces merged. Deterministic. Thread-safe
   /// (const; several threads may extract from one Bsp concurrently).
-  BspSurface extract(const std::vector<int>& partition, std::vector<char> inside) const;
+  BspSurface extract(const std::vector<int>& partition, std::vector<char> inside,
+                     ExtractCache* cache = nullptr) const;
 
  private:
   struct Impl;

@@ -40,7 +40,33 @@ namespace citylod::lod::detail {
 
 using namespace bspi;
 
+namespace bspx {
+
+/// A point on the plane (exact): a BSP vertex (vid >= 0) or the intersection
+/// of 3 table planes def (the plane itself and two edge planes).
+struct EvPt {
+  K::Point_2 p;
+  int vid = -1;
+  std::array<int, 3> def{-1, -1, -1};
+};
+
+/// Regions of one plane: the key of its faces, the loops of both sides.
+struct PlaneRegions {
+  std::vector<int> key;
+  std::array<std::vector<std::vector<EvPt>>, 2> loops;
+};
+
+}  // namespace bspx
+
+struct ExtractCache::Impl {
+  std::unordered_map<int, bspx::PlaneRegions> byplane;
+};
+ExtractCache::ExtractCache() : impl(std::make_unique<Impl>()) {}
+ExtractCache::~ExtractCache() = default;
+
 namespace {
+
+using bspx::EvPt;
 
 using Point2 = K::Point_2;
 using Line2 = K::Line_2;
@@ -87,13 +113,6 @@ struct F2 {
   bool a = true;                      ///< outward normal +n (else -n)
 };
 
-/// A point on the plane (exact): a BSP vertex (vid >= 0) or the intersection
-/// of 3 table planes def (the plane itself and two edge planes).
-struct EvPt {
-  Point2 p;
-  int vid = -1;
-  std::array<int, 3> def{-1, -1, -1};
-};
 
 /// Per-plane context: the table, the projection, and memoized crossing points.
 struct PlaneCtx {
@@ -491,8 +510,65 @@ std::vector<int> collapse_inside(const BspData& I, const std::vector<int>& parti
   return out;
 }
 
+/// Boundary loops of one plane's region, per side (0: outward +n, 1: -n), as
+/// exact plane points, collinear vertices dropped.
+std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int pl, const std::vector<F2>& F,
+                                                          Scratch& scratch) {
+  using Box2 = CGAL::Box_intersection_d::Box_with_info_d<double, 2, int>;
+  const auto& dc = I.dplanes[pl];
+  const int k = dominant_axis(dc);
+  const int u = (k + 1) % 3, w = (k + 2) % 3;
+  // candidate faces per edge
+  double scale = 1.0;
+  for (const auto& f : F)
+    for (const auto& q : f.ap) scale = std::max(scale, q.cwiseAbs().maxCoeff());
+  const double tol = 1e-7 * scale;
+  std::vector<Box2> eb, fb;
+  std::vector<std::pair<int, int>> erefs;
+  for (int fi = 0; fi < int(F.size()); ++fi) {
+    const auto& ap = F[fi].ap;
+    double flo[2] = {1e300, 1e300}, fhi[2] = {-1e300, -1e300};
+    for (int e = 0; e < int(ap.size()); ++e) {
+      const auto& a = ap[e];
+      const auto& b = ap[(e + 1) % ap.size()];
+      double lo2[2], hi2[2];
+      for (int t = 0; t < 2; ++t) {
+        lo2[t] = std::min(a[t], b[t]) - tol;
+        hi2[t] = std::max(a[t], b[t]) + tol;
+        flo[t] = std::min(flo[t], lo2[t]);
+        fhi[t] = std::max(fhi[t], hi2[t]);
+      }
+      eb.emplace_back(lo2, hi2, int(erefs.size()));
+      erefs.emplace_back(fi, e);
+    }
+    fb.emplace_back(flo, fhi, fi);
+  }
+  std::vector<std::vector<int>> cand(erefs.size());
+  CGAL::box_intersection_d(eb.begin(), eb.end(), fb.begin(), fb.end(),
+                           [&](const Box2& e, const Box2& f) { cand[e.info()].push_back(f.info()); });
+  LocalPts L;
+  PlaneCtx C{I, pl, k, u, w, {}};
+  std::vector<std::pair<int, int>> segs[2];
+  for (int e = 0; e < int(erefs.size()); ++e) {
+    std::sort(cand[e].begin(), cand[e].end());
+    edge_boundary(C, F, erefs[e].first, erefs[e].second, cand[e], L, segs, scratch);
+  }
+  std::array<std::vector<std::vector<EvPt>>, 2> out;
+  for (int si = 0; si < 2; ++si) {
+    if (segs[si].empty()) continue;
+    for (auto& loop : chain_loops(segs[si], L)) {
+      remove_collinear(loop, L, C);
+      std::vector<EvPt> pts;
+      pts.reserve(loop.size());
+      for (int li : loop) pts.push_back(L.pts[li]);
+      out[si].push_back(std::move(pts));
+    }
+  }
+  return out;
+}
+
 // One extraction pass: the boundary of the union of the cells `in_nodes`.
-Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes) {
+Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, ExtractCache* cache) {
   Extracted X;
   Prof prof;
   // exact coordinates of the BSP vertices used, computed once per pass
@@ -556,7 +632,6 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes) {
     return id;
   };
 
-  using Box2 = CGAL::Box_intersection_d::Box_with_info_d<double, 2, int>;
   Scratch scratch;
   for (auto& [pl, faces0] : byplane) {
     // identical faces from both sides cancel
@@ -575,57 +650,38 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes) {
         if (!drop[i]) F.push_back(std::move(faces0[i]));
     }
     if (F.empty()) continue;
-    const auto& dc = I.dplanes[pl];
-    const int k = dominant_axis(dc);
-    const int u = (k + 1) % 3, w = (k + 2) % 3;
-    // candidate faces per edge
-    double scale = 1.0;
-    for (const auto& f : F)
-      for (const auto& q : f.ap) scale = std::max(scale, q.cwiseAbs().maxCoeff());
-    const double tol = 1e-7 * scale;
-    std::vector<Box2> eb, fb;
-    std::vector<std::pair<int, int>> erefs;
-    for (int fi = 0; fi < int(F.size()); ++fi) {
-      const auto& ap = F[fi].ap;
-      double flo[2] = {1e300, 1e300}, fhi[2] = {-1e300, -1e300};
-      for (int e = 0; e < int(ap.size()); ++e) {
-        const auto& a = ap[e];
-        const auto& b = ap[(e + 1) % ap.size()];
-        double lo2[2], hi2[2];
-        for (int t = 0; t < 2; ++t) {
-          lo2[t] = std::min(a[t], b[t]) - tol;
-          hi2[t] = std::max(a[t], b[t]) + tol;
-          flo[t] = std::min(flo[t], lo2[t]);
-          fhi[t] = std::max(fhi[t], hi2[t]);
-        }
-        eb.emplace_back(lo2, hi2, int(erefs.size()));
-        erefs.emplace_back(fi, e);
+    // The faces on this plane as a key: unchanged faces give unchanged loops.
+    std::vector<int> key;
+    for (const auto& f : F) {
+      key.push_back(f.a ? -1 : -2);
+      key.push_back(int(f.vid.size()));
+      key.insert(key.end(), f.vid.begin(), f.vid.end());
+      key.insert(key.end(), f.ep.begin(), f.ep.end());
+    }
+    bspx::PlaneRegions* cached = nullptr;
+    if (cache) {
+      auto& e = cache->impl->byplane[pl];
+      if (e.key != key) {
+        e.key = std::move(key);
+        e.loops = plane_loops(I, pl, F, scratch);
       }
-      fb.emplace_back(flo, fhi, fi);
+      cached = &e;
     }
-    std::vector<std::vector<int>> cand(erefs.size());
-    CGAL::box_intersection_d(eb.begin(), eb.end(), fb.begin(), fb.end(),
-                             [&](const Box2& e, const Box2& f) { cand[e.info()].push_back(f.info()); });
-    LocalPts L;
-    PlaneCtx C{I, pl, k, u, w, {}};
-    std::vector<std::pair<int, int>> segs[2];
-    for (int e = 0; e < int(erefs.size()); ++e) {
-      std::sort(cand[e].begin(), cand[e].end());
-      edge_boundary(C, F, erefs[e].first, erefs[e].second, cand[e], L, segs, scratch);
-    }
+    bspx::PlaneRegions fresh;
+    if (!cached) fresh.loops = plane_loops(I, pl, F, scratch);
+    const auto& loops = cached ? cached->loops : fresh.loops;
+    const int k = dominant_axis(I.dplanes[pl]);
     // loops per side; lift to 3D
     for (int si = 0; si < 2; ++si) {
-      if (segs[si].empty()) continue;
+      if (loops[si].empty()) continue;
       Group G;
       G.plane = pl;
       G.side = si == 0 ? 1 : -1;
       G.k = k;
-      for (auto& loop : chain_loops(segs[si], L)) {
-        remove_collinear(loop, L, C);
+      for (const auto& loop : loops[si]) {
         std::vector<int> ids;
         ids.reserve(loop.size());
-        for (int li : loop) {
-          const EvPt& ep = L.pts[li];
+        for (const EvPt& ep : loop) {
           int id;
           if (ep.vid >= 0) {
             const auto& c = coords(ep.vid);
@@ -826,7 +882,8 @@ bool cell_contains(const BspData& I, const Cell& c, const Point3& p) {
 
 }  // namespace
 
-BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& partition, std::vector<char> inside) {
+BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& partition, std::vector<char> inside,
+                                 ExtractCache* cache) {
   const auto& cells = D.cells;
   const auto& nodes = D.nodes;
   const auto& verts = D.verts;
@@ -838,7 +895,7 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
   std::vector<std::pair<Vec3, Vec3>> bbox;  // lazily filled
   const int max_rounds = 64;
   for (int round = 0;; ++round) {
-    X = extract_once(D, collapse_inside(D, partition, inside));
+    X = extract_once(D, collapse_inside(D, partition, inside), cache);
     const auto bad = nonmanifold_edges(X);
     if (bad.empty() || round >= max_rounds) break;
     if (bbox.empty()) {

@@ -114,7 +114,8 @@ struct BspData {
 };
 
 /// Surface extraction (bsp_extract.cpp).
-BspSurface extract_surface(const BspData& D, const std::vector<int>& partition, std::vector<char> inside);
+BspSurface extract_surface(const BspData& D, const std::vector<int>& partition, std::vector<char> inside,
+                           ExtractCache* cache);
 
 }  // namespace citylod::lod::detail::bspi
 

@@ -238,6 +238,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   // candidates share most of their cells, and each repair round is a full
   // extraction pass.
   std::set<int> repaired;
+  ExtractCache extract_cache;  // planes whose faces did not change are not recomputed
   for (size_t i = 0; i < candidates.size(); ++i) {
     progress(0.6 + 0.3 * double(i) / double(candidates.size()), "extraction");
     budget.check("extraction");
@@ -245,7 +246,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     std::vector<char> inside = c.inside;
     for (size_t k = 0; k < inside.size(); ++k)
       if (!inside[k] && repaired.count(c.partition[k])) inside[k] = 1;
-    BspSurface surf = bsp.extract(c.partition, inside);
+    BspSurface surf = bsp.extract(c.partition, inside, &extract_cache);
     for (size_t k = 0; k < surf.inside.size(); ++k)
       if (surf.inside[k] && !c.inside[k]) repaired.insert(c.partition[k]);
     if (surf.triangles.triangles.empty()) continue;  // empty model (nothing inside yet)

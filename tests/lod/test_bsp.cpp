@@ -19,6 +19,7 @@ using citylod::lod::Vec3;
 using citylod::lod::detail::Bsp;
 using citylod::lod::detail::BspPolygon;
 using citylod::lod::detail::BspSurface;
+using citylod::lod::detail::ExtractCache;
 
 namespace {
 
@@ -646,5 +647,36 @@ TEST(Bsp, ConcurrentExtractFromOneBsp) {
   for (const auto& s : out) {
     EXPECT_EQ(s.triangles.vertices, ref.triangles.vertices);
     EXPECT_EQ(s.triangles.triangles, ref.triangles.triangles);
+  }
+}
+
+// A sequence of extractions sharing an ExtractCache (as the LOD candidates
+// do) gives exactly what fresh extractions give, whether consecutive labels
+// differ by one cell, by many, or not at all.
+TEST(Bsp, ExtractCacheGivesIdenticalSurfaces) {
+  const auto polys = building_like(7, 30, 10, 0);
+  const Bsp bsp(Vec3(0, 0, 0), Vec3(10, 10, 10), polys, 0);
+  const auto leaves = bsp.leaves();
+  std::vector<char> in;
+  for (int l : leaves) in.push_back((bsp.nodes()[l].center - Vec3(5, 5, 5)).norm() < 3.0);
+  ExtractCache cache;
+  std::mt19937 rng(5);
+  for (int step = 0; step < 8; ++step) {
+    if (step == 3) {
+      for (auto& x : in) x = char(rng() % 2);  // many cells change
+    } else if (step != 5) {                    // step 5: nothing changes
+      for (size_t i = 0; i < in.size(); ++i)
+        if (!in[i]) {
+          in[i] = 1;  // one more cell in
+          break;
+        }
+    }
+    const BspSurface fresh = bsp.extract(leaves, in);
+    const BspSurface cached = bsp.extract(leaves, in, &cache);
+    EXPECT_EQ(cached.triangles.vertices, fresh.triangles.vertices) << "step " << step;
+    EXPECT_EQ(cached.triangles.triangles, fresh.triangles.triangles) << "step " << step;
+    EXPECT_EQ(cached.polygons.faces, fresh.polygons.faces) << "step " << step;
+    EXPECT_EQ(cached.inside, fresh.inside) << "step " << step;
+    expect_good_surface(cached, "cached");
   }
 }
