@@ -196,3 +196,63 @@ TEST(LodPipeline, TimeBudgetGivesARecordedFallback) {
   ASSERT_EQ(r.models.size(), 1u);
   EXPECT_TRUE(check_mesh(r.models[0].mesh).closed);
 }
+
+// A wall whose input normals point into the building (as on patches of real
+// scans) is turned round before IO-View; the model is the box.
+TEST(LodPipeline, WallWithInwardNormalsIsTurnedRound) {
+  const Vec3 lo(0, 0, 0), hi(10, 6, 4);
+  auto b = test::box(lo, hi);
+  int flipped = 0;
+  for (size_t i = 0; i < b.input.points.size(); ++i)
+    if (std::abs(b.input.points[i].x() - hi.x()) < 1e-9) {
+      b.input.normals[i] = -b.input.normals[i];
+      ++flipped;
+    }
+  ASSERT_GT(flipped, 100);
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  EXPECT_EQ(r.stats.planes_turned, 1);
+  ASSERT_NE(last_anchor(r), nullptr);
+  EXPECT_NEAR(last_anchor(r)->volume, b.volume, 0.01 * b.volume);
+  EXPECT_EQ(last_anchor(r)->polygons.faces.size(), 6u);
+  // The correctly oriented box has nothing to turn round.
+  EXPECT_EQ(build_lod_tree(test::box(lo, hi).input, fast_params()).stats.planes_turned, 0);
+}
+
+// A facade scan has no floor: a base plane closes it at the lowest sample,
+// even when floors inside are seen through windows (they stop at the walls,
+// short of the scene's bounding box, so they are not terrain).
+TEST(LodPipeline, OpenBottomIsClosedAtTheLowestSample) {
+  std::vector<test::Face> f;
+  test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 6), 16);                             // no bottom
+  test::add_rect(f, Vec3(2, 1.5, 1.2), Vec3::UnitX(), 6, Vec3::UnitY(), 3);  // interior floor (lowest quarter), faces up
+  const auto b = test::finish(std::move(f), 360.0, 6, SynthOptions{}, false);
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  bool base_note = false;
+  for (const auto& n : r.stats.notes) base_note |= n.find("base plane") != std::string::npos;
+  EXPECT_TRUE(base_note);
+  ASSERT_NE(last_anchor(r), nullptr);
+  double zmin = 1e9, lowest = 1e9;
+  for (const auto& v : last_anchor(r)->mesh.vertices) zmin = std::min(zmin, v.z());
+  for (const auto& p : b.input.points) lowest = std::min(lowest, p.z());
+  EXPECT_NEAR(zmin, lowest, 1e-6);
+  EXPECT_LT(lowest, 0.1);
+}
+
+// A house standing on a terrain sheet that fills the crop gets no base under
+// the terrain (which would make a plinth of it): the model is the house.
+TEST(LodPipeline, TerrainSheetIsNotClosedIntoAPlinth) {
+  std::vector<test::Face> f;
+  test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 4), 16);                    // house, no bottom
+  test::add_rect(f, Vec3(-10, -10, 0), Vec3::UnitX(), 30, Vec3::UnitY(), 26);  // terrain, faces up
+  const auto b = test::finish(std::move(f), 240.0, 6, SynthOptions{}, false);
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  for (const auto& n : r.stats.notes) EXPECT_EQ(n.find("base plane"), std::string::npos) << n;
+  ASSERT_NE(last_anchor(r), nullptr);
+  double zmin = 1e9;
+  for (const auto& v : last_anchor(r)->mesh.vertices) zmin = std::min(zmin, v.z());
+  EXPECT_GE(zmin, -1e-6);
+  EXPECT_NEAR(last_anchor(r)->volume, 240.0, 0.01 * 240.0);
+}
