@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <set>
 #include <sstream>
 #include <unordered_map>
@@ -192,6 +193,21 @@ struct GlbBuilder::Impl {
     const double q = std::round(x / extent * 32767.0);
     return std::int16_t(std::clamp(q, -32767.0, 32767.0));
   }
+  /// Whether int16 positions keep every feature's distinct vertices distinct:
+  /// two corners closer than a quantization step would merge and make a
+  /// closed model non-manifold. Such a node is written with float positions.
+  static bool quantizable(const Node& n) {
+    const double e = quant_extent(n);
+    std::map<std::array<std::int64_t, 4>, Vec3d> seen;
+    for (std::size_t i = 0; i < n.rel.size(); ++i) {
+      const Vec3d y = to_yup(n.rel[i]);
+      const std::array<std::int64_t, 4> key{std::int64_t(n.feature[i]), quant(y[0], e), quant(y[1], e), quant(y[2], e)};
+      const auto [it, added] = seen.emplace(key, n.rel[i]);
+      if (!added && it->second != n.rel[i]) return false;
+    }
+    return true;
+  }
+  bool quantized(const Node& n) const { return opt.quantize && quantizable(n); }
 };
 
 GlbBuilder::GlbBuilder(const Vec3d& origin, GlbOptions options) : impl_(std::make_unique<Impl>()) {
@@ -241,12 +257,12 @@ BBox3 GlbBuilder::stored_bounds() const {
   const Vec3d& o = impl_->origin;
   for (const auto& node : impl_->nodes) {
     const double e = Impl::quant_extent(node);
+    const bool q = impl_->quantized(node);
     for (const auto& p : node.rel) {
       const Vec3d y = to_yup(p);
       Vec3d s;
       for (int k = 0; k < 3; ++k)
-        s[size_t(k)] = impl_->opt.quantize ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e
-                                           : double(float(y[size_t(k)]));
+        s[size_t(k)] = q ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e : double(float(y[size_t(k)]));
       const Vec3d z = from_yup(s);
       b.add(Vec3d{o[0] + z[0], o[1] + z[1], o[2] + z[2]});
     }
@@ -257,7 +273,9 @@ BBox3 GlbBuilder::stored_bounds() const {
 std::string GlbBuilder::glb() const {
   const Impl& im = *impl_;
   if (im.features.empty()) throw IoError(kWhere, "no features to write");
-  const bool q = im.opt.quantize;
+  std::vector<char> node_q;  // per node: int16 positions (see Impl::quantizable)
+  for (const auto& node : im.nodes) node_q.push_back(im.quantized(node) ? 1 : 0);
+  const bool q = std::find(node_q.begin(), node_q.end(), 1) != node_q.end();
 
   tinygltf::Model model;
   model.asset.version = "2.0";
@@ -285,7 +303,8 @@ std::string GlbBuilder::glb() const {
   scene.name = "citylod";
 
   const Vec3d oy = to_yup(im.origin);
-  for (const auto& node : im.nodes) {
+  for (std::size_t ni = 0; ni < im.nodes.size(); ++ni) {
+    const auto& node = im.nodes[ni];
     tinygltf::Node gn;
     gn.name = node.name;
     gn.translation = {oy[0], oy[1], oy[2]};
@@ -299,7 +318,7 @@ std::string GlbBuilder::glb() const {
     }
     // Vertex attributes.
     int pos_acc, nrm_acc;
-    if (q) {
+    if (node_q[ni]) {
       const double e = Impl::quant_extent(node);
       gn.scale = {e, e, e};
       std::vector<std::int16_t> pos(nv * 4, 0), nrm(nv * 4, 0);

@@ -133,5 +133,32 @@ TEST(GlbReader, CorruptBytesNameTheFile) {
   EXPECT_THROW(io::read_glb((fs::path(CITYLOD_TEST_TMP) / "no_such_dir" / "x.glb").string()), io::IoError);
 }
 
+
+// int16 positions must not merge distinct corners of a model (a thin part
+// closer than one quantization step would become non-manifold): such a node is
+// written with float positions; an ordinary node stays quantized.
+TEST(GlbReader, QuantizationNeverMergesCornersOfAModel) {
+  const Vec3d origin{0.0, 0.0, 0.0};
+  io::GlbOptions opt;
+  opt.quantize = true;
+  TriangleMesh far, thin;
+  add_box(far, 900, 900, 0, 1000, 1000, 10);  // node extent 1000 m: step ~3 cm
+  add_box(thin, 0, 0, 0, 10, 10, 0.004);       // 4 mm thick slab
+  io::GlbBuilder merged(origin, opt);
+  merged.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
+  merged.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);
+  const std::string bytes = merged.glb();
+  EXPECT_EQ(bytes.find("KHR_mesh_quantization"), std::string::npos);
+  const auto tris = triangles(io::parse_glb(bytes, "mem.glb"));
+  double zmax = 0;
+  for (const auto& tri : tris.at(1))
+    for (const auto& p : tri) zmax = std::max(zmax, p[2]);
+  EXPECT_NEAR(zmax, 0.004, 1e-6);  // the slab keeps its thickness
+
+  io::GlbBuilder plain(origin, opt);
+  plain.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
+  EXPECT_NE(plain.glb().find("KHR_mesh_quantization"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace citylod::test

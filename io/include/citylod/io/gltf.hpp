@@ -45,7 +45,9 @@ struct GlbFeature {
 
 struct GlbOptions {
   /// KHR_mesh_quantization: positions as normalized int16 (node scale restores
-  /// metres; step = node extent / 32767), normals as normalized int16.
+  /// metres; step = node extent / 32767), normals as normalized int16. A node
+  /// where int16 would merge two distinct corners of one model keeps float
+  /// positions (the model stays closed and edge-manifold as stored).
   bool quantize = false;
   std::string generator = "citylod";
 };
