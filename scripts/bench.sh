@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # Reproduces every benchmark table and plot of BENCHMARKS.md in one command:
 #
-#   scripts/bench.sh [--build-dir DIR] [--out DIR] [--jobs N] [--no-build] [--copy-plots]
+#   scripts/bench.sh [--build-dir DIR] [--out DIR] [--jobs N] [--no-install] [--no-build] [--copy-plots]
 #
+# 0. installs the Debian packages it needs (scripts/install-deps.sh
+#    --with-bench-tools: the build dependencies, meshoptimizer, gnuplot)
+#    unless --no-install;
 # 1. configures + builds a Release build with -DCITYLOD_BUILD_BENCH=ON in
 #    build-bench/ (or --build-dir; --no-build reuses it as is);
 # 2. runs lod_bench, fidelity_bench, split_bench and, when the project has it,
@@ -24,19 +27,25 @@ build_dir="build-bench"
 out_dir=""
 jobs="$(nproc 2>/dev/null || echo 2)"
 do_build=1
+do_install=1
 copy_plots=0
-usage() { sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --build-dir) build_dir="${2:?--build-dir needs a value}"; shift 2 ;;
     --out) out_dir="${2:?--out needs a value}"; shift 2 ;;
     --jobs|-j) jobs="${2:?--jobs needs a value}"; shift 2 ;;
     --no-build) do_build=0; shift ;;
+    --no-install) do_install=0; shift ;;
     --copy-plots) copy_plots=1; shift ;;
     -h|--help) usage; exit 0 ;;
     *) echo "bench.sh: unknown argument $1" >&2; usage >&2; exit 2 ;;
   esac
 done
+
+if [ "$do_install" = 1 ]; then
+  scripts/install-deps.sh --with-bench-tools || { echo "bench.sh: installing the dependencies failed" >&2; exit 1; }
+fi
 
 day="$(date +%Y-%m-%d)"
 [ -n "$out_dir" ] || out_dir="bench-results/$day"

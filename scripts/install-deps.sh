@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Idempotent installer of citylod's build and test dependencies (Debian 12 packages only).
-# Usage: scripts/install-deps.sh [--with-test-tools]
+# Usage: scripts/install-deps.sh [--with-test-tools | --with-bench-tools]
 #   --with-test-tools  also installs what the test suite needs beyond the build
-#                      (nodejs/npm, chromium, gdal-bin, slurm-wlm, munge).
+#                      (nodejs/npm, chromium, gdal-bin, gnuplot, slurm-wlm, munge).
+#   --with-bench-tools also installs what scripts/bench.sh needs (gnuplot).
 set -euo pipefail
 
 build_pkgs=(
@@ -19,6 +20,8 @@ if ! command -v npm >/dev/null 2>&1; then test_pkgs+=(nodejs npm); fi
 want=("${build_pkgs[@]}")
 if [[ "${1:-}" == "--with-test-tools" ]]; then
   want+=("${test_pkgs[@]}")
+elif [[ "${1:-}" == "--with-bench-tools" ]]; then
+  want+=(gnuplot-nox)
 fi
 
 missing=()
