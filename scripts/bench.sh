@@ -29,7 +29,7 @@ jobs="$(nproc 2>/dev/null || echo 2)"
 do_build=1
 do_install=1
 copy_plots=0
-usage() { sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --build-dir) build_dir="${2:?--build-dir needs a value}"; shift 2 ;;
