@@ -1,6 +1,7 @@
 // Runs the real `citylod` binary: exit codes, stdout/stderr, real data.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -23,8 +24,10 @@ std::string slurp(const std::string& p) {
   return s.str();
 }
 
+// Per process: ctest runs the tests of this file in parallel processes, which
+// must not share stdout.txt / stderr.txt or the files they write.
 std::string tmp_dir() {
-  std::string d = std::string(CITYLOD_TEST_TMP) + "/cli";
+  std::string d = std::string(CITYLOD_TEST_TMP) + "/cli-" + std::to_string(::getpid());
   std::filesystem::create_directories(d);
   return d;
 }
