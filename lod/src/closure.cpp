@@ -242,11 +242,39 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
       low_up_area += pr.alpha_area;
   }
   on_terrain = low_up_area > 0.08 * xy_area;
-  if (!walls_missing && (has_floor || on_terrain)) return 0;
+  if (!walls_missing && has_floor) return 0;
+  // On a terrain sheet the base goes under the building only, at the terrain's
+  // height: the terrain has a hole where the building stands, and rays from
+  // the ground floor escaping through it would turn the ground floor out.
+  const Primitive* terrain = nullptr;
+  if (!walls_missing && on_terrain) {
+    for (const auto& pr : prims)
+      if (!pr.inferred && pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin) && reaches_edge(pr) &&
+          (!terrain || pr.alpha_area > terrain->alpha_area))
+        terrain = &pr;
+    if (!terrain) return 0;
+  }
 
   // Outline (CCW in xy).
   std::vector<Vec2> outline;
-  if (in.footprint.size() >= 3) {
+  if (terrain) {
+    // The building's outline: samples clearly above the terrain (walls, roofs),
+    // not those of upward planes low down (terrain pieces).
+    std::vector<char> low_up(s.points.size(), 0);
+    for (const auto& pr : prims)
+      if (!pr.inferred && pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin))
+        for (int i : pr.inliers) low_up[size_t(i)] = 1;
+    const Vec3& tn = terrain->normal;
+    std::vector<Vec2> xy;
+    for (std::size_t i = 0; i < s.points.size(); ++i) {
+      const Vec3& q = s.points[i];
+      if (low_up[i] || tn.dot(q) + terrain->d < 1.0) continue;  // terrain, or within 1 m above it
+      xy.emplace_back(q.x(), q.y());
+    }
+    if (xy.size() < 3) return 0;
+    outline = alpha_outline(xy, p.outline_alpha);
+    if (outline.size() >= 3) outline = simplify_closed(outline, 0.4, 10.0);
+  } else if (in.footprint.size() >= 3) {
     outline = in.footprint;
     // Drop a closing duplicate vertex.
     if ((outline.front() - outline.back()).norm() < 1e-9) outline.pop_back();
@@ -260,7 +288,14 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
   }
   if (outline.size() < 3 || !(signed_area(outline) > 0)) return 0;
 
-  const double gz = in.has_ground_z ? in.ground_z : zmin;
+  double gz = in.has_ground_z ? in.ground_z : zmin;
+  if (terrain) {  // the terrain plane's height under the outline's centroid
+    Vec2 c = Vec2::Zero();
+    for (const auto& q : outline) c += q;
+    c /= double(outline.size());
+    const Vec3& tn = terrain->normal;
+    gz = -(tn.x() * c.x() + tn.y() * c.y() + terrain->d) / tn.z();
+  }
   int added = 0;
 
   // Ground: normal -z (outward = down); CCW about -z = CW in xy.

@@ -241,7 +241,8 @@ TEST(LodPipeline, OpenBottomIsClosedAtTheLowestSample) {
 }
 
 // A house standing on a terrain sheet that fills the crop gets no base under
-// the terrain (which would make a plinth of it): the model is the house.
+// the terrain (which would make a plinth of it), but one under the house at
+// the terrain's height: the model is the house, down to the ground.
 TEST(LodPipeline, TerrainSheetIsNotClosedIntoAPlinth) {
   std::vector<test::Face> f;
   test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 4), 16);                    // house, no bottom
@@ -249,10 +250,36 @@ TEST(LodPipeline, TerrainSheetIsNotClosedIntoAPlinth) {
   const auto b = test::finish(std::move(f), 240.0, 6, SynthOptions{}, false);
   const LodResult r = build_lod_tree(b.input, fast_params());
   expect_valid_models(r);
-  for (const auto& n : r.stats.notes) EXPECT_EQ(n.find("base plane"), std::string::npos) << n;
   ASSERT_NE(last_anchor(r), nullptr);
   double zmin = 1e9;
   for (const auto& v : last_anchor(r)->mesh.vertices) zmin = std::min(zmin, v.z());
-  EXPECT_GE(zmin, -1e-6);
+  EXPECT_NEAR(zmin, 0.0, 1e-6);
   EXPECT_NEAR(last_anchor(r)->volume, 240.0, 0.01 * 240.0);
+}
+
+// As cut out of a city mesh: the terrain has a hole where the house stands,
+// the house has no floor and its ground floor is mostly open. Rays from the
+// ground floor escape downwards through the hole and sideways through the
+// openings; the base under the house at the terrain's height keeps it solid
+// down to the ground, and nothing goes below the terrain. (The synthetic
+// house also stays solid without that base; the real-data bound on
+// easy3d_building in tests/lodreal is what fails without it.)
+TEST(LodPipeline, HouseInATerrainHoleIsSolidDownToTheGround) {
+  std::vector<test::Face> f;
+  // House 10 x 6 x 8 m, no bottom; its long walls are open 0.5-4.5 m high over
+  // 8 of their 10 m (shop windows, a garage door: what MVS leaves of a ground floor).
+  const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY(), Z = Vec3::UnitZ();
+  test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 8), 16 | 4 | 8);
+  test::add_rect(f, Vec3(0, 0, 0), X, 10, Z, 8, {{1, 9, 0.5, 4.5}});   // -y wall
+  test::add_rect(f, Vec3(0, 6, 0), Z, 8, X, 10, {{0.5, 4.5, 1, 9}});   // +y wall
+  test::add_rect(f, Vec3(1, 0.5, 4.5), X, 8, Y, 5);                       // first floor, seen through them
+  test::add_rect(f, Vec3(-10, -10, 0), X, 30, Y, 26, {{10, 20, 10, 16}});  // terrain minus the house
+  const auto b = test::finish(std::move(f), 480.0, 6, SynthOptions{}, false);
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  ASSERT_NE(last_anchor(r), nullptr);
+  double zmin = 1e9;
+  for (const auto& v : last_anchor(r)->mesh.vertices) zmin = std::min(zmin, v.z());
+  EXPECT_NEAR(zmin, 0.0, 1e-6);
+  EXPECT_NEAR(last_anchor(r)->volume, 480.0, 0.01 * 480.0);
 }

@@ -70,8 +70,8 @@ TEST(LodRealData, CgalBuildingPointCloud) {
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << path;
   auto in = test::read_ply_min(path);
   in.name = "cgal_building";
-  // Target 0.5 %; measured 0.594 % (BENCHMARKS.md): bounded at what we reach so a regression fails.
-  check_building(in, 0.65);
+  // Target 0.5 %; measured 0.479 % (BENCHMARKS.md).
+  check_building(in, 0.5);
 }
 
 TEST(LodRealData, Easy3dNoisyMeshWithTerrain) {
@@ -79,7 +79,9 @@ TEST(LodRealData, Easy3dNoisyMeshWithTerrain) {
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << path;
   auto in = test::read_off_min(path);
   in.name = "easy3d_building";
-  // Target 0.5 %; the input's terrain sheet (~15 % of its area) is not part of
-  // the building, measured 2.66 % (BENCHMARKS.md).
-  check_building(in, 3.0);
+  // Target 0.5 %, missed: the input's terrain sheet (~15 % of its area) and
+  // clutter are not part of the building; measured 2.403 % (BENCHMARKS.md;
+  // 2.675 % before the base under the house at the terrain's height), bounded
+  // at what we reach so a regression fails.
+  check_building(in, 2.5);
 }
