@@ -54,6 +54,11 @@ int orient_primitives(std::vector<Primitive>& prims, const Samples& s, const Ori
       front_cast += f.second;
       back_in += b.first;
       back_cast += b.second;
+      // Half the probes without a hint of a wrong orientation (the front seen
+      // no more inside than the back): the rest cannot make the margin.
+      if (2 * (j + 1) >= k && front_cast > 0 && back_cast > 0 &&
+          double(front_in) / front_cast <= double(back_in) / back_cast)
+        break;
     }
     if (front_cast == 0 || back_cast == 0) continue;
     const double front = double(front_in) / front_cast, back = double(back_in) / back_cast;
