@@ -268,8 +268,12 @@ TEST(EvalCityCli, TilesetExactAnswersWithAndWithoutReferences) {
       EXPECT_EQ(m["kind"], "anchor");
       EXPECT_EQ(m["model_index"], 0);
     }
-    if (m["building"] == "a-box") EXPECT_NEAR(m["volume"].get<double>(), m["level"] == 0 ? 960.0 : 480.0, 1e-3);
-    if (m["building"] == "c-fallback") EXPECT_EQ(m["kind"], "fallback");
+    if (m["building"] == "a-box") {
+      EXPECT_NEAR(m["volume"].get<double>(), m["level"] == 0 ? 960.0 : 480.0, 1e-3);
+    }
+    if (m["building"] == "c-fallback") {
+      EXPECT_EQ(m["kind"], "fallback");
+    }
   }
   char row[128];
   std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d\n", 1, 1, 3, 48, 3, 3, 1);  // the text table's row
@@ -407,8 +411,11 @@ TEST(EvalCityCli, DelftExampleBothFormsAgree) {
   EXPECT_EQ(deepest["buildings"], with_models);
   EXPECT_EQ(deepest["triangles"], finest_triangles);
   EXPECT_NEAR(deepest["mean_e2_percent"].get<double>(), w["summary"]["finest_e2_percent"]["mean"].get<double>(), 1e-3);
-  for (const auto& m : ts["buildings"])
-    if (m["level"] == deepest["level"]) EXPECT_NEAR(m["e2_percent"].get<double>(), finest_e2.at(m["building"]), 1e-3);
+  for (const auto& m : ts["buildings"]) {
+    if (m["level"] == deepest["level"]) {
+      EXPECT_NEAR(m["e2_percent"].get<double>(), finest_e2.at(m["building"]), 1e-3);
+    }
+  }
   // Validity as stored in the glbs is the validity of the models.
   std::size_t finest_closed = 0;
   for (const auto& b : w["buildings"])
