@@ -106,6 +106,69 @@ TriangleMesh triangulate_fan(const PolygonMesh& mesh) {
   return t;
 }
 
+TriangleMesh triangulate_polygons(const PolygonMesh& mesh) {
+  TriangleMesh t;
+  t.vertices = mesh.vertices;
+  std::vector<std::array<double, 2>> q;
+  std::vector<std::size_t> ring;
+  for (const auto& f : mesh.faces) {
+    const std::size_t n = f.size();
+    if (n < 3) continue;
+    if (n == 3) {
+      t.triangles.push_back({f[0], f[1], f[2]});
+      continue;
+    }
+    // Newell normal; project along its dominant axis, CCW about it.
+    double nx = 0, ny = 0, nz = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3d& a = mesh.vertices[f[i]];
+      const Vec3d& b = mesh.vertices[f[(i + 1) % n]];
+      nx += (a[1] - b[1]) * (a[2] + b[2]);
+      ny += (a[2] - b[2]) * (a[0] + b[0]);
+      nz += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    const double an[3] = {std::fabs(nx), std::fabs(ny), std::fabs(nz)};
+    const int k = an[0] >= an[1] && an[0] >= an[2] ? 0 : (an[1] >= an[2] ? 1 : 2);
+    const double sign = (k == 0 ? nx : k == 1 ? ny : nz) < 0 ? -1.0 : 1.0;
+    const int u = (k + 1) % 3, w = (k + 2) % 3;
+    q.resize(n);
+    for (std::size_t i = 0; i < n; ++i) q[i] = {mesh.vertices[f[i]][size_t(u)], sign * mesh.vertices[f[i]][size_t(w)]};
+    auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
+      return (q[b][0] - q[a][0]) * (q[c][1] - q[a][1]) - (q[b][1] - q[a][1]) * (q[c][0] - q[a][0]);
+    };
+    bool convex = true;
+    for (std::size_t i = 0; i < n && convex; ++i) convex = cross((i + n - 1) % n, i, (i + 1) % n) >= 0;
+    if (convex) {  // the fan from the first vertex, as for any convex face
+      for (std::size_t i = 1; i + 1 < n; ++i) t.triangles.push_back({f[0], f[i], f[i + 1]});
+      continue;
+    }
+    ring.resize(n);
+    for (std::size_t i = 0; i < n; ++i) ring[i] = i;
+    while (ring.size() > 3) {
+      bool clipped = false;
+      for (std::size_t i = 0; i < ring.size() && !clipped; ++i) {
+        const std::size_t a = ring[(i + ring.size() - 1) % ring.size()], b = ring[i], c = ring[(i + 1) % ring.size()];
+        if (!(cross(a, b, c) > 0)) continue;  // reflex or flat corner
+        bool empty = true;
+        for (std::size_t j : ring) {
+          if (j == a || j == b || j == c || q[j] == q[a] || q[j] == q[b] || q[j] == q[c]) continue;
+          if (cross(a, b, j) > 0 && cross(b, c, j) > 0 && cross(c, a, j) > 0) {
+            empty = false;  // another vertex inside the ear
+            break;
+          }
+        }
+        if (!empty) continue;
+        t.triangles.push_back({f[a], f[b], f[c]});
+        ring.erase(ring.begin() + std::ptrdiff_t(i));
+        clipped = true;
+      }
+      if (!clipped) break;
+    }
+    for (std::size_t i = 1; i + 1 < ring.size(); ++i) t.triangles.push_back({f[ring[0]], f[ring[i]], f[ring[i + 1]]});
+  }
+  return t;
+}
+
 namespace detail {
 
 void ReaderBase::read_faces(std::vector<std::vector<std::uint32_t>>&) {
@@ -302,7 +365,7 @@ TriangleMesh read_mesh(const std::string& path) {
   std::vector<Vec3f> n;
   std::vector<Rgb8> c;
   read_mesh_impl(path, m, n, c);
-  TriangleMesh t = triangulate_fan(m);
+  TriangleMesh t = triangulate_polygons(m);
   t.normals = std::move(n);
   t.colors = std::move(c);
   return t;

@@ -1,3 +1,4 @@
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -149,4 +150,42 @@ TEST(PointSet, AppendKeepsOnlyCommonAttributes) {
   EXPECT_TRUE(all.has_normals());
   EXPECT_FALSE(all.has_colors());
   EXPECT_TRUE(all.consistent());
+}
+
+// OBJ/PLY polygons are triangulated by ear clipping on read: a non-convex face
+// (an L, or a merged coplanar LOD face) is covered exactly, where a fan from
+// its first vertex would cover area outside it.
+TEST(Readers, NonConvexPolygonsAreTriangulatedExactly) {
+  PolygonMesh pm;
+  // L of three unit squares in the plane z = 2, CCW, starting next to the reflex corner (1, 1).
+  pm.vertices = {{1, 2, 2}, {0, 2, 2}, {0, 0, 2}, {2, 0, 2}, {2, 1, 2}, {1, 1, 2}};
+  pm.faces = {{0, 1, 2, 3, 4, 5}};
+  for (const std::string ext : {"obj", "ply"}) {
+    const std::string path = tmp_path("l_shape." + ext);
+    if (ext == "obj") write_obj(path, pm);
+    else write_ply(path, pm);
+    const TriangleMesh t = read_mesh(path);
+    ASSERT_EQ(t.triangles.size(), 4u) << ext;
+    double signed_sum = 0, abs_sum = 0;
+    for (const auto& tr : t.triangles) {
+      const auto& a = t.vertices[tr[0]];
+      const auto& b = t.vertices[tr[1]];
+      const auto& c = t.vertices[tr[2]];
+      const double ar = 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]));
+      signed_sum += ar;
+      abs_sum += std::abs(ar);
+    }
+    EXPECT_NEAR(signed_sum, 3.0, 1e-12) << ext;
+    EXPECT_NEAR(abs_sum, 3.0, 1e-12) << ext;  // no triangle folds over or sticks out
+  }
+  // The fan covers 3 with folded triangles (what the reader used to do).
+  const TriangleMesh fan = triangulate_fan(pm);
+  double abs_fan = 0;
+  for (const auto& tr : fan.triangles) {
+    const auto& a = fan.vertices[tr[0]];
+    const auto& b = fan.vertices[tr[1]];
+    const auto& c = fan.vertices[tr[2]];
+    abs_fan += std::abs(0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])));
+  }
+  EXPECT_GT(abs_fan, 3.5);
 }

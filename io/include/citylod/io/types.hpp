@@ -63,7 +63,8 @@ struct PointSet {
   bool consistent() const;
 };
 
-/// Indexed triangle mesh. Polygons of the input are fan-triangulated on read.
+/// Indexed triangle mesh. Polygons of the input are triangulated on read
+/// (ear clipping: non-convex faces too).
 struct TriangleMesh {
   std::vector<Vec3d> vertices;
   std::vector<std::array<std::uint32_t, 3>> triangles;
@@ -80,5 +81,11 @@ struct PolygonMesh {
 
 /// Fan-triangulates every face (exact for convex faces).
 TriangleMesh triangulate_fan(const PolygonMesh& mesh);
+
+/// Triangulates every face by ear clipping in its plane (Newell normal):
+/// exact for any simple polygon, convex or not (merged coplanar faces of LOD
+/// models, building outlines). A face with no ear left (self-touching,
+/// degenerate) has its remainder fanned.
+TriangleMesh triangulate_polygons(const PolygonMesh& mesh);
 
 }  // namespace citylod::io
