@@ -70,7 +70,8 @@ TEST(LodRealData, CgalBuildingPointCloud) {
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << path;
   auto in = test::read_ply_min(path);
   in.name = "cgal_building";
-  // Target 0.5 %; measured 0.479 % (BENCHMARKS.md).
+  // Target 0.5 %. The engine's e2 (5000 input points at a stride) is 0.479 %;
+  // over all 100k points it is 0.503 % (BENCHMARKS.md): a regression bound.
   check_building(in, 0.5);
 }
 
