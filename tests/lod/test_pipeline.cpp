@@ -26,12 +26,7 @@ void expect_valid_models(const LodResult& r) {
   size_t last_faces = 0;
   for (const auto& m : r.models) {
     SCOPED_TRACE("model step " + std::to_string(m.step) + " " + to_string(m.kind));
-    const MeshCheck c = check_mesh(m.mesh);
-    EXPECT_TRUE(c.closed) << c.boundary_edges << " boundary edges";
-    EXPECT_TRUE(c.edge_manifold) << c.nonmanifold_edges << " non-manifold edges";
-    EXPECT_TRUE(c.oriented);
-    EXPECT_FALSE(c.self_intersecting);
-    EXPECT_GT(m.volume, 0.0);
+    test::expect_closed_solid(m);
     EXPECT_GE(m.polygons.faces.size(), last_faces);
     last_faces = m.polygons.faces.size();
   }
@@ -233,10 +228,9 @@ TEST(LodPipeline, OpenBottomIsClosedAtTheLowestSample) {
   for (const auto& n : r.stats.notes) base_note |= n.find("base plane") != std::string::npos;
   EXPECT_TRUE(base_note);
   ASSERT_NE(last_anchor(r), nullptr);
-  double zmin = 1e9, lowest = 1e9;
-  for (const auto& v : last_anchor(r)->mesh.vertices) zmin = std::min(zmin, v.z());
+  double lowest = 1e9;
   for (const auto& p : b.input.points) lowest = std::min(lowest, p.z());
-  EXPECT_NEAR(zmin, lowest, 1e-6);
+  EXPECT_NEAR(test::lowest_z(*last_anchor(r)), lowest, 1e-6);
   EXPECT_LT(lowest, 0.1);
 }
 
@@ -251,9 +245,7 @@ TEST(LodPipeline, TerrainSheetIsNotClosedIntoAPlinth) {
   const LodResult r = build_lod_tree(b.input, fast_params());
   expect_valid_models(r);
   ASSERT_NE(last_anchor(r), nullptr);
-  double zmin = 1e9;
-  for (const auto& v : last_anchor(r)->mesh.vertices) zmin = std::min(zmin, v.z());
-  EXPECT_NEAR(zmin, 0.0, 1e-6);
+  EXPECT_NEAR(test::lowest_z(*last_anchor(r)), 0.0, 1e-6);
   EXPECT_NEAR(last_anchor(r)->volume, 240.0, 0.01 * 240.0);
 }
 
@@ -278,8 +270,6 @@ TEST(LodPipeline, HouseInATerrainHoleIsSolidDownToTheGround) {
   const LodResult r = build_lod_tree(b.input, fast_params());
   expect_valid_models(r);
   ASSERT_NE(last_anchor(r), nullptr);
-  double zmin = 1e9;
-  for (const auto& v : last_anchor(r)->mesh.vertices) zmin = std::min(zmin, v.z());
-  EXPECT_NEAR(zmin, 0.0, 1e-6);
+  EXPECT_NEAR(test::lowest_z(*last_anchor(r)), 0.0, 1e-6);
   EXPECT_NEAR(last_anchor(r)->volume, 480.0, 0.01 * 480.0);
 }

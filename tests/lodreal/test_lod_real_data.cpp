@@ -37,12 +37,7 @@ void check_building(BuildingInput in, double max_finest_e2) {
   ASSERT_EQ(r.status, "ok") << r.reason;
   for (const auto& m : r.models) {
     SCOPED_TRACE("model " + std::to_string(m.step));
-    const MeshCheck c = check_mesh(m.mesh);
-    EXPECT_TRUE(c.closed) << c.boundary_edges << " boundary edges";
-    EXPECT_TRUE(c.edge_manifold) << c.nonmanifold_edges << " non-manifold edges";
-    EXPECT_TRUE(c.oriented);
-    EXPECT_FALSE(c.self_intersecting);
-    EXPECT_GT(m.volume, 0);
+    test::expect_closed_solid(m);
   }
   const int anchors = test::count_models(r, ModelKind::Anchor);
   const int interps = test::count_models(r, ModelKind::Interpolation);

@@ -1,7 +1,12 @@
-// Picking models out of a LodResult (tests of the LOD engine).
+// Picking and checking models of a LodResult (tests of the LOD engine).
 #pragma once
 
 #include "citylod/lod/lod.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <limits>
 
 namespace citylod::test {
 
@@ -23,6 +28,23 @@ inline int count_models(const lod::LodResult& r, lod::ModelKind k) {
   int n = 0;
   for (const auto& m : r.models) n += m.kind == k;
   return n;
+}
+
+/// A model is a closed, edge-manifold, oriented solid without self-intersections.
+inline void expect_closed_solid(const lod::LodModel& m) {
+  const lod::MeshCheck c = lod::check_mesh(m.mesh);
+  EXPECT_TRUE(c.closed) << c.boundary_edges << " boundary edges";
+  EXPECT_TRUE(c.edge_manifold) << c.nonmanifold_edges << " non-manifold edges";
+  EXPECT_TRUE(c.oriented);
+  EXPECT_FALSE(c.self_intersecting);
+  EXPECT_GT(m.volume, 0.0);
+}
+
+/// Lowest z of a model's vertices.
+inline double lowest_z(const lod::LodModel& m) {
+  double z = std::numeric_limits<double>::infinity();
+  for (const auto& v : m.mesh.vertices) z = std::min(z, v.z());
+  return z;
 }
 
 }  // namespace citylod::test
