@@ -164,11 +164,15 @@ std::string lower(std::string s) {
   return s;
 }
 
+}  // namespace citylod::io::detail
+
+namespace citylod::io {
+
 std::string extension_of(const std::string& path) {
   auto slash = path.find_last_of('/');
   auto dot = path.find_last_of('.');
   if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return {};
-  return lower(path.substr(dot + 1));
+  return detail::lower(path.substr(dot + 1));
 }
 
-}  // namespace citylod::io::detail
+}  // namespace citylod::io

@@ -67,6 +67,5 @@ inline bool is_space(char c) {
 std::string check_finite(const double* p, std::uint64_t index);
 
 std::string lower(std::string s);
-std::string extension_of(const std::string& path);  ///< lower-case, without dot
 
 }  // namespace citylod::io::detail

@@ -249,7 +249,7 @@ Format detect_format(const std::string& path) {
   if (f != Format::unknown) return f;
   // Fall back to the extension: the reader then reports what is wrong with
   // the content (e.g. "not a PLY file (first line is not 'ply')").
-  const std::string ext = detail::extension_of(path);
+  const std::string ext = extension_of(path);
   if (ext == "ply") return Format::ply;
   if (ext == "obj") return Format::obj;
   if (ext == "off") return Format::off;

@@ -53,11 +53,6 @@ nlohmann::ordered_json eval_models(const std::vector<std::string>& models, const
   return out;
 }
 
-std::string lower_extension(const std::string& path) {
-  std::string e = fs::path(path).extension().string();
-  std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return e;
-}
 
 }  // namespace
 
@@ -114,7 +109,7 @@ int cmd_eval(ArgParser& args) {
     json = eval_models(pos, args.get("ref"), samples, text);
   } else {
     const std::string p = pos.front();
-    const std::string ext = lower_extension(p);
+    const std::string ext = "." + io::extension_of(p);
     enum { work, tileset } form;
     if (fs::is_directory(p)) {
       const bool has_manifest = fs::exists(fs::path(p) / "manifest.json");

@@ -33,18 +33,23 @@ inline std::string one_line_text(std::string s) {
   return s;
 }
 
+/// The validity fields of a mesh check, in the order every eval form writes them.
+inline void put_check(nlohmann::ordered_json& j, const lod::MeshCheck& c) {
+  j["closed"] = c.closed;
+  j["edge_manifold"] = c.edge_manifold;
+  j["oriented"] = c.oriented;
+  j["self_intersecting"] = c.self_intersecting;
+  j["boundary_edges"] = c.boundary_edges;
+  j["nonmanifold_edges"] = c.nonmanifold_edges;
+}
+
 /// The measured fields of one model (the keys of `citylod eval MODEL --json`).
 /// `empty`: the model has no triangles; the distances are null.
 inline nlohmann::ordered_json model_json(const lod::ModelEvaluation& e, bool empty = false) {
   using J = nlohmann::ordered_json;
   J j;
   j["triangles"] = empty ? std::size_t(0) : e.triangles;
-  j["closed"] = e.check.closed;
-  j["edge_manifold"] = e.check.edge_manifold;
-  j["oriented"] = e.check.oriented;
-  j["self_intersecting"] = e.check.self_intersecting;
-  j["boundary_edges"] = e.check.boundary_edges;
-  j["nonmanifold_edges"] = e.check.nonmanifold_edges;
+  put_check(j, e.check);
   j["volume"] = empty ? J(nullptr) : J(e.volume);
   j["e1_percent"] = empty ? J(nullptr) : J(e.e1);
   j["e2_percent"] = empty ? J(nullptr) : J(e.e2);

@@ -16,6 +16,7 @@
 #include "cli_common.hpp"
 #include "citylod/geo/local_frame.hpp"
 #include "citylod/io/error.hpp"
+#include "citylod/io/reader.hpp"
 #include "citylod/io/glb_reader.hpp"
 #include "citylod/io/workdir.hpp"
 #include "eval_city.hpp"
@@ -100,8 +101,7 @@ struct Walker {
         throw io::IoError(file, where + ": content '" + uri + "' is not a local file (not supported)");
       uri = uri.substr(0, uri.find('?'));
       const fs::path p = (base / uri).lexically_normal();
-      std::string ext = p.extension().string();
-      std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+      const std::string ext = "." + io::extension_of(p.string());
       if (ext == ".json") {
         if (external_depth >= kMaxExternalDepth)
           throw io::IoError(p.string(), "external tilesets nested deeper than " + std::to_string(kMaxExternalDepth));
@@ -433,12 +433,7 @@ nlohmann::ordered_json to_json(const TilesetEval& t) {
     j["kind"] = m.kind.empty() ? J(nullptr) : J(m.kind);
     j["triangles"] = m.triangles;
     j["vertices"] = m.vertices;
-    j["closed"] = m.check.closed;
-    j["edge_manifold"] = m.check.edge_manifold;
-    j["oriented"] = m.check.oriented;
-    j["self_intersecting"] = m.check.self_intersecting;
-    j["boundary_edges"] = m.check.boundary_edges;
-    j["nonmanifold_edges"] = m.check.nonmanifold_edges;
+    put_check(j, m.check);
     j["volume"] = m.volume;
     if (m.evaluated) {
       j["e1_percent"] = m.e1;

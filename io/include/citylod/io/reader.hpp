@@ -33,6 +33,9 @@ const char* format_name(Format f);
 /// cannot be opened.
 Format detect_format(const std::string& path);
 
+/// The path's extension, lower-case, without the dot ("" when none).
+std::string extension_of(const std::string& path);
+
 /// What a file says about itself (from the header) and, after scan_file(),
 /// what streaming all of it found.
 struct FileInfo {
