@@ -234,41 +234,40 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
         return true;
     return false;
   };
-  double low_up_area = 0;  // upward-facing planes low in the height range reaching the scene's edge
+  // Upward planes in the lowest quarter of the height range: terrain pieces
+  // (or floors); those reaching the scene's edge are terrain.
+  auto low_up = [&](const Primitive& pr) {
+    return !pr.inferred && pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin);
+  };
+  double low_up_area = 0;
+  const Primitive* terrain = nullptr;  // the largest terrain plane
   for (const auto& pr : prims) {
-    if (pr.inferred) continue;
-    if (pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5) has_floor = true;
-    if (pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin) && reaches_edge(pr))
-      low_up_area += pr.alpha_area;
+    if (!pr.inferred && pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5) has_floor = true;
+    if (!low_up(pr) || !reaches_edge(pr)) continue;
+    low_up_area += pr.alpha_area;
+    if (!terrain || pr.alpha_area > terrain->alpha_area) terrain = &pr;
   }
   on_terrain = low_up_area > 0.08 * xy_area;
   if (!walls_missing && has_floor) return 0;
   // On a terrain sheet the base goes under the building only, at the terrain's
   // height: the terrain has a hole where the building stands, and rays from
   // the ground floor escaping through it would turn the ground floor out.
-  const Primitive* terrain = nullptr;
-  if (!walls_missing && on_terrain) {
-    for (const auto& pr : prims)
-      if (!pr.inferred && pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin) && reaches_edge(pr) &&
-          (!terrain || pr.alpha_area > terrain->alpha_area))
-        terrain = &pr;
-    if (!terrain) return 0;
-  }
+  if (walls_missing || !on_terrain) terrain = nullptr;
 
   // Outline (CCW in xy).
   std::vector<Vec2> outline;
   if (terrain) {
     // The building's outline: samples clearly above the terrain (walls, roofs),
     // not those of upward planes low down (terrain pieces).
-    std::vector<char> low_up(s.points.size(), 0);
+    std::vector<char> on_low_up(s.points.size(), 0);
     for (const auto& pr : prims)
-      if (!pr.inferred && pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin))
-        for (int i : pr.inliers) low_up[size_t(i)] = 1;
+      if (low_up(pr))
+        for (int i : pr.inliers) on_low_up[size_t(i)] = 1;
     const Vec3& tn = terrain->normal;
     std::vector<Vec2> xy;
     for (std::size_t i = 0; i < s.points.size(); ++i) {
       const Vec3& q = s.points[i];
-      if (low_up[i] || tn.dot(q) + terrain->d < 1.0) continue;  // terrain, or within 1 m above it
+      if (on_low_up[i] || tn.dot(q) + terrain->d < 1.0) continue;  // terrain, or within 1 m above it
       xy.emplace_back(q.x(), q.y());
     }
     if (xy.size() < 3) return 0;
