@@ -152,7 +152,9 @@ TriangleMesh triangulate_polygons(const PolygonMesh& mesh) {
         bool empty = true;
         for (std::size_t j : ring) {
           if (j == a || j == b || j == c || q[j] == q[a] || q[j] == q[b] || q[j] == q[c]) continue;
-          if (cross(a, b, j) > 0 && cross(b, c, j) > 0 && cross(c, a, j) > 0) {
+          // inside or on the ear's boundary: a vertex on the diagonal c-a (a
+          // thin sliver of the polygon running along it) forbids the ear too
+          if (cross(a, b, j) >= 0 && cross(b, c, j) >= 0 && cross(c, a, j) >= 0) {
             empty = false;  // another vertex inside the ear
             break;
           }

@@ -826,14 +826,20 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
       dom_tris.push_back(std::move(dtris));
       dom_loops.push_back(std::move(dloops));
     }
-    // a loop touching itself at a vertex may bound several domains: then those
-    // domains are output as triangles, not as the loop
+    // a loop touching itself at a vertex may bound several domains, or one
+    // domain through a pinch (a weakly simple polygon that triangulators of
+    // OBJ readers get wrong): then those domains are output as triangles, not
+    // as the loop
     std::vector<int> loop_doms(G.loops.size(), 0);
     for (const auto& dl : dom_loops)
       for (int l : dl) ++loop_doms[l];
+    auto simple = [](std::vector<int> ids) {
+      std::sort(ids.begin(), ids.end());
+      return std::adjacent_find(ids.begin(), ids.end()) == ids.end();
+    };
     for (int d = 0; d < ndom; ++d) {
       const auto& dtris = dom_tris[d];
-      if (dom_loops[d].size() == 1 && loop_doms[dom_loops[d][0]] == 1) {
+      if (dom_loops[d].size() == 1 && loop_doms[dom_loops[d][0]] == 1 && simple(G.loops[dom_loops[d][0]])) {
         std::vector<int> face = G.loops[dom_loops[d][0]];
         if (flip) std::reverse(face.begin(), face.end());
         G.faces.push_back(std::move(face));

@@ -187,9 +187,10 @@ std::vector<std::array<Vec2, 3>> triangulate(const std::vector<Vec2>& poly) {
 
 }  // namespace
 
-int close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
-                   std::vector<Primitive>& prims) {
-  if (!p.enabled || s.points.size() < 3) return 0;
+Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                       std::vector<Primitive>& prims) {
+  Closure res;
+  if (!p.enabled || s.points.size() < 3) return res;
   double wall_w = 0, total_w = 0;
   double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
   for (std::size_t i = 0; i < s.points.size(); ++i) {
@@ -199,7 +200,7 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     zmin = std::min(zmin, s.points[i].z());
     zmax = std::max(zmax, s.points[i].z());
   }
-  if (total_w <= 0) return 0;
+  if (total_w <= 0) return res;
   // Walls are missing when few samples face sideways, or when those that do
   // formed no wall planes (airborne LiDAR: noisy roof edges, a few facade hits).
   double vertical_area = 0, prim_area = 0;
@@ -213,11 +214,11 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
   // ray labelling leak as much as missing walls do: close it with a base plane
   // unless a downward-facing horizontal primitive already lies at the bottom.
   // A terrain sheet (a large upward-facing plane at the bottom, as in
-  // photogrammetry meshes cut out of a city model) is not closed: a base under
-  // it would turn the terrain into a plinth that dwarfs the building. Terrain
-  // reaches the edge of the cut-out scene; interior floors seen through
-  // windows (terrestrial scans) stop at the walls, short of the scene's
-  // bounding box (eaves, cornices, scanned ground strips stick out further).
+  // photogrammetry meshes cut out of a city model) is kept as a plinth or cut
+  // off (p.terrain). Terrain reaches the edge of the cut-out scene and lies
+  // mostly outside the building; interior floors seen through windows
+  // (terrestrial scans) stop at the walls, short of the scene's bounding box
+  // (eaves, cornices, scanned ground strips stick out further).
   bool has_floor = false, on_terrain = false;
   double xy_area = 0;
   Vec2 xy_lo(s.points[0].x(), s.points[0].y()), xy_hi = xy_lo;
@@ -247,18 +248,11 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     low_up_area += pr.alpha_area;
     if (!terrain || pr.alpha_area > terrain->alpha_area) terrain = &pr;
   }
-  on_terrain = low_up_area > 0.08 * xy_area;
-  if (!walls_missing && has_floor) return 0;
-  // On a terrain sheet the base goes under the building only, at the terrain's
-  // height: the terrain has a hole where the building stands, and rays from
-  // the ground floor escaping through it would turn the ground floor out.
-  if (walls_missing || !on_terrain) terrain = nullptr;
-
-  // Outline (CCW in xy).
-  std::vector<Vec2> outline;
-  if (terrain) {
-    // The building's outline: samples clearly above the terrain (walls, roofs),
-    // not those of upward planes low down (terrain pieces).
+  on_terrain = low_up_area > 0.08 * xy_area && !walls_missing;
+  // The building's outline over a terrain: samples clearly above the terrain
+  // (walls, roofs), not those of upward planes low down (terrain pieces).
+  std::vector<Vec2> building_outline;
+  if (on_terrain) {
     std::vector<char> on_low_up(s.points.size(), 0);
     for (const auto& pr : prims)
       if (low_up(pr))
@@ -270,10 +264,38 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
       if (on_low_up[i] || tn.dot(q) + terrain->d < 1.0) continue;  // terrain, or within 1 m above it
       xy.emplace_back(q.x(), q.y());
     }
-    if (xy.size() < 3) return 0;
-    outline = alpha_outline(xy, p.outline_alpha);
-    if (outline.size() >= 3) outline = simplify_closed(outline, 0.4, 10.0);
-  } else if (in.footprint.size() >= 3) {
+    if (xy.size() >= 3) building_outline = alpha_outline(xy, p.outline_alpha);
+    if (building_outline.size() >= 3) building_outline = simplify_closed(building_outline, 0.4, 10.0);
+    // Terrain lies around the building: most of its samples outside the
+    // building's outline. A building's own floor with upward (mis-estimated)
+    // normals reaches the scene's edge too, but lies under the building.
+    std::size_t outside = 0, total = 0;
+    for (const auto& pr : prims) {
+      if (!low_up(pr) || !reaches_edge(pr)) continue;
+      for (int i : pr.inliers) {
+        ++total;
+        outside += building_outline.size() < 3 ||
+                   !point_in_poly(Vec2(s.points[size_t(i)].x(), s.points[size_t(i)].y()), building_outline);
+      }
+    }
+    on_terrain = 2 * outside > total;
+  }
+  // A terrain sheet kept as a plinth: base plane under the whole scene and
+  // walls up to the terrain along the scene's outline. The terrain has a hole
+  // where the building stands; the ground floor's rays that escape through it
+  // meet the plinth's base from inside.
+  const bool plinth = on_terrain && p.terrain == "plinth";
+  if (!walls_missing && has_floor && !plinth) return res;
+  // Cut: on a terrain sheet the base goes under the building only, at the
+  // terrain's height (rays from the ground floor escaping through the hole in
+  // the terrain would turn the ground floor out).
+  if (!on_terrain || plinth) terrain = nullptr;
+
+  // Outline (CCW in xy).
+  std::vector<Vec2> outline;
+  if (terrain) {
+    outline = building_outline;
+  } else if (in.footprint.size() >= 3 && !plinth) {
     outline = in.footprint;
     // Drop a closing duplicate vertex.
     if ((outline.front() - outline.back()).norm() < 1e-9) outline.pop_back();
@@ -285,9 +307,10 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     outline = alpha_outline(xy, p.outline_alpha);
     if (outline.size() >= 3) outline = simplify_closed(outline, 0.4, 10.0);
   }
-  if (outline.size() < 3 || !(signed_area(outline) > 0)) return 0;
+  if (outline.size() < 3 || !(signed_area(outline) > 0)) return res;
 
-  double gz = in.has_ground_z ? in.ground_z : zmin;
+  double gz = in.has_ground_z && !plinth ? in.ground_z : zmin;
+  if (plinth) gz = zmin - p.plinth_depth;
   if (terrain) {  // the terrain plane's height under the outline's centroid
     Vec2 c = Vec2::Zero();
     for (const auto& q : outline) c += q;
@@ -327,8 +350,17 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     prims.push_back(std::move(g));
     ++added;
   }
+  res.added = added;
+  res.what = plinth ? Closure::Plinth : Closure::Base;
+  if (!walls_missing && !plinth) return res;  // walls were scanned: only the base was missing
 
-  if (!walls_missing) return added;  // walls were scanned: only the base was missing
+  // Plinth walls reach up to the terrain along the scene's edge; building walls
+  // to the highest sample near the outline edge.
+  std::vector<char> wall_top_from(s.points.size(), plinth ? 0 : 1);
+  if (plinth)
+    for (const auto& pr : prims)
+      if (low_up(pr))
+        for (int i : pr.inliers) wall_top_from[size_t(i)] = 1;
 
   // Walls: one per outline edge, outward = right of the CCW edge direction.
   for (std::size_t i = 0; i < outline.size(); ++i) {
@@ -338,10 +370,12 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     const double len = e.norm();
     if (len < 1e-6) continue;
     double top = -std::numeric_limits<double>::infinity();
-    for (const auto& q : s.points)
-      if (seg_dist(Vec2(q.x(), q.y()), a, b) <= 1.0) top = std::max(top, q.z());
-    if (!std::isfinite(top)) top = zmax;
-    top = std::max(top, gz + 1.0);
+    for (std::size_t k = 0; k < s.points.size(); ++k) {
+      const Vec3& q = s.points[k];
+      if (wall_top_from[k] && seg_dist(Vec2(q.x(), q.y()), a, b) <= 1.0) top = std::max(top, q.z());
+    }
+    if (!std::isfinite(top)) top = plinth ? zmin : zmax;
+    top = std::max(top, gz + (plinth ? p.plinth_depth : 1.0));
     Primitive w;
     w.inferred = true;
     w.normal = Vec3(e.y() / len, -e.x() / len, 0.0);
@@ -357,7 +391,9 @@ int close_building(const BuildingInput& in, const Samples& s, const ClosureParam
     prims.push_back(std::move(w));
     ++added;
   }
-  return added;
+  res.added = added;
+  if (!plinth) res.what = Closure::Walls;
+  return res;
 }
 
 }  // namespace citylod::lod::detail

@@ -151,11 +151,13 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   if (prims.empty()) throw LodError("planes", "no plane found");
   // Roof-only LiDAR: ground + walls through the outline so the building closes.
   if (P.closure.enabled) {
-    const int added = close_building(in, samples, P.closure, prims);
-    st.walls_inferred = added > 1;
-    if (added == 1) st.notes.push_back("open bottom: a base plane was inferred");
-    if (added > 1)
-      st.notes.push_back("walls missing: " + std::to_string(added) + " closure planes inferred (ground + walls)");
+    const Closure c = close_building(in, samples, P.closure, prims);
+    st.walls_inferred = c.what == Closure::Walls;
+    const std::string n = std::to_string(c.added);
+    if (c.what == Closure::Base) st.notes.push_back("open bottom: a base plane was inferred");
+    if (c.what == Closure::Walls) st.notes.push_back("walls missing: " + n + " closure planes inferred (ground + walls)");
+    if (c.what == Closure::Plinth)
+      st.notes.push_back("terrain sheet kept as a plinth: " + n + " closure planes inferred (base + walls)");
   }
   prims.erase(std::remove_if(prims.begin(), prims.end(),
                              [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),

@@ -28,6 +28,7 @@ std::string fmt(double v) {
 }
 std::string fmt(int v) { return std::to_string(v); }
 std::string fmt(bool v) { return v ? "true" : "false"; }
+const std::string& fmt(const std::string& v) { return v; }
 
 [[noreturn]] void bad(const std::string& name, const std::string& why) {
   throw std::invalid_argument("parameter " + name + ": " + why);
@@ -63,6 +64,8 @@ void parse(const std::string& name, const std::string& s, bool& out) {
   else bad(name, "not a boolean: '" + s + "'");
 }
 
+void parse(const std::string&, const std::string& s, std::string& out) { out = s; }
+
 /// Visits every parameter (fixed order) with its dotted name and a reference.
 template <class P, class F>
 void visit(P& p, F&& f) {
@@ -97,6 +100,8 @@ void visit(P& p, F&& f) {
   f("closure.enabled", p.closure.enabled);
   f("closure.wall_fraction_min", p.closure.wall_fraction_min);
   f("closure.outline_alpha", p.closure.outline_alpha);
+  f("closure.terrain", p.closure.terrain);
+  f("closure.plinth_depth", p.closure.plinth_depth);
   f("orient.enabled", p.orient.enabled);
   f("orient.points_per_plane", p.orient.points_per_plane);
   f("orient.rays", p.orient.rays);
@@ -150,6 +155,8 @@ void LodParams::validate() const {
   check(std::isfinite(budget.time_budget_s) && budget.time_budget_s >= 0, "budget.time_budget_s", "must be >= 0");
   check(ratio(closure.wall_fraction_min), "closure.wall_fraction_min", "must be in (0, 1]");
   check(pos(closure.outline_alpha), "closure.outline_alpha", "must be > 0");
+  check(closure.terrain == "plinth" || closure.terrain == "cut", "closure.terrain", "must be 'plinth' or 'cut'");
+  check(pos(closure.plinth_depth), "closure.plinth_depth", "must be > 0");
   check(orient.points_per_plane >= 1, "orient.points_per_plane", "must be >= 1");
   check(orient.rays >= 2, "orient.rays", "must be >= 2");
   check(pos(orient.offset), "orient.offset", "must be > 0");

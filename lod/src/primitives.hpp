@@ -52,9 +52,15 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p);
 /// Airborne LiDAR closure: when walls are missing (few near-horizontal
 /// normals), adds a ground plane and vertical walls through the outline (the
 /// footprint when given, else a 2D alpha-shape of the samples, simplified).
-/// Returns the number of primitives added (0 when walls were present).
-int close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
-                   std::vector<Primitive>& prims);
+/// An open bottom gets a base plane; a terrain sheet (params.terrain) becomes
+/// a plinth (base + walls along the scene's outline) or is cut off.
+struct Closure {
+  enum What { None, Base, Walls, Plinth };
+  int added = 0;      ///< primitives added
+  What what = None;
+};
+Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                       std::vector<Primitive>& prims);
 
 /// Mild regularization of the principal primitives (CGAL Shape_regularization:
 /// parallelism, orthogonality, coplanarity; angle/distance from p). Only the

@@ -233,3 +233,18 @@ TEST(Cli, InfoBadInputsFailWithOneLine) {
     EXPECT_NE(r.err.find(c.reason), std::string::npos) << r.err;
   }
 }
+
+// A single building keeps a terrain sheet as a plinth (the model represents
+// all of its input); a work directory's buildings (city runs: chunks without
+// ground) cut it off.
+TEST(Cli, LodTerrainDefaultsDependOnTheInput) {
+  const Result one = run("lod --print-params");
+  ASSERT_EQ(one.code, 0) << one.err;
+  EXPECT_NE(one.out.find("closure.terrain = plinth\n"), std::string::npos) << one.out;
+  const Result city = run("lod " + quote(tmp_dir()) + " --print-params");
+  ASSERT_EQ(city.code, 0) << city.err;
+  EXPECT_NE(city.out.find("closure.terrain = cut\n"), std::string::npos) << city.out;
+  const Result over = run("lod " + quote(tmp_dir()) + " --print-params --set closure.terrain=plinth");
+  ASSERT_EQ(over.code, 0) << over.err;
+  EXPECT_NE(over.out.find("closure.terrain = plinth\n"), std::string::npos) << over.out;
+}

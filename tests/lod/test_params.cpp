@@ -83,6 +83,8 @@ TEST(LodParams, ValidateNamesTheParameter) {
   expect_bad("tree.merge_k", "0");
   expect_bad("regularization.principal_angle_deg", "100");
   expect_bad("closure.outline_alpha", "-2");
+  expect_bad("closure.terrain", "keep");
+  expect_bad("closure.plinth_depth", "0");
 }
 
 TEST(LodParams, ItemsRoundTrip) {
@@ -95,7 +97,7 @@ TEST(LodParams, ItemsRoundTrip) {
                         "metrics.samples", "bsp.max_cells", "budget.time_budget_s", "normals.k_neighbors",
                         "bsp.baseline", "tree.interpolation_floor"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 38u);  // one per field of every parameter struct
+  EXPECT_EQ(items.size(), 40u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");

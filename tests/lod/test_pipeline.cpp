@@ -234,28 +234,54 @@ TEST(LodPipeline, OpenBottomIsClosedAtTheLowestSample) {
   EXPECT_LT(lowest, 0.1);
 }
 
-// A house standing on a terrain sheet that fills the crop gets no base under
-// the terrain (which would make a plinth of it), but one under the house at
-// the terrain's height: the model is the house, down to the ground.
-TEST(LodPipeline, TerrainSheetIsNotClosedIntoAPlinth) {
+static LodParams terrain_params(const char* mode) {
+  LodParams p = fast_params();
+  p.closure.terrain = mode;
+  return p;
+}
+
+static bool has_note(const LodResult& r, const std::string& what) {
+  for (const auto& n : r.stats.notes)
+    if (n.find(what) != std::string::npos) return true;
+  return false;
+}
+
+// A house standing on a terrain sheet that fills the crop. With
+// closure.terrain = cut (city runs) it gets no base under the terrain, but one
+// under the house at the terrain's height: the model is the house, down to
+// the ground. With the default (plinth) the terrain is kept as the top of a
+// plinth 0.5 m deep under the whole scene: the model is all of the input.
+TEST(LodPipeline, TerrainSheetIsCutOrKeptAsAPlinth) {
   std::vector<test::Face> f;
   test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 4), 16);                    // house, no bottom
   test::add_rect(f, Vec3(-10, -10, 0), Vec3::UnitX(), 30, Vec3::UnitY(), 26);  // terrain, faces up
   const auto b = test::finish(std::move(f), 240.0, 6, SynthOptions{}, false);
-  const LodResult r = build_lod_tree(b.input, fast_params());
+  const LodResult r = build_lod_tree(b.input, terrain_params("cut"));
   expect_valid_models(r);
   ASSERT_NE(last_anchor(r), nullptr);
   EXPECT_NEAR(test::lowest_z(*last_anchor(r)), 0.0, 1e-6);
   EXPECT_NEAR(last_anchor(r)->volume, 240.0, 0.01 * 240.0);
+  EXPECT_FALSE(has_note(r, "plinth"));
+
+  const LodResult k = build_lod_tree(b.input, terrain_params("plinth"));
+  expect_valid_models(k);
+  ASSERT_NE(last_anchor(k), nullptr);
+  EXPECT_TRUE(has_note(k, "plinth"));
+  double lowest = 1e9;
+  for (const auto& p : b.input.points) lowest = std::min(lowest, p.z());
+  EXPECT_NEAR(test::lowest_z(*last_anchor(k)), lowest - 0.5, 1e-6);
+  // House 240 m3 + 30 x 26 m terrain, 0.5 m deep (the outline of the samples
+  // runs up to half a sample spacing inside the terrain's edge).
+  const double plinth = 30 * 26 * (0.0 - (lowest - 0.5));
+  EXPECT_NEAR(last_anchor(k)->volume, 240.0 + plinth, 0.02 * (240.0 + plinth));
 }
 
 // As cut out of a city mesh: the terrain has a hole where the house stands,
 // the house has no floor and its ground floor is mostly open. Rays from the
 // ground floor escape downwards through the hole and sideways through the
 // openings; the base under the house at the terrain's height keeps it solid
-// down to the ground, and nothing goes below the terrain. (The synthetic
-// house also stays solid without that base; the real-data bound on
-// easy3d_building in tests/lodreal is what fails without it.)
+// down to the ground, and nothing goes below the terrain (closure.terrain =
+// cut). (The synthetic house also stays solid without that base.)
 TEST(LodPipeline, HouseInATerrainHoleIsSolidDownToTheGround) {
   std::vector<test::Face> f;
   // House 10 x 6 x 8 m, no bottom; its long walls are open 0.5-4.5 m high over
@@ -267,7 +293,7 @@ TEST(LodPipeline, HouseInATerrainHoleIsSolidDownToTheGround) {
   test::add_rect(f, Vec3(1, 0.5, 4.5), X, 8, Y, 5);                       // first floor, seen through them
   test::add_rect(f, Vec3(-10, -10, 0), X, 30, Y, 26, {{10, 20, 10, 16}});  // terrain minus the house
   const auto b = test::finish(std::move(f), 480.0, 6, SynthOptions{}, false);
-  const LodResult r = build_lod_tree(b.input, fast_params());
+  const LodResult r = build_lod_tree(b.input, terrain_params("cut"));
   expect_valid_models(r);
   ASSERT_NE(last_anchor(r), nullptr);
   EXPECT_NEAR(test::lowest_z(*last_anchor(r)), 0.0, 1e-6);

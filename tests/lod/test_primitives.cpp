@@ -282,7 +282,9 @@ TEST(Closure, RoofOnlyBoxGetsGroundAndFourWalls) {
   ASSERT_EQ(prims.size(), 1u);
   b.input.ground_z = 0;
   b.input.has_ground_z = true;
-  const int added = close_building(b.input, s, {}, prims);
+  const Closure c = close_building(b.input, s, {}, prims);
+  EXPECT_EQ(c.what, Closure::Walls);
+  const int added = c.added;
   ASSERT_EQ(added, 5);
   ASSERT_EQ(prims.size(), 6u);
   const Primitive& g = prims[1];
@@ -307,7 +309,7 @@ TEST(Closure, RoofOnlyBoxGetsGroundAndFourWalls) {
   const auto full = T::sample_box(Vec3(0, 0, 0), Vec3(10, 8, 6), 0.2);
   const Samples sf = make_samples(full.input, {});
   std::vector<Primitive> pf = detect_planes(full.input, sf, {});
-  EXPECT_EQ(close_building(full.input, sf, {}, pf), 0);
+  EXPECT_EQ(close_building(full.input, sf, {}, pf).added, 0);
 }
 
 TEST(Closure, OpenBottomGetsABasePlaneOnly) {
@@ -322,7 +324,7 @@ TEST(Closure, OpenBottomGetsABasePlaneOnly) {
   const Samples s = make_samples(in, {});
   std::vector<Primitive> prims = detect_planes(in, s, {});
   ASSERT_EQ(prims.size(), 5u);
-  ASSERT_EQ(close_building(in, s, {}, prims), 1);
+  ASSERT_EQ(close_building(in, s, {}, prims).what, Closure::Base);
   const Primitive& g = prims.back();
   EXPECT_TRUE(g.inferred);
   EXPECT_NEAR(g.normal.z(), -1, 1e-12);
@@ -335,7 +337,7 @@ TEST(Closure, FootprintIsUsedWhenGiven) {
   b.input.footprint = {Vec2(0, 0), Vec2(0, 8), Vec2(10, 8), Vec2(10, 0)};  // CW: gets reversed
   const Samples s = make_samples(b.input, {});
   std::vector<Primitive> prims;
-  EXPECT_EQ(close_building(b.input, s, {}, prims), 5);
+  EXPECT_EQ(close_building(b.input, s, {}, prims).added, 5);
   EXPECT_NEAR(prims[0].alpha_area, 80, 1e-9);
 }
 
@@ -461,7 +463,7 @@ void report(const char* name, const BuildingInput& in, const LodParams& p, int e
   const double t1 = now();
   std::vector<Primitive> prims = detect_planes(in, s, p.planes);
   const double t2 = now();
-  int added = closure ? close_building(in, s, p.closure, prims) : 0;
+  int added = closure ? close_building(in, s, p.closure, prims).added : 0;
   const double t3 = now();
   std::vector<int> which;
   for (int i = 0; i < std::min<int>(int(prims.size()), 30); ++i) which.push_back(i);

@@ -69,7 +69,8 @@ int cmd_lod(ArgParser& args) {
   args.positional("INPUT", "building: PLY/OBJ/OFF/XYZ/LAS", Arity::optional_one);
   if (!args.parse()) return 0;
 
-  lod::LodParams params = parse_lod_params(args);
+  const bool work_dir = !args.positionals().empty() && std::filesystem::is_directory(args.positionals()[0]);
+  lod::LodParams params = parse_lod_params(args, work_dir ? city_lod_params() : lod::LodParams{});
   params.threads = int(args.get_int("threads"));
   if (args.has("baseline")) params.bsp.baseline = true;
   try {
@@ -83,7 +84,7 @@ int cmd_lod(ArgParser& args) {
   }
   if (args.positionals().empty()) throw UsageError("missing INPUT");
   const std::string input = args.positionals()[0];
-  if (std::filesystem::is_directory(input)) return run_work_dir(args, input, params);
+  if (work_dir) return run_work_dir(args, input, params);
   if (!args.has("out")) throw UsageError("missing --out DIR");
   const std::string out = args.get("out");
 

@@ -111,7 +111,7 @@ int cmd_rebuild(ArgParser& args) {
       throw std::runtime_error(run_report_path.string() + ": not valid JSON (" + e.what() + ")");
     }
   }
-  lod::LodParams global;
+  lod::LodParams global = city_lod_params();  // a run report of an older version may lack newer names
   const nlohmann::json lod_params = run.value("lod_params", nlohmann::json::object());
   for (const auto& [k, v] : lod_params.items())
     global.set(k, v.is_string() ? v.get<std::string>() : v.dump());

@@ -75,7 +75,7 @@ int cmd_tile(ArgParser& args) {
   const std::string tileset = (fs::path(dir) / "tileset").string();
   SplitOptions so = parse_split_options(args, args.positionals(), work);
   so.force = args.has("force");
-  lod::LodParams params = parse_lod_params(args);
+  lod::LodParams params = parse_lod_params(args, city_lod_params());
   const auto threads = args.get_int("threads");
   if (threads < 1) throw UsageError("--threads must be >= 1");
   params.threads = 1;

@@ -115,8 +115,13 @@ void apply_lod_config(lod::LodParams& p, const std::string& path) {
   }
 }
 
-lod::LodParams parse_lod_params(const ArgParser& args) {
-  lod::LodParams params;
+lod::LodParams city_lod_params() {
+  lod::LodParams p;
+  p.closure.terrain = "cut";
+  return p;
+}
+
+lod::LodParams parse_lod_params(const ArgParser& args, lod::LodParams params) {
   if (args.has("config")) apply_lod_config(params, args.get("config"));
   if (args.has("set")) apply_lod_settings(params, args.get("set"));
   return params;

@@ -35,8 +35,12 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
 
 /// --set NAME=VALUE[,...] and --config FILE.
 void declare_lod_param_options(ArgParser& args);
-/// Default parameters + --config + --set (not validated: the caller sets threads etc. first).
-lod::LodParams parse_lod_params(const ArgParser& args);
+/// `base` + --config + --set (not validated: the caller sets threads etc. first).
+lod::LodParams parse_lod_params(const ArgParser& args, lod::LodParams base = {});
+/// The paper's defaults, except what a city run needs: its chunks hold no
+/// ground, and a low plane reaching a chunk's edge (a courtyard, a plaza) is
+/// not terrain to keep as a plinth (closure.terrain = cut).
+lod::LodParams city_lod_params();
 /// Applies "name=value[,name=value...]"; throws UsageError.
 void apply_lod_settings(lod::LodParams& p, const std::string& list);
 /// Applies a JSON object {"planes.epsilon": 0.2, ...}; throws std::runtime_error.

@@ -85,6 +85,14 @@ struct ClosureParams {
   bool enabled = true;                 ///< add ground + outline walls when walls are missing
   double wall_fraction_min = 0.05;     ///< if vertical-normal samples are below this fraction, walls are inferred
   double outline_alpha = 1.5;          ///< m, 2D alpha radius of the outline of the points
+  /// What becomes of a terrain sheet around the building (photogrammetry
+  /// meshes cut out of a city model): "plinth" keeps it as the top of a solid
+  /// under the whole scene (what the paper's BSP labelling of such an input
+  /// gives: the model represents all of the input), "cut" leaves it out and
+  /// closes the building at the terrain's height under its own outline (the
+  /// city pipeline, whose chunks have no ground, sets this).
+  std::string terrain = "plinth";
+  double plinth_depth = 0.5;           ///< m, plinth bottom below the lowest sample
 };
 
 /// (ours) Consistent orientation of the detected planes before IO-View: a
