@@ -23,7 +23,7 @@ struct BspPolygon {
 struct BspNode {
   int parent = -1;
   std::array<int, 2> children{-1, -1};  ///< [0] negative side, [1] positive side of the split plane; -1 for leaves
-  int split_primitive = -1;      ///< primitive whose polygon split this node (-1 for leaves)
+  int split_primitive = -1;      ///< caller id of the polygon that split this node (-1 for leaves)
   int split_plane = -1;          ///< index into planes() of the split plane
   int depth = 0;
   double volume = 0.0;           ///< m^3

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 
 using namespace citylod;
@@ -18,18 +19,35 @@ namespace {
 
 std::string data(const std::string& rel) { return std::string(CITYLOD_SHARED_DATA) + "/" + rel; }
 
-/// Recentres on the bbox centre (the engine wants small coordinates).
+/// Recentres on the bbox centre rounded to whole metres, as `citylod lod`
+/// does (the engine wants small coordinates). The frame matters at the last
+/// digit: region growing on float positions is chaotic at its thresholds, and
+/// cgal_building's e2 moves by about +-1 % of itself with a sub-metre shift.
 void recentre(BuildingInput& in) {
   Vec3 lo = in.points.front(), hi = lo;
   for (const auto& p : in.points) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  const Vec3 c = 0.5 * (lo + hi);
+  const Vec3 c = (0.5 * (lo + hi)).array().round();
   for (auto& p : in.points) p -= c;
 }
 
-void check_building(BuildingInput in, double max_finest_e2) {
+/// How far the model's vertices reach beyond the input's bounding box (m).
+double overhang(const LodModel& m, const BuildingInput& in) {
+  Vec3 lo = in.points.front(), hi = lo;
+  for (const auto& p : in.points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  double worst = 0;
+  for (const auto& v : m.mesh.vertices) worst = std::max({worst, (lo - v).maxCoeff(), (v - hi).maxCoeff()});
+  return worst;
+}
+
+/// max_overhang: the engine's data-box cuts lie 0.25 m outside the data (plus
+/// the hulls' projections of the inliers, and a plinth's depth).
+void check_building(BuildingInput in, double max_finest_e2, double max_overhang) {
   recentre(in);
   LodParams p;
   p.budget.time_budget_s = 0;
@@ -38,6 +56,7 @@ void check_building(BuildingInput in, double max_finest_e2) {
   for (const auto& m : r.models) {
     SCOPED_TRACE("model " + std::to_string(m.step));
     test::expect_closed_solid(m);
+    EXPECT_LE(overhang(m, in), max_overhang);
   }
   const int anchors = test::count_models(r, ModelKind::Anchor);
   const int interps = test::count_models(r, ModelKind::Interpolation);
@@ -57,7 +76,7 @@ TEST(LodRealData, Ahn3LidarBuildingWithSawtoothRoofs) {
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << path;
   auto in = test::read_ply_min(path);
   in.name = "AHN3_13856";
-  check_building(in, 0.5);
+  check_building(in, 0.5, 0.5);
 }
 
 TEST(LodRealData, CgalBuildingPointCloud) {
@@ -65,12 +84,13 @@ TEST(LodRealData, CgalBuildingPointCloud) {
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << path;
   auto in = test::read_ply_min(path);
   in.name = "cgal_building";
-  // Target 0.5 %, missed by a hair: the engine's e2 (5000 input points, one
-  // at a hashed offset per block) is 0.507 %, over all 100k points 0.503 %
-  // (BENCHMARKS.md; ~10 % of the squared error is 70 points of an attic
-  // floor seen through a dormer window, 3.3 m from any surface). Bounded at
-  // what we reach so a regression fails.
-  check_building(in, 0.52);
+  // Target 0.5 %, met by a small margin: the engine's e2 (5000 input points,
+  // one at a hashed offset per block) is 0.497 %, over all 100k points
+  // 0.494 % (BENCHMARKS.md). The same cloud shifted by (0.37, -0.21, 0.13) m
+  // gives 0.503 %. ~11 % of the squared error is ~100 points of an attic
+  // floor seen through a dormer window, 3 m from any surface; ~30 % interior
+  // floors of the ground storey seen through its windows.
+  check_building(in, 0.5, 0.5);
 }
 
 TEST(LodRealData, Easy3dNoisyMeshWithTerrain) {
@@ -79,7 +99,8 @@ TEST(LodRealData, Easy3dNoisyMeshWithTerrain) {
   auto in = test::read_off_min(path);
   in.name = "easy3d_building";
   // Target 0.5 %: the terrain sheet around the house (~15 % of the input's
-  // area) is kept as a plinth (closure.terrain = plinth, the default): 0.460 %
-  // (all input vertices: 0.463 %); with closure.terrain = cut, 2.40 %.
-  check_building(in, 0.5);
+  // area) is kept as a plinth 0.5 m deep (closure.terrain = plinth, the
+  // default): 0.437 % (400k area samples of the input: 0.442 %); with
+  // closure.terrain = cut, 2.4 %.
+  check_building(in, 0.5, 1.0);
 }
