@@ -324,3 +324,37 @@ TEST(LodPipeline, NoModelReachesBeyondTheDataBox) {
       }
   }
 }
+
+// A plinth under a sloping terrain follows the slope: the walls along the
+// scene's outline reach up to the terrain, not to its highest point.
+TEST(LodPipeline, PlinthFollowsASlopingTerrain) {
+  std::vector<test::Face> f;
+  const Vec3 Y = Vec3::UnitY();
+  const Vec3 S = Vec3(1, 0, 0.1).normalized();  // terrain: z = -2 + 0.1 (x + 10), 10 % slope along x
+  const double L = 30.0 / S.x();
+  // House 10 x 6 m on it, walls from the terrain up to z = 4, no bottom.
+  test::add_box(f, Vec3(0, 0, -1.0), Vec3(10, 6, 4), 16);
+  test::add_rect(f, Vec3(-10, -10, -2.0), S, L, Y, 26, {{10 / S.x(), 20 / S.x(), 10, 16}});
+  const auto b = test::finish(std::move(f), 0.0, 6, SynthOptions{}, false);
+  const LodResult r = build_lod_tree(b.input, fast_params());
+  expect_valid_models(r);
+  ASSERT_NE(last_anchor(r), nullptr);
+  EXPECT_TRUE(has_note(r, "plinth"));
+  // Near the scene's edges the model is no higher than the terrain there.
+  int edge_vertices = 0;
+  double worst = -1e9;
+  for (const auto& v : last_anchor(r)->mesh.vertices) {
+    if (v.x() > -8 && v.x() < 18 && v.y() > -8 && v.y() < 14) continue;  // the house and its surroundings
+    const double terrain = -2.0 + 0.1 * (v.x() + 10);
+    EXPECT_LE(v.z(), terrain + 0.3) << v.transpose();
+    worst = std::max(worst, v.z() - terrain);
+    ++edge_vertices;
+  }
+  EXPECT_GE(edge_vertices, 8);
+  EXPECT_LE(worst, 0.3);
+  // Plinth: 30 x 26 m from 0.5 m under the lowest sample (z = -2) up to the
+  // terrain (mean z -0.5): 1560 m3; house above the terrain: 60 m2 x 4.5 m =
+  // 270 m3. (The outline of the samples runs up to half a sample spacing
+  // inside the terrain's edge: -1.8 % measured.)
+  EXPECT_NEAR(last_anchor(r)->volume, 1830.0, 0.03 * 1830.0);
+}
