@@ -206,7 +206,8 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     if (c.what == Closure::Base) st.notes.push_back("open bottom: a base plane was inferred");
     if (c.what == Closure::Walls) st.notes.push_back("walls missing: " + n + " closure planes inferred (ground + walls)");
     if (c.what == Closure::Plinth)
-      st.notes.push_back("terrain sheet kept as a plinth: " + n + " closure planes inferred (base + walls)");
+      st.notes.push_back("terrain sheet kept as a plinth: " + n +
+                         " closure planes inferred (base + walls; closure.terrain=cut models the building alone)");
   }
   prims.erase(std::remove_if(prims.begin(), prims.end(),
                              [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),
