@@ -248,3 +248,21 @@ TEST(Cli, LodTerrainDefaultsDependOnTheInput) {
   ASSERT_EQ(over.code, 0) << over.err;
   EXPECT_NE(over.out.find("closure.terrain = plinth\n"), std::string::npos) << over.out;
 }
+
+// `citylod lod` ends with the finest model's figures (the acceptance numbers a
+// user checks first): triangles, volume, e1, e2.
+TEST(Cli, LodPrintsTheFinestModel) {
+  const std::string in = shared("ahn3_building_lod2/AHN3_13856.ply");
+  REQUIRE_SHARED(in);
+  const Result r = run("lod " + quote(in) + " --out " + quote(tmp_dir() + "/lod_finest"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto at = r.err.find("lod: finest model: ");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  const std::string line = r.err.substr(at, r.err.find('\n', at) - at);
+  EXPECT_NE(line.find(" triangles, volume "), std::string::npos) << line;
+  EXPECT_NE(line.find(" % of the bbox diagonal"), std::string::npos) << line;
+  double e2 = -1;
+  ASSERT_EQ(std::sscanf(line.c_str() + line.find("e2 ") + 3, "%lf", &e2), 1) << line;
+  EXPECT_GT(e2, 0.0);
+  EXPECT_LE(e2, 0.5);
+}

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -102,9 +103,11 @@ int cmd_lod(ArgParser& args) {
   progress.finish();
   const auto files = write_lod_output(out, r, params, input, b.origin, args.has("dump-planes"));
   int anchors = 0, interps = 0;
+  const lod::LodModel* finest = nullptr;  // the last anchor
   for (const auto& m : r.models) {
     anchors += m.kind == lod::ModelKind::Anchor;
     interps += m.kind == lod::ModelKind::Interpolation;
+    if (m.kind == lod::ModelKind::Anchor) finest = &m;
   }
   const auto& s = r.stats;
   std::ostringstream msg;
@@ -113,6 +116,12 @@ int cmd_lod(ArgParser& args) {
       << " level sets=" << s.level_sets << "; T1=" << s.t_ioview << "s T2=" << s.t_tree
       << "s T3=" << s.t_traversal << "s; written to " << out;
   log_info(msg.str());
+  if (finest) {
+    char line[200];
+    std::snprintf(line, sizeof line, "lod: finest model: %zu triangles, volume %.1f m3, e1 %.3f %%, e2 %.3f %% of the bbox diagonal",
+                  finest->mesh.triangles.size(), finest->volume, finest->e1, finest->e2);
+    log_info(line);
+  }
   for (const auto& n : s.notes) log_info("lod: note: " + n);
   return 0;
 }
