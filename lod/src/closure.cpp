@@ -209,7 +209,8 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     prim_area += pr.alpha_area;
     if (std::abs(pr.normal.z()) < 0.3) vertical_area += pr.alpha_area;
   }
-  const bool walls_missing = wall_w / total_w < p.wall_fraction_min || vertical_area < 0.1 * prim_area;
+  const bool walls_unscanned = wall_w / total_w < p.wall_fraction_min || vertical_area < 0.1 * prim_area;
+  const bool walls_missing = walls_unscanned || (p.footprint_walls && in.footprint.size() >= 3);
   // An open bottom (facade scans, meshes standing on a terrain sheet) lets the
   // ray labelling leak as much as missing walls do: close it with a base plane
   // unless a downward-facing horizontal primitive already lies at the bottom.
@@ -392,7 +393,7 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     ++added;
   }
   res.added = added;
-  if (!plinth) res.what = Closure::Walls;
+  if (!plinth) res.what = walls_unscanned ? Closure::Walls : Closure::FootprintWalls;
   return res;
 }
 

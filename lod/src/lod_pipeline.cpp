@@ -201,10 +201,12 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   // Roof-only LiDAR: ground + walls through the outline so the building closes.
   if (P.closure.enabled) {
     const Closure c = close_building(in, samples, P.closure, prims);
-    st.walls_inferred = c.what == Closure::Walls;
+    st.walls_inferred = c.what == Closure::Walls || c.what == Closure::FootprintWalls;
     const std::string n = std::to_string(c.added);
     if (c.what == Closure::Base) st.notes.push_back("open bottom: a base plane was inferred");
     if (c.what == Closure::Walls) st.notes.push_back("walls missing: " + n + " closure planes inferred (ground + walls)");
+    if (c.what == Closure::FootprintWalls)
+      st.notes.push_back("walls along the footprint: " + n + " closure planes inferred (ground + walls; scanned walls kept)");
     if (c.what == Closure::Plinth)
       st.notes.push_back("terrain sheet kept as a plinth: " + n +
                          " closure planes inferred (base + walls; closure.terrain=cut models the building alone)");

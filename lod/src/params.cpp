@@ -102,6 +102,7 @@ void visit(P& p, F&& f) {
   f("closure.outline_alpha", p.closure.outline_alpha);
   f("closure.terrain", p.closure.terrain);
   f("closure.plinth_depth", p.closure.plinth_depth);
+  f("closure.footprint_walls", p.closure.footprint_walls);
   f("orient.enabled", p.orient.enabled);
   f("orient.points_per_plane", p.orient.points_per_plane);
   f("orient.rays", p.orient.rays);

@@ -52,10 +52,12 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p);
 /// Airborne LiDAR closure: when walls are missing (few near-horizontal
 /// normals), adds a ground plane and vertical walls through the outline (the
 /// footprint when given, else a 2D alpha-shape of the samples, simplified).
-/// An open bottom gets a base plane; a terrain sheet (params.terrain) becomes
-/// a plinth (base + walls along the scene's outline) or is cut off.
+/// With p.footprint_walls, walls go along a given footprint even when some
+/// walls were scanned. An open bottom gets a base plane; a terrain sheet
+/// (params.terrain) becomes a plinth (base + walls along the scene's outline)
+/// or is cut off.
 struct Closure {
-  enum What { None, Base, Walls, Plinth };
+  enum What { None, Base, Walls, FootprintWalls, Plinth };
   int added = 0;      ///< primitives added
   What what = None;
 };

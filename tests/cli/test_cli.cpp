@@ -236,14 +236,16 @@ TEST(Cli, InfoBadInputsFailWithOneLine) {
 
 // A single building keeps a terrain sheet as a plinth (the model represents
 // all of its input); a work directory's buildings (city runs: chunks without
-// ground) cut it off.
+// ground, with a footprint) cut it off and get walls along their footprint.
 TEST(Cli, LodTerrainDefaultsDependOnTheInput) {
   const Result one = run("lod --print-params");
   ASSERT_EQ(one.code, 0) << one.err;
   EXPECT_NE(one.out.find("closure.terrain = plinth\n"), std::string::npos) << one.out;
+  EXPECT_NE(one.out.find("closure.footprint_walls = false\n"), std::string::npos) << one.out;
   const Result city = run("lod " + quote(tmp_dir()) + " --print-params");
   ASSERT_EQ(city.code, 0) << city.err;
   EXPECT_NE(city.out.find("closure.terrain = cut\n"), std::string::npos) << city.out;
+  EXPECT_NE(city.out.find("closure.footprint_walls = true\n"), std::string::npos) << city.out;
   const Result over = run("lod " + quote(tmp_dir()) + " --print-params --set closure.terrain=plinth");
   ASSERT_EQ(over.code, 0) << over.err;
   EXPECT_NE(over.out.find("closure.terrain = plinth\n"), std::string::npos) << over.out;

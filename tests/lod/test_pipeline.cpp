@@ -358,3 +358,28 @@ TEST(LodPipeline, PlinthFollowsASlopingTerrain) {
   // inside the terrain's edge: -1.8 % measured.)
   EXPECT_NEAR(last_anchor(r)->volume, 1830.0, 0.03 * 1830.0);
 }
+
+// Airborne LiDAR hits some walls of a building (a tower's, a facade facing
+// the flight line) but not all: the walls that were scanned keep the wall
+// heuristic from inferring any. With a footprint and closure.footprint_walls
+// (city runs) the footprint's walls close the building anyway.
+TEST(LodPipeline, FootprintWallsCloseAPartlyScannedBuilding) {
+  std::vector<test::Face> f;
+  test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 8), 16 | 4 | 8);  // roof and the two x walls only
+  auto b = test::finish(std::move(f), 480.0, 3, SynthOptions{}, false);
+  b.input.footprint = {Vec2(0, 0), Vec2(10, 0), Vec2(10, 6), Vec2(0, 6)};
+  b.input.has_ground_z = true;
+  b.input.ground_z = 0.0;
+  LodParams p = fast_params();
+  p.closure.footprint_walls = true;
+  const LodResult r = build_lod_tree(b.input, p);
+  expect_valid_models(r);
+  ASSERT_NE(last_anchor(r), nullptr);
+  EXPECT_TRUE(has_note(r, "walls along the footprint"));
+  EXPECT_TRUE(r.stats.walls_inferred);
+  EXPECT_NEAR(last_anchor(r)->volume, 480.0, 0.01 * 480.0);
+  // Without it the scanned walls count as walls: none is inferred.
+  const LodResult q = build_lod_tree(b.input, fast_params());
+  EXPECT_FALSE(has_note(q, "walls along the footprint"));
+  EXPECT_FALSE(q.stats.walls_inferred);
+}

@@ -118,6 +118,7 @@ void apply_lod_config(lod::LodParams& p, const std::string& path) {
 lod::LodParams city_lod_params() {
   lod::LodParams p;
   p.closure.terrain = "cut";
+  p.closure.footprint_walls = true;
   return p;
 }
 

@@ -39,7 +39,9 @@ void declare_lod_param_options(ArgParser& args);
 lod::LodParams parse_lod_params(const ArgParser& args, lod::LodParams base = {});
 /// The paper's defaults, except what a city run needs: its chunks hold no
 /// ground, and a low plane reaching a chunk's edge (a courtyard, a plaza) is
-/// not terrain to keep as a plinth (closure.terrain = cut).
+/// not terrain to keep as a plinth (closure.terrain = cut); every chunk has a
+/// footprint, whose walls close what airborne LiDAR scanned in part
+/// (closure.footprint_walls).
 lod::LodParams city_lod_params();
 /// Applies "name=value[,name=value...]"; throws UsageError.
 void apply_lod_settings(lod::LodParams& p, const std::string& list);

@@ -92,6 +92,11 @@ struct ClosureParams {
   /// closes the building at the terrain's height under its own outline (the
   /// city pipeline, whose chunks have no ground, sets this).
   std::string terrain = "plinth";
+  /// Walls along a given footprint even when some walls were scanned
+  /// (airborne LiDAR hits towers and facades in part; without them a tower's
+  /// cells see the sky sideways and are lost). City runs set this; a single
+  /// building's scan without a footprint is unaffected.
+  bool footprint_walls = false;
   double plinth_depth = 0.5;           ///< m, plinth bottom below the lowest sample
 };
 
