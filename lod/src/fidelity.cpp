@@ -12,7 +12,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdint>
 
 namespace citylod::lod::detail {
 
@@ -102,17 +101,14 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
     I.kd->build();
   }
   // e2 input samples: one per block of `stride` consecutive samples, at a
-  // pseudo-random offset in the block (a fixed hash: deterministic). A fixed
-  // offset would follow the input's order (scan lines, region order) and read
-  // ~5 % low on cgal_building.
+  // pseudo-random offset in the block (deterministic). A fixed offset would
+  // follow the input's order (scan lines, region order) and read ~5 % low on
+  // cgal_building.
   const std::size_t n = s.points.size();
   const std::size_t stride = std::max<std::size_t>(1, (n + std::size_t(I.samples) - 1) / std::size_t(I.samples));
+  Rng rng(0);
   for (std::size_t b = 0; b < n; b += stride) {
-    std::uint64_t h = (b / stride + 1) * 0x9E3779B97F4A7C15ull;  // splitmix64 finaliser
-    h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
-    h = (h ^ (h >> 27)) * 0x94D049BB133111EBull;
-    h ^= h >> 31;
-    const std::size_t i = b + std::size_t(h % std::min(stride, n - b));
+    const std::size_t i = b + std::size_t(rng.next_u64() % std::min(stride, n - b));
     I.e2_points.push_back(toP(s.points[i]));
     I.e2_weights.push_back((I.mesh && i < s.weights.size()) ? s.weights[i] : 1.0);
   }

@@ -42,19 +42,6 @@ inline Vec3 toE(const V3& p) { return Vec3(p.x(), p.y(), p.z()); }
 
 bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 
-/// Deterministic uniform in [0,1) from a 64-bit state (splitmix64).
-struct Rng {
-  std::uint64_t s;
-  explicit Rng(std::uint64_t seed) : s(seed) {}
-  double next() {
-    std::uint64_t z = (s += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    z ^= z >> 31;
-    return static_cast<double>(z >> 11) * (1.0 / 9007199254740992.0);
-  }
-};
-
 /// Orthonormal in-plane frame with u x v = n (u horizontal for non-horizontal planes).
 void plane_frame(const Vec3& n, Vec3& u, Vec3& v) {
   if (std::abs(n.z()) < 0.9) u = Vec3::UnitZ().cross(n).normalized();

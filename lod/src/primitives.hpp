@@ -6,6 +6,7 @@
 #include "citylod/lod/lod.hpp"
 
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -36,6 +37,21 @@ struct Primitive {
   double alpha_area = 0.0;
   bool inferred = false;         ///< closure plane (ground / outline wall), not detected
   bool from_template = false;    ///< cuboid template face
+};
+
+/// Deterministic pseudo-random numbers (splitmix64): the same sequence on
+/// every platform and thread count.
+struct Rng {
+  std::uint64_t s;
+  explicit Rng(std::uint64_t seed) : s(seed) {}
+  std::uint64_t next_u64() {
+    std::uint64_t z = (s += 0x9E3779B97F4A7C15ULL);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31);
+  }
+  /// Uniform in [0, 1).
+  double next() { return static_cast<double>(next_u64() >> 11) * (1.0 / 9007199254740992.0); }
 };
 
 /// Builds the oriented samples; estimates and orients normals when missing.
