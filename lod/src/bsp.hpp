@@ -13,6 +13,10 @@
 
 namespace citylod::lod::detail {
 
+/// BspPolygon::primitive of the cuts that are no primitive (the data box's
+/// faces, cut first at level 0: lod_pipeline.cpp, tree.cpp).
+constexpr int kBoxCut = -2;
+
 /// A convex polygon on its plane, used to split space.
 struct BspPolygon {
   std::array<double, 4> plane;   ///< a,b,c,d with (a,b,c) unit: a x + b y + c z + d = 0

@@ -64,11 +64,25 @@ class Progress {
   void* user_;
 };
 
-/// Bounding box of the samples and primitive shapes ([data_lo, data_hi]) and
-/// the slightly enlarged box the BSP partitions ([lo, hi]).
-void scene_box(const Samples& s, const std::vector<Primitive>& prims, double enlarge, Vec3& lo,
-               Vec3& hi, Vec3& data_lo, Vec3& data_hi) {
-  lo = hi = s.points.front();
+/// The BSP's box and its first cuts. The paper partitions "the slightly
+/// enlarged bounding box" of the data; the pad only keeps the box faces off the
+/// outermost primitives. (ours) The six planes of the data's bounding box,
+/// kDataBoxMargin outside it, are the first cuts, so that no cell straddles
+/// the data's bounds, and the leaves beyond them are out at every level
+/// (clear_pad_leaves): nothing is there to model. With cells straddling the
+/// bounds, thin in-cells reached the box (cgal_building's finest model had a
+/// 4 x 10 cm rod 3 m long in the pad, AHN3_13856's coarse models overhung the
+/// data by 7.7 m).
+struct SceneBox {
+  Vec3 lo, hi;          ///< the enlarged box the BSP partitions
+  Vec3 cut_lo, cut_hi;  ///< the data box cuts
+};
+constexpr double kDataBoxMargin = 0.25;  ///< m; the pad is >= 0.5 m, so the cuts stay inside it
+
+/// Bounding box of the samples and primitive shapes, enlarged by `enlarge` of
+/// its diagonal (at least 0.5 m) per side.
+SceneBox scene_box(const Samples& s, const std::vector<Primitive>& prims, double enlarge) {
+  Vec3 lo = s.points.front(), hi = lo;
   for (const auto& p : s.points) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
@@ -78,62 +92,39 @@ void scene_box(const Samples& s, const std::vector<Primitive>& prims, double enl
       lo = lo.cwiseMin(v);
       hi = hi.cwiseMax(v);
     }
-  data_lo = lo;
-  data_hi = hi;
-  const double diag = (hi - lo).norm();
-  const Vec3 pad = Vec3::Constant(std::max(0.5, enlarge * diag));
-  lo -= pad;
-  hi += pad;
+  const Vec3 pad = Vec3::Constant(std::max(0.5, enlarge * (hi - lo).norm()));
+  const Vec3 margin = Vec3::Constant(kDataBoxMargin);
+  return {lo - pad, hi + pad, lo - margin, hi + margin};
 }
 
-/// (ours) The data box: the BSP's first six cuts, kDataBoxMargin outside the
-/// data's bounding box, so that no cell straddles it; the leaves outside it
-/// are out at every level (clear_pad_leaves). The pad beyond only keeps the
-/// BSP's box faces off the outermost primitives: nothing is there to model.
-/// With cells straddling the data's bounds, thin in-cells reached the box
-/// (cgal_building's finest model had a 4 x 10 cm rod 3 m long in the pad,
-/// AHN3_13856's coarse models overhung the data by 7.7 m).
-struct DataBox {
-  Vec3 lo, hi;          ///< the cut box
-  Vec3 box_lo, box_hi;  ///< the enlarged box of the BSP
-};
-constexpr double kDataBoxMargin = 0.25;  ///< m (at most half the pad)
-
-int clear_pad_leaves(const Bsp& bsp, const DataBox& cut, std::vector<std::vector<char>>& labels) {
-  int cleared = 0;
+void clear_pad_leaves(const Bsp& bsp, const SceneBox& box, std::vector<std::vector<char>>& labels) {
   const auto leaves = bsp.leaves();
   for (size_t i = 0; i < leaves.size() && i < labels.size(); ++i) {
     const Vec3& c = bsp.nodes()[size_t(leaves[i])].center;
-    if ((c.array() >= cut.lo.array()).all() && (c.array() <= cut.hi.array()).all()) continue;
-    bool any = false;
-    for (auto& l : labels[i]) {
-      any |= l != 0;
-      l = 0;
-    }
-    cleared += any;
+    if ((c.array() < box.cut_lo.array()).any() || (c.array() > box.cut_hi.array()).any())
+      std::fill(labels[i].begin(), labels[i].end(), 0);
   }
-  return cleared;
 }
 
-/// Polygons of a BSP: the six data-box cuts (primitive -2), then the hulls of
-/// the primitives in `order`.
+/// Polygons of a BSP: the six data-box cuts (kBoxCut), then the hulls of the
+/// primitives in `order`.
 std::vector<BspPolygon> hull_polygons(const std::vector<Primitive>& prims, const std::vector<int>& order,
-                                      const DataBox& cut) {
+                                      const SceneBox& box) {
   std::vector<BspPolygon> polys;
   polys.reserve(order.size() + 6);
   for (int axis = 0; axis < 3; ++axis)
     for (int side = 0; side < 2; ++side) {
       const int u = (axis + 1) % 3, w = (axis + 2) % 3;
-      const double at = side ? cut.hi[axis] : cut.lo[axis];
+      const double at = side ? box.cut_hi[axis] : box.cut_lo[axis];
       std::array<double, 4> plane{0, 0, 0, -at};
       plane[size_t(axis)] = 1.0;
       std::vector<Vec3> rect(4);  // spans the BSP's box (clipped to it)
       for (int k = 0; k < 4; ++k) {
         rect[size_t(k)][axis] = at;
-        rect[size_t(k)][u] = (k == 1 || k == 2) ? cut.box_hi[u] + 1.0 : cut.box_lo[u] - 1.0;
-        rect[size_t(k)][w] = (k >= 2) ? cut.box_hi[w] + 1.0 : cut.box_lo[w] - 1.0;
+        rect[size_t(k)][u] = (k == 1 || k == 2) ? box.hi[u] + 1.0 : box.lo[u] - 1.0;
+        rect[size_t(k)][w] = (k >= 2) ? box.hi[w] + 1.0 : box.lo[w] - 1.0;
       }
-      polys.push_back(BspPolygon{plane, std::move(rect), -2});
+      polys.push_back(BspPolygon{plane, std::move(rect), kBoxCut});
     }
   for (int i : order) {
     const auto& p = prims[size_t(i)];
@@ -227,22 +218,13 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
 
   // 2. IO-View: BSP by the hulls, largest first; ray labels; regions.
   progress(0.1, "io-view");
-  Vec3 lo, hi, data_lo, data_hi;
-  scene_box(samples, prims, P.bsp.bbox_enlarge, lo, hi, data_lo, data_hi);
-  DataBox cut;
-  {
-    const double margin = std::min(kDataBoxMargin, 0.5 * (data_lo - lo).minCoeff());
-    cut.lo = data_lo - Vec3::Constant(margin);
-    cut.hi = data_hi + Vec3::Constant(margin);
-    cut.box_lo = lo;
-    cut.box_hi = hi;
-  }
+  const SceneBox box = scene_box(samples, prims, P.bsp.bbox_enlarge);
   std::vector<int> by_area(prims.size());
   for (size_t i = 0; i < prims.size(); ++i) by_area[i] = int(i);
   std::stable_sort(by_area.begin(), by_area.end(), [&](int a, int b) {
     return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
   });
-  const Bsp io_bsp(lo, hi, hull_polygons(prims, by_area, cut), P.bsp.max_cells);
+  const Bsp io_bsp(box.lo, box.hi, hull_polygons(prims, by_area, box), P.bsp.max_cells);
   if (io_bsp.cap_hit()) st.notes.push_back("IO-View BSP hit the cell cap");
   st.ioview_cells = int(io_bsp.leaves().size());
   budget.check("io-view");
@@ -250,7 +232,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   const RayLabeller io_labeller(alpha_triangles(prims, all_level0), P.labels.rays_per_cell);
   std::vector<char> io_labels;
   auto io_leaf_labels = io_labeller.label(leaf_ray_origins(io_bsp, P.labels.origins_per_cell), 1, P.threads);
-  clear_pad_leaves(io_bsp, cut, io_leaf_labels);
+  clear_pad_leaves(io_bsp, box, io_leaf_labels);
   for (const auto& l : io_leaf_labels) io_labels.push_back(l[0]);
   budget.check("io-view");
   IoView view = analyse_io_view(io_bsp, prims, match_planes(io_bsp, prims), io_labels, P.ioview);
@@ -282,12 +264,12 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   // 4. LOD-Tree: BSP in the order S, per-level leaf labels, LOD-nodes.
   progress(0.4, "lod-tree");
   const auto t2 = Clock::now();
-  const Bsp bsp(lo, hi, hull_polygons(prims, sorted.order, cut), P.bsp.max_cells);
+  const Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells);
   if (bsp.cap_hit()) st.notes.push_back("LOD-Tree BSP hit the cell cap");
   budget.check("lod-tree");
   const RayLabeller labeller(alpha_triangles(prims, sorted.level_of), P.labels.rays_per_cell);
   auto leaf_labels = labeller.label(leaf_ray_origins(bsp, P.labels.origins_per_cell), sorted.num_levels, P.threads);
-  clear_pad_leaves(bsp, cut, leaf_labels);
+  clear_pad_leaves(bsp, box, leaf_labels);
   const LodTree tree = build_tree(bsp, sorted, grouping, leaf_labels, P.tree);
   st.bsp_nodes = int(bsp.nodes().size());
   st.lod_nodes = int(tree.nodes.size());
@@ -340,7 +322,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
       return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
     });
-    const Bsp base(lo, hi, hull_polygons(prims, order, cut), P.bsp.max_cells);
+    const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells);
     st.baseline_bsp_nodes = int(base.nodes().size());
     int internal = 0;
     for (const auto& n : base.nodes()) internal += n.is_leaf() ? 0 : 1;

@@ -54,7 +54,8 @@ LodTree build_tree(const Bsp& bsp, const SortedPrimitives& sorted, const Groupin
   };
   auto level_of_node = [&](int n) {
     const int prim = bn[size_t(n)].split_primitive;
-    if (prim < 0) return 0;  // the data-box cuts come first, at level 0
+    if (prim == kBoxCut) return 0;  // the data-box cuts come first, at level 0
+    if (prim < 0) return t.num_levels;
     const int lv = sorted.level_of[size_t(prim)];
     return lv >= 0 ? lv : t.num_levels - 1;
   };
