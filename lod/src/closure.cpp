@@ -253,8 +253,9 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
   // The building's outline over a terrain: samples clearly above the terrain
   // (walls, roofs), not those of upward planes low down (terrain pieces).
   std::vector<Vec2> building_outline;
+  std::vector<char> on_low_up;  // samples of upward planes low down (terrain pieces)
   if (on_terrain) {
-    std::vector<char> on_low_up(s.points.size(), 0);
+    on_low_up.assign(s.points.size(), 0);
     for (const auto& pr : prims)
       if (low_up(pr))
         for (int i : pr.inliers) on_low_up[size_t(i)] = 1;
@@ -355,13 +356,9 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
   res.what = plinth ? Closure::Plinth : Closure::Base;
   if (!walls_missing && !plinth) return res;  // walls were scanned: only the base was missing
 
-  // Plinth walls reach up to the terrain along the scene's edge; building walls
-  // to the highest sample near the outline edge.
-  std::vector<char> wall_top_from(s.points.size(), plinth ? 0 : 1);
-  if (plinth)
-    for (const auto& pr : prims)
-      if (low_up(pr))
-        for (int i : pr.inliers) wall_top_from[size_t(i)] = 1;
+  // Plinth walls reach up to the terrain along the scene's edge (plinth implies
+  // on_terrain: on_low_up is set); building walls to the highest sample near
+  // the outline edge.
 
   // Walls: one per outline edge, outward = right of the CCW edge direction.
   for (std::size_t i = 0; i < outline.size(); ++i) {
@@ -373,7 +370,7 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     double top = -std::numeric_limits<double>::infinity();
     for (std::size_t k = 0; k < s.points.size(); ++k) {
       const Vec3& q = s.points[k];
-      if (wall_top_from[k] && seg_dist(Vec2(q.x(), q.y()), a, b) <= 1.0) top = std::max(top, q.z());
+      if ((!plinth || on_low_up[k]) && seg_dist(Vec2(q.x(), q.y()), a, b) <= 1.0) top = std::max(top, q.z());
     }
     if (!std::isfinite(top)) top = plinth ? zmin : zmax;
     top = std::max(top, gz + (plinth ? p.plinth_depth : 1.0));
