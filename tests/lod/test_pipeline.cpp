@@ -228,8 +228,7 @@ TEST(LodPipeline, OpenBottomIsClosedAtTheLowestSample) {
   for (const auto& n : r.stats.notes) base_note |= n.find("base plane") != std::string::npos;
   EXPECT_TRUE(base_note);
   ASSERT_NE(last_anchor(r), nullptr);
-  double lowest = 1e9;
-  for (const auto& p : b.input.points) lowest = std::min(lowest, p.z());
+  const double lowest = test::input_box(b.input).lo.z();
   EXPECT_NEAR(test::lowest_z(*last_anchor(r)), lowest, 1e-6);
   EXPECT_LT(lowest, 0.1);
 }
@@ -267,8 +266,7 @@ TEST(LodPipeline, TerrainSheetIsCutOrKeptAsAPlinth) {
   expect_valid_models(k);
   ASSERT_NE(last_anchor(k), nullptr);
   EXPECT_TRUE(has_note(k, "plinth"));
-  double lowest = 1e9;
-  for (const auto& p : b.input.points) lowest = std::min(lowest, p.z());
+  const double lowest = test::input_box(b.input).lo.z();
   EXPECT_NEAR(test::lowest_z(*last_anchor(k)), lowest - 0.5, 1e-6);
   // House 240 m3 + 30 x 26 m terrain, 0.5 m deep (the outline of the samples
   // runs up to half a sample spacing inside the terrain's edge).

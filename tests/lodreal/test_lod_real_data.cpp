@@ -24,25 +24,9 @@ std::string data(const std::string& rel) { return std::string(CITYLOD_SHARED_DAT
 /// digit: region growing on float positions is chaotic at its thresholds, and
 /// cgal_building's e2 moves by about +-1 % of itself with a sub-metre shift.
 void recentre(BuildingInput& in) {
-  Vec3 lo = in.points.front(), hi = lo;
-  for (const auto& p : in.points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  const Vec3 c = (0.5 * (lo + hi)).array().round();
+  const auto box = test::input_box(in);
+  const Vec3 c = (0.5 * (box.lo + box.hi)).array().round();
   for (auto& p : in.points) p -= c;
-}
-
-/// How far the model's vertices reach beyond the input's bounding box (m).
-double overhang(const LodModel& m, const BuildingInput& in) {
-  Vec3 lo = in.points.front(), hi = lo;
-  for (const auto& p : in.points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  double worst = 0;
-  for (const auto& v : m.mesh.vertices) worst = std::max({worst, (lo - v).maxCoeff(), (v - hi).maxCoeff()});
-  return worst;
 }
 
 /// max_overhang: the engine's data-box cuts lie 0.25 m outside the data (plus
@@ -53,10 +37,11 @@ void check_building(BuildingInput in, double max_finest_e2, double max_overhang)
   p.budget.time_budget_s = 0;
   const LodResult r = build_lod_tree(in, p);
   ASSERT_EQ(r.status, "ok") << r.reason;
+  const auto box = test::input_box(in);
   for (const auto& m : r.models) {
     SCOPED_TRACE("model " + std::to_string(m.step));
     test::expect_closed_solid(m);
-    EXPECT_LE(overhang(m, in), max_overhang);
+    EXPECT_LE(test::overhang(m, box), max_overhang);
   }
   const int anchors = test::count_models(r, ModelKind::Anchor);
   const int interps = test::count_models(r, ModelKind::Interpolation);

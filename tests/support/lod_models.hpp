@@ -47,4 +47,24 @@ inline double lowest_z(const lod::LodModel& m) {
   return z;
 }
 
+/// Bounding box of a building input's points.
+struct InputBox {
+  lod::Vec3 lo, hi;
+};
+inline InputBox input_box(const lod::BuildingInput& in) {
+  InputBox b{in.points.front(), in.points.front()};
+  for (const auto& p : in.points) {
+    b.lo = b.lo.cwiseMin(p);
+    b.hi = b.hi.cwiseMax(p);
+  }
+  return b;
+}
+
+/// How far a model's vertices reach beyond a box (m; 0 when inside).
+inline double overhang(const lod::LodModel& m, const InputBox& b) {
+  double worst = 0;
+  for (const auto& v : m.mesh.vertices) worst = std::max({worst, (b.lo - v).maxCoeff(), (v - b.hi).maxCoeff()});
+  return worst;
+}
+
 }  // namespace citylod::test
