@@ -62,8 +62,9 @@ struct BspSurface {
   PolygonMesh polygons;          ///< coplanar faces merged; each face a hole-free CCW (from outside) loop
   TriangleMesh triangles;        ///< watertight, outward, edge-manifold triangulation of the same surface
   int merged_regions = 0;        ///< number of merged coplanar regions (polygons with holes count once)
-  int labels_flipped = 0;        ///< out-cells relabelled in to remove non-manifold edges
+  int labels_flipped = 0;        ///< cells relabelled to remove non-manifold edges and pinched vertices
   std::vector<char> inside;      ///< labels actually used (input labels after relabelling), per partition entry
+  std::vector<char> edge_repaired;  ///< per partition entry: turned in to remove a non-manifold edge
 };
 
 class Bsp {

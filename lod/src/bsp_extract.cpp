@@ -12,9 +12,9 @@
 // by exact equality. T-junctions are resolved by inserting every output vertex
 // lying inside an output edge, and each plane side is triangulated with an
 // exact constrained Delaunay triangulation; each connected domain is one merged
-// region. Vertices are converted to double once. Non-manifold edges are
-// removed by relabelling the smallest adjacent out-cell in and extracting
-// again. Everything is exact (EPECK, lazy with shallow DAGs; the BSP vertices
+// region. Vertices are converted to double once. Non-manifold edges (and
+// then pinched vertices) are removed by relabelling the smallest adjacent
+// out-cell in and extracting again. Everything is exact (EPECK, lazy with shallow DAGs; the BSP vertices
 // enter as exact rationals computed with integer determinants).
 #include "bsp_impl.hpp"
 
@@ -878,6 +878,41 @@ std::vector<std::pair<int, int>> nonmanifold_edges(const Extracted& X) {
   return bad;
 }
 
+// Vertices whose triangles form more than one fan through edges at the vertex
+// (two in-cones touching at a point).
+std::vector<int> pinched_vertices(const Extracted& X) {
+  std::vector<std::array<int, 3>> tris;
+  for (const auto& G : X.groups)
+    for (size_t i = 0; i + 2 < G.tris.size(); i += 3) tris.push_back({G.tris[i], G.tris[i + 1], G.tris[i + 2]});
+  std::vector<std::vector<int>> around(X.pts.size());
+  for (size_t t = 0; t < tris.size(); ++t)
+    for (int v : tris[t]) around[size_t(v)].push_back(int(t));
+  std::vector<int> bad;
+  std::vector<int> parent;
+  std::unordered_map<int, int> by_other;
+  for (size_t v = 0; v < around.size(); ++v) {
+    const auto& ts = around[v];
+    if (ts.size() < 2) continue;
+    parent.resize(ts.size());
+    for (size_t i = 0; i < ts.size(); ++i) parent[i] = int(i);
+    auto find = [&](int x) {
+      while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
+      return x;
+    };
+    by_other.clear();
+    for (size_t i = 0; i < ts.size(); ++i)
+      for (int w : tris[size_t(ts[i])]) {
+        if (w == int(v)) continue;
+        const auto [it, fresh] = by_other.emplace(w, int(i));
+        if (!fresh) parent[size_t(find(int(i)))] = find(it->second);
+      }
+    int fans = 0;
+    for (size_t i = 0; i < ts.size(); ++i) fans += find(int(i)) == int(i);
+    if (fans > 1) bad.push_back(int(v));
+  }
+  return bad;
+}
+
 bool cell_contains(const BspData& I, const Cell& c, const Point3& p) {
   for (const auto& f : c.faces) {
     const CGAL::Oriented_side s = I.planes[f.poly.plane].oriented_side(p);
@@ -900,10 +935,15 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
   Extracted X;
   std::vector<std::pair<Vec3, Vec3>> bbox;  // lazily filled
   const int max_rounds = 64;
+  std::vector<char> locked(partition.size(), 0);  // flipped by the pinch repair once: not chosen again
+  S.edge_repaired.assign(partition.size(), 0);
   for (int round = 0;; ++round) {
     X = extract_once(D, collapse_inside(D, partition, inside), cache);
     const auto bad = nonmanifold_edges(X);
-    if (bad.empty() || round >= max_rounds) break;
+    // Pinched vertices are repaired in the first half of the rounds only, so
+    // the last rounds always end the edge repair (which never fails).
+    const auto pinched = bad.empty() && round < max_rounds / 2 ? pinched_vertices(X) : std::vector<int>{};
+    if ((bad.empty() && pinched.empty()) || round >= max_rounds) break;
     if (bbox.empty()) {
       bbox.resize(partition.size());
       for (size_t i = 0; i < partition.size(); ++i) {
@@ -936,9 +976,38 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
     }
     std::sort(flip.begin(), flip.end());
     flip.erase(std::unique(flip.begin(), flip.end()), flip.end());
-    if (flip.empty()) break;
-    for (int i : flip) inside[i] = 1;
-    S.labels_flipped += int(flip.size());
+    const size_t n_edge_flips = flip.size();
+    // (ours) A pinched vertex (two in-cones meeting at a point) is removed by
+    // the smallest change: the smallest cell whose closure holds the vertex,
+    // in or out, changes sides (joining the cones or cutting one back).
+    std::vector<int> flip_out;
+    for (int v : pinched) {
+      const Point3& p = X.pts[size_t(v)];
+      const Vec3 q(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
+      const double tol = 1e-6 * (1.0 + q.cwiseAbs().maxCoeff());
+      int best = -1;
+      for (size_t i = 0; i < partition.size(); ++i) {
+        if (locked[i]) continue;
+        if ((bbox[i].first.array() > q.array() + tol).any() || (bbox[i].second.array() < q.array() - tol).any())
+          continue;
+        if (!cell_contains(D, cells[partition[i]], p)) continue;
+        if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
+      }
+      if (best >= 0 && !std::binary_search(flip.begin(), flip.begin() + long(n_edge_flips), best))
+        (inside[size_t(best)] ? flip_out : flip).push_back(best);
+    }
+    std::sort(flip.begin() + long(n_edge_flips), flip.end());
+    flip.erase(std::unique(flip.begin() + long(n_edge_flips), flip.end()), flip.end());
+    std::sort(flip_out.begin(), flip_out.end());
+    flip_out.erase(std::unique(flip_out.begin(), flip_out.end()), flip_out.end());
+    if (flip.empty() && flip_out.empty()) break;
+    for (size_t k = 0; k < flip.size(); ++k) {
+      inside[size_t(flip[k])] = 1;
+      if (k >= n_edge_flips) locked[size_t(flip[k])] = 1;
+    }
+    for (size_t k = 0; k < n_edge_flips; ++k) S.edge_repaired[size_t(flip[k])] = 1;
+    for (int i : flip_out) inside[i] = 0, locked[size_t(i)] = 1;
+    S.labels_flipped += int(flip.size() + flip_out.size());
   }
 
   S.inside = inside;

@@ -7,6 +7,7 @@
 //   candidate -> fidelity metrics.
 //
 // Any failure inside gives the fallback model with the reason recorded.
+#include "airborne.hpp"
 #include "bsp.hpp"
 #include "citylod/lod/lod.hpp"
 #include "fallback.hpp"
@@ -19,6 +20,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -78,6 +81,8 @@ struct SceneBox {
   Vec3 cut_lo, cut_hi;  ///< the data box cuts
 };
 constexpr double kDataBoxMargin = 0.25;  ///< m; the pad is >= 0.5 m, so the cuts stay inside it
+constexpr double kMinShellFraction = 0.01;  ///< shells under 1 % of the largest one's volume are slivers
+constexpr double kMinCavityVolume = 1e-6;   ///< m^3; cavities are kept (the input shows them) unless of no volume
 
 /// Bounding box of the samples and primitive shapes, enlarged by `enlarge` of
 /// its diagonal (at least 0.5 m) per side.
@@ -178,6 +183,53 @@ PlaneReport report_plane(const Primitive& p, const Samples& s, int level, int cl
   return r;
 }
 
+/// (ours) One solid per model: shells (edge-connected pieces) with less than
+/// `min_fraction` of the largest one's volume are removed (slivers left by a
+/// cut), and cavities (shells of negative volume: rooms seen through windows)
+/// of no volume. Cavities are kept: filling cgal_building's 11 (0.02-6.7 m^3)
+/// raised its finest e2 from 0.497 to 0.521 %. Returns the number of outer
+/// shells kept.
+int drop_small_shells(LodModel& m, double min_fraction) {
+  const auto& T = m.mesh.triangles;
+  std::vector<int> parent(m.mesh.vertices.size());
+  for (size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
+  auto find = [&](int x) {
+    while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
+    return x;
+  };
+  for (const auto& t : T) {
+    parent[size_t(find(t[1]))] = find(t[0]);
+    parent[size_t(find(t[2]))] = find(t[0]);
+  }
+  std::map<int, double> volume;  // root -> volume
+  for (const auto& t : T) {
+    const Vec3 &a = m.mesh.vertices[size_t(t[0])], &b = m.mesh.vertices[size_t(t[1])],
+               &c = m.mesh.vertices[size_t(t[2])];
+    const Vec3& o = m.mesh.vertices[0];
+    volume[find(t[0])] += (a - o).dot((b - o).cross(c - o)) / 6.0;
+  }
+  if (volume.size() <= 1) return int(volume.size());
+  double vmax = 0;
+  for (const auto& [r, v] : volume) vmax = std::max(vmax, v);
+  std::set<int> keep;
+  int outer = 0;
+  for (const auto& [r, v] : volume)
+    if (vmax > 0 && (v > 0 ? v >= min_fraction * vmax : -v >= kMinCavityVolume)) {
+      keep.insert(r);
+      outer += v > 0;
+    }
+  if (keep.size() == volume.size()) return outer;
+  std::vector<std::array<int, 3>> tris;
+  for (const auto& t : T)
+    if (keep.count(find(t[0]))) tris.push_back(t);
+  m.mesh.triangles = std::move(tris);
+  std::vector<std::vector<int>> faces;
+  for (auto& f : m.polygons.faces)
+    if (!f.empty() && keep.count(find(f[0]))) faces.push_back(std::move(f));
+  m.polygons.faces = std::move(faces);
+  return outer;
+}
+
 /// The whole method; throws on any failure (caught by build_lod_tree).
 void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P,
                 const Progress& progress, const Budget& budget, LodResult& R) {
@@ -190,8 +242,9 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   st.planes_detected = int(prims.size());
   if (prims.empty()) throw LodError("planes", "no plane found");
   // Roof-only LiDAR: ground + walls through the outline so the building closes.
+  Closure c;
   if (P.closure.enabled) {
-    const Closure c = close_building(in, samples, P.closure, prims);
+    c = close_building(in, samples, P.closure, prims);
     st.walls_inferred = c.what == Closure::Walls || c.what == Closure::FootprintWalls;
     const std::string n = std::to_string(c.added);
     if (c.what == Closure::Base) st.notes.push_back("open bottom: a base plane was inferred");
@@ -201,6 +254,17 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     if (c.what == Closure::Plinth)
       st.notes.push_back("terrain sheet kept as a plinth: " + n +
                          " closure planes inferred (base + walls; closure.terrain=cut models the building alone)");
+  }
+  // (ours) Airborne LiDAR is 2.5D: a roof height field labels the cells, and
+  // walls are inferred where the roof steps down.
+  std::optional<HeightField> heights;
+  const bool walls_inferred = c.what == Closure::Walls || c.what == Closure::FootprintWalls;
+  if (P.airborne.mode == "on" || (P.airborne.mode == "auto" && !in.is_mesh() && walls_inferred)) {
+    if (c.outline.size() < 3) throw LodError("airborne", "no outline to model the building on");
+    heights.emplace(samples, c.outline, c.ground_z, P.airborne);
+    const int steps = infer_step_walls(samples, *heights, P.airborne, prims);
+    st.notes.push_back("airborne LiDAR: cells labelled by the roof height field; " + std::to_string(steps) +
+                       " step walls inferred");
   }
   prims.erase(std::remove_if(prims.begin(), prims.end(),
                              [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),
@@ -229,9 +293,15 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   st.ioview_cells = int(io_bsp.leaves().size());
   budget.check("io-view");
   const std::vector<int> all_level0(prims.size(), 0);
-  const RayLabeller io_labeller(alpha_triangles(prims, all_level0), P.labels.rays_per_cell);
   std::vector<char> io_labels;
-  auto io_leaf_labels = io_labeller.label(leaf_ray_origins(io_bsp, P.labels.origins_per_cell), 1, P.threads);
+  std::vector<std::vector<char>> io_leaf_labels;
+  if (heights) {
+    for (char l : label_by_height(leaf_ray_origins(io_bsp, P.airborne.origins_per_cell), *heights))
+      io_leaf_labels.push_back({l});
+  } else {
+    const RayLabeller io_labeller(alpha_triangles(prims, all_level0), P.labels.rays_per_cell);
+    io_leaf_labels = io_labeller.label(leaf_ray_origins(io_bsp, P.labels.origins_per_cell), 1, P.threads);
+  }
   clear_pad_leaves(io_bsp, box, io_leaf_labels);
   for (const auto& l : io_leaf_labels) io_labels.push_back(l[0]);
   budget.check("io-view");
@@ -267,8 +337,14 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   const Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells);
   if (bsp.cap_hit()) st.notes.push_back("LOD-Tree BSP hit the cell cap");
   budget.check("lod-tree");
-  const RayLabeller labeller(alpha_triangles(prims, sorted.level_of), P.labels.rays_per_cell);
-  auto leaf_labels = labeller.label(leaf_ray_origins(bsp, P.labels.origins_per_cell), sorted.num_levels, P.threads);
+  std::vector<std::vector<char>> leaf_labels;
+  if (heights) {  // the height field knows no levels: every level sees the same cells
+    for (char l : label_by_height(leaf_ray_origins(bsp, P.airborne.origins_per_cell), *heights))
+      leaf_labels.emplace_back(size_t(sorted.num_levels), l);
+  } else {
+    const RayLabeller labeller(alpha_triangles(prims, sorted.level_of), P.labels.rays_per_cell);
+    leaf_labels = labeller.label(leaf_ray_origins(bsp, P.labels.origins_per_cell), sorted.num_levels, P.threads);
+  }
   clear_pad_leaves(bsp, box, leaf_labels);
   const LodTree tree = build_tree(bsp, sorted, grouping, leaf_labels, P.tree);
   st.bsp_nodes = int(bsp.nodes().size());
@@ -285,6 +361,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   // candidates share most of their cells, and each repair round is a full
   // extraction pass.
   std::set<int> repaired;
+  int split_interpolations = 0;
   ExtractCache extract_cache;  // planes whose faces did not change are not recomputed
   for (size_t i = 0; i < candidates.size(); ++i) {
     progress(0.6 + 0.3 * double(i) / double(candidates.size()), "extraction");
@@ -304,12 +381,33 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     m.diff_sum = c.diff_sum;
     m.polygons = std::move(surf.polygons);
     m.mesh = std::move(surf.triangles);
+    const int shells = drop_small_shells(m, kMinShellFraction);
+    if (shells > 1 && c.kind == ModelKind::Interpolation) {
+      ++split_interpolations;  // (ours) a building in pieces is not worth streaming
+      continue;
+    }
+    if (shells > 1)
+      st.notes.push_back("model " + std::to_string(R.models.size()) + ": " + std::to_string(shells) +
+                         " solids (a multi-solid)");
     m.volume = mesh_volume(m.mesh);
     if (surf.labels_flipped > 0)
       st.notes.push_back("model " + std::to_string(R.models.size()) + ": " +
                          std::to_string(surf.labels_flipped) + " cells relabelled to remove non-manifold edges");
     R.models.push_back(std::move(m));
   }
+  // (ours) The LoD1.2 block first: the outline at the height that fits the
+  // points best, as coarse as a building gets.
+  if (heights && P.airborne.block) {
+    try {
+      R.models.insert(R.models.begin(), block_model(samples, *heights));
+      st.notes.push_back("model 0 is the outline extruded to its best-fitting height (LoD1.2 block)");
+    } catch (const LodError& e) {
+      st.notes.push_back(std::string("no LoD1.2 block: ") + e.what());
+    }
+  }
+  if (split_interpolations > 0)
+    st.notes.push_back(std::to_string(split_interpolations) +
+                       " interpolation models in more than one solid left out");
   for (size_t i = 0; i < R.models.size(); ++i) R.models[i].step = int(i);
   if (R.models.empty()) throw LodError("traversal", "no non-empty model");
   for (const auto& c : candidates)

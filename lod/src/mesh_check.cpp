@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <unordered_map>
+#include <vector>
 
 namespace citylod::lod {
 
@@ -98,6 +99,78 @@ bool soup_self_intersects(const std::vector<P3>& pts, const std::vector<std::arr
   return found;
 }
 
+/// Union-find over ints.
+struct Dsu {
+  std::vector<int> p;
+  explicit Dsu(std::size_t n) : p(n) {
+    for (std::size_t i = 0; i < n; ++i) p[i] = int(i);
+  }
+  int find(int x) {
+    while (p[size_t(x)] != x) x = p[size_t(x)] = p[size_t(p[size_t(x)])];
+    return x;
+  }
+  void unite(int a, int b) { p[size_t(find(a))] = find(b); }
+};
+
+/// Pinched vertices and shells by exact incidence: triangles are joined
+/// through shared (undirected) edges; a vertex is pinched when its incident
+/// triangles fall into more than one such group around it (the fans are
+/// joined only through edges incident to the vertex).
+void count_fans_and_shells(const TriangleMesh& mesh, MeshCheck& r) {
+  const std::size_t nt = mesh.triangles.size();
+  Dsu shells(nt);
+  std::unordered_map<std::uint64_t, int> first_of_edge;  // undirected edge -> a triangle
+  first_of_edge.reserve(nt * 2);
+  // Per vertex: its incident triangles, to group them by shared edges at it.
+  std::vector<std::vector<int>> around(mesh.vertices.size());
+  for (std::size_t t = 0; t < nt; ++t) {
+    const auto& tri = mesh.triangles[t];
+    for (int i = 0; i < 3; ++i) {
+      around[size_t(tri[i])].push_back(int(t));
+      const int a = std::min(tri[i], tri[(i + 1) % 3]), b = std::max(tri[i], tri[(i + 1) % 3]);
+      const auto [it, fresh] = first_of_edge.emplace(key(a, b), int(t));
+      if (!fresh) shells.unite(int(t), it->second);
+    }
+  }
+  std::vector<double> volume(nt, 0.0);  // per shell root
+  std::vector<char> root_seen(nt, 0);
+  const Vec3 o = mesh.vertices.empty() ? Vec3::Zero() : mesh.vertices[0];
+  for (std::size_t t = 0; t < nt; ++t) {
+    const auto& tri = mesh.triangles[t];
+    const int root = shells.find(int(t));
+    root_seen[size_t(root)] = 1;
+    const Vec3 a = mesh.vertices[size_t(tri[0])] - o, b = mesh.vertices[size_t(tri[1])] - o,
+               c = mesh.vertices[size_t(tri[2])] - o;
+    volume[size_t(root)] += a.dot(b.cross(c));
+  }
+  for (std::size_t t = 0; t < nt; ++t)
+    if (root_seen[t]) (volume[t] > 0 ? r.shells : r.cavities)++;
+  // Around vertex v, triangles sharing an edge (v, w) are in one fan.
+  for (std::size_t v = 0; v < around.size(); ++v) {
+    const auto& ts = around[v];
+    if (ts.size() < 2) continue;
+    std::unordered_map<int, int> by_other;  // other endpoint w -> local triangle index
+    std::vector<int> parent(ts.size());
+    for (std::size_t i = 0; i < ts.size(); ++i) parent[i] = int(i);
+    auto find = [&](int x) {
+      while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
+      return x;
+    };
+    for (std::size_t i = 0; i < ts.size(); ++i) {
+      const auto& tri = mesh.triangles[size_t(ts[i])];
+      for (int k = 0; k < 3; ++k) {
+        const int w = tri[k];
+        if (w == int(v)) continue;
+        const auto [it, fresh] = by_other.emplace(w, int(i));
+        if (!fresh) parent[size_t(find(int(i)))] = find(it->second);
+      }
+    }
+    int fans = 0;
+    for (std::size_t i = 0; i < ts.size(); ++i) fans += find(int(i)) == int(i) ? 1 : 0;
+    if (fans > 1) ++r.pinched_vertices;
+  }
+}
+
 }  // namespace
 
 MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
@@ -126,6 +199,7 @@ MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
     if (!(e.ab == 1 && e.ba == 1)) oriented = false;
   }
   r.closed = !bad_index && !mesh.triangles.empty() && r.boundary_edges == 0 && r.nonmanifold_edges == 0;
+  if (!bad_index) count_fans_and_shells(mesh, r);
   r.edge_manifold = !bad_index && r.nonmanifold_edges == 0;
   r.oriented = oriented && !mesh.triangles.empty();
   if (!test_self_intersections) return r;

@@ -103,6 +103,15 @@ void visit(P& p, F&& f) {
   f("closure.terrain", p.closure.terrain);
   f("closure.plinth_depth", p.closure.plinth_depth);
   f("closure.footprint_walls", p.closure.footprint_walls);
+  f("airborne.mode", p.airborne.mode);
+  f("airborne.cell", p.airborne.cell);
+  f("airborne.fill_radius", p.airborne.fill_radius);
+  f("airborne.step_min", p.airborne.step_min);
+  f("airborne.step_probe", p.airborne.step_probe);
+  f("airborne.step_alpha", p.airborne.step_alpha);
+  f("airborne.step_min_edge", p.airborne.step_min_edge);
+  f("airborne.origins_per_cell", p.airborne.origins_per_cell);
+  f("airborne.block", p.airborne.block);
   f("orient.enabled", p.orient.enabled);
   f("orient.points_per_plane", p.orient.points_per_plane);
   f("orient.rays", p.orient.rays);
@@ -158,6 +167,15 @@ void LodParams::validate() const {
   check(pos(closure.outline_alpha), "closure.outline_alpha", "must be > 0");
   check(closure.terrain == "plinth" || closure.terrain == "cut", "closure.terrain", "must be 'plinth' or 'cut'");
   check(pos(closure.plinth_depth), "closure.plinth_depth", "must be > 0");
+  check(airborne.mode == "auto" || airborne.mode == "on" || airborne.mode == "off", "airborne.mode",
+        "must be 'auto', 'on' or 'off'");
+  check(pos(airborne.cell), "airborne.cell", "must be > 0");
+  check(airborne.fill_radius >= 0, "airborne.fill_radius", "must be >= 0");
+  check(pos(airborne.step_min), "airborne.step_min", "must be > 0");
+  check(pos(airborne.step_probe), "airborne.step_probe", "must be > 0");
+  check(pos(airborne.step_alpha), "airborne.step_alpha", "must be > 0");
+  check(pos(airborne.step_min_edge), "airborne.step_min_edge", "must be > 0");
+  check(airborne.origins_per_cell >= 1, "airborne.origins_per_cell", "must be >= 1");
   check(orient.points_per_plane >= 1, "orient.points_per_plane", "must be >= 1");
   check(orient.rays >= 2, "orient.rays", "must be >= 2");
   check(pos(orient.offset), "orient.offset", "must be > 0");

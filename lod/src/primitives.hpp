@@ -76,9 +76,22 @@ struct Closure {
   enum What { None, Base, Walls, FootprintWalls, Plinth };
   int added = 0;      ///< primitives added
   What what = None;
+  std::vector<Vec2> outline;  ///< the outline the walls stand on (CCW), when walls were inferred
+  double ground_z = 0;        ///< the ground plane's height
 };
 Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
                        std::vector<Primitive>& prims);
+
+class HeightField;
+/// (ours) Vertical walls where a roof steps down (airborne LiDAR has no wall
+/// points there): along each edge of a roof plane's simplified 2D alpha
+/// outline across which the height field `hf`, probed p.step_probe beyond the
+/// edge and inside the outline, lies more than p.step_min below the plane.
+/// Edge directions within 15 degrees of an outline edge's are snapped to it.
+/// Each wall reaches from the ground to the plane's top along the edge.
+/// Returns the number of walls added (inferred primitives).
+int infer_step_walls(const Samples& s, const HeightField& hf, const AirborneParams& p,
+                     std::vector<Primitive>& prims);
 
 /// Mild regularization of the principal primitives (CGAL Shape_regularization:
 /// parallelism, orthogonality, coplanarity; angle/distance from p). Only the

@@ -95,9 +95,10 @@ TEST(LodParams, ItemsRoundTrip) {
   for (const char* n : {"planes.epsilon", "alpha.alpha", "tree.merge_k", "tree.interpolation_ratio",
                         "labels.rays_per_cell", "regularization.enabled", "threads", "closure.outline_alpha",
                         "metrics.samples", "bsp.max_cells", "budget.time_budget_s", "normals.k_neighbors",
-                        "bsp.baseline", "tree.interpolation_floor"})
+                        "bsp.baseline", "tree.interpolation_floor", "airborne.mode", "airborne.step_min",
+                        "airborne.block"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 41u);  // one per field of every parameter struct
+  EXPECT_EQ(items.size(), 50u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");

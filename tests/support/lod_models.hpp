@@ -30,12 +30,15 @@ inline int count_models(const lod::LodResult& r, lod::ModelKind k) {
   return n;
 }
 
-/// A model is a closed, edge-manifold, oriented solid without self-intersections.
+/// A model is a valid solid: closed, edge-manifold, oriented, no pinched
+/// vertex, one shell, no self-intersections (exact incidence).
 inline void expect_closed_solid(const lod::LodModel& m) {
   const lod::MeshCheck c = lod::check_mesh(m.mesh);
   EXPECT_TRUE(c.closed) << c.boundary_edges << " boundary edges";
   EXPECT_TRUE(c.edge_manifold) << c.nonmanifold_edges << " non-manifold edges";
   EXPECT_TRUE(c.oriented);
+  EXPECT_EQ(c.pinched_vertices, 0);
+  EXPECT_EQ(c.shells, 1);
   EXPECT_FALSE(c.self_intersecting);
   EXPECT_GT(m.volume, 0.0);
 }

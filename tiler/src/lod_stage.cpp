@@ -26,7 +26,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr const char* kEngineVersion = "citylod-lod-5";
+constexpr const char* kEngineVersion = "citylod-lod-6";
 
 /// The key recorded in a finished building's report.json ("" when absent/unreadable).
 std::string recorded_key(const std::string& dir) {

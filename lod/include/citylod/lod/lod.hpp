@@ -103,6 +103,21 @@ struct MeshCheck {
   bool oriented = false;         ///< each edge appears once in each direction
   bool self_intersecting = true; ///< any two non-adjacent triangles intersect
   int boundary_edges = 0, nonmanifold_edges = 0;
+  /// Vertices whose incident triangles form more than one fan through shared
+  /// edges (two solids touching at a point, or a cone pinched to one vertex).
+  int pinched_vertices = 0;
+  /// Edge-connected components of the triangles enclosing a positive volume
+  /// (outer shells: 1 for one solid).
+  int shells = 0;
+  /// Components enclosing a negative volume: cavities (interior shells of a
+  /// solid, e.g. rooms seen through windows). Allowed in a valid solid.
+  int cavities = 0;
+  /// A valid solid: closed, oriented, no pinched vertex, one outer shell (with
+  /// any cavities), no self-intersection (only meaningful when
+  /// self-intersections were tested).
+  bool valid() const {
+    return closed && oriented && pinched_vertices == 0 && shells == 1 && !self_intersecting;
+  }
 };
 MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections = true);
 double mesh_volume(const TriangleMesh& mesh);

@@ -100,6 +100,22 @@ struct ClosureParams {
   double plinth_depth = 0.5;           ///< m, plinth bottom below the lowest sample
 };
 
+/// (ours) Airborne LiDAR (a point cloud whose walls the closure inferred) is
+/// 2.5D: cells are labelled in/out by a robust roof height field instead of
+/// rays, vertical walls are inferred where the roof steps down, and the chain
+/// starts with the outline extruded to its best-fitting height (LoD1.2 block).
+struct AirborneParams {
+  std::string mode = "auto";   ///< auto (point clouds with inferred walls) | on | off
+  double cell = 0.5;           ///< m, height-field cell size
+  double fill_radius = 1.5;    ///< m, gaps in the height field filled from neighbours up to this far
+  double step_min = 1.0;       ///< m, roof drop across a roof plane's edge that makes a step wall
+  double step_probe = 0.75;    ///< m, how far beyond the edge the lower roof is probed
+  double step_alpha = 1.0;     ///< m, 2D alpha radius of a roof plane's outline
+  double step_min_edge = 1.0;  ///< m, shortest edge that gets a step wall
+  int origins_per_cell = 9;    ///< height-test points per cell (centre + halfway to vertices)
+  bool block = true;           ///< the LoD1.2 block as the coarsest model
+};
+
 /// (ours) Consistent orientation of the detected planes before IO-View: a
 /// plane whose front the other planes see as clearly more inside than its back
 /// (input normals pointing into the building) is turned round.
@@ -114,7 +130,7 @@ struct OrientParams {
 
 /// Evaluation (e1/e2 RMSE).
 struct MetricParams {
-  int samples = 5000;                  ///< samples on each model for e1; at most this many input samples for e2
+  int samples = 5000;                  ///< samples on each model for e1 (point clouds: at most 2 per input point, at least 1000); at most this many input samples for e2
 };
 
 struct LodParams {
@@ -129,6 +145,7 @@ struct LodParams {
   TreeParams tree;
   BudgetParams budget;
   ClosureParams closure;
+  AirborneParams airborne;
   OrientParams orient;
   MetricParams metrics;
   int threads = 1;                     ///< OpenMP threads inside one building (results do not depend on it)

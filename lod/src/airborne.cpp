@@ -1,0 +1,255 @@
+// (ours) Airborne LiDAR as 2.5D: roof height field, labels by height, the
+// LoD1.2 block. See airborne.hpp.
+#include "airborne.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace citylod::lod::detail {
+namespace {
+
+double seg_dist(const Vec2& p, const Vec2& a, const Vec2& b) {
+  const Vec2 ab = b - a;
+  const double l2 = ab.squaredNorm();
+  const double t = l2 > 0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
+  return (p - (a + t * ab)).norm();
+}
+
+double cross2(const Vec2& o, const Vec2& a, const Vec2& b) {
+  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+}
+
+bool point_in_polygon(const Vec2& p, const std::vector<Vec2>& poly) {
+  bool in = false;
+  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const Vec2& a = poly[i];
+    const Vec2& b = poly[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) &&
+        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
+      in = !in;
+  }
+  return in;
+}
+
+double distance_to_boundary(const Vec2& p, const std::vector<Vec2>& poly) {
+  double d = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < poly.size(); ++i) d = std::min(d, seg_dist(p, poly[i], poly[(i + 1) % poly.size()]));
+  return d;
+}
+
+/// The ring without repeated and collinear vertices, CCW.
+std::vector<Vec2> clean_ring(std::vector<Vec2> r) {
+  if (r.size() >= 2 && (r.front() - r.back()).norm() < 1e-9) r.pop_back();
+  double a = 0;
+  for (std::size_t i = 0; i < r.size(); ++i) a += cross2(Vec2::Zero(), r[i], r[(i + 1) % r.size()]);
+  if (a < 0) std::reverse(r.begin(), r.end());
+  bool changed = true;
+  while (changed && r.size() > 3) {
+    changed = false;
+    for (std::size_t i = 0; i < r.size() && r.size() > 3; ++i) {
+      const Vec2& p = r[(i + r.size() - 1) % r.size()];
+      const Vec2& q = r[i];
+      const Vec2& n = r[(i + 1) % r.size()];
+      const double l = (n - p).norm();
+      if ((q - p).norm() < 1e-6 || std::abs(cross2(p, q, n)) <= 1e-9 * std::max(1.0, l * l)) {
+        r.erase(r.begin() + long(i));
+        changed = true;
+        break;
+      }
+    }
+  }
+  return r;
+}
+
+/// Ear clipping of a simple CCW polygon without collinear vertices.
+std::vector<std::array<int, 3>> ear_clip(const std::vector<Vec2>& poly) {
+  std::vector<int> idx(poly.size());
+  for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = int(i);
+  std::vector<std::array<int, 3>> out;
+  auto in_tri = [](const Vec2& p, const Vec2& a, const Vec2& b, const Vec2& c) {
+    return cross2(a, b, p) >= 0 && cross2(b, c, p) >= 0 && cross2(c, a, p) >= 0;
+  };
+  while (idx.size() > 3) {
+    bool clipped = false;
+    const std::size_t m = idx.size();
+    for (std::size_t i = 0; i < m && !clipped; ++i) {
+      const int ip = idx[(i + m - 1) % m], ic = idx[i], in = idx[(i + 1) % m];
+      const Vec2 &a = poly[size_t(ip)], &b = poly[size_t(ic)], &c = poly[size_t(in)];
+      if (cross2(a, b, c) <= 1e-12) continue;  // reflex or flat
+      bool empty = true;
+      for (std::size_t k = 0; k < m && empty; ++k) {
+        const int j = idx[k];
+        if (j == ip || j == ic || j == in) continue;
+        const Vec2& q = poly[size_t(j)];
+        if ((q - a).norm() < 1e-12 || (q - b).norm() < 1e-12 || (q - c).norm() < 1e-12) continue;
+        if (in_tri(q, a, b, c)) empty = false;
+      }
+      if (!empty) continue;
+      out.push_back({ip, ic, in});
+      idx.erase(idx.begin() + long(i));
+      clipped = true;
+    }
+    if (!clipped) throw LodError("block", "the outline is not a simple polygon");
+  }
+  if (cross2(poly[size_t(idx[0])], poly[size_t(idx[1])], poly[size_t(idx[2])]) <= 1e-12)
+    throw LodError("block", "the outline is not a simple polygon");
+  out.push_back({idx[0], idx[1], idx[2]});
+  return out;
+}
+
+}  // namespace
+
+HeightField::HeightField(const Samples& s, const std::vector<Vec2>& outline, double ground_z, const AirborneParams& p)
+    : outline_(outline), ground_(ground_z), cell_(p.cell) {
+  if (outline_.size() < 3) return;
+  Vec2 lo = outline_.front(), hi = lo;
+  for (const auto& q : outline_) {
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  lo_ = lo - Vec2::Constant(cell_);
+  nx_ = int(std::ceil((hi.x() - lo_.x()) / cell_)) + 2;
+  ny_ = int(std::ceil((hi.y() - lo_.y()) / cell_)) + 2;
+  std::vector<std::vector<float>> bucket(size_t(nx_) * size_t(ny_));
+  for (const auto& q : s.points) {
+    if (q.z() < ground_ + 0.5) continue;  // ground or low clutter, not roof
+    const int ix = int(std::floor((q.x() - lo_.x()) / cell_)), iy = int(std::floor((q.y() - lo_.y()) / cell_));
+    if (ix < 0 || iy < 0 || ix >= nx_ || iy >= ny_) continue;
+    bucket[size_t(iy) * size_t(nx_) + size_t(ix)].push_back(float(q.z()));
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  z_.assign(bucket.size(), nan);
+  for (std::size_t i = 0; i < bucket.size(); ++i) {
+    auto& b = bucket[i];
+    if (b.empty()) continue;
+    std::nth_element(b.begin(), b.begin() + long(b.size() / 2), b.end());
+    z_[i] = b[b.size() / 2];  // median: a few outliers do not lift the roof
+    ++with_data_;
+  }
+  // Gaps (dark roofs, occlusion) filled from their neighbours, one ring of
+  // cells per pass, up to the fill radius.
+  const int passes = int(std::ceil(p.fill_radius / cell_));
+  for (int pass = 0; pass < passes; ++pass) {
+    std::vector<float> next = z_;
+    bool any = false;
+    for (int iy = 0; iy < ny_; ++iy)
+      for (int ix = 0; ix < nx_; ++ix) {
+        const std::size_t i = size_t(iy) * size_t(nx_) + size_t(ix);
+        if (!std::isnan(z_[i])) continue;
+        double sum = 0;
+        int n = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int jx = ix + dx, jy = iy + dy;
+            if (jx < 0 || jy < 0 || jx >= nx_ || jy >= ny_) continue;
+            const float v = z_[size_t(jy) * size_t(nx_) + size_t(jx)];
+            if (!std::isnan(v)) {
+              sum += v;
+              ++n;
+            }
+          }
+        if (n > 0) {
+          next[i] = float(sum / n);
+          any = true;
+        }
+      }
+    z_.swap(next);
+    if (!any) break;
+  }
+}
+
+double HeightField::at(const Vec2& p) const {
+  if (z_.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const int ix = int(std::floor((p.x() - lo_.x()) / cell_)), iy = int(std::floor((p.y() - lo_.y()) / cell_));
+  if (ix < 0 || iy < 0 || ix >= nx_ || iy >= ny_) return std::numeric_limits<double>::quiet_NaN();
+  return z_[size_t(iy) * size_t(nx_) + size_t(ix)];
+}
+
+bool HeightField::inside(const Vec2& p) const { return outline_.size() >= 3 && point_in_polygon(p, outline_); }
+
+std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins, const HeightField& hf) {
+  std::vector<char> out(origins.size(), 0);
+  for (std::size_t i = 0; i < origins.size(); ++i) {
+    int in = 0;
+    for (const auto& o : origins[i]) {
+      const Vec2 xy(o.x(), o.y());
+      if (o.z() <= hf.ground() || !hf.inside(xy)) continue;
+      const double roof = hf.at(xy);
+      in += !std::isnan(roof) && o.z() < roof;
+    }
+    out[i] = 2 * in > int(origins[i].size());
+  }
+  return out;
+}
+
+LodModel block_model(const Samples& s, const HeightField& hf) {
+  const std::vector<Vec2> ring = clean_ring(hf.outline());
+  if (ring.size() < 3) throw LodError("block", "the outline has fewer than 3 vertices");
+  const double g = hf.ground();
+  // The height that fits the samples best, among their roof height quantiles.
+  std::vector<double> roof_z, d_edge;
+  std::vector<char> inside;
+  d_edge.reserve(s.points.size());
+  for (const auto& q : s.points) {
+    const Vec2 xy(q.x(), q.y());
+    d_edge.push_back(distance_to_boundary(xy, ring));
+    inside.push_back(point_in_polygon(xy, ring));
+    if (q.z() > g + 0.5) roof_z.push_back(q.z());
+  }
+  if (roof_z.empty()) throw LodError("block", "no point above the ground");
+  std::sort(roof_z.begin(), roof_z.end());
+  auto sq_dist = [&](std::size_t i, double h) {
+    const double z = s.points[i].z();
+    if (inside[i]) {
+      if (z > h) return (z - h) * (z - h);
+      if (z < g) return (g - z) * (g - z);
+      const double d = std::min({h - z, z - g, d_edge[i]});
+      return d * d;
+    }
+    const double dz = std::max({0.0, z - h, g - z});
+    return d_edge[i] * d_edge[i] + dz * dz;
+  };
+  double best_h = roof_z.back(), best = std::numeric_limits<double>::infinity();
+  for (int k = 0; k <= 100; ++k) {
+    const double h = roof_z[size_t(std::lround(k / 100.0 * double(roof_z.size() - 1)))];
+    if (h < g + 0.5) continue;
+    double sum = 0;
+    for (std::size_t i = 0; i < s.points.size(); ++i) sum += sq_dist(i, h);
+    if (sum < best) {
+      best = sum;
+      best_h = h;
+    }
+  }
+  const double h = std::max(best_h, g + 0.5);
+  const auto top_tris = ear_clip(ring);
+  LodModel m;
+  m.kind = ModelKind::Anchor;
+  m.level = 0;
+  const int n = int(ring.size());
+  auto& V = m.polygons.vertices;
+  for (const auto& q : ring) V.emplace_back(q.x(), q.y(), g);
+  for (const auto& q : ring) V.emplace_back(q.x(), q.y(), h);
+  std::vector<int> bottom, top;
+  for (int i = n - 1; i >= 0; --i) bottom.push_back(i);  // CW from above = outward (down)
+  for (int i = 0; i < n; ++i) top.push_back(n + i);
+  m.polygons.faces.push_back(bottom);
+  m.polygons.faces.push_back(top);
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    m.polygons.faces.push_back({i, j, n + j, n + i});
+  }
+  m.mesh.vertices = V;
+  for (const auto& t : top_tris) {
+    m.mesh.triangles.push_back({n + t[0], n + t[1], n + t[2]});
+    m.mesh.triangles.push_back({t[0], t[2], t[1]});
+  }
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    m.mesh.triangles.push_back({i, j, n + j});
+    m.mesh.triangles.push_back({i, n + j, n + i});
+  }
+  return m;
+}
+
+}  // namespace citylod::lod::detail

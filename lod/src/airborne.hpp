@@ -1,0 +1,56 @@
+// Internal: (ours) airborne LiDAR is 2.5D. A scan from above sees roofs and
+// hardly any walls, so the paper's ray labelling (App. C) has nothing to hit
+// sideways above a lower roof part and fills it up to the highest roof. For a
+// point cloud whose walls were inferred (closure), the building is what lies
+// under its roof surface and inside its outline:
+//   - HeightField: a robust roof height raster of the samples over the outline
+//     (median per cell, gaps filled from neighbours);
+//   - infer_step_walls (closure.cpp): vertical walls along the edges of roof
+//     planes where the roof drops by more than a step (BSP/IO-View primitives,
+//     so a lower roof part bounds its own cells);
+//   - label_by_height: a cell is in when most of its ray origins lie inside the
+//     outline, above the ground and under the roof surface;
+//   - block_model: the LoD1.2-style block (outline extruded to the height that
+//     fits the points best), the coarsest model of the chain.
+#pragma once
+
+#include "primitives.hpp"
+
+#include <vector>
+
+namespace citylod::lod::detail {
+
+class HeightField {
+ public:
+  /// Roof heights of `s` over the polygon `outline` (CCW, xy) with the cell
+  /// size and gap filling of `p`. Heights below `ground_z` + 0.5 m are not roof.
+  HeightField(const Samples& s, const std::vector<Vec2>& outline, double ground_z, const AirborneParams& p);
+
+  /// Roof height at p; NaN outside the outline's grid or where no roof point
+  /// is within the fill radius.
+  double at(const Vec2& p) const;
+  /// Exact point-in-polygon test against the outline.
+  bool inside(const Vec2& p) const;
+  double ground() const { return ground_; }
+  const std::vector<Vec2>& outline() const { return outline_; }
+  int cells_with_data() const { return with_data_; }
+
+ private:
+  std::vector<Vec2> outline_;
+  double ground_ = 0, cell_ = 0.5;
+  Vec2 lo_ = Vec2::Zero();
+  int nx_ = 0, ny_ = 0, with_data_ = 0;
+  std::vector<float> z_;  ///< NaN = no data
+};
+
+/// In/out per leaf from its ray origins: in when more than half of them lie
+/// inside the outline, above the ground and under the roof height.
+/// Returns one label per leaf (the same at every level).
+std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins, const HeightField& hf);
+
+/// The outline extruded from the ground to the height that minimises the
+/// RMSE of the samples to the block (a scan over the samples' roof height
+/// quantiles). Throws LodError when the outline is not a simple polygon.
+LodModel block_model(const Samples& s, const HeightField& hf);
+
+}  // namespace citylod::lod::detail
