@@ -230,15 +230,34 @@ int drop_small_shells(LodModel& m, double min_fraction) {
   return outer;
 }
 
+/// (ours) Airborne LiDAR: a point cloud that sees (almost) no walls, or a city
+/// chunk with a footprint whose walls are inferred along it.
+bool airborne_input(const BuildingInput& in, const Samples& s, const LodParams& P) {
+  if (P.airborne.mode != "auto") return P.airborne.mode == "on";
+  if (in.is_mesh() || !P.closure.enabled || s.points.empty()) return false;
+  if (P.closure.footprint_walls && in.footprint.size() >= 3) return true;
+  double wall = 0, total = 0;
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    const double w = s.weights.empty() ? 1.0 : s.weights[i];
+    total += w;
+    if (std::abs(s.normals[i].z()) < 0.3) wall += w;
+  }
+  return total > 0 && wall / total < P.closure.wall_fraction_min;
+}
+
 /// The whole method; throws on any failure (caught by build_lod_tree).
 void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P,
                 const Progress& progress, const Budget& budget, LodResult& R) {
   auto& st = R.stats;
   const auto t1 = Clock::now();
 
-  // 1. Planar primitives (region growing on the oriented samples).
+  // 1. Planar primitives (region growing on the oriented samples); airborne
+  // LiDAR is sparser than the paper's MVS input: smaller regions count.
   progress(0.0, "planes");
-  std::vector<Primitive> prims = detect_planes(in, samples, P.planes);
+  const bool airborne = airborne_input(in, samples, P);
+  PlaneParams plane_params = P.planes;
+  if (airborne) plane_params.min_region_size = std::min(plane_params.min_region_size, P.airborne.min_region_size);
+  std::vector<Primitive> prims = detect_planes(in, samples, plane_params);
   st.planes_detected = int(prims.size());
   if (prims.empty()) throw LodError("planes", "no plane found");
   // Roof-only LiDAR: ground + walls through the outline so the building closes.
@@ -259,7 +278,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   // walls are inferred where the roof steps down.
   std::optional<HeightField> heights;
   const bool walls_inferred = c.what == Closure::Walls || c.what == Closure::FootprintWalls;
-  if (P.airborne.mode == "on" || (P.airborne.mode == "auto" && !in.is_mesh() && walls_inferred)) {
+  if (P.airborne.mode == "on" || (airborne && walls_inferred)) {
     if (c.outline.size() < 3) throw LodError("airborne", "no outline to model the building on");
     heights.emplace(samples, c.outline, c.ground_z, P.airborne);
     const int steps = infer_step_walls(samples, *heights, P.airborne, prims);
