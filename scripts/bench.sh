@@ -2,14 +2,17 @@
 # Reproduces every benchmark table and plot of BENCHMARKS.md in one command:
 #
 #   scripts/bench.sh [--build-dir DIR] [--out DIR] [--jobs N] [--no-install] [--no-build] [--copy-plots]
+#                    [--only lod|fidelity|split|tile|roofer]
 #
 # 0. installs the Debian packages it needs (scripts/install-deps.sh
 #    --with-bench-tools: the build dependencies, meshoptimizer, gnuplot)
 #    unless --no-install;
 # 1. configures + builds a Release build with -DCITYLOD_BUILD_BENCH=ON in
 #    build-bench/ (or --build-dir; --no-build reuses it as is);
-# 2. runs lod_bench, fidelity_bench, split_bench and, when the project has it,
-#    tile_bench, each output kept under bench-results/<date>/ (or --out);
+# 2. runs lod_bench, fidelity_bench, split_bench, tile_bench and the side-by-side
+#    comparison with 3DBAG's roofer (scripts/roofer-compare.sh: roofer and
+#    `citylod tile` on the Delft LAS + footprints, roofer_bench per building),
+#    each output kept under bench-results/<date>/ (or --out); --only runs one;
 # 3. plots e2 against triangle count per fidelity input (gnuplot, PNG);
 # 4. writes bench-results/<date>/summary.md: date, commit, `uname -a`, CPU
 #    model, load average, wall time of each program and all the tables.
@@ -29,6 +32,7 @@ jobs="$(nproc 2>/dev/null || echo 2)"
 do_build=1
 do_install=1
 copy_plots=0
+only=""
 usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; }
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -38,6 +42,7 @@ while [ $# -gt 0 ]; do
     --no-build) do_build=0; shift ;;
     --no-install) do_install=0; shift ;;
     --copy-plots) copy_plots=1; shift ;;
+    --only) only="${2:?--only needs a value}"; shift 2 ;;
     -h|--help) usage; exit 0 ;;
     *) echo "bench.sh: unknown argument $1" >&2; usage >&2; exit 2 ;;
   esac
@@ -68,7 +73,7 @@ if [ "$do_build" = 1 ]; then
   say "configuring $build_dir (Release, CITYLOD_BUILD_BENCH=ON)"
   cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DCITYLOD_BUILD_BENCH=ON >>"$log" 2>&1 ||
     { say "configure failed (see $log)"; exit 1; }
-  targets=(citylod lod_bench split_bench fidelity_bench)
+  targets=(citylod lod_bench split_bench fidelity_bench roofer_bench)
   if grep -q 'add_executable(tile_bench' bench/CMakeLists.txt 2>/dev/null; then targets+=(tile_bench); fi
   for t in "${targets[@]}"; do
     say "building $t"
@@ -101,14 +106,19 @@ run() {  # run NAME OUTPUT.md COMMAND... : stdout -> OUTPUT.md, stderr -> NAME.l
   fi
 }
 
-run lod_bench lod_bench.md "$bench_bin/lod_bench"
-run fidelity_bench fidelity.md "$bench_bin/fidelity_bench" --out "$out_dir/fidelity"
-run split_bench split_bench.md "$bench_bin/split_bench" --memory-limit 256M
-if [ -x "$bench_bin/tile_bench" ]; then
-  run tile_bench tile_bench.md "$bench_bin/tile_bench" --citylod "$citylod_exe" --out "$out_dir/tile"
-else
-  say "tile_bench not built in $build_dir: skipped"
+want() { [ -z "$only" ] || [ "$only" = "$1" ]; }
+want lod && run lod_bench lod_bench.md "$bench_bin/lod_bench"
+want fidelity && run fidelity_bench fidelity.md "$bench_bin/fidelity_bench" --out "$out_dir/fidelity"
+want split && run split_bench split_bench.md "$bench_bin/split_bench" --memory-limit 256M
+if want tile; then
+  if [ -x "$bench_bin/tile_bench" ]; then
+    run tile_bench tile_bench.md "$bench_bin/tile_bench" --citylod "$citylod_exe" --out "$out_dir/tile"
+  else
+    say "tile_bench not built in $build_dir: skipped"
+  fi
 fi
+want roofer && run roofer_compare roofer.txt "$here/scripts/roofer-compare.sh" --citylod "$citylod_exe" \
+  --bench "$bench_bin/roofer_bench" --out "$out_dir/roofer"
 
 # 3. Plots -------------------------------------------------------------------
 plots=()
@@ -148,7 +158,7 @@ summary="$out_dir/summary.md"
   echo "- CPU: $(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -1), $(nproc) cores; memory $(free -g | awk '/^Mem:/ { print $2 }') GiB"
   echo "- compiler: $(c++ --version 2>/dev/null | head -1)"
   echo "- load average (1/5/15 min) at start: $load_start; at end: $load_end"
-  echo "- wall time per program (s): $(for k in lod_bench fidelity_bench split_bench tile_bench; do [ -n "${wall[$k]:-}" ] && printf '%s %s; ' "$k" "${wall[$k]}"; done)"
+  echo "- wall time per program (s): $(for k in lod_bench fidelity_bench split_bench tile_bench roofer_compare; do [ -n "${wall[$k]:-}" ] && printf '%s %s; ' "$k" "${wall[$k]}"; done)"
   if [ ${#failed[@]} -gt 0 ]; then echo "- **FAILED**: ${failed[*]}"; fi
   section() {  # section TITLE FILE [pre]: FILE's markdown, or plain text fenced when "pre"
     [ -s "$out_dir/$2" ] || return 0
@@ -165,6 +175,7 @@ summary="$out_dir/summary.md"
   fi
   section "Splitting (split_bench --memory-limit 256M)" split_bench.md pre
   section "City run scaling (tile_bench)" tile_bench.md
+  section "citylod vs roofer, side by side (scripts/roofer-compare.sh)" roofer.txt pre
 } >"$summary"
 say "summary: $summary"
 [ ${#failed[@]} -eq 0 ]

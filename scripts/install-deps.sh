@@ -3,7 +3,7 @@
 # Usage: scripts/install-deps.sh [--with-test-tools | --with-bench-tools]
 #   --with-test-tools  also installs what the test suite needs beyond the build
 #                      (nodejs/npm, chromium, gdal-bin, gnuplot, slurm-wlm, munge).
-#   --with-bench-tools also installs what scripts/bench.sh needs (gnuplot).
+#   --with-bench-tools also installs what scripts/bench.sh needs (gnuplot, gdal-bin for ogr2ogr).
 set -euo pipefail
 
 build_pkgs=(
@@ -21,7 +21,7 @@ want=("${build_pkgs[@]}")
 if [[ "${1:-}" == "--with-test-tools" ]]; then
   want+=("${test_pkgs[@]}")
 elif [[ "${1:-}" == "--with-bench-tools" ]]; then
-  want+=(gnuplot-nox)
+  want+=(gnuplot-nox gdal-bin)
 fi
 
 missing=()
