@@ -429,6 +429,58 @@ TEST(MeshCheck, Cases) {
 
   const TriangleMesh apart = concat(c, cube(Vec3(2, 0, 0), Vec3(3, 1, 1)));
   EXPECT_FALSE(check_mesh(apart).self_intersecting);
+  k = check_mesh(apart);
+  EXPECT_EQ(k.shells, 2);
+  EXPECT_EQ(k.pinched_vertices, 0);
+  EXPECT_FALSE(k.valid());
+  k = check_mesh(c);
+  EXPECT_EQ(k.shells, 1);
+  EXPECT_EQ(k.cavities, 0);
+  EXPECT_TRUE(k.valid());
+}
+
+namespace {
+TriangleMesh welded(TriangleMesh m) {
+  std::vector<int> remap(m.vertices.size());
+  std::vector<Vec3> vs;
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    int f = -1;
+    for (std::size_t j = 0; j < vs.size(); ++j)
+      if (vs[j] == m.vertices[i]) f = int(j);
+    if (f < 0) {
+      vs.push_back(m.vertices[i]);
+      f = int(vs.size() - 1);
+    }
+    remap[i] = f;
+  }
+  for (auto& t : m.triangles)
+    for (auto& v : t) v = remap[size_t(v)];
+  m.vertices = vs;
+  return m;
+}
+}  // namespace
+
+// Two cubes touching at one corner, welded: every edge has two faces, but the
+// corner vertex joins two fans (a pinched vertex): not a valid solid.
+TEST(MeshCheck, PinchedVertexAndCavity) {
+  const TriangleMesh c = cube(Vec3(0, 0, 0), Vec3(1, 1, 1));
+  const TriangleMesh pinched = welded(concat(c, cube(Vec3(1, 1, 1), Vec3(2, 2, 2))));
+  MeshCheck k = check_mesh(pinched);
+  EXPECT_TRUE(k.closed);
+  EXPECT_TRUE(k.edge_manifold);
+  EXPECT_EQ(k.pinched_vertices, 1);
+  EXPECT_EQ(k.shells, 2);
+  EXPECT_FALSE(k.valid());
+  // A cube with a cube-shaped cavity (inner shell turned inward): one solid.
+  TriangleMesh inner = cube(Vec3(0.25, 0.25, 0.25), Vec3(0.75, 0.75, 0.75));
+  for (auto& t : inner.triangles) std::swap(t[1], t[2]);
+  const TriangleMesh hollow = concat(c, inner);
+  k = check_mesh(hollow);
+  EXPECT_EQ(k.shells, 1);
+  EXPECT_EQ(k.cavities, 1);
+  EXPECT_EQ(k.pinched_vertices, 0);
+  EXPECT_TRUE(k.valid());
+  EXPECT_NEAR(mesh_volume(hollow), 1.0 - 0.125, 1e-12);
 }
 
 TEST(Fidelity, ExactCubeVsItsSamples) {

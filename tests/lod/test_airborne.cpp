@@ -1,0 +1,125 @@
+// (ours) Airborne LiDAR as 2.5D: roof height field labels, step walls, the
+// LoD1.2 block first, and valid solids (exact answers on synthetic roofs).
+#include "support/lod_models.hpp"
+#include "support/synthetic.hpp"
+
+#include "citylod/lod/lod.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+using namespace citylod;
+using namespace citylod::lod;
+
+namespace {
+
+bool has_note(const LodResult& r, const std::string& what) {
+  for (const auto& n : r.stats.notes)
+    if (n.find(what) != std::string::npos) return true;
+  return false;
+}
+
+/// A two-level flat-roofed building as airborne LiDAR sees it: main part
+/// x 0..12 with its roof at z = 8, annex x 12..20 at z = 4, y 0..10; only the
+/// roofs are sampled (no wall points at the step). Volume 960 + 320 m^3.
+test::SynthBuilding two_level(const test::SynthOptions& o = {}) {
+  std::vector<test::Face> f;
+  test::add_box(f, Vec3(0, 0, 0), Vec3(12, 10, 8), 1 | 2 | 4 | 8 | 16);
+  test::add_box(f, Vec3(12, 0, 0), Vec3(20, 10, 4), 1 | 2 | 4 | 8 | 16);
+  test::SynthBuilding b = test::finish(std::move(f), 1280.0, 2, o, false);
+  b.input.footprint = {Vec2(0, 0), Vec2(20, 0), Vec2(20, 10), Vec2(0, 10)};
+  b.input.ground_z = 0.0;
+  b.input.has_ground_z = true;
+  return b;
+}
+
+LodParams city_params() {
+  LodParams p;
+  p.metrics.samples = 2000;
+  p.closure.footprint_walls = true;
+  p.closure.terrain = "cut";
+  return p;
+}
+
+}  // namespace
+
+TEST(Airborne, LowerRoofBoundsItsOwnCells) {
+  test::SynthOptions o;
+  o.spacing = 0.3;
+  o.noise_sigma = 0.02;
+  const auto b = two_level(o);
+  const LodResult r = build_lod_tree(b.input, city_params());
+  ASSERT_EQ(r.status, "ok") << r.reason;
+  EXPECT_TRUE(has_note(r, "airborne LiDAR"));
+  EXPECT_TRUE(has_note(r, "step walls inferred"));
+  for (const auto& m : r.models) {
+    SCOPED_TRACE("model " + std::to_string(m.step));
+    test::expect_closed_solid(m);
+  }
+  const LodModel* f = test::last_anchor(r);
+  ASSERT_NE(f, nullptr);
+  EXPECT_NEAR(f->volume, 1280.0, 0.02 * 1280.0);
+  // The paper's ray labelling of the same points fills the annex up to the
+  // main roof (nothing separates the cells above the lower roof).
+  LodParams rays = city_params();
+  rays.airborne.mode = "off";
+  const LodResult q = build_lod_tree(b.input, rays);
+  ASSERT_NE(test::last_anchor(q), nullptr);
+  EXPECT_GT(test::last_anchor(q)->volume, 1280.0 * 1.05);
+}
+
+TEST(Airborne, CoarsestModelIsTheBlockAtTheBestFittingHeight) {
+  test::SynthOptions o;
+  o.spacing = 0.3;
+  const auto b = two_level(o);
+  const LodResult r = build_lod_tree(b.input, city_params());
+  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_FALSE(r.models.empty());
+  const LodModel& block = r.models.front();
+  EXPECT_EQ(block.kind, ModelKind::Anchor);
+  EXPECT_EQ(block.mesh.triangles.size(), 12u);  // a rectangle extruded: 2 + 2 + 4 x 2
+  test::expect_closed_solid(block);
+  // The roofs are 60 % at 8 m and 40 % at 4 m: the height closest to all
+  // samples is one of the two roof heights; at 8 m the annex's points are 4 m
+  // off, at 4 m the main roof's: the larger share wins.
+  double top = 0;
+  for (const auto& v : block.mesh.vertices) top = std::max(top, v.z());
+  EXPECT_NEAR(top, 8.0, 0.05);
+  EXPECT_NEAR(block.volume, 200.0 * top, 1e-6 * 200.0 * top);
+  // Without the block the chain starts with the tree's first anchor.
+  LodParams p = city_params();
+  p.airborne.block = false;
+  const LodResult q = build_lod_tree(b.input, p);
+  ASSERT_FALSE(q.models.empty());
+  EXPECT_EQ(q.models.size() + 1, r.models.size());
+}
+
+TEST(Airborne, OutliersDoNotLiftTheRoof) {
+  test::SynthOptions o;
+  o.spacing = 0.3;
+  auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(12, 8, 6), o);
+  b.input.footprint = {Vec2(0, 0), Vec2(12, 0), Vec2(12, 8), Vec2(0, 8)};
+  // A few birds / wires 5 m above the roof.
+  for (int k = 0; k < 6; ++k) b.input.points.push_back(Vec3(2.0 + 1.5 * k, 4.0, 11.0));
+  if (!b.input.normals.empty())
+    for (int k = 0; k < 6; ++k) b.input.normals.push_back(Vec3::UnitZ());
+  const LodResult r = build_lod_tree(b.input, city_params());
+  ASSERT_EQ(r.status, "ok") << r.reason;
+  for (const auto& m : r.models) test::expect_closed_solid(m);
+  double top = 0;
+  for (const auto& v : test::last_anchor(r)->mesh.vertices) top = std::max(top, v.z());
+  EXPECT_LT(top, 6.3);
+  EXPECT_NEAR(test::last_anchor(r)->volume, 576.0, 0.02 * 576.0);
+}
+
+TEST(Airborne, ModeOffKeepsThePapersLabelling) {
+  const auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(12, 8, 6));
+  LodParams p;
+  p.metrics.samples = 2000;
+  p.airborne.mode = "off";
+  const LodResult r = build_lod_tree(b.input, p);
+  ASSERT_EQ(r.status, "ok") << r.reason;
+  EXPECT_FALSE(has_note(r, "airborne LiDAR"));
+  EXPECT_TRUE(r.stats.walls_inferred);
+}
