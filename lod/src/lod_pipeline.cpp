@@ -288,8 +288,9 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   prims.erase(std::remove_if(prims.begin(), prims.end(),
                              [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),
               prims.end());
-  // (ours) Planes whose input normals point into the building are turned round.
-  {
+  // (ours) Planes whose input normals point into the building are turned round
+  // (the ray labelling needs it; the height field does not).
+  if (!heights) {
     OrientParams op = P.orient;
     op.threads = P.threads;
     st.planes_turned = orient_primitives(prims, samples, op);
@@ -474,7 +475,11 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
                     : Clock::time_point::max()};
   // Oriented samples of the input surface (normals estimated when missing).
   progress(0.0, "samples");
-  const Samples samples = make_samples(in, params.normals);
+  // A city chunk of airborne LiDAR (a point cloud with walls along its
+  // footprint) needs no normal propagation: its roofs face up.
+  const bool city_lidar = params.airborne.mode != "off" && !in.is_mesh() && params.closure.footprint_walls &&
+                          in.footprint.size() >= 3;
+  const Samples samples = make_samples(in, params.normals, !city_lidar);
   R.stats.normals_estimated = samples.normals_estimated;
   if (samples.normals_estimated) R.stats.notes.push_back("normals estimated and oriented (input had none)");
   Vec3 lo = samples.points.front(), hi = lo;

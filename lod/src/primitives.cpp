@@ -195,7 +195,7 @@ bool regions_on_mesh(const BuildingInput& in, const PlaneParams& p, std::vector<
 
 // ---------------------------------------------------------------- samples
 
-Samples make_samples(const BuildingInput& in, const NormalParams& p) {
+Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_orientation) {
   Samples s;
   if (in.is_mesh()) {
     const int nv = static_cast<int>(in.points.size());
@@ -274,10 +274,14 @@ Samples make_samples(const BuildingInput& in, const NormalParams& p) {
       items, k, CGAL::parameters::point_map(IPMap()).normal_map(INMap()));
   // Orientation. mst_orient_normals propagates from the highest point (oriented +z)
   // over a Riemannian graph; it reorders the range, hence the index in the tuple.
-  auto first_unoriented = CGAL::mst_orient_normals(
-      items, k, CGAL::parameters::point_map(IPMap()).normal_map(INMap()));
+  // Without it (airborne city chunks: roofs face up, the few wall hits face
+  // away from the building's axis) the rules below orient every normal.
   std::vector<char> oriented(s.points.size(), 0);
-  for (auto it = items.begin(); it != first_unoriented; ++it) oriented[std::get<2>(*it)] = 1;
+  if (mst_orientation) {
+    auto first_unoriented = CGAL::mst_orient_normals(
+        items, k, CGAL::parameters::point_map(IPMap()).normal_map(INMap()));
+    for (auto it = items.begin(); it != first_unoriented; ++it) oriented[std::get<2>(*it)] = 1;
+  }
   std::vector<Vec3> est(s.points.size());
   for (const auto& it : items) {
     Vec3 n = toE(std::get<1>(it));

@@ -55,7 +55,9 @@ struct Rng {
 };
 
 /// Builds the oriented samples; estimates and orients normals when missing.
-Samples make_samples(const BuildingInput& in, const NormalParams& p);
+/// `mst_orientation` false skips the minimum-spanning-tree propagation (the
+/// roofs-up / away-from-the-axis rules alone orient the normals).
+Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_orientation = true);
 
 /// Region growing (CGAL Shape_detection): on the points of a cloud, on the
 /// faces of a mesh. Deterministic. Largest planes first; at most p.max_planes.
