@@ -25,7 +25,7 @@
 // Without INPUT: easy3d_building.off, b9_mesh.off whole, b9_mesh.off cropped
 // to its main building, AHN3_13856.ply with City3D's AHN3_13856.obj.
 #include "fidelity_cgal.hpp"
-#include "lod_io.hpp"
+#include "citylod/tiler/bridge.hpp"
 
 #include "citylod/io/reader.hpp"
 #include "citylod/lod/lod.hpp"
@@ -287,11 +287,7 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
     s_eval += seconds_since(t);
   }
   for (const auto& p : spec.peers) {
-    const io::TriangleMesh pm = io::read_mesh(p.path);
-    lod::TriangleMesh model;
-    const io::Vec3d& o = loaded.origin;
-    for (const auto& v : pm.vertices) model.vertices.emplace_back(v[0] - o[0], v[1] - o[1], v[2] - o[2]);
-    for (const auto& t : pm.triangles) model.triangles.push_back({int(t[0]), int(t[1]), int(t[2])});
+    const lod::TriangleMesh model = tiler::to_lod_mesh(io::read_mesh(p.path), loaded.origin);
     rows.push_back({p.label, -1, "peer", lod::evaluate_model(model, input, samples)});
     std::printf("- peer model %s: `%s`\n", p.label.c_str(), p.path.c_str());
   }

@@ -4,7 +4,7 @@
 // LOD-Tree vs plain BSP-Tree cut counts (paper Section 5.1).
 //
 //   lod_bench [--threads N] [FILE...]     (default: the three real inputs of ../shared/data)
-#include "lod_io.hpp"
+#include "citylod/tiler/bridge.hpp"
 
 #include "citylod/lod/lod.hpp"
 

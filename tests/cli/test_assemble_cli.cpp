@@ -19,7 +19,7 @@
 #include <cstdio>
 #include <thread>
 
-#include "tiler/test_assemble_support.hpp"
+#include "tiler/test_work_support.hpp"
 
 namespace citylod::test {
 namespace {

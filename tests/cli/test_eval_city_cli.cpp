@@ -21,7 +21,8 @@
 
 #include "citylod/io/atomic_file.hpp"
 #include "citylod/io/types.hpp"
-#include "citylod/io/workdir.hpp"
+#include "citylod/io/hash.hpp"
+#include "citylod/tiler/workdir.hpp"
 #include "citylod/io/writers.hpp"
 
 namespace {
@@ -83,21 +84,21 @@ struct Model {
   io::TriangleMesh mesh;
 };
 
-void add_building(const fs::path& work, io::Manifest& man, const std::string& id, const io::Vec3d& origin,
+void add_building(const fs::path& work, tiler::Manifest& man, const std::string& id, const io::Vec3d& origin,
                   const std::string& status, const std::string& reason, const std::vector<Model>& models) {
-  io::ChunkRecord r;
+  tiler::ChunkRecord r;
   r.id = id;
   r.origin = origin;
   r.bbox_min = {origin[0] - 5, origin[1] - 4, origin[2]};
   r.bbox_max = {origin[0] + 5, origin[1] + 4, origin[2] + 6};
-  r.status = status == "skipped" ? "skipped" : "ok";
+  r.status = status == "skipped" ? tiler::Status::skipped : tiler::Status::ok;
   r.reason = status == "skipped" ? reason : "";
   if (status != "skipped") {
     const io::PointSet pts = box_points();
     r.points = pts.size();
-    io::write_ply(io::chunk_path(work.string(), id), pts);
-    r.content_hash = io::hash_file(io::chunk_path(work.string(), id));
-    const fs::path dir = io::lod_dir(work.string(), id);
+    io::write_ply(tiler::chunk_path(work.string(), id), pts);
+    r.content_hash = io::hash_file(tiler::chunk_path(work.string(), id));
+    const fs::path dir = tiler::lod_dir(work.string(), id);
     fs::create_directories(dir);
     nlohmann::json ms = nlohmann::json::array();
     for (const auto& m : models) {
@@ -118,7 +119,7 @@ void add_building(const fs::path& work, io::Manifest& man, const std::string& id
 fs::path make_work(const std::string& name) {
   const fs::path work = tmp_dir(name) / "work";
   fs::create_directories(work / "chunks");
-  io::Manifest man;
+  tiler::Manifest man;
   man.scene.origin_lon = 4.3571;
   man.scene.origin_lat = 52.0116;
   man.scene.origin_h = 45.0;
@@ -131,7 +132,7 @@ fs::path make_work(const std::string& name) {
   add_building(work, man, "c-fallback", {25, -10, 0.5}, "fallback", "planes: fewer than 4 usable planes (3)",
                {{"fallback", 0, 0, grown}});
   add_building(work, man, "d-skipped", {40, 20, 0}, "skipped", "only 3 building points inside the footprint", {});
-  io::write_manifest(work.string(), man);
+  tiler::write_manifest(work.string(), man);
   return work;
 }
 
@@ -357,21 +358,21 @@ TEST(EvalCityCli, BadInput) {
   const fs::path other = tmp_dir("eval_city_bad_other") / "work";
   fs::create_directories(other);
   {
-    io::Manifest m;
+    tiler::Manifest m;
     m.scene.origin_lon = 4.3571;
     m.scene.origin_lat = 52.0116;
-    io::ChunkRecord r;
+    tiler::ChunkRecord r;
     r.id = "zz-other";
     m.chunks.push_back(r);
-    io::write_manifest(other.string(), m);
+    tiler::write_manifest(other.string(), m);
   }
-  expect_one_error_line(run("eval " + q(ts) + " --work " + q(other)), io::manifest_path(other.string()));
+  expect_one_error_line(run("eval " + q(ts) + " --work " + q(other)), tiler::manifest_path(other.string()));
   // A work directory without LOD output.
   expect_one_error_line(run("eval " + q(other)), other.string());
   // A corrupt chunk.
-  std::ofstream(io::chunk_path(work.string(), "a-box"), std::ios::trunc) << "ply\nformat nonsense\n";
-  expect_one_error_line(run("eval " + q(work)), io::chunk_path(work.string(), "a-box"));
-  expect_one_error_line(run("eval " + q(ts) + " --work " + q(work)), io::chunk_path(work.string(), "a-box"));
+  std::ofstream(tiler::chunk_path(work.string(), "a-box"), std::ios::trunc) << "ply\nformat nonsense\n";
+  expect_one_error_line(run("eval " + q(work)), tiler::chunk_path(work.string(), "a-box"));
+  expect_one_error_line(run("eval " + q(ts) + " --work " + q(work)), tiler::chunk_path(work.string(), "a-box"));
 
   // Usage errors: exit 2.
   EXPECT_EQ(run("eval " + q(ts) + " " + q(work)).code, 2);

@@ -8,10 +8,10 @@
 #include <chrono>
 #include <cstdio>
 
-#include "../../tiler/src/assemble.hpp"
+#include "citylod/tiler/assemble.hpp"
 #include "citylod/geo/georef.hpp"
 #include "citylod/io/error.hpp"
-#include "tiler/test_assemble_support.hpp"
+#include "tiler/test_work_support.hpp"
 
 namespace citylod::test {
 namespace {
@@ -61,10 +61,10 @@ TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {
   std::vector<tiler::ModelEntry> entries;
   std::vector<TriangleMesh> meshes;
   for (const auto& m : chain) {
-    entries.push_back({"x", m.kind == "anchor", m.level, m.step * 2});
+    entries.push_back({"x", m.kind == "anchor" ? tiler::ModelKind::anchor : tiler::ModelKind::interpolation, m.level, m.step * 2});
     meshes.push_back(m.mesh);
   }
-  entries.insert(entries.begin() + 2, {"dup", false, 1, 3});
+  entries.insert(entries.begin() + 2, {"dup", tiler::ModelKind::interpolation, 1, 3});
   meshes.insert(meshes.begin() + 2, chain[2].mesh);
   const tiler::ModelChoice c = tiler::choose_models(entries, meshes, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3, 4}));
@@ -86,7 +86,7 @@ TEST(AssembleMetrics, DropsInterpolationsThatDoNotGetCloser) {
   TriangleMesh box_annex;
   add_box(box_annex, 0, 0, 0, 12, 9, 8);
   add_box(box_annex, 12, 0, 0, 16, 4.5, 4);
-  const auto c = tiler::choose_models({{"a", true, 0, 0}, {"b", false, 1, 1}, {"c", true, 2, 2}},
+  const auto c = tiler::choose_models({{"a", tiler::ModelKind::anchor, 0, 0}, {"b", tiler::ModelKind::interpolation, 1, 1}, {"c", tiler::ModelKind::anchor, 2, 2}},
                                       {c4[0].mesh, box_annex, c4[3].mesh}, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 2}));
 }
@@ -95,7 +95,8 @@ TEST(AssembleMetrics, ErrorsStrictlyDecreaseEvenWhenDistancesDoNot) {
   // Anchors 2 m and 3 m away from the finest, in that order: the coarser one
   // is charged the finer one's error + 1 cm. Identical anchors count once.
   const TriangleMesh fin = box_mesh(0, 0, 0, 10, 10, 10);
-  std::vector<tiler::ModelEntry> e{{"a", true, 0, 0}, {"b", true, 1, 1}, {"c", true, 2, 2}, {"d", true, 3, 3}};
+  const auto A = tiler::ModelKind::anchor;
+  std::vector<tiler::ModelEntry> e{{"a", A, 0, 0}, {"b", A, 1, 1}, {"c", A, 2, 2}, {"d", A, 3, 3}};
   const auto c = tiler::choose_models(
       e, {box_mesh(2, 0, 0, 12, 10, 10), box_mesh(3, 0, 0, 13, 10, 10), fin, fin}, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3}));
@@ -280,7 +281,7 @@ TEST(Assemble, DelftBuildingLandsWhereItIs) {
   geo::TransformOptions to;
   to.height = geo::HeightMode::Ellipsoidal;
   geo::Georef g = geo::Georef::from_crs(geo::Crs::parse("EPSG:28992"), Eigen::Vector3d(84000, 447000, 43.0), to);
-  io::Manifest man = synthetic_manifest(g.frame().origin().x(), g.frame().origin().y(), g.frame().origin().z());
+  tiler::Manifest man = synthetic_manifest(g.frame().origin().x(), g.frame().origin().y(), g.frame().origin().z());
   man.scene.crs = "EPSG:28992";
   man.scene.origin_crs = {84000, 447000, 43.0};
   const Eigen::Vector3d corner_rd(84950.0, 447450.0, 43.5);
@@ -381,7 +382,7 @@ TEST(Assemble, BuildingWithoutModelsIsAClearError) {
   ASSERT_EQ(st.warnings.size(), 2u);
   EXPECT_NE(st.warnings[1].find("'b-0002' has no LOD models"), std::string::npos) << st.warnings[1];
   // A model file listed but missing.
-  fs::remove(fs::path(io::lod_dir(work, "b-0000")) / "model_01_interpolation_L1.ply");
+  fs::remove(fs::path(tiler::lod_dir(work, "b-0000")) / "model_01_interpolation_L1.ply");
   e = error_of([&] { tiler::assemble(work, work + ".out2", quiet_params()); });
   EXPECT_NE(e.find("model_01_interpolation_L1.ply: model listed in"), std::string::npos) << e;
 }
@@ -393,7 +394,7 @@ TEST(Assemble, ReplacesAPreviousTilesetAtomicallyAndKeepsItOnFailure) {
   tiler::assemble(work, out, quiet_params());
   const auto before = dir_contents(out);
   // A failing run (a building lost its report) leaves the old tileset intact.
-  fs::remove(fs::path(io::lod_dir(work, "b-0003")) / "report.json");
+  fs::remove(fs::path(tiler::lod_dir(work, "b-0003")) / "report.json");
   EXPECT_FALSE(error_of([&] { tiler::assemble(work, out, quiet_params()); }).empty());
   EXPECT_EQ(dir_contents(out), before);
   EXPECT_FALSE(fs::exists(out + ".partial"));
