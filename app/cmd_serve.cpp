@@ -37,7 +37,11 @@ struct Roots {
 };
 
 /// The source tree this binary was built from (for the default viewer path).
-fs::path source_root() { return fs::path(__FILE__).parent_path().parent_path().parent_path(); }
+#ifndef CITYLOD_SOURCE_DIR
+#define CITYLOD_SOURCE_DIR "."
+#endif
+/// The source tree this binary was built from (examples/viewer, CesiumJS from npm).
+fs::path source_root() { return fs::path(CITYLOD_SOURCE_DIR); }
 
 fs::path find_cesium(const fs::path& viewer) {
   if (const char* e = std::getenv("CITYLOD_CESIUM_DIR")) return e;

@@ -23,6 +23,7 @@
 #include "citylod/io/gltf.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/io/tileset.hpp"
+#include "citylod/lod/polygon2d.hpp"
 #include "citylod/io/hash.hpp"
 #include "citylod/tiler/threads.hpp"
 #include "citylod/tiler/workdir.hpp"
@@ -77,16 +78,6 @@ std::string safe_stem(const std::string& id) {
     ok = ok && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || c == '_' ||
                 c == '.');
   return ok ? id : "id-" + io::hash_hex(id.data(), id.size());
-}
-
-double polygon_area(const std::vector<std::array<double, 2>>& ring) {
-  double a = 0;
-  for (std::size_t i = 0, n = ring.size(); i < n; ++i) {
-    const auto& p = ring[i];
-    const auto& q = ring[(i + 1) % n];
-    a += p[0] * q[1] - q[0] * p[1];
-  }
-  return std::fabs(a) / 2;
 }
 
 /// Footprint of a closed model: projected area of its downward faces (of its
@@ -161,7 +152,7 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     b.models.push_back(km);
   }
   const io::TriangleMesh& finest = meshes[choice.kept.back()];
-  b.footprint_area_m2 = rec.outline.size() >= 3 ? polygon_area(rec.outline) : projected_area(finest);
+  b.footprint_area_m2 = rec.outline.size() >= 3 ? std::fabs(poly2::signed_area(rec.outline)) : projected_area(finest);
   const BBox3& fb = b.models.back().bbox;
   for (int k = 0; k < 3; ++k) b.centre[size_t(k)] = (fb.min[size_t(k)] + fb.max[size_t(k)]) / 2;
   double diag = 0;

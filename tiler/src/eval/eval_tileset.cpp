@@ -1,5 +1,5 @@
 // `citylod eval TILESET [--work WORK]`: what a tileset holds, per tile depth and
-// per building mesh (see eval_city.hpp).
+// per building mesh (see citylod/tiler/eval.hpp).
 #include <algorithm>
 #include <cmath>
 #include <filesystem>

@@ -1,5 +1,5 @@
 // `citylod eval WORK`: every model of every building of a work directory
-// against the building's chunk (see eval_city.hpp).
+// against the building's chunk (see citylod/tiler/eval.hpp).
 #include <algorithm>
 #include <cmath>
 #include <cstdarg>

@@ -3,6 +3,10 @@
 #include "citylod/tiler/lod_stage.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <exception>
+#include <functional>
+#include <thread>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -142,6 +146,35 @@ std::string recorded_key(const std::string& work, const std::string& id) {
   }
 }
 
+/// f(0..n-1) on `threads` std::threads, dynamic schedule; the first exception is
+/// rethrown after all have joined. Not OpenMP: the stage runs in a forked child
+/// (supervise.hpp), and a child forked after the parent used OpenMP (a program
+/// calling run_city() twice) cannot start an OpenMP team.
+void run_parallel(std::size_t n, int threads, const std::function<void(std::size_t)>& f) {
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto worker = [&]() {
+    for (std::size_t i; (i = next++) < n;) {
+      try {
+        f(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+      }
+    }
+  };
+  const std::size_t k = std::min<std::size_t>(std::size_t(std::max(1, threads)), n);
+  if (k <= 1) {
+    worker();
+  } else {
+    std::vector<std::thread> pool;
+    for (std::size_t t = 0; t < k; ++t) pool.emplace_back(worker);
+    for (auto& t : pool) t.join();
+  }
+  if (error) std::rethrow_exception(error);
+}
+
 struct Outcome {
   Status status = Status::failed;
   std::string reason;
@@ -259,9 +292,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
     if (fs::exists(lod_dir(o.work_dir, it.chunk->id) + ".suspect")) run_one(it);
     else rest.push_back(&it);
   }
-  const long n = long(rest.size());
-#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, o.threads))
-  for (long i = 0; i < n; ++i) run_one(*rest[size_t(i)]);
+  run_parallel(rest.size(), std::max(1, o.threads), [&](std::size_t i) { run_one(*rest[i]); });
   notify_finished(progress, "lod");
   std::sort(rep.problems.begin(), rep.problems.end());
   rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

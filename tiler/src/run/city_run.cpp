@@ -1,7 +1,7 @@
 // The city run (city_run.hpp): split -> supervised LOD stage -> assemble -> run report.
-// Fork-safety: the LOD stage runs in a supervised child (supervise.hpp); this
-// process enters no OpenMP region before it (split uses none; assemble does and
-// runs after).
+// Fork-safety: the LOD stage runs in a supervised child (supervise.hpp) and
+// schedules its buildings on std::threads, so run_city() may follow an earlier
+// run's OpenMP regions (assemble) in the same process.
 #include "citylod/tiler/city_run.hpp"
 
 #include <sys/resource.h>

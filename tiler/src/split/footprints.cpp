@@ -8,22 +8,14 @@
 #include <nlohmann/json.hpp>
 
 #include "citylod/io/error.hpp"
+#include "citylod/lod/polygon2d.hpp"
 
 namespace citylod::tiler {
 
 using nlohmann::json;
 
-// ------------------------------------------------------------------ 2D geometry
-double signed_area(const Ring& r) {
-  double a = 0;
-  const std::size_t n = r.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec2& p = r[i];
-    const Vec2& q = r[(i + 1) % n];
-    a += p[0] * q[1] - q[0] * p[1];
-  }
-  return 0.5 * a;
-}
+// ------------------------------------------------------------------ 2D geometry (citylod/lod/polygon2d.hpp)
+double signed_area(const Ring& r) { return poly2::signed_area(r); }
 
 double polygon_area(const Polygon2& p) {
   double a = 0;
@@ -34,19 +26,7 @@ double polygon_area(const Polygon2& p) {
   return a;
 }
 
-bool point_in_ring(const Ring& r, const Vec2& p) {
-  bool in = false;
-  const std::size_t n = r.size();
-  for (std::size_t i = 0, j = n - 1; i < n; j = i++) {
-    const Vec2& a = r[i];
-    const Vec2& b = r[j];
-    if ((a[1] > p[1]) != (b[1] > p[1])) {
-      const double x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-      if (p[0] < x) in = !in;
-    }
-  }
-  return in;
-}
+bool point_in_ring(const Ring& r, const Vec2& p) { return poly2::point_in_ring(r, p); }
 
 bool point_in_polygon(const Polygon2& p, const Vec2& q) {
   if (p.rings.empty() || !point_in_ring(p.rings[0], q)) return false;
@@ -62,21 +42,7 @@ bool point_in_footprint(const Footprint& f, const Vec2& q) {
   return false;
 }
 
-double distance_to_ring(const Ring& r, const Vec2& p) {
-  double best = std::numeric_limits<double>::infinity();
-  const std::size_t n = r.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec2& a = r[i];
-    const Vec2& b = r[(i + 1) % n];
-    const double dx = b[0] - a[0], dy = b[1] - a[1];
-    const double len2 = dx * dx + dy * dy;
-    double t = len2 > 0 ? ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2 : 0.0;
-    t = std::clamp(t, 0.0, 1.0);
-    const double ex = a[0] + t * dx - p[0], ey = a[1] + t * dy - p[1];
-    best = std::min(best, ex * ex + ey * ey);
-  }
-  return std::sqrt(best);
-}
+double distance_to_ring(const Ring& r, const Vec2& p) { return poly2::distance_to_ring(r, p); }
 
 double distance_to_footprint(const Footprint& f, const Vec2& p) {
   if (point_in_footprint(f, p)) return 0.0;
@@ -95,26 +61,7 @@ void normalise(Polygon2& p) {
   }
 }
 
-Ring convex_hull(std::vector<Vec2> pts) {
-  std::sort(pts.begin(), pts.end());
-  pts.erase(std::unique(pts.begin(), pts.end()), pts.end());
-  if (pts.size() < 3) return pts;
-  auto cross = [](const Vec2& o, const Vec2& a, const Vec2& b) {
-    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-  };
-  Ring h(2 * pts.size());
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    while (k >= 2 && cross(h[k - 2], h[k - 1], pts[i]) <= 0) --k;
-    h[k++] = pts[i];
-  }
-  for (std::size_t i = pts.size() - 1, t = k + 1; i-- > 0;) {
-    while (k >= t && cross(h[k - 2], h[k - 1], pts[i]) <= 0) --k;
-    h[k++] = pts[i];
-  }
-  h.resize(k - 1);
-  return h;
-}
+Ring convex_hull(std::vector<Vec2> pts) { return poly2::convex_hull(std::move(pts)); }
 
 // ------------------------------------------------------------------ Footprint
 void Footprint::update_bbox() {

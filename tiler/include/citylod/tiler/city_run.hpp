@@ -7,8 +7,8 @@
 //   CityRunResult r = run_city(o);     // out/work, out/tileset, out/run_report.json
 //   rebuild({"out", "fp-123", "planes.epsilon=0.2"});
 //
-// The LOD stage runs in a supervised child process (supervise.hpp): call
-// these before this process enters any OpenMP region.
+// The LOD stage runs in a supervised child process (supervise.hpp); these may
+// be called repeatedly in one process.
 #pragma once
 
 #include <cstddef>

@@ -1,6 +1,6 @@
-// Part of the split stage: building footprints (GeoJSON Polygon/MultiPolygon) and the
-// small 2D polygon toolkit the splitter needs (area, containment, distance,
-// convex hull). Coordinates are whatever the caller puts in: the reader returns
+// Part of the split stage: building footprints (GeoJSON Polygon/MultiPolygon)
+// and their geometry (area, containment, distance, convex hull; the ring
+// primitives are citylod/lod/polygon2d.hpp, shared with the LOD engine). Coordinates are whatever the caller puts in: the reader returns
 // them in the file's CRS units; split.cpp converts them to scene ENU metres.
 #pragma once
 

@@ -78,7 +78,7 @@ std::vector<std::string> write_lod_output(const std::string& dir, const lod::Lod
 struct LodStageOptions {
   std::string work_dir;
   lod::LodParams params;                 ///< per building (params.threads is forced to 1 inside a city run)
-  int threads = 1;                       ///< buildings processed at once (OpenMP), >= 1
+  int threads = 1;                       ///< buildings processed at once (std::threads), >= 1
   int shard_index = 0, shard_count = 1;  ///< process the chunks with (rank % count) == index
   std::vector<std::string> only;         ///< if not empty: these building ids only (and always recomputed)
 };
@@ -108,7 +108,7 @@ struct LodStageReport {
   double seconds = 0;
 };
 
-/// Runs the stage in this process (OpenMP over buildings: call it inside
+/// Runs the stage in this process (threads over buildings; call it inside
 /// supervise() when crashes must be isolated). Progress: task "lod", one
 /// count per building.
 LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progress = {});

@@ -5,7 +5,7 @@
 //   SplitReport r = split_scene(o, progress);   // ProgressFn, task "split"
 //
 // Streams the inputs (any size) into per-building chunks in WORK/chunks/<id>.ply
-// and writes WORK/manifest.json (io/workdir.hpp), with memory bounded by
+// and writes WORK/manifest.json (workdir.hpp), with memory bounded by
 // o.memory_limit rather than by the input size:
 //   pass 1  headers (LAS: header bbox; others: streamed bbox), CRS, area-of-use
 //           check, scene origin (bbox centre) -> local ENU frame;

@@ -12,8 +12,9 @@ namespace citylod::tiler {
 
 /// Runs `work` in a child process until it exits normally; returns its exit
 /// code. `work_dir` holds the lod/<id>.running markers. Gives up after
-/// `max_restarts` crashes (returns 1). Call before any OpenMP region in this
-/// process (fork and thread pools do not mix).
+/// `max_restarts` crashes (returns 1). `work` must not start an OpenMP team
+/// with more than one thread when this process has run one before the fork
+/// (libgomp's pool does not survive fork); run_lod_stage() uses std::threads.
 /// `crashes` (if given) receives the number of restarts after a crash.
 int supervise(const std::string& work_dir, const std::function<int()>& work, int max_restarts = 1000,
               int* crashes = nullptr);
