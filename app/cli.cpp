@@ -37,12 +37,22 @@ struct Command {
 };
 
 const Command kCommands[] = {
-    {"info", "print format, counts, bounding box, attributes and CRS of point cloud / mesh files", cmd_info},
-    {"split", "stream a georeferenced scene into per-building chunks (WORK/chunks, manifest.json)", cmd_split},
-    {"lod", "build the LOD-Tree of one building: anchor and interpolation models (OBJ/PLY) + report", cmd_lod},
-    {"assemble", "turn the per-building LOD models of a work directory into a 3D Tiles 1.1 tileset", cmd_assemble},
-    {"tile", "one-command city run: split -> lod -> assemble, parallel, resumable (DIR/work, DIR/tileset)", cmd_tile},
-    {"rebuild", "recompute one building of a 'tile' output (--set) or pin its models (--select), update the tileset", cmd_rebuild},
+    {"info", "print format, counts, bounding box, attributes and CRS of point cloud / mesh files",
+     cmd_info},
+    {"split", "stream a georeferenced scene into per-building chunks (WORK/chunks, manifest.json)",
+     cmd_split},
+    {"lod",
+     "build the LOD-Tree of one building: anchor and interpolation models (OBJ/PLY) + report",
+     cmd_lod},
+    {"assemble", "turn the per-building LOD models of a work directory into a 3D Tiles 1.1 tileset",
+     cmd_assemble},
+    {"tile",
+     "one-command city run: split -> lod -> assemble, parallel, resumable (DIR/work, DIR/tileset)",
+     cmd_tile},
+    {"rebuild",
+     "recompute one building of a 'tile' output (--set) or pin its models (--select), update the "
+     "tileset",
+     cmd_rebuild},
     {"serve", "serve a tileset and the CesiumJS viewer on 127.0.0.1 (offline)", cmd_serve},
     {"eval", "validity, volume, e1/e2 RMSE and Hausdorff of models against their input", cmd_eval},
 };
@@ -65,7 +75,9 @@ void emit(const char* prefix, const std::string& msg) {
 /// The sink of tiler::log_*(): --log-level and --quiet decide what is printed.
 void stderr_sink(LogLevel level, const std::string& msg) {
   switch (level) {
-    case LogLevel::error: emit("error: ", msg); break;
+    case LogLevel::error:
+      emit("error: ", msg);
+      break;
     case LogLevel::warn:
       if (g_level >= LogLevel::warn) emit("warning: ", msg);
       break;
@@ -79,12 +91,22 @@ void stderr_sink(LogLevel level, const std::string& msg) {
 }
 }  // namespace
 
-void install_log_sink() { set_log_sink(&stderr_sink); }
+void install_log_sink() {
+  set_log_sink(&stderr_sink);
+}
 
-void set_log_level(LogLevel level) { g_level = level; }
-LogLevel log_level() { return g_level; }
-void set_quiet(bool q) { g_quiet = q; }
-bool quiet() { return g_quiet; }
+void set_log_level(LogLevel level) {
+  g_level = level;
+}
+LogLevel log_level() {
+  return g_level;
+}
+void set_quiet(bool q) {
+  g_quiet = q;
+}
+bool quiet() {
+  return g_quiet;
+}
 
 LogLevel parse_log_level(const std::string& s) {
   if (s == "error") return LogLevel::error;
@@ -93,7 +115,6 @@ LogLevel parse_log_level(const std::string& s) {
   if (s == "debug") return LogLevel::debug;
   throw UsageError("invalid log level '" + s + "' (expected error, warn, info or debug)");
 }
-
 
 // ------------------------------------------------------------ ArgParser
 ArgParser::ArgParser(std::string command, std::vector<std::string> args)
@@ -137,7 +158,8 @@ const ArgParser::Opt* ArgParser::find_short(char c) const {
 }
 const ArgParser::Opt& ArgParser::declared(const std::string& name) const {
   const Opt* o = find_long(name);
-  if (!o) throw std::logic_error("citylod " + command_ + ": option --" + name + " was never declared");
+  if (!o)
+    throw std::logic_error("citylod " + command_ + ": option --" + name + " was never declared");
   return *o;
 }
 
@@ -168,7 +190,8 @@ bool ArgParser::parse() {
       if (!o) throw UsageError("unknown option '--" + name + "' for 'citylod " + command_ + "'");
       if (o->takes_value) {
         if (!inline_value) {
-          if (i + 1 >= args_.size()) throw UsageError("option '--" + name + "' needs a value (" + o->metavar + ")");
+          if (i + 1 >= args_.size())
+            throw UsageError("option '--" + name + "' needs a value (" + o->metavar + ")");
           value = args_[++i];
         }
         values_[o->name] = value;
@@ -181,7 +204,9 @@ bool ArgParser::parse() {
     // Short options, possibly grouped: -qj, -oDIR, -o DIR.
     for (std::size_t k = 1; k < a.size(); ++k) {
       const Opt* o = find_short(a[k]);
-      if (!o) throw UsageError(std::string("unknown option '-") + a[k] + "' for 'citylod " + command_ + "'");
+      if (!o)
+        throw UsageError(std::string("unknown option '-") + a[k] + "' for 'citylod " + command_ +
+                         "'");
       if (!o->takes_value) {
         values_[o->name] = "1";
         continue;
@@ -189,7 +214,8 @@ bool ArgParser::parse() {
       std::string value = a.substr(k + 1);
       if (value.empty()) {
         if (i + 1 >= args_.size())
-          throw UsageError(std::string("option '-") + a[k] + "' needs a value (" + o->metavar + ")");
+          throw UsageError(std::string("option '-") + a[k] + "' needs a value (" + o->metavar +
+                           ")");
         value = args_[++i];
       }
       values_[o->name] = value;
@@ -207,17 +233,29 @@ bool ArgParser::parse() {
   bool unbounded = false;
   for (const auto& p : pos_) {
     switch (p.arity) {
-      case Arity::none: break;
-      case Arity::optional_one: max += 1; break;
-      case Arity::one: min += 1; max += 1; break;
-      case Arity::zero_or_more: unbounded = true; break;
-      case Arity::one_or_more: min += 1; unbounded = true; break;
+      case Arity::none:
+        break;
+      case Arity::optional_one:
+        max += 1;
+        break;
+      case Arity::one:
+        min += 1;
+        max += 1;
+        break;
+      case Arity::zero_or_more:
+        unbounded = true;
+        break;
+      case Arity::one_or_more:
+        min += 1;
+        unbounded = true;
+        break;
     }
   }
   if (positionals_.size() < min) {
     std::string names;
     for (const auto& p : pos_)
-      if (p.arity == Arity::one || p.arity == Arity::one_or_more) names += (names.empty() ? "" : " ") + p.name;
+      if (p.arity == Arity::one || p.arity == Arity::one_or_more)
+        names += (names.empty() ? "" : " ") + p.name;
     throw UsageError("missing argument " + names);
   }
   if (!unbounded && positionals_.size() > max)
@@ -240,7 +278,8 @@ double ArgParser::get_double(const std::string& name) const {
   std::string v = get(name);
   char* end = nullptr;
   double d = std::strtod(v.c_str(), &end);
-  if (v.empty() || *end != '\0') throw UsageError("option '--" + name + "' expects a number, got '" + v + "'");
+  if (v.empty() || *end != '\0')
+    throw UsageError("option '--" + name + "' expects a number, got '" + v + "'");
   return d;
 }
 
@@ -248,16 +287,20 @@ std::int64_t ArgParser::get_int(const std::string& name) const {
   std::string v = get(name);
   char* end = nullptr;
   long long d = std::strtoll(v.c_str(), &end, 10);
-  if (v.empty() || *end != '\0') throw UsageError("option '--" + name + "' expects an integer, got '" + v + "'");
+  if (v.empty() || *end != '\0')
+    throw UsageError("option '--" + name + "' expects an integer, got '" + v + "'");
   return d;
 }
 
 std::string ArgParser::help_text() const {
-  std::string s = "usage: citylod " + command_ + " [options]" + (synopsis_.empty() ? "" : " " + synopsis_) + "\n";
+  std::string s = "usage: citylod " + command_ + " [options]" +
+                  (synopsis_.empty() ? "" : " " + synopsis_) + "\n";
   if (!description_.empty()) s += "\n" + description_ + "\n";
   auto row = [](std::string left, const std::string& help) {
-    if (left.size() < 28) left.resize(28, ' ');
-    else left += "\n" + std::string(28, ' ');
+    if (left.size() < 28)
+      left.resize(28, ' ');
+    else
+      left += "\n" + std::string(28, ' ');
     return "  " + left + help + "\n";
   };
   if (!pos_.empty()) {
@@ -298,12 +341,11 @@ std::string top_help() {
     n.resize(std::max<std::size_t>(n.size(), 12), ' ');
     s += "  " + n + c.summary + "\n";
   }
-  s +=
-      "\nglobal options:\n"
-      "  -h, --help                  show this help (or 'citylod <command> --help')\n"
-      "  -V, --version               print the version\n"
-      "      --log-level LEVEL       error, warn, info or debug (default: info)\n"
-      "  -q, --quiet                 no progress display; only warnings and errors\n";
+  s += "\nglobal options:\n"
+       "  -h, --help                  show this help (or 'citylod <command> --help')\n"
+       "  -V, --version               print the version\n"
+       "      --log-level LEVEL       error, warn, info or debug (default: info)\n"
+       "  -q, --quiet                 no progress display; only warnings and errors\n";
   return s;
 }
 
@@ -354,7 +396,8 @@ int run_cli(int argc, char** argv) {
       if (args[i] == c.name) cmd = &c;
     if (!cmd) throw UsageError("unknown command '" + args[i] + "'");
     cmd_name = cmd->name;
-    ArgParser parser(cmd->name, std::vector<std::string>(args.begin() + static_cast<long>(i) + 1, args.end()));
+    ArgParser parser(cmd->name,
+                     std::vector<std::string>(args.begin() + static_cast<long>(i) + 1, args.end()));
     return cmd->run(parser);
   } catch (const UsageError& e) {
     return usage_error(e.what(), cmd_name);

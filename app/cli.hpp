@@ -18,7 +18,9 @@
 // Library messages (tiler::log_*) reach stderr through the sink cli.cpp sets.
 #pragma once
 
+#include <cstdarg>
 #include <cstdint>
+#include <cstdio>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -30,6 +32,20 @@
 namespace citylod::app {
 
 using namespace citylod::tiler;
+
+/// printf into a std::string.
+inline std::string strf(const char* f, ...) __attribute__((format(printf, 1, 2)));
+inline std::string strf(const char* f, ...) {
+  va_list a, b;
+  va_start(a, f);
+  va_copy(b, a);
+  const int n = std::vsnprintf(nullptr, 0, f, a);
+  va_end(a);
+  std::string s(n > 0 ? std::size_t(n) : 0, '\0');
+  if (n > 0) std::vsnprintf(s.data(), s.size() + 1, f, b);
+  va_end(b);
+  return s;
+}
 
 /// The command line, from main(): 0 ok, 1 runtime failure, 2 usage error.
 int run_cli(int argc, char** argv);

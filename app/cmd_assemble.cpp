@@ -39,14 +39,14 @@ int cmd_assemble(ArgParser& args) {
   bars.finish();
   for (const auto& w : st.warnings) log_warn(w);
   std::ostringstream s;
-  s << "wrote " << out << "/tileset.json: " << st.buildings << " buildings (" << st.models_kept << " of "
-    << st.models_read << " models kept";
+  s << "wrote " << out << "/tileset.json: " << st.buildings << " buildings (" << st.models_kept
+    << " of " << st.models_read << " models kept";
   if (st.skipped) s << ", " << st.skipped << " skipped";
   s << "), " << st.tiles << " tiles (" << st.content_tiles << " glb, depth " << st.depth << "), "
-    << human_count(double(st.glb_bytes)) << "B of tiles (largest " << human_count(double(st.max_glb_bytes))
-    << "B, " << human_count(double(st.max_tile_triangles)) << " triangles), root error " << std::fixed
-    << std::setprecision(2) << st.root_error_m << " m, " << std::setprecision(1)
-    << st.seconds_read + st.seconds_write << " s";
+    << human_count(double(st.glb_bytes)) << "B of tiles (largest "
+    << human_count(double(st.max_glb_bytes)) << "B, " << human_count(double(st.max_tile_triangles))
+    << " triangles), root error " << std::fixed << std::setprecision(2) << st.root_error_m << " m, "
+    << std::setprecision(1) << st.seconds_read + st.seconds_write << " s";
   log_info(s.str());
   return 0;
 }

@@ -17,8 +17,10 @@ int cmd_rebuild(ArgParser& args) {
           "(steps as listed in DIR/work/lod/<ID>/report.json, e.g. 0,4,9; 'all' = automatic\n"
           "choice again). Both are kept in DIR/work/overrides.json for later runs. Without\n"
           "either, the building is recomputed. Prints the tileset files that changed.");
-  args.option("building", 'b', "ID", "the building to change (id from the manifest / run_report.json)");
-  args.option("set", 's', "NAME=VALUE[,...]", "parameter overrides for this building (merged with earlier ones)");
+  args.option("building", 'b', "ID",
+              "the building to change (id from the manifest / run_report.json)");
+  args.option("set", 's', "NAME=VALUE[,...]",
+              "parameter overrides for this building (merged with earlier ones)");
   args.flag("reset", 0, "drop this building's earlier parameter overrides first");
   args.option("select", 0, "STEPS", "comma-separated model steps to show, or 'all'");
   declare_threads_option(args, "assemble's threads");

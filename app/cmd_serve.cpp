@@ -41,7 +41,9 @@ struct Roots {
 #define CITYLOD_SOURCE_DIR "."
 #endif
 /// The source tree this binary was built from (examples/viewer, CesiumJS from npm).
-fs::path source_root() { return fs::path(CITYLOD_SOURCE_DIR); }
+fs::path source_root() {
+  return fs::path(CITYLOD_SOURCE_DIR);
+}
 
 fs::path find_cesium(const fs::path& viewer) {
   if (const char* e = std::getenv("CITYLOD_CESIUM_DIR")) return e;
@@ -54,13 +56,25 @@ fs::path find_cesium(const fs::path& viewer) {
 
 const char* mime_type(const std::string& ext) {
   static const std::pair<const char*, const char*> kTypes[] = {
-      {".html", "text/html; charset=utf-8"}, {".js", "text/javascript; charset=utf-8"},
-      {".mjs", "text/javascript; charset=utf-8"}, {".css", "text/css; charset=utf-8"},
-      {".json", "application/json"}, {".glb", "model/gltf-binary"}, {".gltf", "model/gltf+json"},
-      {".b3dm", "application/octet-stream"}, {".png", "image/png"}, {".jpg", "image/jpeg"},
-      {".jpeg", "image/jpeg"}, {".svg", "image/svg+xml"}, {".wasm", "application/wasm"},
-      {".xml", "application/xml"}, {".ktx2", "image/ktx2"}, {".woff", "font/woff"}, {".woff2", "font/woff2"},
-      {".txt", "text/plain; charset=utf-8"}, {".ico", "image/x-icon"}};
+      {".html", "text/html; charset=utf-8"},
+      {".js", "text/javascript; charset=utf-8"},
+      {".mjs", "text/javascript; charset=utf-8"},
+      {".css", "text/css; charset=utf-8"},
+      {".json", "application/json"},
+      {".glb", "model/gltf-binary"},
+      {".gltf", "model/gltf+json"},
+      {".b3dm", "application/octet-stream"},
+      {".png", "image/png"},
+      {".jpg", "image/jpeg"},
+      {".jpeg", "image/jpeg"},
+      {".svg", "image/svg+xml"},
+      {".wasm", "application/wasm"},
+      {".xml", "application/xml"},
+      {".ktx2", "image/ktx2"},
+      {".woff", "font/woff"},
+      {".woff2", "font/woff2"},
+      {".txt", "text/plain; charset=utf-8"},
+      {".ico", "image/x-icon"}};
   for (const auto& [e, t] : kTypes)
     if (ext == e) return t;
   return "application/octet-stream";
@@ -126,8 +140,8 @@ bool send_all(int fd, const char* p, std::size_t n) {
   return true;
 }
 
-bool respond(int fd, int code, const char* reason, const std::string& type, const std::string& body, bool head,
-             bool keep_alive) {
+bool respond(int fd, int code, const char* reason, const std::string& type, const std::string& body,
+             bool head, bool keep_alive) {
   std::ostringstream h;
   h << "HTTP/1.1 " << code << ' ' << reason << "\r\n"
     << "Content-Type: " << type << "\r\n"
@@ -171,7 +185,9 @@ void handle_connection(int fd, const Roots& roots) {
     const bool head = method == "HEAD";
     bool alive = true;
     if (method != "GET" && !head) {
-      alive = respond(fd, 405, "Method Not Allowed", "text/plain", "method not allowed\n", false, false) && false;
+      alive = respond(fd, 405, "Method Not Allowed", "text/plain", "method not allowed\n", false,
+                      false) &&
+              false;
     } else {
       const fs::path file = resolve(roots, target);
       std::error_code ec;
@@ -179,13 +195,15 @@ void handle_connection(int fd, const Roots& roots) {
         alive = respond(fd, 400, "Bad Request", "text/plain", "bad path\n", head, keep);
       } else if (!fs::is_regular_file(file, ec)) {
         log_debug("serve: 404 " + target);
-        alive = respond(fd, 404, "Not Found", "text/plain", "not found: " + target + "\n", head, keep);
+        alive =
+            respond(fd, 404, "Not Found", "text/plain", "not found: " + target + "\n", head, keep);
       } else {
         std::ifstream in(file, std::ios::binary);
         std::ostringstream body;
         body << in.rdbuf();
         log_debug("serve: 200 " + target);
-        alive = respond(fd, 200, "OK", mime_type(file.extension().string()), body.str(), head, keep);
+        alive =
+            respond(fd, 200, "OK", mime_type(file.extension().string()), body.str(), head, keep);
       }
     }
     if (!alive || !keep) break;
@@ -203,23 +221,28 @@ int cmd_serve(ArgParser& args) {
           "scripts/install-node-tools.sh). The URL is printed on stdout; stop with Ctrl-C.");
   args.option("port", 'p', "PORT", "TCP port on 127.0.0.1 (0 = any free port)", "8080");
   args.option("viewer", 0, "DIR", "viewer files (default: examples/viewer of the source tree)");
-  args.option("cesium", 0, "DIR", "CesiumJS Build/Cesium directory (default: found in node_modules)");
+  args.option("cesium", 0, "DIR",
+              "CesiumJS Build/Cesium directory (default: found in node_modules)");
   args.positional("TILESET_DIR", "directory with tileset.json", Arity::one);
   if (!args.parse()) return 0;
 
   Roots roots;
   roots.tileset = fs::absolute(args.positionals().at(0));
   if (!fs::exists(roots.tileset / "tileset.json"))
-    throw std::runtime_error(roots.tileset.string() + ": no tileset.json (run 'citylod assemble' first)");
-  roots.viewer = args.has("viewer") ? fs::path(args.get("viewer"))
+    throw std::runtime_error(roots.tileset.string() +
+                             ": no tileset.json (run 'citylod assemble' first)");
+  roots.viewer = args.has("viewer")                  ? fs::path(args.get("viewer"))
                  : std::getenv("CITYLOD_VIEWER_DIR") ? fs::path(std::getenv("CITYLOD_VIEWER_DIR"))
                                                      : source_root() / "examples/viewer";
   roots.viewer = fs::absolute(roots.viewer);
   if (!fs::exists(roots.viewer / "index.html"))
-    throw std::runtime_error(roots.viewer.string() + ": no index.html (give the viewer directory with --viewer)");
+    throw std::runtime_error(roots.viewer.string() +
+                             ": no index.html (give the viewer directory with --viewer)");
   roots.cesium = args.has("cesium") ? fs::absolute(args.get("cesium")) : find_cesium(roots.viewer);
   if (roots.cesium.empty() || !fs::exists(roots.cesium / "Cesium.js")) {
-    log_warn("CesiumJS not found (run scripts/install-node-tools.sh or give --cesium DIR): the viewer will not start");
+    log_warn(
+        "CesiumJS not found (run scripts/install-node-tools.sh or give --cesium DIR): the viewer "
+        "will not start");
     roots.cesium.clear();
   }
   const auto port = args.get_int("port");
@@ -240,7 +263,8 @@ int cmd_serve(ArgParser& args) {
   }
   socklen_t len = sizeof addr;
   getsockname(srv, reinterpret_cast<sockaddr*>(&addr), &len);
-  std::printf("serving %s on http://127.0.0.1:%d/\n", roots.tileset.string().c_str(), int(ntohs(addr.sin_port)));
+  std::printf("serving %s on http://127.0.0.1:%d/\n", roots.tileset.string().c_str(),
+              int(ntohs(addr.sin_port)));
   std::fflush(stdout);
   ::signal(SIGPIPE, SIG_IGN);
 

@@ -2,8 +2,8 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "cli.hpp"
 #include "citylod/tiler/split.hpp"
+#include "cli.hpp"
 #include "stage_options.hpp"
 
 namespace citylod::app {

@@ -8,14 +8,6 @@
 
 namespace citylod::app {
 
-namespace {
-std::string fixed(const char* f, double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, v);
-  return b;
-}
-}  // namespace
-
 int cmd_tile(ArgParser& args) {
   args.usage("INPUT... --out DIR")
       .describe(
@@ -37,7 +29,8 @@ int cmd_tile(ArgParser& args) {
 
   tiler::CityRunOptions o;
   o.out_dir = args.get("out");
-  o.split = parse_split_options(args, args.positionals(), o.out_dir + "/work");  // run_city sets it too
+  o.split =
+      parse_split_options(args, args.positionals(), o.out_dir + "/work");  // run_city sets it too
   o.split.force = args.has("force");
   o.lod = parse_lod_params(args, city_lod_params());
   o.threads = parse_threads(args);
@@ -48,17 +41,21 @@ int cmd_tile(ArgParser& args) {
   bars.finish();
 
   const tiler::RunReport& rep = r.report;
-  log_info("tile: " + std::to_string(rep.buildings.size()) + " buildings: " + std::to_string(rep.ok) + " ok, " +
-           std::to_string(rep.fallback) + " fallback, " + std::to_string(rep.failed) + " failed" +
-           (rep.skipped ? ", " + std::to_string(rep.skipped) + " skipped by split" : std::string()) + "; lod " +
-           std::to_string(rep.lod.computed) + " computed, " + std::to_string(rep.lod.reused) + " reused");
+  log_info(
+      "tile: " + std::to_string(rep.buildings.size()) + " buildings: " + std::to_string(rep.ok) +
+      " ok, " + std::to_string(rep.fallback) + " fallback, " + std::to_string(rep.failed) +
+      " failed" +
+      (rep.skipped ? ", " + std::to_string(rep.skipped) + " skipped by split" : std::string()) +
+      "; lod " + std::to_string(rep.lod.computed) + " computed, " + std::to_string(rep.lod.reused) +
+      " reused");
   for (const auto& p : r.problems) log_info("  " + p);
-  log_info("tile: time split " + fixed("%.1f", rep.split.seconds) + " s, lod " + fixed("%.1f", rep.lod.seconds) +
-           " s, assemble " + fixed("%.1f", rep.assemble.seconds) + " s, total " + fixed("%.1f", rep.seconds_total) +
-           " s; peak memory " + fixed("%.0f", double(rep.peak_rss_self) / (1 << 20)) + " MiB (this process), " +
-           fixed("%.0f", double(rep.peak_rss_children) / (1 << 20)) + " MiB (LOD stage)");
-  log_info("tile: wrote " + o.out_dir + "/tileset/tileset.json (" + std::to_string(rep.assemble.tiles) +
-           " tiles) and " + o.out_dir + "/run_report.json");
+  log_info("tile: time split " + strf("%.1f", rep.split.seconds) + " s, lod " +
+           strf("%.1f", rep.lod.seconds) + " s, assemble " + strf("%.1f", rep.assemble.seconds) +
+           " s, total " + strf("%.1f", rep.seconds_total) + " s; peak memory " +
+           strf("%.0f", double(rep.peak_rss_self) / (1 << 20)) + " MiB (this process), " +
+           strf("%.0f", double(rep.peak_rss_children) / (1 << 20)) + " MiB (LOD stage)");
+  log_info("tile: wrote " + o.out_dir + "/tileset/tileset.json (" +
+           std::to_string(rep.assemble.tiles) + " tiles) and " + o.out_dir + "/run_report.json");
   return 0;
 }
 

@@ -9,26 +9,15 @@
 
 #include "citylod/lod/lod.hpp"
 #include "citylod/tiler/eval.hpp"
+#include "cli.hpp"
 
 namespace citylod::app {
 
 using namespace citylod::tiler;
 
-/// printf into a std::string.
-inline std::string strf(const char* f, ...) __attribute__((format(printf, 1, 2)));
-inline std::string strf(const char* f, ...) {
-  va_list a, b;
-  va_start(a, f);
-  va_copy(b, a);
-  const int n = std::vsnprintf(nullptr, 0, f, a);
-  va_end(a);
-  std::string s(n > 0 ? std::size_t(n) : 0, '\0');
-  if (n > 0) std::vsnprintf(s.data(), s.size() + 1, f, b);
-  va_end(b);
-  return s;
+inline const char* yes_no(bool b) {
+  return b ? "yes" : "no";
 }
-
-inline const char* yes_no(bool b) { return b ? "yes" : "no"; }
 
 inline std::string one_line_text(std::string s) {
   for (auto& c : s)

@@ -140,7 +140,9 @@ void clear_progress_bar() {
   }
 }
 
-ProgressDisplay::~ProgressDisplay() { finish(); }
+ProgressDisplay::~ProgressDisplay() {
+  finish();
+}
 
 tiler::ProgressFn ProgressDisplay::fn() {
   return [this](const tiler::ProgressEvent& e) {

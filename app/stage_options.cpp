@@ -19,20 +19,26 @@ std::string num(double v) {
 // ------------------------------------------------------------ split
 void declare_split_options(ArgParser& args) {
   const SplitOptions d;
-  args.option("crs", 0, "CRS", "CRS of the input: EPSG:nnnn, WKT or PROJ string (default: from the LAS file)")
-      .option("origin", 0, "LAT,LON,H", "data in local ENU metres at this origin (degrees, ellipsoidal m)")
+  args.option("crs", 0, "CRS",
+              "CRS of the input: EPSG:nnnn, WKT or PROJ string (default: from the LAS file)")
+      .option("origin", 0, "LAT,LON,H",
+              "data in local ENU metres at this origin (degrees, ellipsoidal m)")
       .option("geoid", 0, "MODEL", "input heights are orthometric on MODEL (egm96)")
-      .option("footprints", 0, "FILE", "building footprints (GeoJSON Polygon/MultiPolygon with an id property)")
+      .option("footprints", 0, "FILE",
+              "building footprints (GeoJSON Polygon/MultiPolygon with an id property)")
       .option("footprint-buffer", 0, "M", "points this close outside a footprint belong to it",
               num(d.footprint_buffer))
       .option("memory-limit", 'm', "SIZE", "memory budget, e.g. 512M, 2G", "2G")
       .option("cell-size", 0, "M", "grid cell size", num(d.cell_size))
       .option("halo", 0, "M", "margin loaded around each cell", num(d.halo))
-      .option("max-halo", 0, "M", "halo growth limit for buildings larger than the halo", num(d.max_halo))
-      .option("min-height", 0, "M", "building points lie this high above the ground", num(d.seg.min_height))
+      .option("max-halo", 0, "M", "halo growth limit for buildings larger than the halo",
+              num(d.max_halo))
+      .option("min-height", 0, "M", "building points lie this high above the ground",
+              num(d.seg.min_height))
       .option("min-area", 0, "M2", "smaller clusters are not buildings", num(d.seg.min_area))
       .option("cluster-tolerance", 0, "M", "clustering distance", num(d.seg.cluster_tolerance))
-      .option("dtm-window", 0, "M", "ground filter window (without a ground class)", num(d.seg.dtm_window))
+      .option("dtm-window", 0, "M", "ground filter window (without a ground class)",
+              num(d.seg.dtm_window))
       .flag("ignore-classes", 0, "segment as if the input had no LAS classes");
 }
 
@@ -63,7 +69,8 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
 
 // ------------------------------------------------------------ lod
 void declare_lod_param_options(ArgParser& args) {
-  args.option("set", 's', "NAME=VALUE[,...]", "override parameters, e.g. planes.epsilon=0.2,tree.merge_k=8");
+  args.option("set", 's', "NAME=VALUE[,...]",
+              "override parameters, e.g. planes.epsilon=0.2,tree.merge_k=8");
   args.option("config", 'c', "FILE", "JSON object of parameters (as written to params.json)");
 }
 
@@ -75,7 +82,8 @@ lod::LodParams parse_lod_params(const ArgParser& args, lod::LodParams params) {
 
 // ------------------------------------------------------------ threads
 void declare_threads_option(ArgParser& args, const std::string& what) {
-  args.option("threads", 't', "N", what + " (0 = all cores); the output does not depend on it", "0");
+  args.option("threads", 't', "N", what + " (0 = all cores); the output does not depend on it",
+              "0");
 }
 
 int parse_threads(const ArgParser& args) {
@@ -88,15 +96,19 @@ int parse_threads(const ArgParser& args) {
 void declare_assemble_options(ArgParser& args) {
   args.option("max-triangles", 0, "N", "triangle budget of one tile glb", "250000");
   args.option("max-bytes", 0, "BYTES", "geometry byte budget of one tile glb", "4194304");
-  args.option("extent-factor", 0, "F",
-              "children of a tile with error e span at most F*e metres each (0 = only the budgets split)", "50");
+  args.option(
+      "extent-factor", 0, "F",
+      "children of a tile with error e span at most F*e metres each (0 = only the budgets split)",
+      "50");
   args.option("min-change", 0, "M",
               "keep an interpolation model only if it differs by >= M metres (Hausdorff) from its "
               "kept neighbours",
               "0.1");
-  args.option("hausdorff-tolerance", 0, "M", "accuracy of the Hausdorff distances between models, metres", "0.1");
+  args.option("hausdorff-tolerance", 0, "M",
+              "accuracy of the Hausdorff distances between models, metres", "0.1");
   args.flag("quantize", 0, "KHR_mesh_quantization: int16 positions and normals (smaller glbs)");
-  args.flag("no-building-models", 0, "do not write buildings/*.glb (the viewer's LOD slider needs them)");
+  args.flag("no-building-models", 0,
+            "do not write buildings/*.glb (the viewer's LOD slider needs them)");
   args.flag("skip-missing", 0, "skip buildings without LOD models (warning) instead of failing");
 }
 

@@ -9,7 +9,6 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <memory>
 #include <string_view>
 #include <system_error>
@@ -18,22 +17,11 @@
 namespace citylod::geo {
 namespace {
 
-bool parse_double(std::string_view s, double& out) {
-  if (s.empty()) return false;
-  if (s.front() == '+') s.remove_prefix(1);
-  auto r = std::from_chars(s.data(), s.data() + s.size(), out);
-  if (r.ec == std::errc::result_out_of_range) {
-    std::string tmp(s);
-    char* e = nullptr;
-    out = std::strtod(tmp.c_str(), &e);
-    return e == tmp.c_str() + tmp.size();
-  }
-  return r.ec == std::errc() && r.ptr == s.data() + s.size();
-}
-
-bool parse_i64(std::string_view s, std::int64_t& out) {
+/// A whole number token ("+" allowed), locale-independent.
+template <class T>
+bool parse_number(std::string_view s, T& out) {
   if (!s.empty() && s.front() == '+') s.remove_prefix(1);
-  auto r = std::from_chars(s.data(), s.data() + s.size(), out);
+  const auto r = std::from_chars(s.data(), s.data() + s.size(), out);
   return !s.empty() && r.ec == std::errc() && r.ptr == s.data() + s.size();
 }
 
@@ -128,7 +116,7 @@ int epsg_of(const Node& n) {
   const Node* a = child(n, {"AUTHORITY", "ID"});
   if (a && a->values.size() >= 2 && a->values[0] == "EPSG") {
     std::int64_t v = 0;
-    if (parse_i64(a->values[1], v) && v > 0 && v < 1000000) return static_cast<int>(v);
+    if (parse_number(a->values[1], v) && v > 0 && v < 1000000) return static_cast<int>(v);
   }
   return 0;
 }
@@ -145,7 +133,7 @@ void unit_of(const Node& crs, WktSummary& out) {
   }
   if (!u || u->values.size() < 2) return;
   double f = 0;
-  if (!parse_double(u->values[1], f)) return;
+  if (!parse_number(u->values[1], f)) return;
   out.unit_m = f;
   if (std::abs(f - 1.0) < 1e-12)
     out.unit = "metre";

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "readers_internal.hpp"
 #include "citylod/geo/wkt.hpp"
+#include "readers_internal.hpp"
 
 namespace citylod::io::detail {
 namespace {

@@ -1,8 +1,8 @@
 // `citylod split` end to end: the real binary on good and bad inputs.
 #include <gtest/gtest.h>
 
-#include "support/cli_run.hpp"
 #include <sys/wait.h>
+#include "support/cli_run.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -12,8 +12,8 @@
 #include <string>
 
 #include "citylod/io/hash.hpp"
-#include "citylod/tiler/workdir.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/tiler/workdir.hpp"
 #include "fixtures/las_writer.hpp"
 #include "fixtures/synthetic_city.hpp"
 
@@ -23,7 +23,6 @@ using namespace citylod;
 namespace {
 
 using namespace citylod::test;
-
 
 const std::string kData = CITYLOD_SHARED_DATA;
 
@@ -186,7 +185,8 @@ TEST(SplitCli, DelftWithFootprintsAndGeoid) {
   EXPECT_GT(m.scene.origin_h, 40.0);
   EXPECT_LT(m.scene.origin_h, 70.0);
   std::size_t fp_chunks = 0;
-  for (const auto& c : m.chunks) fp_chunks += c.id.rfind("fp-", 0) == 0 && c.status == tiler::Status::pending;
+  for (const auto& c : m.chunks)
+    fp_chunks += c.id.rfind("fp-", 0) == 0 && c.status == tiler::Status::pending;
   EXPECT_GE(fp_chunks, 22u);
 }
 

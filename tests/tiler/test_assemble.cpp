@@ -8,9 +8,9 @@
 #include <chrono>
 #include <cstdio>
 
-#include "citylod/tiler/assemble.hpp"
 #include "citylod/geo/georef.hpp"
 #include "citylod/io/error.hpp"
+#include "citylod/tiler/assemble.hpp"
 #include "tiler/test_work_support.hpp"
 
 namespace citylod::test {
@@ -61,7 +61,9 @@ TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {
   std::vector<tiler::ModelEntry> entries;
   std::vector<TriangleMesh> meshes;
   for (const auto& m : chain) {
-    entries.push_back({"x", m.kind == "anchor" ? tiler::ModelKind::anchor : tiler::ModelKind::interpolation, m.level, m.step * 2});
+    entries.push_back(
+        {"x", m.kind == "anchor" ? tiler::ModelKind::anchor : tiler::ModelKind::interpolation,
+         m.level, m.step * 2});
     meshes.push_back(m.mesh);
   }
   entries.insert(entries.begin() + 2, {"dup", tiler::ModelKind::interpolation, 1, 3});
@@ -86,7 +88,9 @@ TEST(AssembleMetrics, DropsInterpolationsThatDoNotGetCloser) {
   TriangleMesh box_annex;
   add_box(box_annex, 0, 0, 0, 12, 9, 8);
   add_box(box_annex, 12, 0, 0, 16, 4.5, 4);
-  const auto c = tiler::choose_models({{"a", tiler::ModelKind::anchor, 0, 0}, {"b", tiler::ModelKind::interpolation, 1, 1}, {"c", tiler::ModelKind::anchor, 2, 2}},
+  const auto c = tiler::choose_models({{"a", tiler::ModelKind::anchor, 0, 0},
+                                       {"b", tiler::ModelKind::interpolation, 1, 1},
+                                       {"c", tiler::ModelKind::anchor, 2, 2}},
                                       {c4[0].mesh, box_annex, c4[3].mesh}, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 2}));
 }
@@ -116,9 +120,11 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   const auto t0 = std::chrono::steady_clock::now();
   const tiler::AssembleStats st = tiler::assemble(work, out, quiet_params());
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("[ measure  ] 50 buildings x 3 models: %.3f s, %zu tiles (%zu glb, depth %d), %zu B of tiles "
-              "(largest %zu B), %zu B of building glbs\n",
-              secs, st.tiles, st.content_tiles, st.depth, st.glb_bytes, st.max_glb_bytes, st.building_glb_bytes);
+  std::printf(
+      "[ measure  ] 50 buildings x 3 models: %.3f s, %zu tiles (%zu glb, depth %d), %zu B of tiles "
+      "(largest %zu B), %zu B of building glbs\n",
+      secs, st.tiles, st.content_tiles, st.depth, st.glb_bytes, st.max_glb_bytes,
+      st.building_glb_bytes);
   EXPECT_EQ(st.buildings, 50u);
   EXPECT_EQ(st.models_read, 150u);
   EXPECT_EQ(st.models_kept, 150u);
@@ -138,7 +144,9 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   const GlbFile root = read_glb(out + "/" + ts["root"]["content"]["uri"].get<std::string>());
   const auto& table = root.json["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
   EXPECT_EQ(table["count"], 50);
-  EXPECT_EQ(root.json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["building"]["properties"].size(),
+  EXPECT_EQ(root.json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["building"]
+                     ["properties"]
+                         .size(),
             9u);
   std::set<int> features;
   for (const auto& v : glb_vertices(root)) features.insert(v.feature);
@@ -280,8 +288,10 @@ TEST(Assemble, DelftBuildingLandsWhereItIs) {
   // whose corner is at RD (84950, 447450) (Delft centre), base 43.5 m.
   geo::TransformOptions to;
   to.height = geo::HeightMode::Ellipsoidal;
-  geo::Georef g = geo::Georef::from_crs(geo::Crs::parse("EPSG:28992"), Eigen::Vector3d(84000, 447000, 43.0), to);
-  tiler::Manifest man = synthetic_manifest(g.frame().origin().x(), g.frame().origin().y(), g.frame().origin().z());
+  geo::Georef g = geo::Georef::from_crs(geo::Crs::parse("EPSG:28992"),
+                                        Eigen::Vector3d(84000, 447000, 43.0), to);
+  tiler::Manifest man =
+      synthetic_manifest(g.frame().origin().x(), g.frame().origin().y(), g.frame().origin().z());
   man.scene.crs = "EPSG:28992";
   man.scene.origin_crs = {84000, 447000, 43.0};
   const Eigen::Vector3d corner_rd(84950.0, 447450.0, 43.5);
@@ -327,10 +337,12 @@ TEST(Assemble, DelftBuildingLandsWhereItIs) {
   proj_context_destroy(ctx);
 
   const Eigen::Vector3d d = ecef - ref;
-  const Eigen::Vector3d up(std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat));
+  const Eigen::Vector3d up(std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon),
+                           std::sin(lat));
   const double vertical = d.dot(up), horizontal = (d - vertical * up).norm();
-  std::printf("[ measure  ] Delft corner: ECEF off PROJ by %.4f m horizontally, %.4f m vertically\n", horizontal,
-              vertical);
+  std::printf(
+      "[ measure  ] Delft corner: ECEF off PROJ by %.4f m horizontally, %.4f m vertically\n",
+      horizontal, vertical);
   EXPECT_LT(horizontal, 0.05);
   EXPECT_LT(std::fabs(vertical), 0.05);  // ellipsoidal height kept
 }
@@ -352,7 +364,8 @@ TEST(Assemble, MissingManifestIsAClearError) {
   const std::string e = error_of([&] { tiler::assemble(work, work + ".out", quiet_params()); });
   EXPECT_NE(e.find("manifest.json"), std::string::npos) << e;
   EXPECT_FALSE(fs::exists(work + ".out"));
-  const std::string e2 = error_of([&] { tiler::assemble(work + "/nope", work + ".out", quiet_params()); });
+  const std::string e2 =
+      error_of([&] { tiler::assemble(work + "/nope", work + ".out", quiet_params()); });
   EXPECT_NE(e2.find("does not exist"), std::string::npos) << e2;
 }
 

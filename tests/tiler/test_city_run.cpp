@@ -20,6 +20,7 @@
 #include "citylod/tiler/lod_stage.hpp"
 #include "citylod/tiler/supervise.hpp"
 #include "citylod/tiler/workdir.hpp"
+#include "support/cli_run.hpp"
 
 namespace fs = std::filesystem;
 using namespace citylod;
@@ -30,10 +31,7 @@ namespace {
 const fs::path kExample = fs::path(CITYLOD_SOURCE_DIR) / "examples" / "delft_small";
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path p = fs::path(CITYLOD_TEST_TMP) / ("city_run_" + name);
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p;
+  return test::tmp_dir("city_run_" + name);
 }
 
 CityRunOptions example_options(const fs::path& out) {
@@ -46,19 +44,25 @@ CityRunOptions example_options(const fs::path& out) {
   return o;
 }
 
-std::string read_text(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+using test::slurp;
+using test::tree;
 
-/// Relative path -> bytes of every file under `root`.
-std::map<std::string, std::string> tree(const fs::path& root) {
-  std::map<std::string, std::string> m;
-  for (const auto& e : fs::recursive_directory_iterator(root))
-    if (e.is_regular_file()) m[fs::relative(e.path(), root).string()] = read_text(e.path());
-  return m;
+/// supervise() whose first attempt crashes (SIGABRT: not intercepted by ASan)
+/// with these buildings' `.running` markers in place; later attempts succeed.
+int crash_once(const std::string& work, const std::vector<std::string>& running,
+               const fs::path& marker, int& crashes) {
+  return supervise(
+      work,
+      [&]() {
+        if (!fs::exists(marker)) {
+          std::ofstream(marker) << "1";
+          for (const auto& id : running)
+            std::ofstream(lod_dir(work, id) + ".running") << id << "\n";
+          std::raise(SIGABRT);
+        }
+        return 0;
+      },
+      3, &crashes);
 }
 
 /// A split work directory of the example (split only: fast).
@@ -67,6 +71,15 @@ std::string split_example(const fs::path& dir) {
   o.split.work_dir = (dir / "work").string();
   split_scene(o.split);
   return o.split.work_dir;
+}
+
+/// The LOD stage of a work directory with the city parameters, two buildings at once.
+LodStageOptions stage_options(const std::string& work) {
+  LodStageOptions o;
+  o.work_dir = work;
+  o.params = city_lod_params();
+  o.threads = 2;
+  return o;
 }
 
 /// The first non-skipped building of the manifest.
@@ -103,26 +116,28 @@ TEST(WorkDir, LodReportRoundTripsByteForByte) {
   r.selected_steps = {0};
   const std::string path = (d / "report.json").string();
   EXPECT_TRUE(write_lod_report(path, r));
-  const std::string bytes = read_text(path);
+  const std::string bytes = slurp(path);
   const LodReport back = read_lod_report(path);
   EXPECT_EQ(back.status, Status::fallback);
   EXPECT_EQ(back.models.size(), 1u);
   ASSERT_TRUE(back.models_all.has_value());
   EXPECT_EQ(back.all_models()[1].kind, ModelKind::interpolation);
   EXPECT_FALSE(write_lod_report(path, back));  // same bytes: not rewritten
-  EXPECT_EQ(read_text(path), bytes);
+  EXPECT_EQ(slurp(path), bytes);
 }
 
 TEST(WorkDir, DefaultsOfAbsentFieldsAreTheDocumentedOnes) {
   const fs::path d = fresh_dir("report_defaults");
   const fs::path path = d / "report.json";
-  std::ofstream(path) << R"({"models": [{"file": "a.ply"}, {"file": "b.ply", "kind": "interpolation"}]})";
+  std::ofstream(path)
+      << R"({"models": [{"file": "a.ply"}, {"file": "b.ply", "kind": "interpolation"}]})";
   const LodReport r = read_lod_report(path.string());
   EXPECT_EQ(r.status, Status::failed);  // no status: not trusted
   ASSERT_EQ(r.models.size(), 2u);
   EXPECT_EQ(r.models[0].kind, ModelKind::anchor);
   EXPECT_EQ(r.models[1].step, 1);  // its index
-  std::ofstream(path, std::ios::trunc) << R"({"status": "ok", "models": [{"file": "a.ply", "kind": "coarse"}]})";
+  std::ofstream(path, std::ios::trunc)
+      << R"({"status": "ok", "models": [{"file": "a.ply", "kind": "coarse"}]})";
   EXPECT_THROW(read_lod_report(path.string()), io::IoError);
   std::ofstream(path, std::ios::trunc) << R"({"status": "great", "models": []})";
   EXPECT_THROW(read_lod_report(path.string()), io::IoError);
@@ -150,10 +165,7 @@ TEST(WorkDir, OverridesRoundTrip) {
 TEST(LodStage, RunsEveryBuildingAndResumesWithoutRecomputing) {
   const fs::path d = fresh_dir("lod_stage");
   const std::string work = split_example(d);
-  LodStageOptions o;
-  o.work_dir = work;
-  o.params = city_lod_params();
-  o.threads = 2;
+  const LodStageOptions o = stage_options(work);
   const LodStagePlan before = plan_lod_stage(o);
   ASSERT_GT(before.items.size(), 5u);
   EXPECT_EQ(before.up_to_date(), 0u);
@@ -180,10 +192,7 @@ TEST(LodStage, RunsEveryBuildingAndResumesWithoutRecomputing) {
 TEST(LodStage, OverridesApplyToTheirBuildingOnly) {
   const fs::path d = fresh_dir("lod_overrides");
   const std::string work = split_example(d);
-  LodStageOptions o;
-  o.work_dir = work;
-  o.params = city_lod_params();
-  o.threads = 2;
+  const LodStageOptions o = stage_options(work);
   run_lod_stage(o);
   const std::string id = first_building(work);
   Overrides ov;
@@ -196,7 +205,8 @@ TEST(LodStage, OverridesApplyToTheirBuildingOnly) {
   EXPECT_DOUBLE_EQ(std::stod(find_lod_report(work, id)->parameters.at("planes.epsilon")), 0.3);
   for (const auto& it : plan.items) {
     if (it.chunk->id != id) {
-      EXPECT_DOUBLE_EQ(std::stod(find_lod_report(work, it.chunk->id)->parameters.at("planes.epsilon")), 0.15);
+      EXPECT_DOUBLE_EQ(
+          std::stod(find_lod_report(work, it.chunk->id)->parameters.at("planes.epsilon")), 0.15);
     }
   }
 }
@@ -208,29 +218,14 @@ TEST(Supervise, ACrashMarksTheRunningBuildingAndTheStageGoesOn) {
   const std::string id = first_building(work);
   fs::create_directories(fs::path(work) / "lod");
   // First attempt: "building id" is running when the process crashes.
-  const std::string attempts = (d / "attempts").string();
   int crashes = -1;
-  const int rc = supervise(
-      work,
-      [&]() {
-        std::ofstream(attempts, std::ios::app) << "x";
-        if (read_text(attempts).size() == 1) {
-          std::ofstream(lod_dir(work, id) + ".running") << id << "\n";
-          std::raise(SIGABRT);  // a crash (SIGABRT: not intercepted by ASan)
-        }
-        return 0;
-      },
-      3, &crashes);
+  const int rc = crash_once(work, {id}, d / "crashed_once", crashes);
   EXPECT_EQ(rc, 0);
   EXPECT_EQ(crashes, 1);
-  EXPECT_EQ(read_text(attempts), "xx");
   EXPECT_TRUE(fs::exists(lod_dir(work, id) + ".crashed"));
   EXPECT_FALSE(fs::exists(lod_dir(work, id) + ".running"));
   // The LOD stage gives it its fallback without retrying; the others are built.
-  LodStageOptions o;
-  o.work_dir = work;
-  o.params = city_lod_params();
-  o.threads = 2;
+  const LodStageOptions o = stage_options(work);
   const LodStageReport r = run_lod_stage(o);
   const auto rep = find_lod_report(work, id);
   ASSERT_TRUE(rep);
@@ -249,17 +244,7 @@ TEST(Supervise, SeveralRunningBuildingsBecomeSuspectsAndRunAlone) {
   ASSERT_EQ(ids.size(), 2u);
   fs::create_directories(fs::path(work) / "lod");
   int crashes = 0;
-  const int rc = supervise(
-      work,
-      [&]() {
-        if (!fs::exists(d / "crashed_once")) {  // first attempt: two buildings running
-          std::ofstream(d / "crashed_once") << "1";
-          for (const auto& id : ids) std::ofstream(lod_dir(work, id) + ".running") << id;
-          std::raise(SIGABRT);
-        }
-        return 0;
-      },
-      3, &crashes);
+  const int rc = crash_once(work, ids, d / "crashed_once", crashes);
   EXPECT_EQ(rc, 0);
   EXPECT_EQ(crashes, 1);
   for (const auto& id : ids) {
@@ -267,10 +252,7 @@ TEST(Supervise, SeveralRunningBuildingsBecomeSuspectsAndRunAlone) {
     EXPECT_FALSE(fs::exists(lod_dir(work, id) + ".crashed")) << id;
   }
   // Suspects are retried (one at a time) and, not crashing again, get real models.
-  LodStageOptions o;
-  o.work_dir = work;
-  o.params = city_lod_params();
-  run_lod_stage(o);
+  run_lod_stage(stage_options(work));
   for (const auto& id : ids) {
     EXPECT_FALSE(fs::exists(lod_dir(work, id) + ".suspect")) << id;
     EXPECT_EQ(find_lod_report(work, id)->reason.find("crashed"), std::string::npos) << id;
@@ -318,7 +300,7 @@ TEST(Rebuild, SetRecomputesOneBuildingAndSelectPinsItsModels) {
   const std::string id = first_building(work);
   std::map<std::string, std::string> others;
   for (const auto& c : read_manifest(work).chunks)
-    if (!c.skipped() && c.id != id) others[c.id] = read_text(lod_report_path(work, c.id));
+    if (!c.skipped() && c.id != id) others[c.id] = slurp(lod_report_path(work, c.id));
 
   RebuildOptions o;
   o.dir = d.string();
@@ -329,7 +311,8 @@ TEST(Rebuild, SetRecomputesOneBuildingAndSelectPinsItsModels) {
   EXPECT_FALSE(r.changed.empty());
   EXPECT_EQ(read_overrides(work).at(id).set.at("planes.epsilon"), "0.3");
   EXPECT_DOUBLE_EQ(std::stod(find_lod_report(work, id)->parameters.at("planes.epsilon")), 0.3);
-  for (const auto& [other, bytes] : others) EXPECT_EQ(read_text(lod_report_path(work, other)), bytes) << other;
+  for (const auto& [other, bytes] : others)
+    EXPECT_EQ(slurp(lod_report_path(work, other)), bytes) << other;
   const RunReport rep = read_run_report(d.string());
   ASSERT_TRUE(rep.last_rebuild);
   EXPECT_EQ(rep.last_rebuild->building, id);

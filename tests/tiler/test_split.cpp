@@ -11,11 +11,11 @@
 #include <map>
 #include <set>
 
-#include "citylod/tiler/footprints.hpp"
-#include "citylod/io/reader.hpp"
 #include "citylod/io/hash.hpp"
-#include "citylod/tiler/workdir.hpp"
+#include "citylod/io/reader.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/tiler/footprints.hpp"
+#include "citylod/tiler/workdir.hpp"
 #include "fixtures/las_writer.hpp"
 #include "fixtures/synthetic_city.hpp"
 

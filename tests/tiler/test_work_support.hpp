@@ -13,7 +13,8 @@
 
 namespace citylod::test {
 
-inline tiler::Manifest synthetic_manifest(double lon = 4.3571, double lat = 52.0116, double h = 45.0) {
+inline tiler::Manifest synthetic_manifest(double lon = 4.3571, double lat = 52.0116,
+                                          double h = 45.0) {
   tiler::Manifest m;
   m.scene.crs = "";
   m.scene.origin_lon = lon;
@@ -23,7 +24,8 @@ inline tiler::Manifest synthetic_manifest(double lon = 4.3571, double lat = 52.0
 }
 
 /// Writes WORK/manifest.json and WORK/lod/<id>/{report.json, model_*.ply}.
-inline void write_work(const std::string& work, tiler::Manifest man, const std::vector<SynthBuilding>& bs) {
+inline void write_work(const std::string& work, tiler::Manifest man,
+                       const std::vector<SynthBuilding>& bs) {
   fs::create_directories(work);
   man.chunks.clear();
   for (const auto& b : bs) {
@@ -32,7 +34,8 @@ inline void write_work(const std::string& work, tiler::Manifest man, const std::
     r.origin = b.origin;
     io::BBox3 box;
     for (const auto& m : b.models)
-      for (const auto& v : m.mesh.vertices) box.add(Vec3d{v[0] + b.origin[0], v[1] + b.origin[1], v[2] + b.origin[2]});
+      for (const auto& v : m.mesh.vertices)
+        box.add(Vec3d{v[0] + b.origin[0], v[1] + b.origin[1], v[2] + b.origin[2]});
     if (!box.empty()) {
       r.bbox_min = box.min;
       r.bbox_max = box.max;
@@ -46,7 +49,10 @@ inline void write_work(const std::string& work, tiler::Manifest man, const std::
       char name[64];
       std::snprintf(name, sizeof name, "model_%02d_%s_L%d.ply", m.step, m.kind.c_str(), m.level);
       io::write_ply((fs::path(dir) / name).string(), m.mesh);
-      models.push_back({{"file", name}, {"kind", m.kind}, {"level", m.level}, {"step", m.step},
+      models.push_back({{"file", name},
+                        {"kind", m.kind},
+                        {"level", m.level},
+                        {"step", m.step},
                         {"triangles", m.mesh.triangles.size()}});
     }
     if (b.write_report) {

@@ -12,7 +12,9 @@ LogSink& sink() {
 }
 }  // namespace
 
-void set_log_sink(LogSink s) { sink() = std::move(s); }
+void set_log_sink(LogSink s) {
+  sink() = std::move(s);
+}
 
 void log_message(LogLevel level, const std::string& msg) {
   const LogSink& s = sink();
@@ -45,13 +47,15 @@ ProgressEvent count_event(const char* task, std::size_t done, std::size_t total,
 void report_progress(const ProgressFn& fn, const char* task, double fraction, const char* detail) {
   if (fn && !fn(fraction_event(task, fraction, detail))) throw Cancelled();
 }
-void report_count(const ProgressFn& fn, const char* task, std::size_t done, std::size_t total, const char* unit) {
+void report_count(const ProgressFn& fn, const char* task, std::size_t done, std::size_t total,
+                  const char* unit) {
   if (fn && !fn(count_event(task, done, total, unit))) throw Cancelled();
 }
 void notify_progress(const ProgressFn& fn, const char* task, double fraction, const char* detail) {
   if (fn) fn(fraction_event(task, fraction, detail));
 }
-void notify_count(const ProgressFn& fn, const char* task, std::size_t done, std::size_t total, const char* unit) {
+void notify_count(const ProgressFn& fn, const char* task, std::size_t done, std::size_t total,
+                  const char* unit) {
   if (fn) fn(count_event(task, done, total, unit));
 }
 void notify_finished(const ProgressFn& fn, const char* task) {

@@ -13,6 +13,7 @@
 
 #include "citylod/io/atomic_file.hpp"
 #include "citylod/io/error.hpp"
+#include "citylod/io/json_file.hpp"
 
 namespace citylod::tiler {
 
@@ -22,11 +23,16 @@ using nlohmann::json;
 // ------------------------------------------------------------ enums
 const char* to_string(Status s) {
   switch (s) {
-    case Status::pending: return "pending";
-    case Status::ok: return "ok";
-    case Status::fallback: return "fallback";
-    case Status::failed: return "failed";
-    case Status::skipped: return "skipped";
+    case Status::pending:
+      return "pending";
+    case Status::ok:
+      return "ok";
+    case Status::fallback:
+      return "fallback";
+    case Status::failed:
+      return "failed";
+    case Status::skipped:
+      return "skipped";
   }
   return "failed";
 }
@@ -44,33 +50,28 @@ ModelKind model_kind_from_string(const std::string& s) {
 }
 
 // ------------------------------------------------------------ paths
-std::string manifest_path(const std::string& w) { return (fs::path(w) / "manifest.json").string(); }
+std::string manifest_path(const std::string& w) {
+  return (fs::path(w) / "manifest.json").string();
+}
 std::string chunk_path(const std::string& w, const std::string& id) {
   return (fs::path(w) / "chunks" / (id + ".ply")).string();
 }
-std::string lod_dir(const std::string& w, const std::string& id) { return (fs::path(w) / "lod" / id).string(); }
+std::string lod_dir(const std::string& w, const std::string& id) {
+  return (fs::path(w) / "lod" / id).string();
+}
 std::string lod_report_path(const std::string& w, const std::string& id) {
   return (fs::path(lod_dir(w, id)) / "report.json").string();
 }
-std::string overrides_path(const std::string& w) { return (fs::path(w) / "overrides.json").string(); }
-std::string run_report_path(const std::string& d) { return (fs::path(d) / "run_report.json").string(); }
+std::string overrides_path(const std::string& w) {
+  return (fs::path(w) / "overrides.json").string();
+}
+std::string run_report_path(const std::string& d) {
+  return (fs::path(d) / "run_report.json").string();
+}
 
 namespace {
 
-/// Parses a JSON file; throws io::IoError naming it.
-json read_json_file(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw io::IoError(path, fs::exists(path) ? "cannot open" : "no such file");
-  json j;
-  try {
-    f >> j;
-  } catch (const std::exception& e) {
-    std::string what = e.what();
-    std::replace(what.begin(), what.end(), '\n', ' ');
-    throw io::IoError(path, "not valid JSON (" + what + ")");
-  }
-  return j;
-}
+using io::read_json_file;
 
 /// A double that may have been written as null (NaN, inf).
 double number(const json& j, const char* key, double def) {
@@ -206,7 +207,8 @@ LodReport lod_report_from_json(const json& j, const std::string& path) {
     r.input = j.value("input", std::string());
     // A report that does not say how it went is not trusted (workdir.hpp).
     const auto st = j.find("status");
-    r.status = st != j.end() && st->is_string() ? status_from_string(st->get<std::string>()) : Status::failed;
+    r.status = st != j.end() && st->is_string() ? status_from_string(st->get<std::string>())
+                                                : Status::failed;
     if (st == j.end()) r.reason = "report.json records no status";
     if (j.contains("reason") && j["reason"].is_string()) r.reason = j["reason"].get<std::string>();
     r.id = j.value("id", std::string());
@@ -215,7 +217,8 @@ LodReport lod_report_from_json(const json& j, const std::string& path) {
     if (j.contains("counts"))
       for (const auto& [k, v] : j["counts"].items()) r.counts[k] = v.get<std::int64_t>();
     if (j.contains("lod_tree_vs_bsp_tree"))
-      for (const auto& [k, v] : j["lod_tree_vs_bsp_tree"].items()) r.lod_tree_vs_bsp_tree[k] = v.get<std::int64_t>();
+      for (const auto& [k, v] : j["lod_tree_vs_bsp_tree"].items())
+        r.lod_tree_vs_bsp_tree[k] = v.get<std::int64_t>();
     r.bbox_diagonal_m = number(j, "bbox_diagonal_m", 0);
     r.normals_estimated = j.value("normals_estimated", false);
     r.walls_inferred = j.value("walls_inferred", false);
@@ -260,10 +263,14 @@ BuildingRecord building_from_json(const json& o) {
 }
 
 json to_json(const AssembleParams& p) {
-  return {{"max_tile_triangles", p.max_tile_triangles}, {"max_tile_bytes", p.max_tile_bytes},
-          {"tile_extent_factor", p.tile_extent_factor}, {"min_change_m", p.min_change_m},
-          {"hausdorff_tolerance_m", p.hausdorff_tolerance_m}, {"quantize", p.quantize},
-          {"building_models", p.building_models}, {"skip_missing", p.skip_missing}};
+  return {{"max_tile_triangles", p.max_tile_triangles},
+          {"max_tile_bytes", p.max_tile_bytes},
+          {"tile_extent_factor", p.tile_extent_factor},
+          {"min_change_m", p.min_change_m},
+          {"hausdorff_tolerance_m", p.hausdorff_tolerance_m},
+          {"quantize", p.quantize},
+          {"building_models", p.building_models},
+          {"skip_missing", p.skip_missing}};
 }
 
 AssembleParams assemble_params_from_json(const json& j) {
@@ -286,18 +293,13 @@ AssembleParams assemble_params_from_json(const json& j) {
 Manifest read_manifest(const std::string& work_dir) {
   const std::string path = manifest_path(work_dir);
   if (!fs::exists(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
-  std::ifstream f(path);
-  if (!f) throw io::IoError(path, "missing manifest (run 'citylod split' first)");
-  json j;
-  try {
-    f >> j;
-  } catch (const std::exception& e) {
-    throw io::IoError(path, std::string("not valid JSON: ") + e.what());
-  }
+  if (!fs::exists(path)) throw io::IoError(path, "missing manifest (run 'citylod split' first)");
+  const json j = read_json_file(path);
   Manifest m;
   try {
     m.version = j.at("version").get<int>();
-    if (m.version != 1) throw io::IoError(path, "unsupported manifest version " + std::to_string(m.version));
+    if (m.version != 1)
+      throw io::IoError(path, "unsupported manifest version " + std::to_string(m.version));
     const json& s = j.at("scene");
     m.scene.crs = s.value("crs", "");
     m.scene.origin_crs = s.at("origin_crs").get<std::array<double, 3>>();
@@ -314,6 +316,15 @@ Manifest read_manifest(const std::string& work_dir) {
     throw io::IoError(path, std::string("malformed manifest: ") + e.what());
   }
   return m;
+}
+
+void require_valid_origin(const Manifest& m, const std::string& work_dir) {
+  const auto& sc = m.scene;
+  if (!std::isfinite(sc.origin_lat) || !std::isfinite(sc.origin_lon) ||
+      std::fabs(sc.origin_lat) > 90 || std::fabs(sc.origin_lon) > 180 ||
+      !std::isfinite(sc.origin_h))
+    throw io::IoError(manifest_path(work_dir),
+                      "scene origin is not a valid longitude/latitude/height");
 }
 
 void write_manifest(const std::string& work_dir, const Manifest& m) {
@@ -337,7 +348,9 @@ void write_manifest(const std::string& work_dir, const Manifest& m) {
 }
 
 // ------------------------------------------------------------ report.json
-LodReport read_lod_report(const std::string& path) { return lod_report_from_json(read_json_file(path), path); }
+LodReport read_lod_report(const std::string& path) {
+  return lod_report_from_json(read_json_file(path), path);
+}
 
 std::optional<LodReport> find_lod_report(const std::string& work_dir, const std::string& id) {
   const std::string path = lod_report_path(work_dir, id);
@@ -399,42 +412,18 @@ void write_overrides(const std::string& work_dir, const Overrides& o) {
 // ------------------------------------------------------------ run_report.json
 RunReport read_run_report(const std::string& out_dir) {
   const std::string path = run_report_path(out_dir);
-  if (!fs::exists(path)) throw std::runtime_error(path + ": not found (DIR must be a 'citylod tile' output)");
-  json j;
-  {
-    std::ifstream f(path);
-    try {
-      f >> j;
-    } catch (const std::exception& e) {
-      throw std::runtime_error(path + ": not valid JSON (" + e.what() + ")");
-    }
-  }
+  if (!fs::exists(path))
+    throw std::runtime_error(path + ": not found (DIR must be a 'citylod tile' output)");
+  const json j = read_json_file(path);
   RunReport r;
   try {
     r.command = j.value("command", r.command);
     r.inputs = j.value("inputs", std::vector<std::string>{});
     r.threads = j.value("threads", r.threads);
     const json st = j.value("stages", json::object());
-    const json sp = st.value("split", json::object());
-    r.split.seconds = number(sp, "seconds", 0);
-    r.split.up_to_date = sp.value("up_to_date", false);
-    r.split.chunks = sp.value("chunks", std::size_t(0));
-    r.split.points = sp.value("points", std::uint64_t(0));
-    r.split.crs = sp.value("crs", std::string());
-    const json lp = st.value("lod", json::object());
-    r.lod.seconds = number(lp, "seconds", 0);
-    r.lod.buildings = lp.value("buildings", std::size_t(0));
-    r.lod.computed = lp.value("computed", std::size_t(0));
-    r.lod.reused = lp.value("reused", std::size_t(0));
-    r.lod.restarts = lp.value("restarts", std::size_t(0));
-    const json ap = st.value("assemble", json::object());
-    r.assemble.seconds = number(ap, "seconds", 0);
-    r.assemble.buildings = ap.value("buildings", std::size_t(0));
-    r.assemble.tiles = ap.value("tiles", std::size_t(0));
-    r.assemble.glb_bytes = ap.value("glb_bytes", std::size_t(0));
-    r.assemble.models_kept = ap.value("models_kept", std::size_t(0));
-    r.assemble.depth = ap.value("depth", 0);
-    r.assemble.warnings = ap.value("warnings", std::vector<std::string>{});
+    r.split = st.value("split", json::object()).get<RunReport::Split>();
+    r.lod = st.value("lod", json::object()).get<RunReport::Lod>();
+    r.assemble = st.value("assemble", json::object()).get<RunReport::Assemble>();
     const json sum = j.value("summary", json::object());
     r.ok = sum.value("ok", std::size_t(0));
     r.fallback = sum.value("fallback", std::size_t(0));
@@ -448,7 +437,8 @@ RunReport read_run_report(const std::string& out_dir) {
     r.assemble_params = assemble_params_from_json(j.value("assemble_params", json::object()));
     r.work = j.value("work", r.work);
     r.tileset = j.value("tileset", r.tileset);
-    for (const auto& b : j.value("buildings", json::array())) r.buildings.push_back(building_from_json(b));
+    for (const auto& b : j.value("buildings", json::array()))
+      r.buildings.push_back(building_from_json(b));
     if (j.contains("last_rebuild")) {
       const json& l = j["last_rebuild"];
       RunReport::LastRebuild lr;
@@ -472,18 +462,9 @@ void write_run_report(const std::string& out_dir, const RunReport& r) {
   j["command"] = r.command;
   j["inputs"] = r.inputs;
   j["threads"] = r.threads;
-  j["stages"]["split"] = {{"seconds", r.split.seconds},
-                          {"up_to_date", r.split.up_to_date},
-                          {"chunks", r.split.chunks},
-                          {"points", r.split.points},
-                          {"crs", r.split.crs}};
-  j["stages"]["lod"] = {{"seconds", r.lod.seconds},   {"buildings", r.lod.buildings}, {"computed", r.lod.computed},
-                        {"reused", r.lod.reused},     {"restarts", r.lod.restarts}};
-  j["stages"]["assemble"] = {{"seconds", r.assemble.seconds},     {"buildings", r.assemble.buildings},
-                             {"tiles", r.assemble.tiles},         {"glb_bytes", r.assemble.glb_bytes},
-                             {"models_kept", r.assemble.models_kept}, {"depth", r.assemble.depth},
-                             {"warnings", r.assemble.warnings}};
-  j["summary"] = {{"ok", r.ok}, {"fallback", r.fallback}, {"failed", r.failed}, {"skipped", r.skipped}};
+  j["stages"] = {{"split", r.split}, {"lod", r.lod}, {"assemble", r.assemble}};
+  j["summary"] = {
+      {"ok", r.ok}, {"fallback", r.fallback}, {"failed", r.failed}, {"skipped", r.skipped}};
   j["seconds_total"] = r.seconds_total;
   j["peak_rss_bytes"] = {{"self", r.peak_rss_self}, {"children", r.peak_rss_children}};
   j["lod_params"] = json::object();
@@ -496,12 +477,9 @@ void write_run_report(const std::string& out_dir, const RunReport& r) {
   j["buildings"] = bs;
   if (r.last_rebuild) {
     const auto& l = *r.last_rebuild;
-    j["last_rebuild"] = {{"building", l.building},
-                         {"set", l.set},
-                         {"select", l.select},
-                         {"report_changed", l.report_changed},
-                         {"changed", l.changed},
-                         {"added", l.added},
+    j["last_rebuild"] = {{"building", l.building}, {"set", l.set},
+                         {"select", l.select},     {"report_changed", l.report_changed},
+                         {"changed", l.changed},   {"added", l.added},
                          {"removed", l.removed}};
   }
   fs::create_directories(out_dir);

@@ -14,17 +14,17 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <nlohmann/json.hpp>
 #include <omp.h>
+#include <nlohmann/json.hpp>
 
 #include "citylod/geo/local_frame.hpp"
 #include "citylod/io/atomic_file.hpp"
 #include "citylod/io/error.hpp"
 #include "citylod/io/gltf.hpp"
+#include "citylod/io/hash.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/io/tileset.hpp"
 #include "citylod/lod/polygon2d.hpp"
-#include "citylod/io/hash.hpp"
 #include "citylod/tiler/threads.hpp"
 #include "citylod/tiler/workdir.hpp"
 
@@ -39,7 +39,8 @@ void AssembleParams::validate() const {
   if (max_tile_bytes < 1024) throw std::invalid_argument("max_tile_bytes must be >= 1024");
   if (!(tile_extent_factor >= 0) || !std::isfinite(tile_extent_factor))
     throw std::invalid_argument("tile_extent_factor must be >= 0");
-  if (!(min_change_m >= 0) || !std::isfinite(min_change_m)) throw std::invalid_argument("min_change_m must be >= 0");
+  if (!(min_change_m >= 0) || !std::isfinite(min_change_m))
+    throw std::invalid_argument("min_change_m must be >= 0");
   if (!(hausdorff_tolerance_m > 0) || !std::isfinite(hausdorff_tolerance_m))
     throw std::invalid_argument("hausdorff_tolerance_m must be > 0");
   if (threads < 0) throw std::invalid_argument("threads must be >= 0");
@@ -48,7 +49,9 @@ void AssembleParams::validate() const {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 // ------------------------------------------------------------ buildings
 struct KeptModel {
@@ -65,7 +68,7 @@ struct Building {
   std::string file_stem;  // safe file name for buildings/<stem>.glb
   Vec3d origin{0, 0, 0};  // chunk origin, scene ENU
   double footprint_area_m2 = 0;
-  Vec3d centre{0, 0, 0};  // of the finest model's bbox
+  Vec3d centre{0, 0, 0};          // of the finest model's bbox
   std::vector<KeptModel> models;  // coarse -> fine
   std::size_t models_read = 0;
   BBox3 bbox;               // all kept models
@@ -75,8 +78,8 @@ struct Building {
 std::string safe_stem(const std::string& id) {
   bool ok = !id.empty() && id.size() <= 100 && id[0] != '.';
   for (char c : id)
-    ok = ok && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' || c == '_' ||
-                c == '.');
+    ok = ok && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                c == '-' || c == '_' || c == '.');
   return ok ? id : "id-" + io::hash_hex(id.data(), id.size());
 }
 
@@ -108,7 +111,9 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
   const std::string dir = lod_dir(work, rec.id);
   const std::string report_path = lod_report_path(work, rec.id);
   if (!fs::exists(report_path))
-    throw io::IoError(report_path, "building '" + rec.id + "' has no LOD models (run 'citylod lod' on the work directory first)");
+    throw io::IoError(report_path,
+                      "building '" + rec.id +
+                          "' has no LOD models (run 'citylod lod' on the work directory first)");
   const LodReport rep = read_lod_report(report_path);
   if (rep.models.empty()) {
     std::string why = "building '" + rec.id + "' has no models in report.json (status \"" +
@@ -125,13 +130,16 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     e.kind = m.kind;
     e.level = m.level;
     e.step = m.step;
-    if (!fs::exists(e.file)) throw io::IoError(e.file, "model listed in " + report_path + " is missing");
+    if (!fs::exists(e.file))
+      throw io::IoError(e.file, "model listed in " + report_path + " is missing");
     meshes.push_back(read_model(e.file, rec.origin));
     entries.push_back(e);
   }
   b.models_read = entries.size();
-  const ModelChoice choice = choose_models(entries, meshes, p.min_change_m, p.hausdorff_tolerance_m);
-  if (choice.kept.empty()) throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
+  const ModelChoice choice =
+      choose_models(entries, meshes, p.min_change_m, p.hausdorff_tolerance_m);
+  if (choice.kept.empty())
+    throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
   for (std::size_t i = 0; i < choice.kept.size(); ++i) {
     const std::size_t k = choice.kept[i];
     const io::TriangleMesh& mesh = meshes[k];
@@ -152,7 +160,8 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     b.models.push_back(km);
   }
   const io::TriangleMesh& finest = meshes[choice.kept.back()];
-  b.footprint_area_m2 = rec.outline.size() >= 3 ? std::fabs(poly2::signed_area(rec.outline)) : projected_area(finest);
+  b.footprint_area_m2 =
+      rec.outline.size() >= 3 ? std::fabs(poly2::signed_area(rec.outline)) : projected_area(finest);
   const BBox3& fb = b.models.back().bbox;
   for (int k = 0; k < 3; ++k) b.centre[size_t(k)] = (fb.min[size_t(k)] + fb.max[size_t(k)]) / 2;
   double diag = 0;
@@ -252,12 +261,14 @@ class TreeBuilder {
   }
 
   double max_extent(double error) const {
-    return p_.tile_extent_factor > 0 ? p_.tile_extent_factor * error : std::numeric_limits<double>::infinity();
+    return p_.tile_extent_factor > 0 ? p_.tile_extent_factor * error
+                                     : std::numeric_limits<double>::infinity();
   }
 
   /// Groups of `items` for sibling tiles: quadrant splits (repeated) while a
   /// group is over the glb budget or wider than `max_extent`.
-  void partition(const std::vector<Item>& items, double max_extent, std::vector<std::vector<Item>>& out) const {
+  void partition(const std::vector<Item>& items, double max_extent,
+                 std::vector<std::vector<Item>>& out) const {
     if (items.size() <= 1 || (fits(items) && extent(items) <= max_extent)) {
       out.push_back(items);
       return;
@@ -346,13 +357,15 @@ io::GlbFeature feature_of(const Building& b, std::size_t m) {
 
 Vec3d rounded_centre(const BBox3& b) {
   Vec3d c;
-  for (int k = 0; k < 3; ++k) c[size_t(k)] = std::round((b.min[size_t(k)] + b.max[size_t(k)]) / 2 * 100) / 100;
+  for (int k = 0; k < 3; ++k)
+    c[size_t(k)] = std::round((b.min[size_t(k)] + b.max[size_t(k)]) / 2 * 100) / 100;
   return c;
 }
 
 bool inside(const BBox3& in, const BBox3& out) {
   for (int k = 0; k < 3; ++k)
-    if (in.min[size_t(k)] < out.min[size_t(k)] || in.max[size_t(k)] > out.max[size_t(k)]) return false;
+    if (in.min[size_t(k)] < out.min[size_t(k)] || in.max[size_t(k)] > out.max[size_t(k)])
+      return false;
   return true;
 }
 
@@ -373,33 +386,37 @@ io::Tile to_tile(const std::vector<TileNode>& tiles, std::size_t id) {
 /// is not a previous tileset unless `force`.
 void check_output_dir(const fs::path& out, bool force) {
   const fs::path old = out.string() + ".old";
-  if (!fs::exists(out) && fs::exists(old / "tileset.json")) fs::rename(old, out);  // killed mid-swap
+  if (!fs::exists(out) && fs::exists(old / "tileset.json"))
+    fs::rename(old, out);  // killed mid-swap
   if (!fs::exists(out)) return;
   if (!fs::is_directory(out)) throw io::IoError(out.string(), "exists and is not a directory");
   const bool empty = fs::directory_iterator(out) == fs::directory_iterator();
   if (!empty && !fs::exists(out / "tileset.json") && !force)
-    throw io::IoError(out.string(), "exists and is not a tileset (no tileset.json); use --force to replace it");
+    throw io::IoError(out.string(),
+                      "exists and is not a tileset (no tileset.json); use --force to replace it");
 }
 
 }  // namespace
 
-AssembleStats assemble(const std::string& work_dir, const std::string& out_dir, const AssembleParams& params,
-                       const ProgressFn& progress) {
+AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
+                       const AssembleParams& params, const ProgressFn& progress) {
   params.validate();
   AssembleStats st;
   const auto t0 = Clock::now();
-  auto report = [&](double f, const char* stage) { notify_progress(progress, "assemble", f, stage); };
+  auto report = [&](double f, const char* stage) {
+    notify_progress(progress, "assemble", f, stage);
+  };
   if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
   const Manifest man = read_manifest(work_dir);
   if (man.chunks.empty())
-    throw io::IoError(manifest_path(work_dir), "the manifest lists no buildings (nothing to assemble)");
+    throw io::IoError(manifest_path(work_dir),
+                      "the manifest lists no buildings (nothing to assemble)");
+  require_valid_origin(man, work_dir);
   const auto& sc = man.scene;
-  if (!std::isfinite(sc.origin_lat) || !std::isfinite(sc.origin_lon) || std::fabs(sc.origin_lat) > 90 ||
-      std::fabs(sc.origin_lon) > 180 || !std::isfinite(sc.origin_h))
-    throw io::IoError(manifest_path(work_dir), "scene origin is not a valid longitude/latitude/height");
   fs::path out = fs::absolute(out_dir).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();  // "DIR/"
-  if (out.filename().empty() || out == out.root_path()) throw io::IoError(out_dir, "not a valid output directory");
+  if (out.filename().empty() || out == out.root_path())
+    throw io::IoError(out_dir, "not a valid output directory");
   check_output_dir(out, params.force);
 
   // ---- 1. buildings
@@ -445,7 +462,8 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir, 
     st.models_kept += loaded[i].models.size();
     buildings.push_back(std::move(loaded[i]));
   }
-  if (buildings.empty()) throw io::IoError(work_dir, "no building has LOD models (nothing to assemble)");
+  if (buildings.empty())
+    throw io::IoError(work_dir, "no building has LOD models (nothing to assemble)");
   st.buildings = buildings.size();
   st.seconds_read = seconds_since(t0);
 
@@ -502,7 +520,8 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir, 
       ++st.content_tiles;
       if (tiles[i].triangles > params.max_tile_triangles || tiles[i].bytes > params.max_tile_bytes)
         st.warnings.push_back("tile " + tiles[i].name + " exceeds the tile budget (" +
-                              std::to_string(tiles[i].triangles) + " triangles): a single building is too large");
+                              std::to_string(tiles[i].triangles) +
+                              " triangles): a single building is too large");
     }
   }
 
@@ -512,7 +531,8 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir, 
   nlohmann::ordered_json index;
   index["version"] = 1;
   index["root_transform"] = root_transform;
-  index["origin"] = {{"longitude", sc.origin_lon}, {"latitude", sc.origin_lat}, {"height", sc.origin_h}};
+  index["origin"] = {
+      {"longitude", sc.origin_lon}, {"latitude", sc.origin_lat}, {"height", sc.origin_h}};
   if (!sc.crs.empty()) index["crs"] = sc.crs;
   nlohmann::ordered_json blist = nlohmann::ordered_json::object();
   std::vector<std::size_t> bsize(buildings.size(), 0);

@@ -1,5 +1,6 @@
 // Hausdorff distances between LOD models (branch and bound over the triangles
-// of one mesh, an AABB tree of the other's) and the choice of the models a building keeps in the tileset.
+// of one mesh, an AABB tree of the other's) and the choice of the models a building keeps in the
+// tileset.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -15,10 +16,18 @@ namespace {
 
 using io::Vec3d;
 
-inline Vec3d sub(const Vec3d& a, const Vec3d& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-inline double dot(const Vec3d& a, const Vec3d& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-inline Vec3d axpy(const Vec3d& p, double s, const Vec3d& d) { return {p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2]}; }
-inline double norm2(const Vec3d& a) { return dot(a, a); }
+inline Vec3d sub(const Vec3d& a, const Vec3d& b) {
+  return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+}
+inline double dot(const Vec3d& a, const Vec3d& b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+inline Vec3d axpy(const Vec3d& p, double s, const Vec3d& d) {
+  return {p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2]};
+}
+inline double norm2(const Vec3d& a) {
+  return dot(a, a);
+}
 
 /// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5).
 Vec3d closest_on_triangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
@@ -52,7 +61,8 @@ class TriangleTree {
     centroids_.reserve(m.triangles.size());
     for (const auto& t : m.triangles) {
       const Vec3d &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
-      centroids_.push_back({(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3});
+      centroids_.push_back(
+          {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3});
     }
     if (!order_.empty()) build(0, order_.size());
   }
@@ -76,7 +86,8 @@ class TriangleTree {
       if (n.count) {
         for (std::uint32_t i = n.first; i < n.first + n.count; ++i) {
           const auto& t = mesh_.triangles[order_[i]];
-          const Vec3d q = closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]], mesh_.vertices[t[2]]);
+          const Vec3d q = closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]],
+                                              mesh_.vertices[t[2]]);
           const double d2 = norm2(sub(p, q));
           if (d2 < best) {
             best = d2;
@@ -102,7 +113,8 @@ class TriangleTree {
   /// Distance from p to triangle `tri` of the mesh.
   double distance_to(const Vec3d& p, std::uint32_t tri) const {
     const auto& t = mesh_.triangles[tri];
-    return std::sqrt(norm2(sub(p, closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]], mesh_.vertices[t[2]]))));
+    return std::sqrt(norm2(sub(p, closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]],
+                                                      mesh_.vertices[t[2]]))));
   }
 
  private:
@@ -114,7 +126,8 @@ class TriangleTree {
   static double box_distance2(const Node& n, const Vec3d& p) {
     double d = 0;
     for (int k = 0; k < 3; ++k) {
-      const double e = std::max({n.lo[size_t(k)] - p[size_t(k)], 0.0, p[size_t(k)] - n.hi[size_t(k)]});
+      const double e =
+          std::max({n.lo[size_t(k)] - p[size_t(k)], 0.0, p[size_t(k)] - n.hi[size_t(k)]});
       d += e * e;
     }
     return d;
@@ -149,9 +162,10 @@ class TriangleTree {
     for (int k = 1; k < 3; ++k)
       if (chi[size_t(k)] - clo[size_t(k)] > chi[size_t(axis)] - clo[size_t(axis)]) axis = k;
     const std::size_t mid = (first + last) / 2;
-    std::nth_element(order_.begin() + long(first), order_.begin() + long(mid), order_.begin() + long(last),
-                     [&](std::uint32_t x, std::uint32_t y) {
-                       const double cx = centroids_[x][size_t(axis)], cy = centroids_[y][size_t(axis)];
+    std::nth_element(order_.begin() + long(first), order_.begin() + long(mid),
+                     order_.begin() + long(last), [&](std::uint32_t x, std::uint32_t y) {
+                       const double cx = centroids_[x][size_t(axis)],
+                                    cy = centroids_[y][size_t(axis)];
                        return cx < cy || (cx == cy && x < y);
                      });
     const std::uint32_t l = build(first, mid);
@@ -184,25 +198,30 @@ double vertex_distance(const io::TriangleMesh& a, const TriangleTree& tb) {
 /// dropped, the others split in four. `best` starts at what is already known (the other
 /// direction, the vertices), so the large surfaces two LOD models share are
 /// dropped at once. Stops once best >= stop_above.
-void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, double stop_above, double& best) {
+void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, double stop_above,
+              double& best) {
   struct Tri {
     Vec3d a, b, c;
   };
   std::vector<Tri> stack;
-  for (const auto& t : a.triangles) stack.push_back({a.vertices[t[0]], a.vertices[t[1]], a.vertices[t[2]]});
+  for (const auto& t : a.triangles)
+    stack.push_back({a.vertices[t[0]], a.vertices[t[1]], a.vertices[t[2]]});
   std::size_t budget = 2000000;  // distance queries; bounds the worst case (coincident surfaces)
   while (!stack.empty() && budget > 0 && best < stop_above) {
     const Tri t = stack.back();
     stack.pop_back();
-    const Vec3d g{(t.a[0] + t.b[0] + t.c[0]) / 3, (t.a[1] + t.b[1] + t.c[1]) / 3, (t.a[2] + t.b[2] + t.c[2]) / 3};
-    const double r = std::sqrt(std::max({norm2(sub(t.a, g)), norm2(sub(t.b, g)), norm2(sub(t.c, g))}));
+    const Vec3d g{(t.a[0] + t.b[0] + t.c[0]) / 3, (t.a[1] + t.b[1] + t.c[1]) / 3,
+                  (t.a[2] + t.b[2] + t.c[2]) / 3};
+    const double r =
+        std::sqrt(std::max({norm2(sub(t.a, g)), norm2(sub(t.b, g)), norm2(sub(t.c, g))}));
     if (r <= tol * 0.5) continue;  // within tol of its (evaluated) vertices
     std::uint32_t near;
     const double dg = std::sqrt(tb.nearest(g, near));
     --budget;
     best = std::max(best, dg);
     if (dg + r <= best + tol) continue;
-    if (std::max({tb.distance_to(t.a, near), tb.distance_to(t.b, near), tb.distance_to(t.c, near)}) <= best + tol)
+    if (std::max({tb.distance_to(t.a, near), tb.distance_to(t.b, near),
+                  tb.distance_to(t.c, near)}) <= best + tol)
       continue;
     const Vec3d ab{(t.a[0] + t.b[0]) / 2, (t.a[1] + t.b[1]) / 2, (t.a[2] + t.b[2]) / 2};
     const Vec3d bc{(t.b[0] + t.c[0]) / 2, (t.b[1] + t.c[1]) / 2, (t.b[2] + t.c[2]) / 2};
@@ -222,7 +241,8 @@ double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, 
                           double stop_above) {
   if (a.triangles.empty() || b.triangles.empty()) return std::numeric_limits<double>::infinity();
   if (!(tolerance > 0)) throw std::invalid_argument("hausdorff_distance: tolerance must be > 0");
-  if (a.vertices == b.vertices && a.triangles == b.triangles) return 0.0;  // the same model (common)
+  if (a.vertices == b.vertices && a.triangles == b.triangles)
+    return 0.0;  // the same model (common)
   const TriangleTree ta(a), tb(b);
   double best = std::max(vertex_distance(a, tb), vertex_distance(b, ta));
   directed(a, tb, tolerance, stop_above, best);
@@ -230,9 +250,11 @@ double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, 
   return best;
 }
 
-ModelChoice choose_models(const std::vector<ModelEntry>& entries, const std::vector<io::TriangleMesh>& meshes,
-                          double min_change_m, double tolerance_m) {
-  if (entries.size() != meshes.size()) throw std::invalid_argument("choose_models: entries and meshes differ in size");
+ModelChoice choose_models(const std::vector<ModelEntry>& entries,
+                          const std::vector<io::TriangleMesh>& meshes, double min_change_m,
+                          double tolerance_m) {
+  if (entries.size() != meshes.size())
+    throw std::invalid_argument("choose_models: entries and meshes differ in size");
   ModelChoice out;
   if (entries.empty()) return out;
   std::vector<std::size_t> order(entries.size());
@@ -244,7 +266,7 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries, const std::vec
   std::ptrdiff_t finest_pos = -1;
   for (std::size_t i = 0; i < order.size(); ++i)
     if (!meshes[order[i]].triangles.empty() && (entries[order[i]].anchor() || finest_pos < 0 ||
-                                                 !entries[order[size_t(finest_pos)]].anchor()))
+                                                !entries[order[size_t(finest_pos)]].anchor()))
       finest_pos = std::ptrdiff_t(i);
   if (finest_pos < 0) return out;
   order.resize(size_t(finest_pos) + 1);
@@ -274,7 +296,8 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries, const std::vec
     const std::size_t next_anchor = next_anchor_after(i);
     if (entries[m].anchor()) {
       // Every anchor, unless it is the very same model as the next one.
-      if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, kSame) >= kSame) kept.push_back(m);
+      if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, kSame) >= kSame)
+        kept.push_back(m);
       continue;
     }
     // An interpolation changes the look when it differs from the previous kept
@@ -283,9 +306,12 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries, const std::vec
     if (!kept.empty()) {
       const std::size_t prev = kept.back();
       if (to_finest[m] > to_finest[prev] - min_change_m) continue;
-      if (hausdorff_distance(meshes[m], meshes[prev], tolerance_m, min_change_m) < min_change_m) continue;
+      if (hausdorff_distance(meshes[m], meshes[prev], tolerance_m, min_change_m) < min_change_m)
+        continue;
     }
-    if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, min_change_m) < min_change_m) continue;
+    if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, min_change_m) <
+        min_change_m)
+      continue;
     kept.push_back(m);
   }
   out.kept = kept;

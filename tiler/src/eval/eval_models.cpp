@@ -6,8 +6,8 @@
 
 namespace citylod::tiler {
 
-std::vector<ModelFileEval> evaluate_models(const std::vector<std::string>& models, const std::string& ref_path,
-                                           int samples) {
+std::vector<ModelFileEval> evaluate_models(const std::vector<std::string>& models,
+                                           const std::string& ref_path, int samples) {
   // The reference, moved next to the origin (its bbox centre); models follow.
   const LoadedBuilding reference = load_building(ref_path);
   std::vector<ModelFileEval> out;

@@ -15,8 +15,9 @@
 
 #include "citylod/geo/local_frame.hpp"
 #include "citylod/io/error.hpp"
-#include "citylod/io/reader.hpp"
 #include "citylod/io/glb_reader.hpp"
+#include "citylod/io/json_file.hpp"
+#include "citylod/io/reader.hpp"
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/eval.hpp"
 #include "citylod/tiler/threads.hpp"
@@ -41,19 +42,7 @@ struct ContentRef {
   Mat4 transform = kIdentity;  // content (z-up) frame -> tileset world frame
 };
 
-nlohmann::json read_json_file(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw io::IoError(path, fs::exists(path) ? "cannot open" : "no such file");
-  try {
-    nlohmann::json j;
-    f >> j;
-    return j;
-  } catch (const std::exception& e) {
-    std::string what = e.what();
-    std::replace(what.begin(), what.end(), '\n', ' ');
-    throw io::IoError(path, "not valid JSON (" + what + ")");
-  }
-}
+using io::read_json_file;
 
 struct Walker {
   fs::path top_dir;
@@ -68,18 +57,20 @@ struct Walker {
     tile(ts["root"], path, fs::path(path).parent_path(), "root", level, parent, external_depth);
   }
 
-  void tile(const nlohmann::json& t, const std::string& file, const fs::path& base, const std::string& where,
-            int level, const Mat4& parent, int external_depth) {
+  void tile(const nlohmann::json& t, const std::string& file, const fs::path& base,
+            const std::string& where, int level, const Mat4& parent, int external_depth) {
     if (!t.is_object()) throw io::IoError(file, where + " is not a JSON object");
     ++tiles;
     depth = std::max(depth, level);
     Mat4 m = parent;
     if (t.contains("transform")) {
       const auto& tr = t["transform"];
-      if (!tr.is_array() || tr.size() != 16) throw io::IoError(file, where + ": \"transform\" is not 16 numbers");
+      if (!tr.is_array() || tr.size() != 16)
+        throw io::IoError(file, where + ": \"transform\" is not 16 numbers");
       Mat4 local;
       for (std::size_t i = 0; i < 16; ++i) {
-        if (!tr[i].is_number()) throw io::IoError(file, where + ": \"transform\" is not 16 numbers");
+        if (!tr[i].is_number())
+          throw io::IoError(file, where + ": \"transform\" is not 16 numbers");
         local[i] = tr[i].get<double>();
       }
       m = io::multiply(parent, local);
@@ -90,22 +81,26 @@ struct Walker {
     std::vector<const nlohmann::json*> cs;
     if (t.contains("content")) cs.push_back(&t["content"]);
     if (t.contains("contents")) {
-      if (!t["contents"].is_array()) throw io::IoError(file, where + ": \"contents\" is not an array");
+      if (!t["contents"].is_array())
+        throw io::IoError(file, where + ": \"contents\" is not an array");
       for (const auto& c : t["contents"]) cs.push_back(&c);
     }
     for (const auto* c : cs) {
       if (!c->is_object()) throw io::IoError(file, where + ": content is not a JSON object");
       const char* key = c->contains("uri") ? "uri" : "url";  // 1.1 / 1.0
-      if (!c->contains(key) || !(*c)[key].is_string()) throw io::IoError(file, where + ": content has no uri");
+      if (!c->contains(key) || !(*c)[key].is_string())
+        throw io::IoError(file, where + ": content has no uri");
       std::string uri = (*c)[key].get<std::string>();
       if (uri.find("://") != std::string::npos || uri.rfind("data:", 0) == 0)
-        throw io::IoError(file, where + ": content '" + uri + "' is not a local file (not supported)");
+        throw io::IoError(file,
+                          where + ": content '" + uri + "' is not a local file (not supported)");
       uri = uri.substr(0, uri.find('?'));
       const fs::path p = (base / uri).lexically_normal();
       const std::string ext = "." + io::extension_of(p.string());
       if (ext == ".json") {
         if (external_depth >= kMaxExternalDepth)
-          throw io::IoError(p.string(), "external tilesets nested deeper than " + std::to_string(kMaxExternalDepth));
+          throw io::IoError(p.string(), "external tilesets nested deeper than " +
+                                            std::to_string(kMaxExternalDepth));
         tileset(p.string(), level + 1, m, external_depth + 1);
       } else if (ext == ".glb") {
         ContentRef r;
@@ -117,14 +112,16 @@ struct Walker {
         r.transform = m;
         contents.push_back(r);
       } else {
-        throw io::IoError(p.string(), "unsupported tile content '" + ext + "' (only glb and external tilesets)");
+        throw io::IoError(
+            p.string(), "unsupported tile content '" + ext + "' (only glb and external tilesets)");
       }
     }
     if (t.contains("children")) {
       const auto& ch = t["children"];
       if (!ch.is_array()) throw io::IoError(file, where + ": \"children\" is not an array");
       for (std::size_t i = 0; i < ch.size(); ++i)
-        tile(ch[i], file, base, where + ".children[" + std::to_string(i) + "]", level + 1, m, external_depth);
+        tile(ch[i], file, base, where + ".children[" + std::to_string(i) + "]", level + 1, m,
+             external_depth);
     }
   }
 };
@@ -134,11 +131,14 @@ struct Group {
   std::string building;
   int model_index = -1, step = -1;
   std::string kind;
-  io::TriangleMesh mesh;  // content frame, z-up (node transforms and the y-up -> z-up rotation applied)
+  io::TriangleMesh
+      mesh;  // content frame, z-up (node transforms and the y-up -> z-up rotation applied)
 };
 
 /// glTF y-up -> 3D Tiles z-up: (x, y, z) -> (x, -z, y).
-Vec3d to_zup(const Vec3d& p) { return {p[0], -p[2], p[1]}; }
+Vec3d to_zup(const Vec3d& p) {
+  return {p[0], -p[2], p[1]};
+}
 
 /// Splits a glb's triangles by building; vertices with the same stored
 /// position in the same node are welded (the writer splits them per face normal).
@@ -146,7 +146,8 @@ std::vector<Group> read_groups(const ContentRef& c) {
   const io::GlbDocument d = io::read_glb(c.file);
   struct Building {
     Group g;
-    std::map<std::tuple<int, double, double, double>, std::uint32_t> weld;  // node, stored position -> vertex
+    std::map<std::tuple<int, double, double, double>, std::uint32_t>
+        weld;  // node, stored position -> vertex
   };
   std::map<std::string, Building> groups;
   for (const auto& p : d.primitives) {
@@ -183,7 +184,8 @@ std::vector<Group> read_groups(const ContentRef& c) {
       std::array<std::uint32_t, 3> tri;
       for (int k = 0; k < 3; ++k) {
         const Vec3d& v = p.positions[t[std::size_t(k)]];
-        const auto [w, added] = b.weld.try_emplace({p.node, v[0], v[1], v[2]}, std::uint32_t(b.g.mesh.vertices.size()));
+        const auto [w, added] =
+            b.weld.try_emplace({p.node, v[0], v[1], v[2]}, std::uint32_t(b.g.mesh.vertices.size()));
         if (added) b.g.mesh.vertices.push_back(to_zup(io::transform_point(p.matrix, v)));
         tri[std::size_t(k)] = w->second;
       }
@@ -197,8 +199,8 @@ std::vector<Group> read_groups(const ContentRef& c) {
 
 }  // namespace
 
-TilesetEval evaluate_tileset(const std::string& path, const std::string& work_dir, const EvalOptions& o,
-                             const ProgressFn& progress) {
+TilesetEval evaluate_tileset(const std::string& path, const std::string& work_dir,
+                             const EvalOptions& o, const ProgressFn& progress) {
   TilesetEval r;
   r.samples = o.samples;
   r.work = work_dir;
@@ -220,11 +222,10 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
     if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
     man = read_manifest(work_dir);
     for (const auto& c : man.chunks) chunks[c.id] = &c;
+    require_valid_origin(man, work_dir);
     const auto& sc = man.scene;
-    if (!std::isfinite(sc.origin_lat) || !std::isfinite(sc.origin_lon) || std::fabs(sc.origin_lat) > 90 ||
-        std::fabs(sc.origin_lon) > 180 || !std::isfinite(sc.origin_h))
-      throw io::IoError(manifest_path(work_dir), "scene origin is not a valid longitude/latitude/height");
-    frame = std::make_unique<geo::LocalFrame>(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
+    frame =
+        std::make_unique<geo::LocalFrame>(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
   }
   const int threads = resolve_threads(o.threads);
 
@@ -286,8 +287,10 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
     m.vertices = g.mesh.vertices.size();
     by_building[g.building].push_back(i);
     if (frame && !chunks.count(g.building))
-      throw io::IoError(manifest_path(work_dir), "building '" + g.building + "' of " + m.tile +
-                                                         " is not in the manifest (was the tileset assembled from this work directory?)");
+      throw io::IoError(
+          manifest_path(work_dir),
+          "building '" + g.building + "' of " + m.tile +
+              " is not in the manifest (was the tileset assembled from this work directory?)");
   }
 
   // ---- 3. per building (parallel): validity, and e1/e2 against its chunk
@@ -306,9 +309,11 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
         if (frame) {
           rec = chunks.at(id);
           const std::string chunk = chunk_path(work_dir, id);
-          if (!fs::exists(chunk)) throw io::IoError(chunk, "chunk of building '" + id + "' is missing");
+          if (!fs::exists(chunk))
+            throw io::IoError(chunk, "chunk of building '" + id + "' is missing");
           ref = std::make_unique<LoadedBuilding>(load_building(chunk));
-          if (ref->input.points.empty()) throw io::IoError(chunk, "chunk of building '" + id + "' is empty");
+          if (ref->input.points.empty())
+            throw io::IoError(chunk, "chunk of building '" + id + "' is empty");
         }
         for (std::size_t i : by_building.at(id)) {
           const Group& g = groups[rows[i].content][rows[i].group];
@@ -319,13 +324,15 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
             m.volume = lod::mesh_volume(lm);
             continue;
           }
-          // content frame -> tileset world (ECEF) -> scene ENU -> chunk frame -> reference's local frame
+          // content frame -> tileset world (ECEF) -> scene ENU -> chunk frame -> reference's local
+          // frame
           const Mat4& t = w.contents[rows[i].content].transform;
           const Vec3d& co = rec->origin;
           const Vec3d& ro = ref->origin;
           const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [&](const Vec3d& v) {
             const Vec3d world = io::transform_point(t, v);
-            const Eigen::Vector3d enu = frame->ecef_to_enu(Eigen::Vector3d(world[0], world[1], world[2]));
+            const Eigen::Vector3d enu =
+                frame->ecef_to_enu(Eigen::Vector3d(world[0], world[1], world[2]));
             return Vec3d{enu.x() - co[0] - ro[0], enu.y() - co[1] - ro[1], enu.z() - co[2] - ro[2]};
           });
           const lod::ModelEvaluation e = lod::evaluate_model(lm, ref->input, o.samples);

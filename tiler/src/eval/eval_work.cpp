@@ -33,25 +33,30 @@ void read_report(const std::string& work, const ChunkRecord& rec, WorkBuildingEv
   }
   b.status = rep->status;
   b.reason = rep->reason;
-  for (const ModelRecord& m : rep->models) b.models.push_back({m.file, m.kind, m.level, m.step, false, {}});
+  for (const ModelRecord& m : rep->models)
+    b.models.push_back({m.file, m.kind, m.level, m.step, false, {}});
   std::stable_sort(b.models.begin(), b.models.end(),
                    [](const WorkModelEval& x, const WorkModelEval& y) { return x.step < y.step; });
   b.has_lod = !b.models.empty();
 }
 
 /// Chunk + models of one building: the evaluations.
-void evaluate_building(const std::string& work, const ChunkRecord& rec, WorkBuildingEval& b, int samples) {
+void evaluate_building(const std::string& work, const ChunkRecord& rec, WorkBuildingEval& b,
+                       int samples) {
   b.chunk = chunk_path(work, rec.id);
-  if (!fs::exists(b.chunk)) throw io::IoError(b.chunk, "chunk of building '" + rec.id + "' is missing");
+  if (!fs::exists(b.chunk))
+    throw io::IoError(b.chunk, "chunk of building '" + rec.id + "' is missing");
   const LoadedBuilding ref = load_building(b.chunk);
-  if (ref.input.points.empty()) throw io::IoError(b.chunk, "chunk of building '" + rec.id + "' is empty");
+  if (ref.input.points.empty())
+    throw io::IoError(b.chunk, "chunk of building '" + rec.id + "' is empty");
   b.reference_points = ref.is_mesh ? 0 : ref.input.points.size();
   b.reference_triangles = ref.input.triangles.size();
   const std::string dir = lod_dir(work, rec.id);
   for (auto& m : b.models) {
     const fs::path f = m.file;
     const std::string path = (f.is_absolute() ? f : fs::path(dir) / f).string();
-    if (!fs::exists(path)) throw io::IoError(path, "model listed in " + dir + "/report.json is missing");
+    if (!fs::exists(path))
+      throw io::IoError(path, "model listed in " + dir + "/report.json is missing");
     const lod::TriangleMesh model = to_lod_mesh(io::read_mesh(path), ref.origin);
     if (model.triangles.empty()) {
       m.empty = true;
@@ -98,7 +103,8 @@ WorkSummary summarize(const WorkEval& w) {
   std::vector<std::pair<double, std::string>> e1, e2;
   for (const auto& b : w.buildings) {
     if (!b.has_lod) {
-      s.without_lod.emplace_back(b.id, to_string(b.status) + (b.reason.empty() ? "" : ": " + b.reason));
+      s.without_lod.emplace_back(b.id,
+                                 to_string(b.status) + (b.reason.empty() ? "" : ": " + b.reason));
       continue;
     }
     ++s.buildings;
@@ -115,7 +121,9 @@ WorkSummary summarize(const WorkEval& w) {
       s.oriented += m.e.check.oriented;
       s.self_intersecting += m.e.check.self_intersecting;
     }
-    if (fallback) s.fallbacks.emplace_back(b.id, b.reason.empty() ? std::string("(no reason given)") : b.reason);
+    if (fallback)
+      s.fallbacks.emplace_back(b.id,
+                               b.reason.empty() ? std::string("(no reason given)") : b.reason);
     if (b.finest >= 0) {
       e1.emplace_back(b.models[size_t(b.finest)].e.e1, b.id);
       e2.emplace_back(b.models[size_t(b.finest)].e.e2, b.id);
@@ -126,10 +134,12 @@ WorkSummary summarize(const WorkEval& w) {
   return s;
 }
 
-WorkEval evaluate_work(const std::string& work_dir, const EvalOptions& o, const ProgressFn& progress) {
+WorkEval evaluate_work(const std::string& work_dir, const EvalOptions& o,
+                       const ProgressFn& progress) {
   if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
   const Manifest man = read_manifest(work_dir);
-  if (man.chunks.empty()) throw io::IoError(manifest_path(work_dir), "the manifest lists no buildings");
+  if (man.chunks.empty())
+    throw io::IoError(manifest_path(work_dir), "the manifest lists no buildings");
   WorkEval w;
   w.work = work_dir;
   w.samples = o.samples;
@@ -145,8 +155,10 @@ WorkEval evaluate_work(const std::string& work_dir, const EvalOptions& o, const 
     if (w.buildings[i].has_lod) todo.push_back(i);
   }
   if (todo.empty())
-    throw io::IoError(work_dir, "no building has LOD output (lod/<id>/report.json with models; run 'citylod lod " +
-                                    work_dir + "' first)");
+    throw io::IoError(
+        work_dir,
+        "no building has LOD output (lod/<id>/report.json with models; run 'citylod lod " +
+            work_dir + "' first)");
   // Largest chunks first (dynamic schedule); results land in their own slot.
   std::stable_sort(todo.begin(), todo.end(), [&](std::size_t a, std::size_t b) {
     return recs[a]->points + recs[a]->triangles > recs[b]->points + recs[b]->triangles;

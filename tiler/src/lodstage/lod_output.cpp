@@ -16,9 +16,9 @@ namespace {
 
 /// Distinct colours per level set (level -1 = unused in grey).
 io::Rgb8 level_colour(int level) {
-  static const io::Rgb8 palette[] = {{31, 119, 180}, {214, 39, 40},  {44, 160, 44},  {255, 127, 14},
-                                     {148, 103, 189}, {140, 86, 75}, {227, 119, 194}, {188, 189, 34},
-                                     {23, 190, 207}};
+  static const io::Rgb8 palette[] = {{31, 119, 180},  {214, 39, 40},   {44, 160, 44},
+                                     {255, 127, 14},  {148, 103, 189}, {140, 86, 75},
+                                     {227, 119, 194}, {188, 189, 34},  {23, 190, 207}};
   if (level < 0) return {128, 128, 128};
   return palette[size_t(level) % (sizeof(palette) / sizeof(palette[0]))];
 }
@@ -27,8 +27,8 @@ io::Rgb8 level_colour(int level) {
 
 std::vector<std::string> write_lod_output(const std::string& dir, const lod::LodResult& r,
                                           const lod::LodParams& p, const std::string& input,
-                                          const io::Vec3d& origin, bool dump_planes, const std::string& id,
-                                          const std::string& key) {
+                                          const io::Vec3d& origin, bool dump_planes,
+                                          const std::string& id, const std::string& key) {
   fs::create_directories(dir);
   std::vector<std::string> files;
   for (const auto& m : r.models) {

@@ -4,15 +4,15 @@
 
 #include <algorithm>
 #include <atomic>
-#include <exception>
-#include <functional>
-#include <thread>
 #include <chrono>
+#include <exception>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include <unistd.h>
 
@@ -20,6 +20,7 @@
 
 #include "citylod/io/atomic_file.hpp"
 #include "citylod/io/hash.hpp"
+#include "citylod/io/json_file.hpp"
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/log.hpp"
 
@@ -45,7 +46,8 @@ void apply_lod_settings(lod::LodParams& p, const std::string& list) {
   while (std::getline(ss, item, ',')) {
     if (item.empty()) continue;
     const auto eq = item.find('=');
-    if (eq == std::string::npos) throw std::invalid_argument("--set expects NAME=VALUE, got '" + item + "'");
+    if (eq == std::string::npos)
+      throw std::invalid_argument("--set expects NAME=VALUE, got '" + item + "'");
     try {
       p.set(item.substr(0, eq), item.substr(eq + 1));
     } catch (const std::invalid_argument& e) {
@@ -55,14 +57,7 @@ void apply_lod_settings(lod::LodParams& p, const std::string& list) {
 }
 
 void apply_lod_config(lod::LodParams& p, const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw std::runtime_error(path + ": cannot open the config file");
-  nlohmann::json j;
-  try {
-    f >> j;
-  } catch (const std::exception& e) {
-    throw std::runtime_error(path + ": not valid JSON (" + e.what() + ")");
-  }
+  const nlohmann::json j = io::read_json_file(path);
   if (!j.is_object()) throw std::runtime_error(path + ": expected a JSON object of parameters");
   for (const auto& [k, v] : j.items()) {
     try {
@@ -99,7 +94,8 @@ void parse_shard(const std::string& s, int& index, int& count) {
   } catch (const std::exception&) {
     throw std::invalid_argument("--shard expects I/N, got '" + s + "'");
   }
-  if (count < 1 || index < 0 || index >= count) throw std::invalid_argument("--shard " + s + ": need 0 <= I < N");
+  if (count < 1 || index < 0 || index >= count)
+    throw std::invalid_argument("--shard " + s + ": need 0 <= I < N");
 }
 
 // ------------------------------------------------------------ one building
@@ -109,7 +105,8 @@ BuildingLodResult build_building_lod(const BuildingLodOptions& o, const Progress
   const LoadedBuilding& b = out.building;
   log_info("lod: " + o.input + ": " + std::to_string(b.input.points.size()) +
            (b.is_mesh ? " vertices, " + std::to_string(b.input.triangles.size()) + " triangles"
-                      : std::string(" points") + (b.input.normals.empty() ? " (no normals)" : " with normals")));
+                      : std::string(" points") +
+                            (b.input.normals.empty() ? " (no normals)" : " with normals")));
   struct Ctx {
     const ProgressFn* fn;
   } ctx{&progress};
@@ -208,7 +205,8 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
 }  // namespace
 
 std::size_t LodStagePlan::up_to_date() const {
-  return std::size_t(std::count_if(items.begin(), items.end(), [](const Item& i) { return i.up_to_date; }));
+  return std::size_t(
+      std::count_if(items.begin(), items.end(), [](const Item& i) { return i.up_to_date; }));
 }
 
 LodStagePlan plan_lod_stage(const LodStageOptions& o) {
@@ -256,7 +254,8 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
   auto run_one = [&](const LodStagePlan::Item& item) {
     const ChunkRecord& c = *item.chunk;
     const std::string dir = lod_dir(o.work_dir, c.id);
-    const std::string running = dir + ".running", suspect = dir + ".suspect", crashed = dir + ".crashed";
+    const std::string running = dir + ".running", suspect = dir + ".suspect",
+                      crashed = dir + ".crashed";
     Outcome out;
     bool reused = false;
     if (item.up_to_date) {
@@ -277,9 +276,12 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
     }
     std::lock_guard<std::mutex> lock(mu);
     (reused ? rep.reused : rep.computed)++;
-    if (out.status == Status::ok) ++rep.ok;
-    else if (out.status == Status::fallback) ++rep.fallback;
-    else ++rep.failed;
+    if (out.status == Status::ok)
+      ++rep.ok;
+    else if (out.status == Status::fallback)
+      ++rep.fallback;
+    else
+      ++rep.failed;
     if (out.status != Status::ok) rep.problems.emplace_back(c.id, out.reason);
     ++done;
     notify_count(progress, "lod", done, rep.total, "buildings");
@@ -289,8 +291,10 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
   // supervisor (supervise.hpp) marks it crashed.
   std::vector<const LodStagePlan::Item*> rest;
   for (const auto& it : plan.items) {
-    if (fs::exists(lod_dir(o.work_dir, it.chunk->id) + ".suspect")) run_one(it);
-    else rest.push_back(&it);
+    if (fs::exists(lod_dir(o.work_dir, it.chunk->id) + ".suspect"))
+      run_one(it);
+    else
+      rest.push_back(&it);
   }
   run_parallel(rest.size(), std::max(1, o.threads), [&](std::size_t i) { run_one(*rest[i]); });
   notify_finished(progress, "lod");

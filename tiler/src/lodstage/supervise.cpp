@@ -14,7 +14,8 @@ namespace citylod::tiler {
 
 namespace fs = std::filesystem;
 
-int supervise(const std::string& work_dir, const std::function<int()>& work, int max_restarts, int* crashes) {
+int supervise(const std::string& work_dir, const std::function<int()>& work, int max_restarts,
+              int* crashes) {
   for (int attempt = 0;; ++attempt) {
     if (crashes) *crashes = attempt;
     std::fflush(stdout);
@@ -51,8 +52,9 @@ int supervise(const std::string& work_dir, const std::function<int()>& work, int
       target.replace_extension(running.size() == 1 ? ".crashed" : ".suspect");
       fs::rename(r, target);
     }
-    log_warn("lod stage crashed (" + std::string(::strsignal(sig)) + ") with " + std::to_string(running.size()) +
-             " building(s) running; " + (running.size() == 1 ? "it gets its fallback" : "retrying them one at a time"));
+    log_warn("lod stage crashed (" + std::string(::strsignal(sig)) + ") with " +
+             std::to_string(running.size()) + " building(s) running; " +
+             (running.size() == 1 ? "it gets its fallback" : "retrying them one at a time"));
     if (attempt >= max_restarts) return 1;
   }
 }

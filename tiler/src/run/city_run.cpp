@@ -43,10 +43,12 @@ std::string fixed1(double v) {
 
 // ------------------------------------------------------------ the LOD stage, supervised
 std::string describe(const CityLodSummary& s) {
-  return "lod: " + std::to_string(s.buildings) + " buildings (" + std::to_string(s.computed) + " computed, " +
-         std::to_string(s.reused) + " reused): " + std::to_string(s.ok) + " ok, " + std::to_string(s.fallback) +
-         " fallback, " + std::to_string(s.failed) + " failed in " + fixed1(s.seconds) + " s" +
-         (s.restarts ? " (" + std::to_string(s.restarts) + " restarts after a crash)" : std::string());
+  return "lod: " + std::to_string(s.buildings) + " buildings (" + std::to_string(s.computed) +
+         " computed, " + std::to_string(s.reused) + " reused): " + std::to_string(s.ok) + " ok, " +
+         std::to_string(s.fallback) + " fallback, " + std::to_string(s.failed) + " failed in " +
+         fixed1(s.seconds) + " s" +
+         (s.restarts ? " (" + std::to_string(s.restarts) + " restarts after a crash)"
+                     : std::string());
 }
 
 CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& progress) {
@@ -72,7 +74,9 @@ CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& pr
         return 0;
       },
       1000, &crashes);
-  if (rc != 0) throw std::runtime_error(o.work_dir + ": the LOD stage failed (exit " + std::to_string(rc) + ")");
+  if (rc != 0)
+    throw std::runtime_error(o.work_dir + ": the LOD stage failed (exit " + std::to_string(rc) +
+                             ")");
   s.restarts = std::size_t(crashes);
   for (const auto& it : plan.items) {
     Status st = Status::failed;
@@ -85,9 +89,12 @@ CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& pr
     } catch (const std::exception& e) {
       why = e.what();
     }
-    if (st == Status::ok) ++s.ok;
-    else if (st == Status::fallback) ++s.fallback;
-    else ++s.failed;
+    if (st == Status::ok)
+      ++s.ok;
+    else if (st == Status::fallback)
+      ++s.fallback;
+    else
+      ++s.failed;
     if (st != Status::ok) s.problems.emplace_back(it.chunk->id, why);
   }
   std::sort(s.problems.begin(), s.problems.end());
@@ -98,7 +105,8 @@ CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& pr
 }
 
 // ------------------------------------------------------------ building blocks
-std::vector<std::string> apply_model_selections(const std::string& work_dir, const Overrides& overrides) {
+std::vector<std::string> apply_model_selections(const std::string& work_dir,
+                                                const Overrides& overrides) {
   std::vector<std::string> warnings;
   const Manifest m = read_manifest(work_dir);
   for (const auto& c : m.chunks) {
@@ -124,9 +132,10 @@ std::vector<std::string> apply_model_selections(const std::string& work_dir, con
         anchor |= is_anchor(mr.kind);
       }
       if (found.size() != std::set<int>(sel.begin(), sel.end()).size() || !anchor) {
-        warnings.push_back(c.id + ": model selection ignored (" +
-                           (anchor ? std::string("unknown steps") : std::string("no anchor model selected")) +
-                           " for the current models; run 'citylod rebuild --select' again)");
+        warnings.push_back(
+            c.id + ": model selection ignored (" +
+            (anchor ? std::string("unknown steps") : std::string("no anchor model selected")) +
+            " for the current models; run 'citylod rebuild --select' again)");
         sel.clear();
       } else {
         r.models = chosen;
@@ -144,7 +153,8 @@ std::vector<std::string> apply_model_selections(const std::string& work_dir, con
   return warnings;
 }
 
-std::vector<BuildingRecord> building_records(const std::string& work_dir, const Overrides& overrides) {
+std::vector<BuildingRecord> building_records(const std::string& work_dir,
+                                             const Overrides& overrides) {
   std::vector<BuildingRecord> out;
   const Manifest m = read_manifest(work_dir);
   for (const auto& c : m.chunks) {
@@ -209,8 +219,8 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   const SplitReport& sr = res.split;
   const double t_split = since(t0);
   for (const auto& n : sr.notes) log_info("note: " + n);
-  log_info("split: " + (sr.up_to_date ? std::string("up to date, ") : std::string()) + std::to_string(sr.chunks) +
-           " chunks in " + fixed1(t_split) + " s");
+  log_info("split: " + (sr.up_to_date ? std::string("up to date, ") : std::string()) +
+           std::to_string(sr.chunks) + " chunks in " + fixed1(t_split) + " s");
   report.split = {t_split, sr.up_to_date, sr.chunks, sr.points, sr.crs};
 
   // ---- lod, in a supervised child
@@ -221,22 +231,28 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   lo.threads = threads;
   res.lod = run_lod_supervised(lo, progress);
   for (const auto& w : apply_model_selections(work, overrides)) log_warn(w);
-  report.lod = {res.lod.seconds, res.lod.buildings, res.lod.computed, res.lod.reused, res.lod.restarts};
+  report.lod = {res.lod.seconds, res.lod.buildings, res.lod.computed, res.lod.reused,
+                res.lod.restarts};
 
   // ---- assemble (OpenMP: after the fork)
   t0 = std::chrono::steady_clock::now();
   res.assemble = assemble(work, tileset, ap, progress);
   const AssembleStats& st = res.assemble;
   for (const auto& w : st.warnings) log_warn(w);
-  report.assemble = {since(t0), st.buildings, st.tiles, st.glb_bytes, st.models_kept, st.depth, st.warnings};
+  report.assemble = {since(t0),      st.buildings, st.tiles,   st.glb_bytes,
+                     st.models_kept, st.depth,     st.warnings};
 
   // ---- summary + run report
   report.buildings = building_records(work, overrides);
   for (const auto& b : report.buildings) {
-    if (b.status == Status::ok) ++report.ok;
-    else if (b.status == Status::fallback) ++report.fallback;
-    else if (b.status == Status::skipped) ++report.skipped;
-    else ++report.failed;
+    if (b.status == Status::ok)
+      ++report.ok;
+    else if (b.status == Status::fallback)
+      ++report.fallback;
+    else if (b.status == Status::skipped)
+      ++report.skipped;
+    else
+      ++report.failed;
     if (b.status == Status::fallback || b.status == Status::failed)
       res.problems.push_back(b.id + " (" + to_string(b.status) + "): " + b.reason);
   }

@@ -32,7 +32,8 @@ std::map<std::string, std::string> hash_tree(const fs::path& root) {
   std::map<std::string, std::string> h;
   if (!fs::exists(root)) return h;
   for (const auto& e : fs::recursive_directory_iterator(root))
-    if (e.is_regular_file()) h[fs::relative(e.path(), root).generic_string()] = io::hash_file(e.path().string());
+    if (e.is_regular_file())
+      h[fs::relative(e.path(), root).generic_string()] = io::hash_file(e.path().string());
   return h;
 }
 
@@ -60,8 +61,10 @@ TreeDiff publish_changes(const fs::path& stage, const fs::path& target) {
   const auto before = hash_tree(target), after = hash_tree(stage);
   for (const auto& [rel, h] : after) {
     auto it = before.find(rel);
-    if (it == before.end()) d.added.push_back(rel);
-    else if (it->second != h || !same_bytes(stage / rel, target / rel)) d.changed.push_back(rel);
+    if (it == before.end())
+      d.added.push_back(rel);
+    else if (it->second != h || !same_bytes(stage / rel, target / rel))
+      d.changed.push_back(rel);
   }
   for (const auto& [rel, h] : before)
     if (!after.count(rel)) d.removed.push_back(rel);
@@ -86,7 +89,8 @@ std::vector<int> parse_select(const std::string& s) {
     char* end = nullptr;
     const long v = std::strtol(item.c_str(), &end, 10);
     if (*end != '\0' || v < 0)
-      throw std::invalid_argument("--select expects model steps like 0,3,5 (or 'all'), got '" + item + "'");
+      throw std::invalid_argument("--select expects model steps like 0,3,5 (or 'all'), got '" +
+                                  item + "'");
     steps.push_back(int(v));
   }
   if (steps.empty()) throw std::invalid_argument("--select: no steps given");
@@ -101,7 +105,8 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
   const std::string work = (dir / "work").string();
   const fs::path tileset = dir / "tileset";
   RunReport run = read_run_report(dir.string());
-  lod::LodParams global = city_lod_params();  // a run report of an older version may lack newer names
+  lod::LodParams global =
+      city_lod_params();  // a run report of an older version may lack newer names
   for (const auto& [k, v] : run.lod_params) global.set(k, v);
   AssembleParams ap = run.assemble_params;
   ap.threads = o.threads;
@@ -112,7 +117,8 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
     if (c.id == id) rec = &c;
   if (!rec) throw std::runtime_error(manifest_path(work) + ": no building '" + id + "'");
   if (rec->skipped())
-    throw std::runtime_error("building '" + id + "' was skipped by split (" + rec->reason + "); nothing to rebuild");
+    throw std::runtime_error("building '" + id + "' was skipped by split (" + rec->reason +
+                             "); nothing to rebuild");
 
   const Overrides old = read_overrides(work);
   Overrides ov = old;
@@ -132,7 +138,8 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
     }
     params_for(global, ov, id).validate();
     if (!o.select && !bo.select.empty()) {
-      log_info("rebuild: " + id + ": its model selection was dropped (the models change with the parameters)");
+      log_info("rebuild: " + id +
+               ": its model selection was dropped (the models change with the parameters)");
       bo.select.clear();
     }
   }
@@ -156,8 +163,8 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
       write_overrides(work, ov);
       apply_model_selections(work, ov);
       throw std::runtime_error(id + ": --select " + *o.select +
-                               ": these steps are not among its models or include no anchor (see " + res.report +
-                               ")");
+                               ": these steps are not among its models or include no anchor (see " +
+                               res.report + ")");
     }
     log_warn(w);
   }
@@ -178,7 +185,8 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
 
   // Keep the run report in step.
   run.buildings = building_records(work, ov);
-  run.last_rebuild = RunReport::LastRebuild{id, bo.set, bo.select, res.report_changed, d.changed, d.added, d.removed};
+  run.last_rebuild = RunReport::LastRebuild{id,        bo.set,  bo.select, res.report_changed,
+                                            d.changed, d.added, d.removed};
   write_run_report(dir.string(), run);
   return res;
 }

@@ -14,8 +14,11 @@ namespace citylod::tiler {
 
 using nlohmann::json;
 
-// ------------------------------------------------------------------ 2D geometry (citylod/lod/polygon2d.hpp)
-double signed_area(const Ring& r) { return poly2::signed_area(r); }
+// ------------------------------------------------------------------ 2D geometry
+// (citylod/lod/polygon2d.hpp)
+double signed_area(const Ring& r) {
+  return poly2::signed_area(r);
+}
 
 double polygon_area(const Polygon2& p) {
   double a = 0;
@@ -26,7 +29,9 @@ double polygon_area(const Polygon2& p) {
   return a;
 }
 
-bool point_in_ring(const Ring& r, const Vec2& p) { return poly2::point_in_ring(r, p); }
+bool point_in_ring(const Ring& r, const Vec2& p) {
+  return poly2::point_in_ring(r, p);
+}
 
 bool point_in_polygon(const Polygon2& p, const Vec2& q) {
   if (p.rings.empty() || !point_in_ring(p.rings[0], q)) return false;
@@ -42,7 +47,9 @@ bool point_in_footprint(const Footprint& f, const Vec2& q) {
   return false;
 }
 
-double distance_to_ring(const Ring& r, const Vec2& p) { return poly2::distance_to_ring(r, p); }
+double distance_to_ring(const Ring& r, const Vec2& p) {
+  return poly2::distance_to_ring(r, p);
+}
 
 double distance_to_footprint(const Footprint& f, const Vec2& p) {
   if (point_in_footprint(f, p)) return 0.0;
@@ -61,7 +68,9 @@ void normalise(Polygon2& p) {
   }
 }
 
-Ring convex_hull(std::vector<Vec2> pts) { return poly2::convex_hull(std::move(pts)); }
+Ring convex_hull(std::vector<Vec2> pts) {
+  return poly2::convex_hull(std::move(pts));
+}
 
 // ------------------------------------------------------------------ Footprint
 void Footprint::update_bbox() {

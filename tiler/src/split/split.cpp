@@ -24,10 +24,10 @@
 #include "citylod/geo/georef.hpp"
 #include "citylod/geo/units.hpp"
 #include "citylod/io/error.hpp"
-#include "citylod/io/reader.hpp"
 #include "citylod/io/hash.hpp"
-#include "citylod/tiler/workdir.hpp"
+#include "citylod/io/reader.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/tiler/workdir.hpp"
 
 namespace citylod::tiler {
 
@@ -145,7 +145,8 @@ struct CellKeyHash {
   std::size_t operator()(const CellKey& k) const {
     // unsigned: shifting a negative cell index is undefined behaviour
     return std::hash<unsigned long long>()(
-        (static_cast<unsigned long long>(static_cast<unsigned>(k.first)) << 32) ^ static_cast<unsigned>(k.second));
+        (static_cast<unsigned long long>(static_cast<unsigned>(k.first)) << 32) ^
+        static_cast<unsigned>(k.second));
   }
 };
 
@@ -1140,8 +1141,7 @@ SplitReport Splitter::run() {
       const Manifest old = read_manifest(opt_.work_dir);
       bool ok = old.scene.inputs == abs_inputs && old.scene.options == canonical;
       for (const auto& c : old.chunks)
-        if (ok && !c.skipped() && !fs::exists(chunk_path(opt_.work_dir, c.id)))
-          ok = false;
+        if (ok && !c.skipped() && !fs::exists(chunk_path(opt_.work_dir, c.id))) ok = false;
       if (ok) {
         rep_.up_to_date = true;
         rep_.crs = old.scene.crs.size() > 40 ? old.scene.crs.substr(0, 37) + "..." : old.scene.crs;

@@ -9,7 +9,8 @@
 namespace citylod::io {
 
 /// 64-bit FNV-1a of bytes, as 16 hex digits.
-std::string hash_hex(const void* data, std::size_t size, std::uint64_t seed = 0xcbf29ce484222325ULL);
+std::string hash_hex(const void* data, std::size_t size,
+                     std::uint64_t seed = 0xcbf29ce484222325ULL);
 /// Of a file's content; throws IoError when it cannot be read.
 std::string hash_file(const std::string& path);
 

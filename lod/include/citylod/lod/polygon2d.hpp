@@ -23,13 +23,17 @@ struct has_x<P, std::void_t<decltype(std::declval<const P&>().x())>> : std::true
 
 template <class P>
 double x_of(const P& p) {
-  if constexpr (detail::has_x<P>::value) return p.x();
-  else return p[0];
+  if constexpr (detail::has_x<P>::value)
+    return p.x();
+  else
+    return p[0];
 }
 template <class P>
 double y_of(const P& p) {
-  if constexpr (detail::has_x<P>::value) return p.y();
-  else return p[1];
+  if constexpr (detail::has_x<P>::value)
+    return p.y();
+  else
+    return p[1];
 }
 
 /// z of (a - o) x (b - o): > 0 when o, a, b turn left.
@@ -91,8 +95,10 @@ std::vector<P> convex_hull(std::vector<P> p) {
   std::sort(p.begin(), p.end(), [](const P& a, const P& b) {
     return x_of(a) != x_of(b) ? x_of(a) < x_of(b) : y_of(a) < y_of(b);
   });
-  p.erase(std::unique(p.begin(), p.end(), [](const P& a, const P& b) { return x_of(a) == x_of(b) && y_of(a) == y_of(b); }),
-          p.end());
+  p.erase(
+      std::unique(p.begin(), p.end(),
+                  [](const P& a, const P& b) { return x_of(a) == x_of(b) && y_of(a) == y_of(b); }),
+      p.end());
   if (p.size() < 3) return p;
   std::vector<P> h(2 * p.size());
   std::size_t k = 0;

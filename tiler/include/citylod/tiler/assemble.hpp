@@ -42,24 +42,24 @@ struct AssembleParams {
   double min_change_m = 0.1;
   /// Tolerance of the Hausdorff distances (metres).
   double hausdorff_tolerance_m = 0.1;
-  bool quantize = false;          ///< KHR_mesh_quantization in every glb
-  bool building_models = true;    ///< write buildings/<id>.glb + buildings.json (viewer's LOD slider)
-  bool skip_missing = false;      ///< buildings without models: skip with a warning instead of failing
-  bool force = false;             ///< replace an existing OUT that is not a citylod tileset
-  int threads = 0;                ///< 0 = OpenMP default; output does not depend on it
+  bool quantize = false;        ///< KHR_mesh_quantization in every glb
+  bool building_models = true;  ///< write buildings/<id>.glb + buildings.json (viewer's LOD slider)
+  bool skip_missing = false;  ///< buildings without models: skip with a warning instead of failing
+  bool force = false;         ///< replace an existing OUT that is not a citylod tileset
+  int threads = 0;            ///< 0 = OpenMP default; output does not depend on it
   /// Throws std::invalid_argument naming the bad parameter.
   void validate() const;
 };
 
 struct AssembleStats {
-  std::size_t buildings = 0;        ///< in the tileset
-  std::size_t skipped = 0;          ///< manifest records without models (skip_missing) or status skipped
+  std::size_t buildings = 0;  ///< in the tileset
+  std::size_t skipped = 0;    ///< manifest records without models (skip_missing) or status skipped
   std::size_t models_read = 0;
   std::size_t models_kept = 0;
-  std::size_t tiles = 0;            ///< tiles in tileset.json (root included)
-  std::size_t content_tiles = 0;    ///< tiles with a glb
-  int depth = 0;                    ///< deepest tile (root = 0)
-  std::size_t glb_bytes = 0;        ///< sum over tiles/*.glb
+  std::size_t tiles = 0;          ///< tiles in tileset.json (root included)
+  std::size_t content_tiles = 0;  ///< tiles with a glb
+  int depth = 0;                  ///< deepest tile (root = 0)
+  std::size_t glb_bytes = 0;      ///< sum over tiles/*.glb
   std::size_t max_glb_bytes = 0;
   std::size_t max_tile_triangles = 0;
   std::size_t building_glb_bytes = 0;
@@ -72,8 +72,8 @@ struct AssembleStats {
 /// one-line message (missing manifest, empty work dir, building without
 /// models, unreadable model, ...). OUT is replaced only after everything was
 /// written (OUT.partial -> OUT). Progress: task "assemble" (not cancellable).
-AssembleStats assemble(const std::string& work_dir, const std::string& out_dir, const AssembleParams& params,
-                       const ProgressFn& progress = {});
+AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
+                       const AssembleParams& params, const ProgressFn& progress = {});
 
 // ------------------------------------------------------------ building blocks (tested)
 
@@ -87,8 +87,9 @@ double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, 
 
 /// One model listed in report.json.
 struct ModelEntry {
-  std::string file;  ///< path of the PLY
-  io::LodKind kind = io::LodKind::anchor;  ///< a fallback (the outline written when reconstruction fails) counts as an anchor
+  std::string file;                        ///< path of the PLY
+  io::LodKind kind = io::LodKind::anchor;  ///< a fallback (the outline written when reconstruction
+                                           ///< fails) counts as an anchor
   int level = 0, step = 0;
   bool anchor() const { return kind != io::LodKind::interpolation; }
 };
@@ -106,7 +107,8 @@ struct ModelChoice {
 /// it differs by >= min_change_m from the previous kept model and from the next
 /// anchor and is >= min_change_m closer to the finest model than the previous
 /// kept one. error_m = max(Hausdorff to the finest, next kept error + 1 cm).
-ModelChoice choose_models(const std::vector<ModelEntry>& entries, const std::vector<io::TriangleMesh>& meshes,
-                          double min_change_m, double tolerance_m);
+ModelChoice choose_models(const std::vector<ModelEntry>& entries,
+                          const std::vector<io::TriangleMesh>& meshes, double min_change_m,
+                          double tolerance_m);
 
 }  // namespace citylod::tiler

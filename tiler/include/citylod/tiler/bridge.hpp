@@ -32,7 +32,8 @@ lod::BuildingInput chunk_input(const std::string& work_dir, const ChunkRecord& c
 
 /// io -> lod: local = v - origin (or f(v)).
 lod::TriangleMesh to_lod_mesh(const io::TriangleMesh& m, const io::Vec3d& origin = {0, 0, 0});
-lod::TriangleMesh to_lod_mesh(const io::TriangleMesh& m, const std::function<io::Vec3d(const io::Vec3d&)>& f);
+lod::TriangleMesh to_lod_mesh(const io::TriangleMesh& m,
+                              const std::function<io::Vec3d(const io::Vec3d&)>& f);
 /// lod -> io: v + origin.
 io::TriangleMesh to_io_mesh(const lod::TriangleMesh& m, const io::Vec3d& origin);
 io::PolygonMesh to_io_polygons(const lod::PolygonMesh& m, const io::Vec3d& origin);
@@ -44,6 +45,7 @@ Status to_status(const std::string& lod_status);
 /// "model_<step>_<kind>_L<level>": the file stem of a model.
 std::string model_stem(const lod::LodModel& m);
 /// The report.json record of a building's LOD result (models listed as <stem>.ply).
-LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p, const std::string& input);
+LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p,
+                          const std::string& input);
 
 }  // namespace citylod::tiler

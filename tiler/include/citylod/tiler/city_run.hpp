@@ -32,7 +32,8 @@ namespace citylod::tiler {
 struct CityLodSummary {
   std::size_t buildings = 0, computed = 0, reused = 0, restarts = 0;
   std::size_t ok = 0, fallback = 0, failed = 0;
-  std::vector<std::pair<std::string, std::string>> problems;  ///< (id, reason), fallback/failed, id order
+  std::vector<std::pair<std::string, std::string>>
+      problems;  ///< (id, reason), fallback/failed, id order
   double seconds = 0;
 };
 
@@ -49,11 +50,11 @@ std::string describe(const CityLodSummary& s);
 // ------------------------------------------------------------ tile
 
 struct CityRunOptions {
-  std::string out_dir;                      ///< DIR: DIR/work, DIR/tileset, DIR/run_report.json
-  SplitOptions split;                       ///< inputs, CRS, ... (work_dir is set to DIR/work)
-  lod::LodParams lod = city_lod_params();   ///< global LOD parameters (threads is ignored)
-  AssembleParams assemble;                  ///< threads is set from `threads`
-  int threads = 0;                          ///< 0 = all cores: buildings at once, assemble's threads
+  std::string out_dir;                     ///< DIR: DIR/work, DIR/tileset, DIR/run_report.json
+  SplitOptions split;                      ///< inputs, CRS, ... (work_dir is set to DIR/work)
+  lod::LodParams lod = city_lod_params();  ///< global LOD parameters (threads is ignored)
+  AssembleParams assemble;                 ///< threads is set from `threads`
+  int threads = 0;                         ///< 0 = all cores: buildings at once, assemble's threads
 };
 
 struct CityRunResult {
@@ -73,8 +74,8 @@ CityRunResult run_city(const CityRunOptions& o, const ProgressFn& progress = {})
 // ------------------------------------------------------------ rebuild
 
 struct RebuildOptions {
-  std::string dir;       ///< a `citylod tile` output
-  std::string building;  ///< id
+  std::string dir;                    ///< a `citylod tile` output
+  std::string building;               ///< id
   std::optional<std::string> set;     ///< "name=value,..." merged into the building's overrides
   bool reset = false;                 ///< drop its earlier parameter overrides first
   std::optional<std::string> select;  ///< model steps "0,3,5", or "all" / "auto" (automatic again)
@@ -82,7 +83,7 @@ struct RebuildOptions {
 };
 
 struct RebuildResult {
-  std::string report;          ///< the building's report.json
+  std::string report;  ///< the building's report.json
   bool report_changed = false;
   std::vector<std::string> changed, added, removed;  ///< tileset files, relative
 };
@@ -104,9 +105,11 @@ std::vector<int> parse_select(const std::string& s);
 /// "models_all" (restored when the selection is cleared). Assemble then only
 /// sees the selected models. Returns warnings "<id>: ..." (selection ignored:
 /// no anchor, unknown steps). Files are rewritten only when their content changes.
-std::vector<std::string> apply_model_selections(const std::string& work_dir, const Overrides& overrides);
+std::vector<std::string> apply_model_selections(const std::string& work_dir,
+                                                const Overrides& overrides);
 
 /// One record per manifest building: id, status, reason, models, overrides.
-std::vector<BuildingRecord> building_records(const std::string& work_dir, const Overrides& overrides);
+std::vector<BuildingRecord> building_records(const std::string& work_dir,
+                                             const Overrides& overrides);
 
 }  // namespace citylod::tiler

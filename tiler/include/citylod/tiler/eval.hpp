@@ -44,8 +44,8 @@ struct ModelFileEval {
 /// Every model (PLY/OBJ/OFF) against the reference (point cloud or mesh); both
 /// are moved by the reference's rounded bbox centre. Throws io::IoError naming
 /// the file (unreadable, or a model without triangles).
-std::vector<ModelFileEval> evaluate_models(const std::vector<std::string>& models, const std::string& reference,
-                                           int samples);
+std::vector<ModelFileEval> evaluate_models(const std::vector<std::string>& models,
+                                           const std::string& reference, int samples);
 
 // ------------------------------------------------------------ work directory
 struct WorkModelEval {
@@ -65,7 +65,7 @@ struct WorkBuildingEval {
   std::size_t reference_points = 0, reference_triangles = 0;
   double diagonal = 0;                ///< of the reference's bbox, metres
   std::vector<WorkModelEval> models;  ///< sorted by step
-  int finest = -1;                    ///< index in models: the last anchor (or fallback), else the last model
+  int finest = -1;  ///< index in models: the last anchor (or fallback), else the last model
 };
 
 struct WorkEval {
@@ -77,15 +77,16 @@ struct WorkEval {
 
 /// Throws io::IoError naming the file (missing/empty manifest, no building
 /// with LOD output, unreadable chunk or model, malformed report.json).
-WorkEval evaluate_work(const std::string& work_dir, const EvalOptions& o, const ProgressFn& progress = {});
+WorkEval evaluate_work(const std::string& work_dir, const EvalOptions& o,
+                       const ProgressFn& progress = {});
 
 struct Stat {
   double mean = 0, median = 0, max = 0;
   std::string argmax;  ///< id of the max
 };
 struct WorkSummary {
-  std::size_t buildings = 0, models = 0, closed = 0, edge_manifold = 0, oriented = 0, self_intersecting = 0,
-              empty = 0;
+  std::size_t buildings = 0, models = 0, closed = 0, edge_manifold = 0, oriented = 0,
+              self_intersecting = 0, empty = 0;
   Stat finest_e1, finest_e2;  ///< of each building's finest model
   std::vector<std::pair<std::string, std::string>> fallbacks, without_lod;  ///< id, reason
 };
@@ -127,16 +128,16 @@ struct TilesetEval {
   int samples = 0;
   std::size_t tiles = 0;  ///< in tileset.json (external tilesets included)
   int depth = 0;
-  std::vector<TileInfo> contents;     ///< glb contents, tree order
-  std::vector<TileMeshEval> meshes;   ///< sorted by level, building, tile
-  std::vector<LevelSummary> levels;   ///< levels with content
+  std::vector<TileInfo> contents;    ///< glb contents, tree order
+  std::vector<TileMeshEval> meshes;  ///< sorted by level, building, tile
+  std::vector<LevelSummary> levels;  ///< levels with content
 };
 
 /// `path`: a tileset.json or a directory holding one. `work_dir`: "" or the
 /// work directory the tileset was assembled from. Throws io::IoError naming
 /// the file (missing or malformed tileset.json, missing or corrupt glb,
 /// unsupported content, building not in the manifest, ...).
-TilesetEval evaluate_tileset(const std::string& path, const std::string& work_dir, const EvalOptions& o,
-                             const ProgressFn& progress = {});
+TilesetEval evaluate_tileset(const std::string& path, const std::string& work_dir,
+                             const EvalOptions& o, const ProgressFn& progress = {});
 
 }  // namespace citylod::tiler

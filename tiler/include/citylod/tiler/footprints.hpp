@@ -1,7 +1,8 @@
 // Part of the split stage: building footprints (GeoJSON Polygon/MultiPolygon)
 // and their geometry (area, containment, distance, convex hull; the ring
-// primitives are citylod/lod/polygon2d.hpp, shared with the LOD engine). Coordinates are whatever the caller puts in: the reader returns
-// them in the file's CRS units; split.cpp converts them to scene ENU metres.
+// primitives are citylod/lod/polygon2d.hpp, shared with the LOD engine). Coordinates are whatever
+// the caller puts in: the reader returns them in the file's CRS units; split.cpp converts them to
+// scene ENU metres.
 #pragma once
 
 #include <array>

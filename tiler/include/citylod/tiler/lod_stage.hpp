@@ -70,17 +70,17 @@ BuildingLodResult build_building_lod(const BuildingLodOptions& o, const Progress
 /// `id` and `key` (city runs) are recorded in report.json.
 std::vector<std::string> write_lod_output(const std::string& dir, const lod::LodResult& r,
                                           const lod::LodParams& p, const std::string& input,
-                                          const io::Vec3d& origin, bool dump_planes, const std::string& id = "",
-                                          const std::string& key = "");
+                                          const io::Vec3d& origin, bool dump_planes,
+                                          const std::string& id = "", const std::string& key = "");
 
 // ------------------------------------------------------------ a work directory
 
 struct LodStageOptions {
   std::string work_dir;
-  lod::LodParams params;                 ///< per building (params.threads is forced to 1 inside a city run)
-  int threads = 1;                       ///< buildings processed at once (std::threads), >= 1
+  lod::LodParams params;  ///< per building (params.threads is forced to 1 inside a city run)
+  int threads = 1;        ///< buildings processed at once (std::threads), >= 1
   int shard_index = 0, shard_count = 1;  ///< process the chunks with (rank % count) == index
-  std::vector<std::string> only;         ///< if not empty: these building ids only (and always recomputed)
+  std::vector<std::string> only;  ///< if not empty: these building ids only (and always recomputed)
 };
 
 /// What the stage will do, known before it runs (the parent of a supervised

@@ -19,9 +19,17 @@ using LogSink = std::function<void(LogLevel, const std::string&)>;
 void set_log_sink(LogSink sink);
 
 void log_message(LogLevel level, const std::string& msg);
-inline void log_error(const std::string& msg) { log_message(LogLevel::error, msg); }
-inline void log_warn(const std::string& msg) { log_message(LogLevel::warn, msg); }
-inline void log_info(const std::string& msg) { log_message(LogLevel::info, msg); }
-inline void log_debug(const std::string& msg) { log_message(LogLevel::debug, msg); }
+inline void log_error(const std::string& msg) {
+  log_message(LogLevel::error, msg);
+}
+inline void log_warn(const std::string& msg) {
+  log_message(LogLevel::warn, msg);
+}
+inline void log_info(const std::string& msg) {
+  log_message(LogLevel::info, msg);
+}
+inline void log_debug(const std::string& msg) {
+  log_message(LogLevel::debug, msg);
+}
 
 }  // namespace citylod::tiler

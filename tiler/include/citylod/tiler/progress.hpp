@@ -12,12 +12,12 @@ namespace citylod::tiler {
 
 /// One report of a long task.
 struct ProgressEvent {
-  const char* task = "";       ///< "split", "lod", "assemble", "eval", "reading tiles"
-  double fraction = 0;         ///< of the task, in [0, 1]
-  const char* detail = nullptr;  ///< sub-step ("ingest", "writing tiles", ...) or nullptr
+  const char* task = "";            ///< "split", "lod", "assemble", "eval", "reading tiles"
+  double fraction = 0;              ///< of the task, in [0, 1]
+  const char* detail = nullptr;     ///< sub-step ("ingest", "writing tiles", ...) or nullptr
   std::size_t done = 0, total = 0;  ///< items done / in the task when it counts items (else 0)
-  const char* unit = nullptr;  ///< what the items are ("buildings", "tiles") or nullptr
-  bool finished = false;       ///< the task is over (the last event of a task)
+  const char* unit = nullptr;       ///< what the items are ("buildings", "tiles") or nullptr
+  bool finished = false;            ///< the task is over (the last event of a task)
 };
 
 /// Called from one thread at a time. Return false to cancel: the task then
@@ -31,12 +31,16 @@ struct Cancelled : std::exception {
 };
 
 /// Calls `fn` (if set) with a fraction-only event; throws Cancelled when it returns false.
-void report_progress(const ProgressFn& fn, const char* task, double fraction, const char* detail = nullptr);
+void report_progress(const ProgressFn& fn, const char* task, double fraction,
+                     const char* detail = nullptr);
 /// Calls `fn` (if set) with an item count; throws Cancelled when it returns false.
-void report_count(const ProgressFn& fn, const char* task, std::size_t done, std::size_t total, const char* unit);
+void report_count(const ProgressFn& fn, const char* task, std::size_t done, std::size_t total,
+                  const char* unit);
 /// The same without cancellation (inside OpenMP regions): the return value of `fn` is ignored.
-void notify_progress(const ProgressFn& fn, const char* task, double fraction, const char* detail = nullptr);
-void notify_count(const ProgressFn& fn, const char* task, std::size_t done, std::size_t total, const char* unit);
+void notify_progress(const ProgressFn& fn, const char* task, double fraction,
+                     const char* detail = nullptr);
+void notify_count(const ProgressFn& fn, const char* task, std::size_t done, std::size_t total,
+                  const char* unit);
 /// The last event of a task (fraction 1, finished).
 void notify_finished(const ProgressFn& fn, const char* task);
 

@@ -16,7 +16,7 @@ namespace citylod::tiler {
 /// with more than one thread when this process has run one before the fork
 /// (libgomp's pool does not survive fork); run_lod_stage() uses std::threads.
 /// `crashes` (if given) receives the number of restarts after a crash.
-int supervise(const std::string& work_dir, const std::function<int()>& work, int max_restarts = 1000,
-              int* crashes = nullptr);
+int supervise(const std::string& work_dir, const std::function<int()>& work,
+              int max_restarts = 1000, int* crashes = nullptr);
 
 }  // namespace citylod::tiler

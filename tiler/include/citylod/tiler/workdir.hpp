@@ -29,6 +29,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "citylod/io/gltf.hpp"
 #include "citylod/tiler/assemble.hpp"
 
@@ -49,12 +51,14 @@ Status status_from_string(const std::string& s);
 using ModelKind = io::LodKind;
 /// Throws std::invalid_argument for an unknown spelling.
 ModelKind model_kind_from_string(const std::string& s);
-inline bool is_anchor(ModelKind k) { return k != ModelKind::interpolation; }
+inline bool is_anchor(ModelKind k) {
+  return k != ModelKind::interpolation;
+}
 
 // ------------------------------------------------------------ manifest.json
 
 struct SceneInfo {
-  std::string crs;                            ///< CRS spec as given ("EPSG:28992", WKT, or "" for --origin)
+  std::string crs;  ///< CRS spec as given ("EPSG:28992", WKT, or "" for --origin)
   std::array<double, 3> origin_crs{0, 0, 0};  ///< scene origin in CRS units
   double origin_lon = 0, origin_lat = 0;      ///< degrees (WGS84)
   double origin_h = 0;                        ///< metres, ellipsoidal (WGS84)
@@ -64,7 +68,7 @@ struct SceneInfo {
 };
 
 struct ChunkRecord {
-  std::string id;                           ///< stable id ("fp-<footprint id>" or "b-<position hash>")
+  std::string id;  ///< stable id ("fp-<footprint id>" or "b-<position hash>")
   std::array<double, 3> origin{0, 0, 0};    ///< chunk origin, scene ENU metres
   std::array<double, 3> bbox_min{0, 0, 0};  ///< scene ENU metres
   std::array<double, 3> bbox_max{0, 0, 0};
@@ -87,6 +91,9 @@ struct Manifest {
 
 /// Throws io::IoError("<WORK>/manifest.json: ...") when missing or malformed.
 Manifest read_manifest(const std::string& work_dir);
+/// Throws io::IoError naming the manifest when the scene origin is not a valid
+/// longitude / latitude / height (assemble and eval need it; split writes it).
+void require_valid_origin(const Manifest& m, const std::string& work_dir);
 /// Atomic; chunks are written sorted by id.
 void write_manifest(const std::string& work_dir, const Manifest& m);
 
@@ -114,10 +121,10 @@ struct ModelRecord {
 struct LodReport {
   std::string input;  ///< the file the models were built from
   Status status = Status::failed;
-  std::string reason;                            ///< why fallback / failed
-  std::string id, key;                           ///< city runs: building id and resume key ("" otherwise)
+  std::string reason;   ///< why fallback / failed
+  std::string id, key;  ///< city runs: building id and resume key ("" otherwise)
   std::map<std::string, std::string> parameters;  ///< every LOD parameter (LodParams::items())
-  std::map<std::string, std::int64_t> counts;    ///< input_points, P, S, principal, ..., models
+  std::map<std::string, std::int64_t> counts;     ///< input_points, P, S, principal, ..., models
   std::map<std::string, std::int64_t> lod_tree_vs_bsp_tree;
   double bbox_diagonal_m = 0;
   bool normals_estimated = false, walls_inferred = false;
@@ -190,8 +197,8 @@ struct RunReport {
   std::size_t ok = 0, fallback = 0, failed = 0, skipped = 0;  ///< "summary"
   double seconds_total = 0;
   std::uint64_t peak_rss_self = 0, peak_rss_children = 0;  ///< bytes
-  std::map<std::string, std::string> lod_params;            ///< without "threads"
-  AssembleParams assemble_params;                           ///< threads and force are not recorded
+  std::map<std::string, std::string> lod_params;           ///< without "threads"
+  AssembleParams assemble_params;                          ///< threads and force are not recorded
   std::string work = "work", tileset = "tileset";
   std::vector<BuildingRecord> buildings;
   struct LastRebuild {
@@ -203,6 +210,14 @@ struct RunReport {
   };
   std::optional<LastRebuild> last_rebuild;
 };
+
+// JSON of the stage records: the field names are the keys; absent keys keep the defaults.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Split, seconds, up_to_date, chunks,
+                                                points, crs)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Lod, seconds, buildings, computed,
+                                                reused, restarts)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Assemble, seconds, buildings, tiles,
+                                                glb_bytes, models_kept, depth, warnings)
 
 std::string run_report_path(const std::string& out_dir);
 /// Throws std::runtime_error naming the file when it is missing or malformed.
