@@ -24,8 +24,8 @@
 // rotated by DEG degrees (default 0) about the z axis (see crop()).
 // Without INPUT: easy3d_building.off, b9_mesh.off whole, b9_mesh.off cropped
 // to its main building, AHN3_13856.ply with City3D's AHN3_13856.obj.
+#include "citylod/tiler/bridge.hpp"
 #include "fidelity_cgal.hpp"
-#include "lod_io.hpp"
 
 #include "citylod/io/reader.hpp"
 #include "citylod/lod/lod.hpp"
@@ -58,7 +58,8 @@ struct Peer {
 struct InputSpec {
   std::string path, name;
   bool crop = false;
-  std::array<double, 7> box{};  ///< x0 y0 z0 x1 y1 z1 (file coordinates) and the box's rotation about z (degrees)
+  std::array<double, 7>
+      box{};  ///< x0 y0 z0 x1 y1 z1 (file coordinates) and the box's rotation about z (degrees)
   std::vector<Peer> peers;
   std::string note;  ///< printed under the input's heading (why it is in the default list)
 };
@@ -89,13 +90,16 @@ std::array<double, 7> parse_box(const std::string& s) {
   return b;
 }
 
-std::string stem(const std::string& path) { return fs::path(path).stem().string(); }
+std::string stem(const std::string& path) {
+  return fs::path(path).stem().string();
+}
 
 /// Keeps the triangles (or points) whose vertices all lie in the box; unused
 /// vertices are dropped. The box is given in file coordinates (= local +
 /// origin) rotated by b[6] degrees about the z axis: (x, y, z) is inside when
 /// (x cos a - y sin a, x sin a + y cos a, z) is in [x0, x1] x [y0, y1] x [z0, z1].
-lod::BuildingInput crop(const lod::BuildingInput& in, const io::Vec3d& o, const std::array<double, 7>& b) {
+lod::BuildingInput crop(const lod::BuildingInput& in, const io::Vec3d& o,
+                        const std::array<double, 7>& b) {
   const double a = b[6] * 3.14159265358979323846 / 180.0, c = std::cos(a), s = std::sin(a);
   auto inside = [&](const lod::Vec3& p) {
     const double x = p.x() + o[0], y = p.y() + o[1], z = p.z() + o[2];
@@ -149,11 +153,13 @@ lod::TriangleMesh meshopt_qem(const lod::BuildingInput& in, std::size_t target) 
     for (int v : t) idx.push_back(unsigned(v));
   std::vector<unsigned> out(idx.size());
   float err = 0;
-  const std::size_t n = meshopt_simplify(out.data(), idx.data(), idx.size(), pos.data(), in.points.size(),
-                                         3 * sizeof(float), std::max<std::size_t>(3, 3 * target), 1e9f, 0, &err);
+  const std::size_t n =
+      meshopt_simplify(out.data(), idx.data(), idx.size(), pos.data(), in.points.size(),
+                       3 * sizeof(float), std::max<std::size_t>(3, 3 * target), 1e9f, 0, &err);
   lod::TriangleMesh m;
   m.vertices = in.points;
-  for (std::size_t i = 0; i + 2 < n; i += 3) m.triangles.push_back({int(out[i]), int(out[i + 1]), int(out[i + 2])});
+  for (std::size_t i = 0; i + 2 < n; i += 3)
+    m.triangles.push_back({int(out[i]), int(out[i + 1]), int(out[i + 2])});
   return m;
 }
 
@@ -182,8 +188,9 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   f << "method,model,kind,triangles,e1,e2,closed,manifold\n";
   char line[256];
   for (const auto& r : rows) {
-    std::snprintf(line, sizeof line, "%s,%d,%s,%zu,%.4f,%.4f,%d,%d\n", r.method.c_str(), r.model, r.kind.c_str(),
-                  r.ev.triangles, r.ev.e1, r.ev.e2, int(r.ev.check.closed), int(r.ev.check.edge_manifold));
+    std::snprintf(line, sizeof line, "%s,%d,%s,%zu,%.4f,%.4f,%d,%d\n", r.method.c_str(), r.model,
+                  r.kind.c_str(), r.ev.triangles, r.ev.e1, r.ev.e2, int(r.ev.check.closed),
+                  int(r.ev.check.edge_manifold));
     f << line;
   }
   if (!f.flush()) throw std::runtime_error("cannot write " + path);
@@ -192,7 +199,8 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
 /// Counts, over our models that the peer could reach (at most 3 % more
 /// triangles than ours), how often our e2 is lower; the others are below the
 /// peer's floor (it stops when no edge can be collapsed any more).
-void print_comparison(const char* label, const std::vector<const Row*>& ours, const std::vector<const Row*>& peer) {
+void print_comparison(const char* label, const std::vector<const Row*>& ours,
+                      const std::vector<const Row*>& peer) {
   int wins = 0, reached = 0;
   std::size_t floor = 0;
   double lo = 1e300, hi = 0;
@@ -207,11 +215,12 @@ void print_comparison(const char* label, const std::vector<const Row*>& ours, co
     lo = std::min(lo, ratio);
     hi = std::max(hi, ratio);
   }
-  std::printf("- vs %s: at equal triangle count (within 3 %%) our e2 is lower in %d of %d models", label, wins,
-              reached);
+  std::printf("- vs %s: at equal triangle count (within 3 %%) our e2 is lower in %d of %d models",
+              label, wins, reached);
   if (reached) std::printf(" (%s e2 / our e2 = %.2f .. %.2f)", label, lo, hi);
   if (reached < int(ours.size()))
-    std::printf("; %zu of our models are below its floor of %zu triangles", ours.size() - std::size_t(reached), floor);
+    std::printf("; %zu of our models are below its floor of %zu triangles",
+                ours.size() - std::size_t(reached), floor);
   std::printf("\n");
 }
 
@@ -226,12 +235,15 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
   if (!spec.note.empty()) std::printf("- note: %s\n", spec.note.c_str());
   std::printf("- input: `%s`", spec.path.c_str());
   if (spec.crop)
-    std::printf(", cropped to the box x' [%g, %g], y' [%g, %g], z [%g, %g] with (x', y') = (x, y) of the file "
-                "rotated by %g degrees about z",
-                spec.box[0], spec.box[3], spec.box[1], spec.box[4], spec.box[2], spec.box[5], spec.box[6]);
+    std::printf(
+        ", cropped to the box x' [%g, %g], y' [%g, %g], z [%g, %g] with (x', y') = (x, y) of the "
+        "file "
+        "rotated by %g degrees about z",
+        spec.box[0], spec.box[3], spec.box[1], spec.box[4], spec.box[2], spec.box[5], spec.box[6]);
   if (mesh)
-    std::printf(": %zu triangles, %zu vertices (of %zu / %zu in the file)\n", input.triangles.size(),
-                input.points.size(), loaded.input.triangles.size(), loaded.input.points.size());
+    std::printf(": %zu triangles, %zu vertices (of %zu / %zu in the file)\n",
+                input.triangles.size(), input.points.size(), loaded.input.triangles.size(),
+                loaded.input.points.size());
   else
     std::printf(": %zu points%s (of %zu in the file)\n", input.points.size(),
                 input.normals.empty() ? "" : " with normals", loaded.input.points.size());
@@ -240,9 +252,11 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
   const lod::LodParams params;  // defaults (the paper's), including the 120 s time budget
   const lod::LodResult r = lod::build_lod_tree(input, params);
   const double s_lod = seconds_since(t_lod);
-  std::printf("- LOD engine (default parameters): status %s%s%s, %zu candidate models, bbox diagonal %.1f m\n",
-              r.status.c_str(), r.reason.empty() ? "" : ": ", r.reason.c_str(), r.models.size(),
-              r.stats.bbox_diagonal);
+  std::printf(
+      "- LOD engine (default parameters): status %s%s%s, %zu candidate models, bbox diagonal %.1f "
+      "m\n",
+      r.status.c_str(), r.reason.empty() ? "" : ": ", r.reason.c_str(), r.models.size(),
+      r.stats.bbox_diagonal);
   for (const auto& n : r.stats.notes) std::printf("- engine note: %s\n", n.c_str());
   if (!r.models.empty()) {
     double worst = 0;
@@ -258,12 +272,14 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
     gh = std::make_unique<bench::GhSimplifier>(as_mesh(input));
     s_cgal += seconds_since(t);
     const bench::GhRepairStats& g = gh->stats();
-    std::printf("- CGAL input repair: repair_polygon_soup %zu -> %zu triangles, %zu -> %zu points; "
-                "orient_polygon_soup %s (%zu points after); Surface_mesh %zu faces, %zu vertices "
-                "(%zu non-manifold vertices split): **%zu triangles lost**\n",
-                g.input_triangles, g.soup_polygons, g.input_vertices, g.soup_points,
-                g.oriented_without_duplication ? "without duplicating points" : "duplicated points",
-                g.oriented_points, g.mesh_faces, g.mesh_vertices, g.nonmanifold_vertices_split, g.lost_triangles);
+    std::printf(
+        "- CGAL input repair: repair_polygon_soup %zu -> %zu triangles, %zu -> %zu points; "
+        "orient_polygon_soup %s (%zu points after); Surface_mesh %zu faces, %zu vertices "
+        "(%zu non-manifold vertices split): **%zu triangles lost**\n",
+        g.input_triangles, g.soup_polygons, g.input_vertices, g.soup_points,
+        g.oriented_without_duplication ? "without duplicating points" : "duplicated points",
+        g.oriented_points, g.mesh_faces, g.mesh_vertices, g.nonmanifold_vertices_split,
+        g.lost_triangles);
   }
 
   for (const auto& m : r.models) {
@@ -287,11 +303,7 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
     s_eval += seconds_since(t);
   }
   for (const auto& p : spec.peers) {
-    const io::TriangleMesh pm = io::read_mesh(p.path);
-    lod::TriangleMesh model;
-    const io::Vec3d& o = loaded.origin;
-    for (const auto& v : pm.vertices) model.vertices.emplace_back(v[0] - o[0], v[1] - o[1], v[2] - o[2]);
-    for (const auto& t : pm.triangles) model.triangles.push_back({int(t[0]), int(t[1]), int(t[2])});
+    const lod::TriangleMesh model = tiler::to_lod_mesh(io::read_mesh(p.path), loaded.origin);
     rows.push_back({p.label, -1, "peer", lod::evaluate_model(model, input, samples)});
     std::printf("- peer model %s: `%s`\n", p.label.c_str(), p.path.c_str());
   }
@@ -299,11 +311,14 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
   // Markdown table: one line per candidate of ours, peers at the end.
   std::printf("\n");
   if (mesh) {
-    std::printf("| model | kind | triangles | ours e1 %% | ours e2 %% | ours | meshopt tris | meshopt e1 %% | "
-                "meshopt e2 %% | meshopt | CGAL GH tris | CGAL GH e1 %% | CGAL GH e2 %% | CGAL GH |\n");
+    std::printf(
+        "| model | kind | triangles | ours e1 %% | ours e2 %% | ours | meshopt tris | meshopt e1 "
+        "%% | "
+        "meshopt e2 %% | meshopt | CGAL GH tris | CGAL GH e1 %% | CGAL GH e2 %% | CGAL GH |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   } else {
-    std::printf("| model | kind | triangles | e1 %% | e2 %% | validity |\n|---|---|---|---|---|---|\n");
+    std::printf(
+        "| model | kind | triangles | e1 %% | e2 %% | validity |\n|---|---|---|---|---|---|\n");
   }
   std::vector<const Row*> ours, qem, cgal;
   for (const auto& row : rows) {
@@ -313,17 +328,20 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
   }
   for (std::size_t i = 0; i < ours.size(); ++i) {
     const Row& o = *ours[i];
-    std::printf("| %d | %s | %zu | %.3f | %.3f | %s |", o.model, o.kind.c_str(), o.ev.triangles, o.ev.e1, o.ev.e2,
-                validity(o.ev).c_str());
+    std::printf("| %d | %s | %zu | %.3f | %.3f | %s |", o.model, o.kind.c_str(), o.ev.triangles,
+                o.ev.e1, o.ev.e2, validity(o.ev).c_str());
     if (mesh)
       for (const Row* p : {qem[i], cgal[i]})
-        std::printf(" %zu | %.3f | %.3f | %s |", p->ev.triangles, p->ev.e1, p->ev.e2, validity(p->ev).c_str());
+        std::printf(" %zu | %.3f | %.3f | %s |", p->ev.triangles, p->ev.e1, p->ev.e2,
+                    validity(p->ev).c_str());
     std::printf("\n");
   }
   for (const auto& row : rows) {
     if (row.model >= 0) continue;
-    std::printf("| %s | peer | %zu | %.3f | %.3f | %s |", row.method.c_str(), row.ev.triangles, row.ev.e1,
-                row.ev.e2, (validity(row.ev) + (row.ev.check.self_intersecting ? ", self-intersecting" : "")).c_str());
+    std::printf(
+        "| %s | peer | %zu | %.3f | %.3f | %s |", row.method.c_str(), row.ev.triangles, row.ev.e1,
+        row.ev.e2,
+        (validity(row.ev) + (row.ev.check.self_intersecting ? ", self-intersecting" : "")).c_str());
     if (mesh) std::printf(" | | | | | | | |");
     std::printf("\n");
   }
@@ -341,8 +359,9 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
         ++better;
         if (fewest == 0 || o->ev.triangles < fewest) fewest = o->ev.triangles;
       }
-    std::printf("- vs %s (%zu triangles, e2 %.3f %%): %d of our %zu models have an e2 as low or lower", row.method.c_str(),
-                row.ev.triangles, row.ev.e2, better, ours.size());
+    std::printf(
+        "- vs %s (%zu triangles, e2 %.3f %%): %d of our %zu models have an e2 as low or lower",
+        row.method.c_str(), row.ev.triangles, row.ev.e2, better, ours.size());
     if (better) std::printf(", the smallest with %zu triangles", fewest);
     std::printf("\n");
   }
@@ -350,7 +369,8 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
 
   if (!out_dir.empty()) write_csv((fs::path(out_dir) / (spec.name + ".csv")).string(), rows);
   std::fprintf(stderr,
-               "fidelity_bench: %s: LOD engine %.2f s, meshopt %.2f s, CGAL repair + GH %.2f s, evaluation %.2f s, "
+               "fidelity_bench: %s: LOD engine %.2f s, meshopt %.2f s, CGAL repair + GH %.2f s, "
+               "evaluation %.2f s, "
                "total %.2f s\n",
                spec.name.c_str(), s_lod, s_meshopt, s_cgal, s_eval, seconds_since(t_load));
   return 0;
@@ -381,8 +401,10 @@ int main(int argc, char** argv) {
         if (inputs.empty()) usage((a + " must follow an INPUT").c_str());
         return inputs.back();
       };
-      if (a == "--out") out_dir = value();
-      else if (a == "--samples") samples = std::stoi(value());
+      if (a == "--out")
+        out_dir = value();
+      else if (a == "--samples")
+        samples = std::stoi(value());
       else if (a == "--crop") {
         const std::string v = value();
         last().crop = true;
@@ -396,7 +418,9 @@ int main(int argc, char** argv) {
         if (eq == std::string::npos || eq == 0) usage("--peer takes LABEL=MODEL");
         last().peers.push_back({v.substr(0, eq), v.substr(eq + 1)});
       } else if (a == "--help" || a == "-h") {
-        usage("fidelity of our LOD models vs QEM (meshoptimizer, CGAL Garland-Heckbert) at equal triangle counts");
+        usage(
+            "fidelity of our LOD models vs QEM (meshoptimizer, CGAL Garland-Heckbert) at equal "
+            "triangle counts");
       } else if (!a.empty() && a[0] == '-') {
         usage(("unknown option " + a).c_str());
       } else {
@@ -409,27 +433,48 @@ int main(int argc, char** argv) {
   if (samples < 1) usage("--samples must be >= 1");
   if (inputs.empty()) {
     const std::string d = CITYLOD_SHARED_DATA;
-    inputs.push_back({d + "/noisy_mesh/easy3d_building.off", "easy3d_building", false, {}, {},
+    inputs.push_back({d + "/noisy_mesh/easy3d_building.off",
+                      "easy3d_building",
+                      false,
+                      {},
+                      {},
                       "one building with a terrain sheet (~15 % of its area)"});
-    inputs.push_back({d + "/urban_block_b9/b9_mesh.off", "b9_mesh", false, {}, {},
-                      "the whole urban block (terrain, several buildings, trees) as ONE input: the engine models "
-                      "one building, so it makes one solid of the block; see b9_mesh_crop for a building"});
+    inputs.push_back(
+        {d + "/urban_block_b9/b9_mesh.off",
+         "b9_mesh",
+         false,
+         {},
+         {},
+         "the whole urban block (terrain, several buildings, trees) as ONE input: the engine "
+         "models "
+         "one building, so it makes one solid of the block; see b9_mesh_crop for a building"});
     // The main (A-shaped) building of the block: its box in the frame of its
     // walls (rotated 22 degrees about z), above the ground and the lower walls
     // (ground at z -12..-8, roofs at 0..5).
-    inputs.push_back({d + "/urban_block_b9/b9_mesh.off", "b9_mesh_crop", true, {-28, -46, -3, 31, 45, 20, 22}, {},
-                      "the block's main (A-shaped) building: its box in the frame of its walls, z >= -3 m "
-                      "(drops the ground at -12..-8 m, the neighbouring buildings and the lower walls; keeps "
-                      "the tree tops of its courtyard)"});
-    inputs.push_back({d + "/ahn3_building_lod2/AHN3_13856.ply", "AHN3_13856", false, {},
-                      {{"City3D", d + "/ahn3_building_lod2/AHN3_13856.obj"}},
-                      "airborne LiDAR points (no QEM on points); City3D's LoD2 model of the same building"});
+    inputs.push_back(
+        {d + "/urban_block_b9/b9_mesh.off",
+         "b9_mesh_crop",
+         true,
+         {-28, -46, -3, 31, 45, 20, 22},
+         {},
+         "the block's main (A-shaped) building: its box in the frame of its walls, z >= -3 m "
+         "(drops the ground at -12..-8 m, the neighbouring buildings and the lower walls; keeps "
+         "the tree tops of its courtyard)"});
+    inputs.push_back(
+        {d + "/ahn3_building_lod2/AHN3_13856.ply",
+         "AHN3_13856",
+         false,
+         {},
+         {{"City3D", d + "/ahn3_building_lod2/AHN3_13856.obj"}},
+         "airborne LiDAR points (no QEM on points); City3D's LoD2 model of the same building"});
   }
   if (!out_dir.empty()) fs::create_directories(out_dir);
-  std::printf("Fidelity against size: our candidate models (build_lod_tree, default LodParams) vs meshoptimizer "
-              "meshopt_simplify and CGAL %s Garland-Heckbert edge collapse at the same triangle counts; "
-              "lod::evaluate_model with %d samples per side, e1/e2 in %% of the input's bbox diagonal.\n",
-              bench::cgal_version(), samples);
+  std::printf(
+      "Fidelity against size: our candidate models (build_lod_tree, default LodParams) vs "
+      "meshoptimizer "
+      "meshopt_simplify and CGAL %s Garland-Heckbert edge collapse at the same triangle counts; "
+      "lod::evaluate_model with %d samples per side, e1/e2 in %% of the input's bbox diagonal.\n",
+      bench::cgal_version(), samples);
   int status = 0;
   for (const auto& in : inputs) {
     try {

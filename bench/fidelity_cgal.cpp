@@ -11,8 +11,8 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
-#include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/repair.h>
+#include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/GarlandHeckbert_plane_policies.h>
 #include <CGAL/Surface_mesh_simplification/edge_collapse.h>
@@ -43,7 +43,9 @@ struct FaceCountStop {
 
 }  // namespace
 
-const char* cgal_version() { return CGAL_VERSION_STR; }
+const char* cgal_version() {
+  return CGAL_VERSION_STR;
+}
 
 struct GhSimplifier::Impl {
   Mesh mesh;
@@ -82,14 +84,17 @@ GhSimplifier::GhSimplifier(const lod::TriangleMesh& input) : impl_(std::make_uni
 
 GhSimplifier::~GhSimplifier() = default;
 
-const GhRepairStats& GhSimplifier::stats() const { return impl_->stats; }
+const GhRepairStats& GhSimplifier::stats() const {
+  return impl_->stats;
+}
 
 lod::TriangleMesh GhSimplifier::simplify(std::size_t target_triangles) const {
   Mesh m = impl_->mesh;
   if (m.number_of_faces() > target_triangles) {
     SMS::GarlandHeckbert_plane_policies<Mesh, K> gh(m);
     const FaceCountStop stop{&m, target_triangles};
-    SMS::edge_collapse(m, stop, CGAL::parameters::get_cost(gh.get_cost()).get_placement(gh.get_placement()));
+    SMS::edge_collapse(m, stop,
+                       CGAL::parameters::get_cost(gh.get_cost()).get_placement(gh.get_placement()));
   }
   lod::TriangleMesh out;
   auto index = m.add_property_map<Mesh::Vertex_index, int>("v:bench_index", -1).first;

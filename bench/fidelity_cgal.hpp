@@ -15,10 +15,10 @@ struct GhRepairStats {
   std::size_t input_triangles = 0, input_vertices = 0;
   std::size_t soup_polygons = 0, soup_points = 0;  ///< after repair_polygon_soup
   bool oriented_without_duplication = false;       ///< orient_polygon_soup's return value
-  std::size_t oriented_points = 0;                 ///< after orient_polygon_soup (non-manifold points duplicated)
-  std::size_t mesh_faces = 0, mesh_vertices = 0;   ///< the Surface_mesh that is simplified
-  std::size_t lost_triangles = 0;                  ///< input_triangles - mesh_faces
-  std::size_t nonmanifold_vertices_split = 0;      ///< by duplicate_non_manifold_vertices on the mesh
+  std::size_t oriented_points = 0;  ///< after orient_polygon_soup (non-manifold points duplicated)
+  std::size_t mesh_faces = 0, mesh_vertices = 0;  ///< the Surface_mesh that is simplified
+  std::size_t lost_triangles = 0;                 ///< input_triangles - mesh_faces
+  std::size_t nonmanifold_vertices_split = 0;  ///< by duplicate_non_manifold_vertices on the mesh
 };
 
 /// CGAL_VERSION_STR of the CGAL the bench was built with.

@@ -4,7 +4,7 @@
 // LOD-Tree vs plain BSP-Tree cut counts (paper Section 5.1).
 //
 //   lod_bench [--threads N] [FILE...]     (default: the three real inputs of ../shared/data)
-#include "lod_io.hpp"
+#include "citylod/tiler/bridge.hpp"
 
 #include "citylod/lod/lod.hpp"
 
@@ -72,8 +72,10 @@ int main(int argc, char** argv) {
   int threads = 1;
   std::vector<std::string> files;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) threads = std::atoi(argv[++i]);
-    else files.push_back(argv[i]);
+    if (!std::strcmp(argv[i], "--threads") && i + 1 < argc)
+      threads = std::atoi(argv[++i]);
+    else
+      files.push_back(argv[i]);
   }
   if (files.empty()) {
     const std::string d = CITYLOD_SHARED_DATA;
@@ -81,8 +83,12 @@ int main(int argc, char** argv) {
              d + "/ahn3_building_lod2/AHN3_13856.ply"};
   }
   std::printf("threads per building: %d\n\n", threads);
-  std::printf("| input | F | V | D (m) | P | S | N_l | T1 (s) | T2 (s) | T3 (s) | total (s) | CPU (s) | peak RSS (MB) | anchors | interp. | finest e1 %% | finest e2 %% | LOD-Tree cuts | BSP-Tree nodes | BSP-Tree cuts |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "| input | F | V | D (m) | P | S | N_l | T1 (s) | T2 (s) | T3 (s) | total (s) | CPU (s) | "
+      "peak RSS (MB) | anchors | interp. | finest e1 %% | finest e2 %% | LOD-Tree cuts | BSP-Tree "
+      "nodes | BSP-Tree cuts |\n");
+  std::printf(
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& f : files) {
     int fds[2];
     if (pipe(fds) != 0) return 1;
@@ -113,11 +119,13 @@ int main(int argc, char** argv) {
     }
     const double cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
                        1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-    std::printf("| %s%s | %d | %d | %.1f | %d | %d | %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %d | %d | %.3f | %.3f | %d | %d | %d |\n",
-                name.c_str(), row.fallback ? (std::string(" (FALLBACK: ") + row.reason + ")").c_str() : "",
-                row.F, row.V, row.diag, row.P, row.S, row.levels, row.T1, row.T2, row.T3, row.total,
-                cpu, ru.ru_maxrss / 1024.0, row.anchors, row.interps, row.e1, row.e2, row.lod_cuts,
-                row.bsp_nodes, row.bsp_cuts);
+    std::printf(
+        "| %s%s | %d | %d | %.1f | %d | %d | %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %d | "
+        "%d | %.3f | %.3f | %d | %d | %d |\n",
+        name.c_str(), row.fallback ? (std::string(" (FALLBACK: ") + row.reason + ")").c_str() : "",
+        row.F, row.V, row.diag, row.P, row.S, row.levels, row.T1, row.T2, row.T3, row.total, cpu,
+        ru.ru_maxrss / 1024.0, row.anchors, row.interps, row.e1, row.e2, row.lod_cuts,
+        row.bsp_nodes, row.bsp_cuts);
     std::fflush(stdout);
   }
   return 0;

@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "bench_scene.hpp"
-#include "split.hpp"
+#include "citylod/tiler/split.hpp"
 
 namespace fs = std::filesystem;
 using namespace citylod;

@@ -19,9 +19,9 @@
 // Prints a markdown table (stdout; progress on stderr) and writes
 // DIR/tile_scaling.csv. Every scale starts from an empty output directory
 // (nothing is reused). Exit 1 when a run fails (its log is named).
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
-#include <fcntl.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -53,11 +53,12 @@ struct Args {
 };
 
 [[noreturn]] void usage(const char* why) {
-  std::fprintf(stderr,
-               "tile_bench: %s\n"
-               "usage: tile_bench --citylod PATH --out DIR [--scales 1,4,16] [--threads N] [--input LAS]\n"
-               "                  [--crs CRS] [--keep]\n",
-               why);
+  std::fprintf(
+      stderr,
+      "tile_bench: %s\n"
+      "usage: tile_bench --citylod PATH --out DIR [--scales 1,4,16] [--threads N] [--input LAS]\n"
+      "                  [--crs CRS] [--keep]\n",
+      why);
   std::exit(2);
 }
 
@@ -75,7 +76,8 @@ double load_average() {
 }
 
 /// Runs argv as a child with stdout+stderr to `log`; returns the wait status and its rusage.
-int run_child(const std::vector<std::string>& argv, const std::string& log, rusage& ru, double& wall) {
+int run_child(const std::vector<std::string>& argv, const std::string& log, rusage& ru,
+              double& wall) {
   std::vector<char*> cargv;
   for (const auto& a : argv) cargv.push_back(const_cast<char*>(a.c_str()));
   cargv.push_back(nullptr);
@@ -115,12 +117,18 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) usage(("missing value for " + k).c_str());
       return argv[++i];
     };
-    if (k == "--citylod") a.citylod = value();
-    else if (k == "--out") a.out = value();
-    else if (k == "--input") a.input = value();
-    else if (k == "--crs") a.crs = value();
-    else if (k == "--threads") a.threads = std::atoi(value().c_str());
-    else if (k == "--keep") a.keep = true;
+    if (k == "--citylod")
+      a.citylod = value();
+    else if (k == "--out")
+      a.out = value();
+    else if (k == "--input")
+      a.input = value();
+    else if (k == "--crs")
+      a.crs = value();
+    else if (k == "--threads")
+      a.threads = std::atoi(value().c_str());
+    else if (k == "--keep")
+      a.keep = true;
     else if (k == "--scales") {
       a.scales.clear();
       std::stringstream ss(value());
@@ -159,18 +167,20 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "tile_bench: scale %d: writing %s\n", n, las.c_str());
     r.points = bench::write_tiled_las(a.input, las, n);
     fs::remove_all(dir);  // a fresh run: nothing to resume
-    std::fprintf(stderr, "tile_bench: scale %d: %llu points, citylod tile --threads %d (log %s)\n", n,
-                 static_cast<unsigned long long>(r.points), a.threads, log.c_str());
+    std::fprintf(stderr, "tile_bench: scale %d: %llu points, citylod tile --threads %d (log %s)\n",
+                 n, static_cast<unsigned long long>(r.points), a.threads, log.c_str());
     rusage ru{};
-    const int status = run_child({a.citylod, "tile", las, "--crs", a.crs, "--threads", std::to_string(a.threads),
-                                  "--out", dir, "--quiet"},
+    const int status = run_child({a.citylod, "tile", las, "--crs", a.crs, "--threads",
+                                  std::to_string(a.threads), "--out", dir, "--quiet"},
                                  log, ru, r.wall);
     if (status < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
       std::fprintf(stderr, "tile_bench: citylod tile failed at scale %d (%s); see %s\n", n,
-                   status >= 0 && WIFSIGNALED(status) ? "killed by a signal" : "non-zero exit", log.c_str());
+                   status >= 0 && WIFSIGNALED(status) ? "killed by a signal" : "non-zero exit",
+                   log.c_str());
       return 1;
     }
-    r.cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+    r.cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+            1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
     r.rss_mb = double(ru.ru_maxrss) / 1024.0;  // KiB -> MiB
     nlohmann::json rep;
     try {
@@ -187,11 +197,13 @@ int main(int argc, char** argv) {
       r.failed = rep.at("summary").at("failed").get<std::size_t>();
       r.report_total = rep.at("seconds_total").get<double>();
       r.rss_self_mb = double(rep.at("peak_rss_bytes").at("self").get<std::uint64_t>()) / (1 << 20);
-      r.rss_lod_mb = double(rep.at("peak_rss_bytes").at("children").get<std::uint64_t>()) / (1 << 20);
+      r.rss_lod_mb =
+          double(rep.at("peak_rss_bytes").at("children").get<std::uint64_t>()) / (1 << 20);
       if (st.at("split").at("points").get<std::uint64_t>() != r.points)
-        std::fprintf(stderr, "tile_bench: warning: split read %llu points, the scene has %llu\n",
-                     static_cast<unsigned long long>(st.at("split").at("points").get<std::uint64_t>()),
-                     static_cast<unsigned long long>(r.points));
+        std::fprintf(
+            stderr, "tile_bench: warning: split read %llu points, the scene has %llu\n",
+            static_cast<unsigned long long>(st.at("split").at("points").get<std::uint64_t>()),
+            static_cast<unsigned long long>(r.points));
     } catch (const std::exception& e) {
       std::fprintf(stderr, "tile_bench: %s/run_report.json: %s\n", dir.c_str(), e.what());
       return 1;
@@ -200,7 +212,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "tile_bench: scale %d: no buildings (see %s)\n", n, log.c_str());
       return 1;
     }
-    std::fprintf(stderr, "tile_bench: scale %d: %zu buildings, %.1f s wall, %.1f s CPU, %.0f MiB peak\n", n,
+    std::fprintf(stderr,
+                 "tile_bench: scale %d: %zu buildings, %.1f s wall, %.1f s CPU, %.0f MiB peak\n", n,
                  r.buildings, r.wall, r.cpu, r.rss_mb);
     runs.push_back(r);
     if (!a.keep) {
@@ -214,34 +227,45 @@ int main(int argc, char** argv) {
   const Run& base = runs.front();
   const double base_per_b = base.wall / double(base.buildings);
   std::ofstream csv(fs::path(a.out) / "tile_scaling.csv");
-  csv << "scale,points,buildings,ok,fallback,failed,tiles,split_s,lod_s,assemble_s,report_total_s,wall_s,cpu_s,"
-         "peak_rss_mib,rss_main_mib,rss_lod_child_mib,wall_per_building_s,lod_per_building_s,wall_ratio,"
+  csv << "scale,points,buildings,ok,fallback,failed,tiles,split_s,lod_s,assemble_s,report_total_s,"
+         "wall_s,cpu_s,"
+         "peak_rss_mib,rss_main_mib,rss_lod_child_mib,wall_per_building_s,lod_per_building_s,wall_"
+         "ratio,"
          "per_building_ratio,threads\n";
-  std::printf("`citylod tile` scaling: %s repeated N times (%s), --threads %d, %u hardware threads, "
-              "load average %.2f before / %.2f after\n\n",
-              fs::path(a.input).filename().c_str(), a.crs.c_str(), a.threads, std::thread::hardware_concurrency(),
-              load0, load1);
-  std::printf("| scale | points | buildings (ok / fallback / failed) | split (s) | lod (s) | assemble (s) | total wall (s) "
-              "| CPU (s) | peak RSS (MiB) | wall per building (s) | total / %dx | per building / %dx |\n",
-              base.scale, base.scale);
+  std::printf(
+      "`citylod tile` scaling: %s repeated N times (%s), --threads %d, %u hardware threads, "
+      "load average %.2f before / %.2f after\n\n",
+      fs::path(a.input).filename().c_str(), a.crs.c_str(), a.threads,
+      std::thread::hardware_concurrency(), load0, load1);
+  std::printf(
+      "| scale | points | buildings (ok / fallback / failed) | split (s) | lod (s) | assemble (s) "
+      "| total wall (s) "
+      "| CPU (s) | peak RSS (MiB) | wall per building (s) | total / %dx | per building / %dx |\n",
+      base.scale, base.scale);
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& r : runs) {
     const double per_b = r.wall / double(r.buildings);
-    std::printf("| %dx | %llu | %zu (%zu / %zu / %zu) | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.3f | %.2f | %.2f |\n",
-                r.scale, static_cast<unsigned long long>(r.points), r.buildings, r.ok, r.fallback, r.failed, r.split,
-                r.lod, r.assemble, r.wall, r.cpu, r.rss_mb, per_b, r.wall / base.wall, per_b / base_per_b);
-    csv << r.scale << ',' << r.points << ',' << r.buildings << ',' << r.ok << ',' << r.fallback << ',' << r.failed
-        << ',' << r.tiles << ',' << fmt("%.3f", r.split) << ',' << fmt("%.3f", r.lod) << ','
-        << fmt("%.3f", r.assemble) << ',' << fmt("%.3f", r.report_total) << ',' << fmt("%.3f", r.wall) << ','
-        << fmt("%.3f", r.cpu) << ',' << fmt("%.1f", r.rss_mb) << ',' << fmt("%.1f", r.rss_self_mb) << ','
-        << fmt("%.1f", r.rss_lod_mb) << ',' << fmt("%.4f", per_b) << ',' << fmt("%.4f", r.lod / double(r.buildings))
-        << ',' << fmt("%.3f", r.wall / base.wall) << ',' << fmt("%.3f", per_b / base_per_b) << ',' << a.threads
-        << '\n';
+    std::printf(
+        "| %dx | %llu | %zu (%zu / %zu / %zu) | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.3f | "
+        "%.2f | %.2f |\n",
+        r.scale, static_cast<unsigned long long>(r.points), r.buildings, r.ok, r.fallback, r.failed,
+        r.split, r.lod, r.assemble, r.wall, r.cpu, r.rss_mb, per_b, r.wall / base.wall,
+        per_b / base_per_b);
+    csv << r.scale << ',' << r.points << ',' << r.buildings << ',' << r.ok << ',' << r.fallback
+        << ',' << r.failed << ',' << r.tiles << ',' << fmt("%.3f", r.split) << ','
+        << fmt("%.3f", r.lod) << ',' << fmt("%.3f", r.assemble) << ','
+        << fmt("%.3f", r.report_total) << ',' << fmt("%.3f", r.wall) << ',' << fmt("%.3f", r.cpu)
+        << ',' << fmt("%.1f", r.rss_mb) << ',' << fmt("%.1f", r.rss_self_mb) << ','
+        << fmt("%.1f", r.rss_lod_mb) << ',' << fmt("%.4f", per_b) << ','
+        << fmt("%.4f", r.lod / double(r.buildings)) << ',' << fmt("%.3f", r.wall / base.wall) << ','
+        << fmt("%.3f", per_b / base_per_b) << ',' << a.threads << '\n';
   }
-  std::printf("\nTotal wall = the child process from fork to exit (split + lod + assemble + writing the run report);\n"
-              "CPU = user + system of it and its descendants (the forked LOD stage); peak RSS = largest\n"
-              "resident set among them (wait4). Per-process peaks in %s/tile_scaling.csv.\n",
-              a.out.c_str());
+  std::printf(
+      "\nTotal wall = the child process from fork to exit (split + lod + assemble + writing the "
+      "run report);\n"
+      "CPU = user + system of it and its descendants (the forked LOD stage); peak RSS = largest\n"
+      "resident set among them (wait4). Per-process peaks in %s/tile_scaling.csv.\n",
+      a.out.c_str());
   csv.close();
   if (!csv) {
     std::fprintf(stderr, "tile_bench: cannot write %s/tile_scaling.csv\n", a.out.c_str());

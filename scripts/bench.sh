@@ -80,7 +80,7 @@ if [ "$do_build" = 1 ]; then
     cmake --build "$build_dir" --target "$t" -j "$jobs" >>"$log" 2>&1 || say "build of $t failed (see $log)"
   done
 fi
-citylod_exe="$(cd "$build_dir" && pwd)/tiler/citylod"
+citylod_exe="$(cd "$build_dir" && pwd)/app/citylod"
 bench_bin="$(cd "$build_dir" && pwd)/bench"
 
 # 2. Run ---------------------------------------------------------------------

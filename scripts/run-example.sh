@@ -3,7 +3,7 @@
 # the bundled example scene (examples/delft_small: AHN3 LiDAR of Delft, CC0,
 # EPSG:28992 + NAP heights) with one `citylod tile`: split into buildings ->
 # LOD-Tree per building -> 3D Tiles. The tileset lands in out/example/tileset; look at it with
-#   build/tiler/citylod serve out/example/tileset      (CesiumJS viewer, offline)
+#   build/app/citylod serve out/example/tileset      (CesiumJS viewer, offline)
 # Usage: scripts/run-example.sh [--no-install]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,7 +15,7 @@ fi
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DCITYLOD_BUILD_TESTS=OFF
 cmake --build build -j"$(nproc)" --target citylod
 
-citylod=build/tiler/citylod
+citylod=build/app/citylod
 scene=examples/delft_small/delft_small.las
 out=out/example
 mkdir -p "$out"

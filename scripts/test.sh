@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Installs dependencies, builds Release with tests, runs the whole test suite,
-# then builds the unit tests with ASan+UBSan and runs them.
+# Installs dependencies, checks the formatting (scripts/format.sh --check),
+# builds Release with tests and warnings as errors, runs the whole test suite,
+# then builds everything again with ASan+UBSan and runs the unit, CLI and
+# real-data tests under the sanitizers.
 # Usage: scripts/test.sh [--no-install] [--no-sanitize]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,16 +23,20 @@ if ((install)); then
 fi
 jobs=$(nproc)
 
-echo "== Release build + full test suite"
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DCITYLOD_BUILD_TESTS=ON
+echo "== format check"
+scripts/format.sh --check
+
+echo "== Release build (warnings are errors) + full test suite"
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DCITYLOD_BUILD_TESTS=ON -DCITYLOD_WERROR=ON
 cmake --build build -j"$jobs"
 ctest --test-dir build --output-on-failure -j"$jobs" --timeout 900
 
 if ((sanitize)); then
-  echo "== ASan+UBSan build of the unit tests"
-  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCITYLOD_BUILD_TESTS=ON -DCITYLOD_SANITIZE=ON
-  cmake --build build-asan -j"$jobs" --target citylod_geo_tests citylod_io_tests citylod_lod_tests citylod_tiler_tests
+  echo "== ASan+UBSan build; unit, CLI (the citylod binary under the sanitizers) and real-data tests"
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCITYLOD_BUILD_TESTS=ON -DCITYLOD_SANITIZE=ON \
+    -DCITYLOD_WERROR=ON
+  cmake --build build-asan -j"$jobs"
   ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-    ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 1800 -L '^(geo|io|lod|tiler)$'
+    ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 1800 -L '^(geo|io|lod|tiler|cli|lodreal)$'
 fi
 echo "== all tests passed"

@@ -29,9 +29,12 @@ std::uint32_t u32(const std::string& b, std::size_t at) {
 
 /// Checks the glb container (header and chunk table) before tinygltf sees it.
 void check_container(const std::string& b, const std::string& name) {
-  if (b.size() < 20) throw IoError(name, "not a glb (" + std::to_string(b.size()) + " bytes, too short for a header)");
+  if (b.size() < 20)
+    throw IoError(name,
+                  "not a glb (" + std::to_string(b.size()) + " bytes, too short for a header)");
   if (std::memcmp(b.data(), "glTF", 4) != 0) throw IoError(name, "not a glb (no 'glTF' magic)");
-  if (u32(b, 4) != 2) throw IoError(name, "glb version " + std::to_string(u32(b, 4)) + " (only 2 is supported)");
+  if (u32(b, 4) != 2)
+    throw IoError(name, "glb version " + std::to_string(u32(b, 4)) + " (only 2 is supported)");
   const std::uint32_t total = u32(b, 8);
   if (total != b.size())
     throw IoError(name, "glb header says " + std::to_string(total) + " bytes, the file has " +
@@ -39,7 +42,8 @@ void check_container(const std::string& b, const std::string& name) {
   std::size_t at = 12;
   int chunk = 0;
   while (at < b.size()) {
-    if (at + 8 > b.size()) throw IoError(name, "glb chunk " + std::to_string(chunk) + " header is truncated");
+    if (at + 8 > b.size())
+      throw IoError(name, "glb chunk " + std::to_string(chunk) + " header is truncated");
     const std::uint32_t len = u32(b, at), type = u32(b, at + 4);
     if (std::uint64_t(at) + 8 + len > b.size())
       throw IoError(name, "glb chunk " + std::to_string(chunk) + " (" + std::to_string(len) +
@@ -54,27 +58,40 @@ void check_container(const std::string& b, const std::string& name) {
 int component_size(int ct) {
   switch (ct) {
     case TINYGLTF_COMPONENT_TYPE_BYTE:
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return 1;
     case TINYGLTF_COMPONENT_TYPE_SHORT:
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+      return 2;
     case TINYGLTF_COMPONENT_TYPE_INT:
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
-    case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
-    case TINYGLTF_COMPONENT_TYPE_DOUBLE: return 8;
-    default: return 0;
+    case TINYGLTF_COMPONENT_TYPE_FLOAT:
+      return 4;
+    case TINYGLTF_COMPONENT_TYPE_DOUBLE:
+      return 8;
+    default:
+      return 0;
   }
 }
 
 int type_components(int type) {
   switch (type) {
-    case TINYGLTF_TYPE_SCALAR: return 1;
-    case TINYGLTF_TYPE_VEC2: return 2;
-    case TINYGLTF_TYPE_VEC3: return 3;
-    case TINYGLTF_TYPE_VEC4: return 4;
-    case TINYGLTF_TYPE_MAT2: return 4;
-    case TINYGLTF_TYPE_MAT3: return 9;
-    case TINYGLTF_TYPE_MAT4: return 16;
-    default: return 0;
+    case TINYGLTF_TYPE_SCALAR:
+      return 1;
+    case TINYGLTF_TYPE_VEC2:
+      return 2;
+    case TINYGLTF_TYPE_VEC3:
+      return 3;
+    case TINYGLTF_TYPE_VEC4:
+      return 4;
+    case TINYGLTF_TYPE_MAT2:
+      return 4;
+    case TINYGLTF_TYPE_MAT3:
+      return 9;
+    case TINYGLTF_TYPE_MAT4:
+      return 16;
+    default:
+      return 0;
   }
 }
 
@@ -86,7 +103,8 @@ double component(const unsigned char* p, int ct, bool normalized) {
       std::memcpy(&v, p, 1);
       return normalized ? std::max(double(v) / 127.0, -1.0) : double(v);
     }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? double(*p) / 255.0 : double(*p);
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return normalized ? double(*p) / 255.0 : double(*p);
     case TINYGLTF_COMPONENT_TYPE_SHORT: {
       std::int16_t v;
       std::memcpy(&v, p, 2);
@@ -117,7 +135,8 @@ double component(const unsigned char* p, int ct, bool normalized) {
       std::memcpy(&v, p, 8);
       return v;
     }
-    default: return 0;
+    default:
+      return 0;
   }
 }
 
@@ -134,7 +153,8 @@ class Reader {
       throw IoError(name_, what + ": buffer " + std::to_string(v.buffer) + " does not exist");
     const auto& data = m_.buffers[std::size_t(v.buffer)].data;
     if (std::uint64_t(v.byteOffset) + v.byteLength > data.size())
-      throw IoError(name_, what + ": bufferView " + std::to_string(index) + " lies outside its buffer");
+      throw IoError(name_,
+                    what + ": bufferView " + std::to_string(index) + " lies outside its buffer");
     return {data.data() + v.byteOffset, v.byteLength};
   }
 
@@ -144,24 +164,31 @@ class Reader {
       throw IoError(name_, what + ": accessor " + std::to_string(index) + " does not exist");
     const tinygltf::Accessor& a = m_.accessors[std::size_t(index)];
     const int cs = component_size(a.componentType), nc = type_components(a.type);
-    if (cs == 0 || nc == 0) throw IoError(name_, what + ": accessor " + std::to_string(index) + " has an invalid type");
+    if (cs == 0 || nc == 0)
+      throw IoError(name_, what + ": accessor " + std::to_string(index) + " has an invalid type");
     if (nc != comps)
-      throw IoError(name_, what + ": accessor " + std::to_string(index) + " has " + std::to_string(nc) +
-                               " components, expected " + std::to_string(comps));
+      throw IoError(name_, what + ": accessor " + std::to_string(index) + " has " +
+                               std::to_string(nc) + " components, expected " +
+                               std::to_string(comps));
     if (a.sparse.isSparse) throw IoError(name_, what + ": sparse accessors are not supported");
-    if (a.count > (std::size_t(1) << 32)) throw IoError(name_, what + ": accessor count is implausible");
+    if (a.count > (std::size_t(1) << 32))
+      throw IoError(name_, what + ": accessor count is implausible");
     std::vector<double> out(a.count * std::size_t(nc), 0.0);
     if (a.bufferView < 0 || a.count == 0) return out;  // no bufferView: zeros (glTF 2.0)
     const auto [base, len] = view(a.bufferView, what);
     const std::size_t elem = std::size_t(cs) * std::size_t(nc);
-    const std::size_t stride =
-        m_.bufferViews[std::size_t(a.bufferView)].byteStride ? m_.bufferViews[std::size_t(a.bufferView)].byteStride : elem;
-    if (stride < elem || std::uint64_t(a.byteOffset) + std::uint64_t(stride) * (a.count - 1) + elem > len)
-      throw IoError(name_, what + ": accessor " + std::to_string(index) + " reads past its bufferView");
+    const std::size_t stride = m_.bufferViews[std::size_t(a.bufferView)].byteStride
+                                   ? m_.bufferViews[std::size_t(a.bufferView)].byteStride
+                                   : elem;
+    if (stride < elem ||
+        std::uint64_t(a.byteOffset) + std::uint64_t(stride) * (a.count - 1) + elem > len)
+      throw IoError(name_,
+                    what + ": accessor " + std::to_string(index) + " reads past its bufferView");
     for (std::size_t i = 0; i < a.count; ++i) {
       const unsigned char* p = base + a.byteOffset + i * stride;
       for (int k = 0; k < nc; ++k)
-        out[i * std::size_t(nc) + std::size_t(k)] = component(p + std::size_t(k) * std::size_t(cs), a.componentType, a.normalized);
+        out[i * std::size_t(nc) + std::size_t(k)] =
+            component(p + std::size_t(k) * std::size_t(cs), a.componentType, a.normalized);
     }
     return out;
   }
@@ -181,10 +208,22 @@ Mat4 node_matrix(const tinygltf::Node& n) {
     for (int k = 0; k < 3; ++k) t[12 + std::size_t(k)] = n.translation[std::size_t(k)];
   if (n.rotation.size() == 4) {
     const double x = n.rotation[0], y = n.rotation[1], z = n.rotation[2], w = n.rotation[3];
-    r = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),     0,
-         2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),     0,
-         2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y), 0,
-         0,                       0,                       0,                       1};
+    r = {1 - 2 * (y * y + z * z),
+         2 * (x * y + z * w),
+         2 * (x * z - y * w),
+         0,
+         2 * (x * y - z * w),
+         1 - 2 * (x * x + z * z),
+         2 * (y * z + x * w),
+         0,
+         2 * (x * z + y * w),
+         2 * (y * z - x * w),
+         1 - 2 * (x * x + y * y),
+         0,
+         0,
+         0,
+         0,
+         1};
   }
   if (n.scale.size() == 3)
     for (int k = 0; k < 3; ++k) s[std::size_t(k) * 5] = n.scale[std::size_t(k)];
@@ -207,7 +246,8 @@ std::string string_member(const tinygltf::Value& v, const char* key, const std::
 }
 
 /// Reads one property table of EXT_structural_metadata.
-GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema, const tinygltf::Value& table, int index) {
+GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema,
+                            const tinygltf::Value& table, int index) {
   const std::string where = "property table " + std::to_string(index);
   GlbPropertyTable t;
   t.name = string_member(table, "name");
@@ -215,22 +255,29 @@ GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema, con
   const int count = int_member(table, "count", -1);
   if (count < 0) throw IoError(rd.name_, where + " has no valid count");
   t.count = std::size_t(count);
-  const tinygltf::Value& cls = member(member(member(schema, "classes"), t.class_name.c_str()), "properties");
+  const tinygltf::Value& cls =
+      member(member(member(schema, "classes"), t.class_name.c_str()), "properties");
   const tinygltf::Value& props = member(table, "properties");
   for (const std::string& name : props.Keys()) {
     const tinygltf::Value& p = props.Get(name);
     const tinygltf::Value& def = member(cls, name.c_str());
     const std::string type = string_member(def, "type");
-    if (member(def, "array").IsBool() && member(def, "array").Get<bool>()) continue;  // arrays: not read
+    if (member(def, "array").IsBool() && member(def, "array").Get<bool>())
+      continue;  // arrays: not read
     const std::string what = where + " property '" + name + "'";
     const int values = int_member(p, "values", -1);
     if (type == "STRING") {
       const auto [data, len] = rd.view(values, what);
       const auto [offs, olen] = rd.view(int_member(p, "stringOffsets", -1), what);
       const std::string ot = string_member(p, "stringOffsetType", "UINT32");
-      const std::size_t os = ot == "UINT8" ? 1 : ot == "UINT16" ? 2 : ot == "UINT32" ? 4 : ot == "UINT64" ? 8 : 0;
+      const std::size_t os = ot == "UINT8"    ? 1
+                             : ot == "UINT16" ? 2
+                             : ot == "UINT32" ? 4
+                             : ot == "UINT64" ? 8
+                                              : 0;
       if (os == 0) throw IoError(rd.name_, what + ": unknown stringOffsetType " + ot);
-      if (olen < (t.count + 1) * os) throw IoError(rd.name_, what + ": string offsets are truncated");
+      if (olen < (t.count + 1) * os)
+        throw IoError(rd.name_, what + ": string offsets are truncated");
       auto off = [&](std::size_t i) {
         std::uint64_t v = 0;
         std::memcpy(&v, offs + i * os, os);
@@ -239,24 +286,30 @@ GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema, con
       auto& col = t.strings[name];
       for (std::size_t i = 0; i < t.count; ++i) {
         const std::uint64_t a = off(i), b = off(i + 1);
-        if (a > b || b > len) throw IoError(rd.name_, what + ": string offsets lie outside the values");
+        if (a > b || b > len)
+          throw IoError(rd.name_, what + ": string offsets lie outside the values");
         col.emplace_back(reinterpret_cast<const char*>(data) + a, std::size_t(b - a));
       }
     } else if (type == "SCALAR" || type == "ENUM") {
       std::string ct = string_member(def, "componentType");
       std::map<long long, std::string> names;
       if (type == "ENUM") {
-        const tinygltf::Value& e = member(member(schema, "enums"), string_member(def, "enumType").c_str());
+        const tinygltf::Value& e =
+            member(member(schema, "enums"), string_member(def, "enumType").c_str());
         ct = string_member(e, "valueType", "UINT16");
         const tinygltf::Value& vs = member(e, "values");
         for (std::size_t i = 0; i < vs.ArrayLen(); ++i)
           names[int_member(vs.Get(int(i)), "value", 0)] = string_member(vs.Get(int(i)), "name");
       }
       static const std::map<std::string, int> kTypes{
-          {"INT8", TINYGLTF_COMPONENT_TYPE_BYTE},    {"UINT8", TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE},
-          {"INT16", TINYGLTF_COMPONENT_TYPE_SHORT},  {"UINT16", TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
-          {"INT32", TINYGLTF_COMPONENT_TYPE_INT},    {"UINT32", TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT},
-          {"FLOAT32", TINYGLTF_COMPONENT_TYPE_FLOAT}, {"FLOAT64", TINYGLTF_COMPONENT_TYPE_DOUBLE}};
+          {"INT8", TINYGLTF_COMPONENT_TYPE_BYTE},
+          {"UINT8", TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE},
+          {"INT16", TINYGLTF_COMPONENT_TYPE_SHORT},
+          {"UINT16", TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
+          {"INT32", TINYGLTF_COMPONENT_TYPE_INT},
+          {"UINT32", TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT},
+          {"FLOAT32", TINYGLTF_COMPONENT_TYPE_FLOAT},
+          {"FLOAT64", TINYGLTF_COMPONENT_TYPE_DOUBLE}};
       const auto it = kTypes.find(ct);
       if (it == kTypes.end()) continue;  // INT64/UINT64 and unknown: not read
       const auto [data, len] = rd.view(values, what);
@@ -279,7 +332,8 @@ GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema, con
 }  // namespace
 
 Vec3d transform_point(const std::array<double, 16>& m, const Vec3d& p) {
-  return {m[0] * p[0] + m[4] * p[1] + m[8] * p[2] + m[12], m[1] * p[0] + m[5] * p[1] + m[9] * p[2] + m[13],
+  return {m[0] * p[0] + m[4] * p[1] + m[8] * p[2] + m[12],
+          m[1] * p[0] + m[5] * p[1] + m[9] * p[2] + m[13],
           m[2] * p[0] + m[6] * p[1] + m[10] * p[2] + m[14]};
 }
 
@@ -296,18 +350,18 @@ std::array<double, 16> multiply(const std::array<double, 16>& a, const std::arra
 
 GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   check_container(bytes, name);
-  if (bytes.size() > std::numeric_limits<unsigned int>::max()) throw IoError(name, "glb larger than 4 GiB");
+  if (bytes.size() > std::numeric_limits<unsigned int>::max())
+    throw IoError(name, "glb larger than 4 GiB");
   tinygltf::Model model;
   tinygltf::TinyGLTF loader;
   // Images are not needed (and never decoded): accept them as they are.
-  loader.SetImageLoader(
-      [](tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
-        return true;
-      },
-      nullptr);
+  loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                           const unsigned char*, int, void*) { return true; },
+                        nullptr);
   std::string err, warn;
   const std::string base = std::filesystem::path(name).parent_path().string();
-  if (!loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+  if (!loader.LoadBinaryFromMemory(&model, &err, &warn,
+                                   reinterpret_cast<const unsigned char*>(bytes.data()),
                                    static_cast<unsigned int>(bytes.size()), base)) {
     std::string e = err.empty() ? "tinygltf could not parse it" : err;
     for (auto& c : e)
@@ -333,7 +387,8 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   std::vector<int> roots;
   const int scene = model.defaultScene >= 0 ? model.defaultScene : (model.scenes.empty() ? -1 : 0);
   if (scene >= 0) {
-    if (std::size_t(scene) >= model.scenes.size()) throw IoError(name, "default scene does not exist");
+    if (std::size_t(scene) >= model.scenes.size())
+      throw IoError(name, "default scene does not exist");
     roots = model.scenes[std::size_t(scene)].nodes;
   } else {
     std::set<int> children;
@@ -347,18 +402,23 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   while (!stack.empty()) {
     const auto [ni, parent] = stack.back();
     stack.pop_back();
-    if (ni < 0 || std::size_t(ni) >= model.nodes.size()) throw IoError(name, "node " + std::to_string(ni) + " does not exist");
-    if (++visits > model.nodes.size() * 4 + 16) throw IoError(name, "the node hierarchy has a cycle");
+    if (ni < 0 || std::size_t(ni) >= model.nodes.size())
+      throw IoError(name, "node " + std::to_string(ni) + " does not exist");
+    if (++visits > model.nodes.size() * 4 + 16)
+      throw IoError(name, "the node hierarchy has a cycle");
     const tinygltf::Node& node = model.nodes[std::size_t(ni)];
     const Mat4 m = multiply(parent, node_matrix(node));
     for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.push_back({*c, m});
     if (node.mesh < 0) continue;
-    if (std::size_t(node.mesh) >= model.meshes.size()) throw IoError(name, "mesh " + std::to_string(node.mesh) + " does not exist");
+    if (std::size_t(node.mesh) >= model.meshes.size())
+      throw IoError(name, "mesh " + std::to_string(node.mesh) + " does not exist");
     const tinygltf::Mesh& mesh = model.meshes[std::size_t(node.mesh)];
     for (std::size_t pi = 0; pi < mesh.primitives.size(); ++pi) {
       const tinygltf::Primitive& prim = mesh.primitives[pi];
-      if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) continue;  // points, lines, strips: no surface
-      const std::string what = "mesh " + std::to_string(node.mesh) + " primitive " + std::to_string(pi);
+      if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1)
+        continue;  // points, lines, strips: no surface
+      const std::string what =
+          "mesh " + std::to_string(node.mesh) + " primitive " + std::to_string(pi);
       const auto pos = prim.attributes.find("POSITION");
       if (pos == prim.attributes.end()) throw IoError(name, what + " has no POSITION");
       GlbPrimitive out;
@@ -371,7 +431,8 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
       out.positions.resize(p.size() / 3);
       for (std::size_t i = 0; i < out.positions.size(); ++i) {
         out.positions[i] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
-        if (!std::isfinite(p[3 * i]) || !std::isfinite(p[3 * i + 1]) || !std::isfinite(p[3 * i + 2]))
+        if (!std::isfinite(p[3 * i]) || !std::isfinite(p[3 * i + 1]) ||
+            !std::isfinite(p[3 * i + 2]))
           throw IoError(name, what + ": position " + std::to_string(i) + " is not finite");
       }
       const std::size_t nv = out.positions.size();
@@ -382,14 +443,16 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
         idx.resize(nv);
         for (std::size_t i = 0; i < nv; ++i) idx[i] = double(i);
       }
-      if (idx.size() % 3) throw IoError(name, what + ": " + std::to_string(idx.size()) + " indices, not a multiple of 3");
+      if (idx.size() % 3)
+        throw IoError(name,
+                      what + ": " + std::to_string(idx.size()) + " indices, not a multiple of 3");
       for (std::size_t i = 0; i + 2 < idx.size(); i += 3) {
         std::array<std::uint32_t, 3> t;
         for (int k = 0; k < 3; ++k) {
           const double v = idx[i + std::size_t(k)];
           if (!(v >= 0) || v >= double(nv))
-            throw IoError(name, what + ": index " + std::to_string((long long)v) + " is out of range (" +
-                                    std::to_string(nv) + " vertices)");
+            throw IoError(name, what + ": index " + std::to_string((long long)v) +
+                                    " is out of range (" + std::to_string(nv) + " vertices)");
           t[std::size_t(k)] = std::uint32_t(v);
         }
         out.triangles.push_back(t);
@@ -402,19 +465,23 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
           const tinygltf::Value& f = ids.Get(0);
           out.property_table = int_member(f, "propertyTable", -1);
           if (out.property_table >= int(doc.property_tables.size()))
-            throw IoError(name, what + ": feature ids refer to property table " + std::to_string(out.property_table) +
-                                    " that does not exist");
+            throw IoError(name, what + ": feature ids refer to property table " +
+                                    std::to_string(out.property_table) + " that does not exist");
           const int attr = int_member(f, "attribute", -1);
           if (attr >= 0) {
             const auto a = prim.attributes.find("_FEATURE_ID_" + std::to_string(attr));
             if (a == prim.attributes.end())
               throw IoError(name, what + ": no attribute _FEATURE_ID_" + std::to_string(attr));
-            const std::vector<double> v = rd.accessor(a->second, 1, what + " _FEATURE_ID_" + std::to_string(attr));
-            if (v.size() != nv) throw IoError(name, what + ": feature ids and positions differ in count");
+            const std::vector<double> v =
+                rd.accessor(a->second, 1, what + " _FEATURE_ID_" + std::to_string(attr));
+            if (v.size() != nv)
+              throw IoError(name, what + ": feature ids and positions differ in count");
             out.feature_ids.reserve(nv);
-            for (double x : v) out.feature_ids.push_back(std::isfinite(x) ? std::int64_t(std::llround(x)) : -1);
+            for (double x : v)
+              out.feature_ids.push_back(std::isfinite(x) ? std::int64_t(std::llround(x)) : -1);
           } else if (!member(f, "texture").IsObject()) {
-            for (std::size_t i = 0; i < nv; ++i) out.feature_ids.push_back(std::int64_t(i));  // implicit ids
+            for (std::size_t i = 0; i < nv; ++i)
+              out.feature_ids.push_back(std::int64_t(i));  // implicit ids
           } else {
             out.property_table = -1;  // feature ids in a texture: not read
           }

@@ -24,8 +24,12 @@ constexpr int kElementArrayBuffer = 34963;
 constexpr const char* kWhere = "glb";
 
 /// z-up (ENU) -> glTF y-up: (x, y, z) -> (x, z, -y). A rotation: windings keep.
-inline Vec3d to_yup(const Vec3d& p) { return {p[0], p[2], -p[1]}; }
-inline Vec3d from_yup(const Vec3d& p) { return {p[0], -p[2], p[1]}; }
+inline Vec3d to_yup(const Vec3d& p) {
+  return {p[0], p[2], -p[1]};
+}
+inline Vec3d from_yup(const Vec3d& p) {
+  return {p[0], -p[2], p[1]};
+}
 
 /// A mesh split into flat-shaded vertices (one per source vertex and face
 /// normal) and one index list per surface class.
@@ -60,7 +64,8 @@ FlatMesh flat_shade(const TriangleMesh& mesh) {
   const std::size_t nv = mesh.vertices.size();
   for (const auto& t : mesh.triangles) {
     if (t[0] >= nv || t[1] >= nv || t[2] >= nv)
-      throw IoError(kWhere, "triangle refers to vertex " + std::to_string(std::max({t[0], t[1], t[2]})) + " of " +
+      throw IoError(kWhere, "triangle refers to vertex " +
+                                std::to_string(std::max({t[0], t[1], t[2]})) + " of " +
                                 std::to_string(nv));
     const Vec3d& a = mesh.vertices[t[0]];
     const Vec3d& b = mesh.vertices[t[1]];
@@ -74,7 +79,8 @@ FlatMesh flat_shade(const TriangleMesh& mesh) {
     const int cls = int(classify_normal(n));
     // Triangles of one planar face share vertices: the normal key is coarse
     // enough to absorb rounding, the first triangle's normal is kept.
-    const std::int32_t nx = std::int32_t(std::lround(n[0] * 4096)), ny = std::int32_t(std::lround(n[1] * 4096)),
+    const std::int32_t nx = std::int32_t(std::lround(n[0] * 4096)),
+                       ny = std::int32_t(std::lround(n[1] * 4096)),
                        nz = std::int32_t(std::lround(n[2] * 4096));
     for (int k = 0; k < 3; ++k) {
       const VertexKey key{t[size_t(k)], nx, ny, nz};
@@ -90,7 +96,9 @@ FlatMesh flat_shade(const TriangleMesh& mesh) {
   return out;
 }
 
-std::size_t vertex_bytes(bool quantize) { return quantize ? 8 + 8 + 4 : 12 + 12 + 4; }
+std::size_t vertex_bytes(bool quantize) {
+  return quantize ? 8 + 8 + 4 : 12 + 12 + 4;
+}
 
 struct Material {
   const char* name;
@@ -102,8 +110,12 @@ constexpr Material kMaterials[3] = {{"wall", 0.80, 0.76, 0.68, 0.9},
                                     {"base", 0.25, 0.25, 0.25, 1.0}};
 
 using Value = tinygltf::Value;
-Value str(const std::string& s) { return Value(s); }
-Value obj(Value::Object o) { return Value(std::move(o)); }
+Value str(const std::string& s) {
+  return Value(s);
+}
+Value obj(Value::Object o) {
+  return Value(std::move(o));
+}
 
 /// Appends bufferViews to buffer 0, every one 8-byte aligned (required for
 /// property table columns, harmless for the rest).
@@ -144,9 +156,12 @@ struct BinWriter {
 
 const char* to_string(LodKind k) {
   switch (k) {
-    case LodKind::anchor: return "anchor";
-    case LodKind::interpolation: return "interpolation";
-    case LodKind::fallback: return "fallback";
+    case LodKind::anchor:
+      return "anchor";
+    case LodKind::interpolation:
+      return "interpolation";
+    case LodKind::fallback:
+      return "fallback";
   }
   return "?";
 }
@@ -201,7 +216,8 @@ struct GlbBuilder::Impl {
     std::map<std::array<std::int64_t, 4>, Vec3d> seen;
     for (std::size_t i = 0; i < n.rel.size(); ++i) {
       const Vec3d y = to_yup(n.rel[i]);
-      const std::array<std::int64_t, 4> key{std::int64_t(n.feature[i]), quant(y[0], e), quant(y[1], e), quant(y[2], e)};
+      const std::array<std::int64_t, 4> key{std::int64_t(n.feature[i]), quant(y[0], e),
+                                            quant(y[1], e), quant(y[2], e)};
       const auto [it, added] = seen.emplace(key, n.rel[i]);
       if (!added && it->second != n.rel[i]) return false;
     }
@@ -227,7 +243,8 @@ std::uint32_t GlbBuilder::add_feature(const GlbFeature& meta, const TriangleMesh
   if (impl_->nodes.empty()) begin_node("content");
   auto& node = impl_->nodes.back();
   const std::uint32_t fid = std::uint32_t(impl_->features.size());
-  if (fid >= (1u << 24)) throw IoError(kWhere, "more than 2^24 features in one glb (float feature ids)");
+  if (fid >= (1u << 24))
+    throw IoError(kWhere, "more than 2^24 features in one glb (float feature ids)");
   impl_->features.push_back(meta);
   const FlatMesh f = flat_shade(mesh);
   const std::uint32_t base = std::uint32_t(node.rel.size());
@@ -244,8 +261,12 @@ std::uint32_t GlbBuilder::add_feature(const GlbFeature& meta, const TriangleMesh
   return fid;
 }
 
-std::size_t GlbBuilder::feature_count() const { return impl_->features.size(); }
-std::size_t GlbBuilder::triangle_count() const { return impl_->triangles; }
+std::size_t GlbBuilder::feature_count() const {
+  return impl_->features.size();
+}
+std::size_t GlbBuilder::triangle_count() const {
+  return impl_->triangles;
+}
 std::size_t GlbBuilder::vertex_count() const {
   std::size_t n = 0;
   for (const auto& node : impl_->nodes) n += node.rel.size();
@@ -262,7 +283,8 @@ BBox3 GlbBuilder::stored_bounds() const {
       const Vec3d y = to_yup(p);
       Vec3d s;
       for (int k = 0; k < 3; ++k)
-        s[size_t(k)] = q ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e : double(float(y[size_t(k)]));
+        s[size_t(k)] =
+            q ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e : double(float(y[size_t(k)]));
       const Vec3d z = from_yup(s);
       b.add(Vec3d{o[0] + z[0], o[1] + z[1], o[2] + z[2]});
     }
@@ -331,7 +353,8 @@ std::string GlbBuilder::glb() const {
           pos[i * 4 + size_t(k)] = v;
           mn[size_t(k)] = std::min(mn[size_t(k)], double(v));
           mx[size_t(k)] = std::max(mx[size_t(k)], double(v));
-          nrm[i * 4 + size_t(k)] = std::int16_t(std::lround(std::clamp(n[size_t(k)], -1.0, 1.0) * 32767.0));
+          nrm[i * 4 + size_t(k)] =
+              std::int16_t(std::lround(std::clamp(n[size_t(k)], -1.0, 1.0) * 32767.0));
         }
       }
       const int pv = w.view(pos.data(), pos.size() * 2, kArrayBuffer, 8);
@@ -355,7 +378,8 @@ std::string GlbBuilder::glb() const {
         }
       }
       const int pv = w.view(pos.data(), pos.size() * 4, kArrayBuffer);
-      pos_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv, false, mn, mx);
+      pos_acc =
+          w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv, false, mn, mx);
       const int nvw = w.view(nrm.data(), nrm.size() * 4, kArrayBuffer);
       nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
     }
@@ -424,9 +448,10 @@ std::string GlbBuilder::glb() const {
   auto column = [&](const char* name, const void* p, std::size_t bytes) {
     props[name] = obj({{"values", Value(w.view(p, bytes, 0))}});
   };
-  props["building_id"] = obj({{"values", Value(w.view(ids.data(), ids.size(), 0))},
-                              {"stringOffsets", Value(w.view(offsets.data(), offsets.size() * 4, 0))},
-                              {"stringOffsetType", str("UINT32")}});
+  props["building_id"] =
+      obj({{"values", Value(w.view(ids.data(), ids.size(), 0))},
+           {"stringOffsets", Value(w.view(offsets.data(), offsets.size() * 4, 0))},
+           {"stringOffsetType", str("UINT32")}});
   column("lod_kind", kind.data(), n);
   column("level", level.data(), n * 4);
   column("step", step.data(), n * 4);
@@ -443,15 +468,18 @@ std::string GlbBuilder::glb() const {
   };
   Value::Object class_props{
       {"building_id", prop("STRING", nullptr, "building (chunk) id of the work directory")},
-      {"lod_kind", obj({{"type", str("ENUM")},
-                        {"enumType", str("LodKind")},
-                        {"description", str("anchor or interpolation model of the LOD-Tree, or the fallback outline")}})},
+      {"lod_kind",
+       obj({{"type", str("ENUM")},
+            {"enumType", str("LodKind")},
+            {"description",
+             str("anchor or interpolation model of the LOD-Tree, or the fallback outline")}})},
       {"level", prop("SCALAR", "INT32", "LOD-Tree level set of the model")},
       {"step", prop("SCALAR", "INT32", "traversal step that produced the model")},
       {"model_index", prop("SCALAR", "INT32", "index in the building's kept models, 0 = coarsest")},
       {"model_count", prop("SCALAR", "INT32", "number of kept models of the building")},
       {"height", prop("SCALAR", "FLOAT32", "vertical extent of the model, metres")},
-      {"footprint_area", prop("SCALAR", "FLOAT32", "footprint area of the building, square metres")},
+      {"footprint_area",
+       prop("SCALAR", "FLOAT32", "footprint area of the building, square metres")},
       {"geometric_error", prop("SCALAR", "FLOAT32", "distance to the finest model, metres")},
   };
   Value::Array enum_values{obj({{"name", str("anchor")}, {"value", Value(0)}}),
@@ -459,9 +487,12 @@ std::string GlbBuilder::glb() const {
                            obj({{"name", str("fallback")}, {"value", Value(2)}})};
   Value::Object schema{
       {"id", str("citylod")},
-      {"classes", obj({{"building", obj({{"name", str("Building LOD model")}, {"properties", obj(class_props)}})}})},
-      {"enums", obj({{"LodKind", obj({{"valueType", str("UINT8")}, {"values", Value(enum_values)}})}})}};
-  Value::Object table{{"class", str("building")}, {"count", Value(int(n))}, {"properties", obj(props)}};
+      {"classes", obj({{"building", obj({{"name", str("Building LOD model")},
+                                         {"properties", obj(class_props)}})}})},
+      {"enums",
+       obj({{"LodKind", obj({{"valueType", str("UINT8")}, {"values", Value(enum_values)}})}})}};
+  Value::Object table{
+      {"class", str("building")}, {"count", Value(int(n))}, {"properties", obj(props)}};
   model.extensions["EXT_structural_metadata"] =
       obj({{"schema", obj(schema)}, {"propertyTables", Value(Value::Array{obj(table)})}});
 
@@ -470,7 +501,8 @@ std::string GlbBuilder::glb() const {
 
   tinygltf::TinyGLTF writer;
   std::ostringstream os;
-  if (!writer.WriteGltfSceneToStream(&model, os, false, true)) throw IoError(kWhere, "tinygltf could not serialize");
+  if (!writer.WriteGltfSceneToStream(&model, os, false, true))
+    throw IoError(kWhere, "tinygltf could not serialize");
   return os.str();
 }
 

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <cstring>
 
+#include "citylod/geo/wkt.hpp"
 #include "readers_internal.hpp"
-#include "wkt_info.hpp"
 
 namespace citylod::io::detail {
 namespace {
@@ -284,7 +284,7 @@ class LasReader final : public ReaderBase {
 
   void finish_crs() {
     info_.crs_wkt = wkt_;
-    WktSummary w = summarize_wkt(wkt_);
+    const geo::WktSummary w = geo::summarize_wkt(wkt_);
     info_.crs_name = w.name;
     if (projected_ > 0 && projected_ < 32767)
       info_.epsg = projected_;

@@ -132,12 +132,14 @@ TriangleMesh triangulate_polygons(const PolygonMesh& mesh) {
     const double sign = (k == 0 ? nx : k == 1 ? ny : nz) < 0 ? -1.0 : 1.0;
     const int u = (k + 1) % 3, w = (k + 2) % 3;
     q.resize(n);
-    for (std::size_t i = 0; i < n; ++i) q[i] = {mesh.vertices[f[i]][size_t(u)], sign * mesh.vertices[f[i]][size_t(w)]};
+    for (std::size_t i = 0; i < n; ++i)
+      q[i] = {mesh.vertices[f[i]][size_t(u)], sign * mesh.vertices[f[i]][size_t(w)]};
     auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
       return (q[b][0] - q[a][0]) * (q[c][1] - q[a][1]) - (q[b][1] - q[a][1]) * (q[c][0] - q[a][0]);
     };
     bool convex = true;
-    for (std::size_t i = 0; i < n && convex; ++i) convex = cross((i + n - 1) % n, i, (i + 1) % n) >= 0;
+    for (std::size_t i = 0; i < n && convex; ++i)
+      convex = cross((i + n - 1) % n, i, (i + 1) % n) >= 0;
     if (convex) {  // the fan from the first vertex, as for any convex face
       for (std::size_t i = 1; i + 1 < n; ++i) t.triangles.push_back({f[0], f[i], f[i + 1]});
       continue;
@@ -147,7 +149,8 @@ TriangleMesh triangulate_polygons(const PolygonMesh& mesh) {
     while (ring.size() > 3) {
       bool clipped = false;
       for (std::size_t i = 0; i < ring.size() && !clipped; ++i) {
-        const std::size_t a = ring[(i + ring.size() - 1) % ring.size()], b = ring[i], c = ring[(i + 1) % ring.size()];
+        const std::size_t a = ring[(i + ring.size() - 1) % ring.size()], b = ring[i],
+                          c = ring[(i + 1) % ring.size()];
         if (!(cross(a, b, c) > 0)) continue;  // reflex or flat corner
         bool empty = true;
         for (std::size_t j : ring) {
@@ -166,7 +169,8 @@ TriangleMesh triangulate_polygons(const PolygonMesh& mesh) {
       }
       if (!clipped) break;
     }
-    for (std::size_t i = 1; i + 1 < ring.size(); ++i) t.triangles.push_back({f[ring[0]], f[ring[i]], f[ring[i + 1]]});
+    for (std::size_t i = 1; i + 1 < ring.size(); ++i)
+      t.triangles.push_back({f[ring[0]], f[ring[i]], f[ring[i + 1]]});
   }
   return t;
 }

@@ -24,7 +24,8 @@ void check_number(double x, const char* what) {
 }
 
 nlohmann::ordered_json tile_json(const Tile& t, bool is_root) {
-  if (is_root && t.refine.empty()) throw IoError(kWhere, "the root tile needs refine (REPLACE or ADD)");
+  if (is_root && t.refine.empty())
+    throw IoError(kWhere, "the root tile needs refine (REPLACE or ADD)");
   if (!t.refine.empty() && t.refine != "REPLACE" && t.refine != "ADD")
     throw IoError(kWhere, "refine must be REPLACE or ADD, not '" + t.refine + "'");
   check_number(t.geometric_error, "geometricError");
@@ -97,7 +98,9 @@ std::string tileset_json(const Tileset& ts) {
   return j.dump(2) + "\n";
 }
 
-void write_tileset(const std::string& path, const Tileset& ts) { atomic_write_file(path, tileset_json(ts)); }
+void write_tileset(const std::string& path, const Tileset& ts) {
+  atomic_write_file(path, tileset_json(ts));
+}
 
 std::size_t tile_count(const Tile& t) {
   std::size_t n = 1;

@@ -1,37 +1,12 @@
 #include "fallback.hpp"
 
+#include "citylod/lod/polygon2d.hpp"
+
 #include <algorithm>
 #include <cmath>
 
 namespace citylod::lod::detail {
-namespace {
-
-double cross2(const Vec2& o, const Vec2& a, const Vec2& b) {
-  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-}
-
-/// Andrew's monotone chain; CCW, no collinear points.
-std::vector<Vec2> convex_hull(std::vector<Vec2> p) {
-  std::sort(p.begin(), p.end(), [](const Vec2& a, const Vec2& b) {
-    return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y();
-  });
-  p.erase(std::unique(p.begin(), p.end()), p.end());
-  if (p.size() < 3) return p;
-  std::vector<Vec2> h(2 * p.size());
-  size_t k = 0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    while (k >= 2 && cross2(h[k - 2], h[k - 1], p[i]) <= 0) --k;
-    h[k++] = p[i];
-  }
-  for (size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
-    while (k >= t && cross2(h[k - 2], h[k - 1], p[i]) <= 0) --k;
-    h[k++] = p[i];
-  }
-  h.resize(k - 1);
-  return h;
-}
-
-}  // namespace
+using poly2::convex_hull;  // citylod/lod/polygon2d.hpp
 
 LodModel extruded_outline(const BuildingInput& in) {
   std::vector<Vec2> xy;

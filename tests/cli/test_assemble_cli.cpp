@@ -19,7 +19,7 @@
 #include <cstdio>
 #include <thread>
 
-#include "tiler/test_assemble_support.hpp"
+#include "tiler/test_work_support.hpp"
 
 namespace citylod::test {
 namespace {
@@ -51,15 +51,19 @@ Proc run(const std::string& cmd) {
   return r;
 }
 
-std::string q(const std::string& s) { return "'" + s + "'"; }
+std::string q(const std::string& s) {
+  return "'" + s + "'";
+}
 
 bool node_tools_installed() {
-  return fs::exists(kNode / "node_modules" / "gltf-validator") && fs::exists(kNode / "node_modules" / "playwright-core") &&
+  return fs::exists(kNode / "node_modules" / "gltf-validator") &&
+         fs::exists(kNode / "node_modules" / "playwright-core") &&
          fs::exists(kNode / "node_modules" / "cesium" / "Build" / "Cesium" / "Cesium.js");
 }
-#define REQUIRE_NODE_TOOLS()                                                                                    \
-  if (!node_tools_installed())                                                                                  \
-  GTEST_SKIP() << "tests/node/node_modules is absent: run scripts/install-node-tools.sh to enable the node-based " \
+#define REQUIRE_NODE_TOOLS()                                                                 \
+  if (!node_tools_installed())                                                               \
+  GTEST_SKIP() << "tests/node/node_modules is absent: run scripts/install-node-tools.sh to " \
+                  "enable the node-based "                                                   \
                   "checks"
 
 /// A synthetic city (50 buildings x 3 models) assembled by the binary, in a
@@ -88,11 +92,12 @@ TEST(AssembleCli, EveryGlbPassesTheKhronosValidator) {
   // Also the quantized variant.
   const std::string work = tmp_dir("quantized");
   write_work(work, synthetic_manifest(), synthetic_city(12, 4));
-  const Proc a = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(work + "/tileset") + " --quantize");
+  const Proc a =
+      run(q(kBin) + " assemble -q " + q(work) + " --out " + q(work + "/tileset") + " --quantize");
   ASSERT_EQ(a.code, 0) << a.output;
   for (const std::string& dir : {out, work + "/tileset"}) {
-    const Proc r = run("node " + q((kNode / "validate-glb.mjs").string()) + " " + q(dir) + " --report " +
-                      q(dir + "/../validator-report.json"));
+    const Proc r = run("node " + q((kNode / "validate-glb.mjs").string()) + " " + q(dir) +
+                       " --report " + q(dir + "/../validator-report.json"));
     std::printf("%s", r.output.c_str());
     EXPECT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find(" 0 errors"), std::string::npos) << r.output;
@@ -134,14 +139,16 @@ TEST(AssembleCli, AKilledRunNeverLeavesAHalfTileset) {
   const Proc first = run(q(kBin) + " assemble -q " + q(work) + " --out " + q(out));
   ASSERT_EQ(first.code, 0) << first.output;
   const double full = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("[ measure  ] 300 buildings x 4 models: %.2f s (citylod assemble, wall clock)\n", full);
+  std::printf("[ measure  ] 300 buildings x 4 models: %.2f s (citylod assemble, wall clock)\n",
+              full);
   for (double frac : {0.2, 0.5, 0.8, 0.95}) {
     const pid_t pid = fork();
     ASSERT_GE(pid, 0);
     if (pid == 0) {
       const int devnull = ::open("/dev/null", 1);
       dup2(devnull, 2);
-      execl(kBin.c_str(), kBin.c_str(), "assemble", "-q", work.c_str(), "--out", out.c_str(), (char*)nullptr);
+      execl(kBin.c_str(), kBin.c_str(), "assemble", "-q", work.c_str(), "--out", out.c_str(),
+            (char*)nullptr);
       _exit(127);
     }
     std::this_thread::sleep_for(std::chrono::duration<double>(full * frac));
@@ -181,10 +188,14 @@ TEST(AssembleCli, RealDelftBlockSplitLodAssemble) {
   const Eigen::Matrix4d T = matrix_of(ts["root"]["transform"]);
   const auto& o = man["scene"]["origin_crs"];
   PJ_CONTEXT* ctx = proj_context_create();
-  PJ* rd = proj_normalize_for_visualization(ctx, proj_create_crs_to_crs(ctx, "EPSG:28992", "EPSG:4326", nullptr));
-  PJ* ec = proj_normalize_for_visualization(ctx, proj_create_crs_to_crs(ctx, "EPSG:4979", "EPSG:4978", nullptr));
-  const PJ_COORD ll = proj_trans(rd, PJ_FWD, proj_coord(o[0].get<double>(), o[1].get<double>(), 0, 0));
-  const PJ_COORD x = proj_trans(ec, PJ_FWD, proj_coord(ll.lp.lam, ll.lp.phi, man["scene"]["origin_h"].get<double>(), 0));
+  PJ* rd = proj_normalize_for_visualization(
+      ctx, proj_create_crs_to_crs(ctx, "EPSG:28992", "EPSG:4326", nullptr));
+  PJ* ec = proj_normalize_for_visualization(
+      ctx, proj_create_crs_to_crs(ctx, "EPSG:4979", "EPSG:4978", nullptr));
+  const PJ_COORD ll =
+      proj_trans(rd, PJ_FWD, proj_coord(o[0].get<double>(), o[1].get<double>(), 0, 0));
+  const PJ_COORD x = proj_trans(
+      ec, PJ_FWD, proj_coord(ll.lp.lam, ll.lp.phi, man["scene"]["origin_h"].get<double>(), 0));
   proj_destroy(rd);
   proj_destroy(ec);
   proj_context_destroy(ctx);
@@ -210,7 +221,8 @@ std::string http_get(int port, const std::string& path) {
     ::close(fd);
     return "";
   }
-  const std::string req = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
+  const std::string req =
+      "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
   (void)!::write(fd, req.data(), req.size());
   std::string resp;
   char buf[65536];
@@ -258,12 +270,13 @@ TEST(ServeCli, ServesTilesetAndViewerOnLoopback) {
 TEST(ViewerCli, HeadlessChromiumLoadsAndRefinesTiles) {
   REQUIRE_NODE_TOOLS();
   if (!fs::exists("/usr/bin/chromium"))
-    GTEST_SKIP() << "chromium is not installed (/usr/bin/chromium; apt-get install chromium): browser test skipped";
+    GTEST_SKIP() << "chromium is not installed (/usr/bin/chromium; apt-get install chromium): "
+                    "browser test skipped";
   const std::string out = city_tileset("viewer_city");
   const std::string shots = (fs::path(CITYLOD_TEST_TMP) / "assemble_cli" / "viewer").string();
   fs::remove_all(shots);
-  const Proc r = run("node " + q((kNode / "viewer-test.mjs").string()) + " --citylod " + q(kBin) + " --tileset " +
-                    q(out) + " --out " + q(shots) + " --timeout-ms 300000");
+  const Proc r = run("node " + q((kNode / "viewer-test.mjs").string()) + " --citylod " + q(kBin) +
+                     " --tileset " + q(out) + " --out " + q(shots) + " --timeout-ms 300000");
   std::printf("%s", r.output.c_str());
   ASSERT_NE(r.code, 77) << r.output;
   EXPECT_EQ(r.code, 0) << r.output;

@@ -246,7 +246,8 @@ TEST(Cli, LodTerrainDefaultsDependOnTheInput) {
   ASSERT_EQ(city.code, 0) << city.err;
   EXPECT_NE(city.out.find("closure.terrain = cut\n"), std::string::npos) << city.out;
   EXPECT_NE(city.out.find("closure.footprint_walls = true\n"), std::string::npos) << city.out;
-  const Result over = run("lod " + quote(tmp_dir()) + " --print-params --set closure.terrain=plinth");
+  const Result over =
+      run("lod " + quote(tmp_dir()) + " --print-params --set closure.terrain=plinth");
   ASSERT_EQ(over.code, 0) << over.err;
   EXPECT_NE(over.out.find("closure.terrain = plinth\n"), std::string::npos) << over.out;
 }

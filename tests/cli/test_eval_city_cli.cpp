@@ -20,9 +20,10 @@
 #include <nlohmann/json.hpp>
 
 #include "citylod/io/atomic_file.hpp"
+#include "citylod/io/hash.hpp"
 #include "citylod/io/types.hpp"
-#include "citylod/io/workdir.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/tiler/workdir.hpp"
 
 namespace {
 
@@ -35,11 +36,14 @@ using namespace citylod::test;
 const double kDiag = std::sqrt(200.0);
 const double kE2Offset = 100.0 / kDiag;  // 7.0710678...
 
-io::TriangleMesh box(double x0, double y0, double z0, double x1, double y1, double z1, bool top = true) {
+io::TriangleMesh box(double x0, double y0, double z0, double x1, double y1, double z1,
+                     bool top = true) {
   io::TriangleMesh m;
-  for (int i = 0; i < 8; ++i) m.vertices.push_back({(i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0});
+  for (int i = 0; i < 8; ++i)
+    m.vertices.push_back({(i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0});
   // Quads counter-clockwise seen from outside.
-  std::vector<std::array<std::uint32_t, 4>> quads{{0, 2, 3, 1}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  std::vector<std::array<std::uint32_t, 4>> quads{
+      {0, 2, 3, 1}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
   if (top) quads.push_back({4, 5, 7, 6});
   for (const auto& q : quads) {
     m.triangles.push_back({q[0], q[1], q[2]});
@@ -83,21 +87,22 @@ struct Model {
   io::TriangleMesh mesh;
 };
 
-void add_building(const fs::path& work, io::Manifest& man, const std::string& id, const io::Vec3d& origin,
-                  const std::string& status, const std::string& reason, const std::vector<Model>& models) {
-  io::ChunkRecord r;
+void add_building(const fs::path& work, tiler::Manifest& man, const std::string& id,
+                  const io::Vec3d& origin, const std::string& status, const std::string& reason,
+                  const std::vector<Model>& models) {
+  tiler::ChunkRecord r;
   r.id = id;
   r.origin = origin;
   r.bbox_min = {origin[0] - 5, origin[1] - 4, origin[2]};
   r.bbox_max = {origin[0] + 5, origin[1] + 4, origin[2] + 6};
-  r.status = status == "skipped" ? "skipped" : "ok";
+  r.status = status == "skipped" ? tiler::Status::skipped : tiler::Status::ok;
   r.reason = status == "skipped" ? reason : "";
   if (status != "skipped") {
     const io::PointSet pts = box_points();
     r.points = pts.size();
-    io::write_ply(io::chunk_path(work.string(), id), pts);
-    r.content_hash = io::hash_file(io::chunk_path(work.string(), id));
-    const fs::path dir = io::lod_dir(work.string(), id);
+    io::write_ply(tiler::chunk_path(work.string(), id), pts);
+    r.content_hash = io::hash_file(tiler::chunk_path(work.string(), id));
+    const fs::path dir = tiler::lod_dir(work.string(), id);
     fs::create_directories(dir);
     nlohmann::json ms = nlohmann::json::array();
     for (const auto& m : models) {
@@ -118,7 +123,7 @@ void add_building(const fs::path& work, io::Manifest& man, const std::string& id
 fs::path make_work(const std::string& name) {
   const fs::path work = tmp_dir(name) / "work";
   fs::create_directories(work / "chunks");
-  io::Manifest man;
+  tiler::Manifest man;
   man.scene.origin_lon = 4.3571;
   man.scene.origin_lat = 52.0116;
   man.scene.origin_h = 45.0;
@@ -128,10 +133,11 @@ fs::path make_work(const std::string& name) {
   add_building(work, man, "b-mixed", {0, 0, 0}, "ok", "",
                {{"anchor", 0, 0, box(-5, -4, 0, 5, 4, 6, false)},
                 {"anchor", 1, 1, merged(exact, box(0, 0, 2, 8, 6, 9))}});
-  add_building(work, man, "c-fallback", {25, -10, 0.5}, "fallback", "planes: fewer than 4 usable planes (3)",
-               {{"fallback", 0, 0, grown}});
-  add_building(work, man, "d-skipped", {40, 20, 0}, "skipped", "only 3 building points inside the footprint", {});
-  io::write_manifest(work.string(), man);
+  add_building(work, man, "c-fallback", {25, -10, 0.5}, "fallback",
+               "planes: fewer than 4 usable planes (3)", {{"fallback", 0, 0, grown}});
+  add_building(work, man, "d-skipped", {40, 20, 0}, "skipped",
+               "only 3 building points inside the footprint", {});
+  tiler::write_manifest(work.string(), man);
   return work;
 }
 
@@ -175,7 +181,8 @@ TEST(EvalCityCli, WorkDirectoryExactAnswers) {
   EXPECT_EQ(grown["closed"], true);
   EXPECT_NEAR(grown["volume"].get<double>(), 12.0 * 10 * 8, 1e-9);
   EXPECT_NEAR(grown["e2_percent"].get<double>(), kE2Offset, 1e-9);
-  EXPECT_GE(grown["e1_percent"].get<double>(), kE2Offset - 1e-9);  // every point of it is >= 1 m away
+  EXPECT_GE(grown["e1_percent"].get<double>(),
+            kE2Offset - 1e-9);  // every point of it is >= 1 m away
   EXPECT_GE(grown["hausdorff_m"].get<double>(), 1.0 - 1e-9);
   EXPECT_LE(grown["hausdorff_m"].get<double>(), std::sqrt(3.0) + 0.36);
   const auto& exact = a["models"][1];
@@ -183,7 +190,8 @@ TEST(EvalCityCli, WorkDirectoryExactAnswers) {
   EXPECT_EQ(exact["self_intersecting"], false);
   EXPECT_NEAR(exact["volume"].get<double>(), 480.0, 1e-9);
   EXPECT_NEAR(exact["e2_percent"].get<double>(), 0.0, 1e-9);
-  EXPECT_LT(exact["e1_percent"].get<double>(), 0.5 / std::sqrt(2.0) / kDiag * 100 + 1e-9);  // grid half-diagonal
+  EXPECT_LT(exact["e1_percent"].get<double>(),
+            0.5 / std::sqrt(2.0) / kDiag * 100 + 1e-9);  // grid half-diagonal
 
   const auto& b = building(j, "b-mixed");
   EXPECT_EQ(b["models"][0]["triangles"], 10);
@@ -218,14 +226,19 @@ TEST(EvalCityCli, WorkDirectoryExactAnswers) {
   EXPECT_EQ(s["fallbacks"][0]["reason"], "planes: fewer than 4 usable planes (3)");
   ASSERT_EQ(s["without_lod"].size(), 1u);
   EXPECT_EQ(s["without_lod"][0]["id"], "d-skipped");
-  EXPECT_NE(s["without_lod"][0]["reason"].get<std::string>().find("only 3 building points"), std::string::npos);
+  EXPECT_NE(s["without_lod"][0]["reason"].get<std::string>().find("only 3 building points"),
+            std::string::npos);
 
   // The text form carries the same summary.
-  EXPECT_NE(r.out.find("summary: 3 buildings, 5 models: 4 closed, 5 edge-manifold, 1 self-intersecting"),
+  EXPECT_NE(
+      r.out.find("summary: 3 buildings, 5 models: 4 closed, 5 edge-manifold, 1 self-intersecting"),
+      std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("e2 mean 2.357 %, median 0.000 %, max 7.071 % (c-fallback)"),
             std::string::npos)
       << r.out;
-  EXPECT_NE(r.out.find("e2 mean 2.357 %, median 0.000 %, max 7.071 % (c-fallback)"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("c-fallback: planes: fewer than 4 usable planes (3)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("c-fallback: planes: fewer than 4 usable planes (3)"), std::string::npos)
+      << r.out;
   // --json prints the same document.
   const CliRun rj = run("eval " + q(work) + " -q --json");
   ASSERT_EQ(rj.code, 0) << rj.out;
@@ -249,7 +262,7 @@ TEST(EvalCityCli, TilesetExactAnswersWithAndWithoutReferences) {
   const auto& l0 = p["levels"][0];
   EXPECT_EQ(l0["level"], 0);
   EXPECT_EQ(l0["tiles"], 1);
-  EXPECT_EQ(l0["buildings"], 3);       // d-skipped is not in the tileset
+  EXPECT_EQ(l0["buildings"], 3);             // d-skipped is not in the tileset
   EXPECT_EQ(l0["triangles"], 12 + 10 + 12);  // grown box, open box, grown box
   EXPECT_EQ(l0["closed"], 2);
   EXPECT_EQ(l0["edge_manifold"], 3);
@@ -276,22 +289,28 @@ TEST(EvalCityCli, TilesetExactAnswersWithAndWithoutReferences) {
     }
   }
   char row[128];
-  std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d\n", 1, 1, 3, 48, 3, 3, 1);  // the text table's row
+  std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d\n", 1, 1, 3, 48, 3, 3,
+                1);  // the text table's row
   EXPECT_NE(r0.out.find(row), std::string::npos) << r0.out;
 
   // With references: positions back in each chunk frame (tile transform ->
   // ECEF -> scene ENU -> chunk origin), float32 storage is the only error.
   const fs::path withref = work.parent_path() / "withref.json";
-  const CliRun r1 = run("eval " + q(ts / "tileset.json") + " --work " + q(work) + " -q --json-file " + q(withref));
+  const CliRun r1 = run("eval " + q(ts / "tileset.json") + " --work " + q(work) +
+                        " -q --json-file " + q(withref));
   ASSERT_EQ(r1.code, 0) << r1.out;
   const nlohmann::json w = read_json(withref);
   ASSERT_EQ(w["buildings"].size(), 6u);
   for (const auto& m : w["buildings"]) {
-    const bool grown = m["building"] == "c-fallback" || (m["building"] == "a-box" && m["level"] == 0);
+    const bool grown =
+        m["building"] == "c-fallback" || (m["building"] == "a-box" && m["level"] == 0);
     const bool open = m["building"] == "b-mixed" && m["level"] == 0;
     ASSERT_TRUE(m.contains("e2_percent")) << m.dump();
-    if (!open) EXPECT_NEAR(m["e2_percent"].get<double>(), grown ? kE2Offset : 0.0, 1e-3) << m.dump();
-    else EXPECT_GT(m["e2_percent"].get<double>(), 0.1) << m.dump();  // no roof: the roof points are off the model
+    if (!open)
+      EXPECT_NEAR(m["e2_percent"].get<double>(), grown ? kE2Offset : 0.0, 1e-3) << m.dump();
+    else
+      EXPECT_GT(m["e2_percent"].get<double>(), 0.1)
+          << m.dump();  // no roof: the roof points are off the model
   }
   EXPECT_NEAR(w["levels"][1]["mean_e2_percent"].get<double>(), kE2Offset / 3, 1e-3);
   EXPECT_NEAR(w["levels"][1]["max_e2_percent"].get<double>(), kE2Offset, 1e-3);
@@ -307,7 +326,8 @@ TEST(EvalCityCli, OutputDoesNotDependOnThreads) {
     const CliRun three = run("eval " + args + " -q --threads 3");
     ASSERT_EQ(one.code, 0) << one.out;
     EXPECT_EQ(one.out, three.out);
-    const CliRun j1 = run("eval " + args + " -q --json -t 1"), j3 = run("eval " + args + " -q --json -t 3");
+    const CliRun j1 = run("eval " + args + " -q --json -t 1"),
+                 j3 = run("eval " + args + " -q --json -t 3");
     EXPECT_EQ(j1.out, j3.out);
   }
 }
@@ -318,7 +338,8 @@ TEST(EvalCityCli, BadInput) {
   fs::create_directories(d / "empty");
   expect_one_error_line(run("eval " + q(d / "empty")), (d / "empty").string());
   // Missing tileset.json / directory.
-  expect_one_error_line(run("eval " + q(d / "nowhere" / "tileset.json")), (d / "nowhere" / "tileset.json").string());
+  expect_one_error_line(run("eval " + q(d / "nowhere" / "tileset.json")),
+                        (d / "nowhere" / "tileset.json").string());
   expect_one_error_line(run("eval " + q(d / "nowhere")), (d / "nowhere").string());
   // tileset.json that is not JSON / has no root.
   fs::create_directories(d / "notjson");
@@ -357,21 +378,24 @@ TEST(EvalCityCli, BadInput) {
   const fs::path other = tmp_dir("eval_city_bad_other") / "work";
   fs::create_directories(other);
   {
-    io::Manifest m;
+    tiler::Manifest m;
     m.scene.origin_lon = 4.3571;
     m.scene.origin_lat = 52.0116;
-    io::ChunkRecord r;
+    tiler::ChunkRecord r;
     r.id = "zz-other";
     m.chunks.push_back(r);
-    io::write_manifest(other.string(), m);
+    tiler::write_manifest(other.string(), m);
   }
-  expect_one_error_line(run("eval " + q(ts) + " --work " + q(other)), io::manifest_path(other.string()));
+  expect_one_error_line(run("eval " + q(ts) + " --work " + q(other)),
+                        tiler::manifest_path(other.string()));
   // A work directory without LOD output.
   expect_one_error_line(run("eval " + q(other)), other.string());
   // A corrupt chunk.
-  std::ofstream(io::chunk_path(work.string(), "a-box"), std::ios::trunc) << "ply\nformat nonsense\n";
-  expect_one_error_line(run("eval " + q(work)), io::chunk_path(work.string(), "a-box"));
-  expect_one_error_line(run("eval " + q(ts) + " --work " + q(work)), io::chunk_path(work.string(), "a-box"));
+  std::ofstream(tiler::chunk_path(work.string(), "a-box"), std::ios::trunc)
+      << "ply\nformat nonsense\n";
+  expect_one_error_line(run("eval " + q(work)), tiler::chunk_path(work.string(), "a-box"));
+  expect_one_error_line(run("eval " + q(ts) + " --work " + q(work)),
+                        tiler::chunk_path(work.string(), "a-box"));
 
   // Usage errors: exit 2.
   EXPECT_EQ(run("eval " + q(ts) + " " + q(work)).code, 2);
@@ -384,7 +408,10 @@ TEST(EvalCityCli, DelftExampleBothFormsAgree) {
   const CliRun t = run("tile " + q(ex / "delft_small.las") + " --crs EPSG:28992 --footprints " +
                        q(ex / "footprints.geojson") + " --threads 2 -q --out " + q(d / "out"));
   ASSERT_EQ(t.code, 0) << t.out;
-  ASSERT_EQ(run("eval " + q(d / "out" / "work") + " -q --samples 5000 --json-file " + q(d / "work.json")).code, 0);
+  ASSERT_EQ(
+      run("eval " + q(d / "out" / "work") + " -q --samples 5000 --json-file " + q(d / "work.json"))
+          .code,
+      0);
   ASSERT_EQ(run("eval " + q(d / "out" / "tileset") + " --work " + q(d / "out" / "work") +
                 " -q --samples 5000 --json-file " + q(d / "ts.json"))
                 .code,
@@ -410,7 +437,8 @@ TEST(EvalCityCli, DelftExampleBothFormsAgree) {
   const auto& deepest = ts["levels"].back();
   EXPECT_EQ(deepest["buildings"], with_models);
   EXPECT_EQ(deepest["triangles"], finest_triangles);
-  EXPECT_NEAR(deepest["mean_e2_percent"].get<double>(), w["summary"]["finest_e2_percent"]["mean"].get<double>(), 1e-3);
+  EXPECT_NEAR(deepest["mean_e2_percent"].get<double>(),
+              w["summary"]["finest_e2_percent"]["mean"].get<double>(), 1e-3);
   for (const auto& m : ts["buildings"]) {
     if (m["level"] == deepest["level"]) {
       EXPECT_NEAR(m["e2_percent"].get<double>(), finest_e2.at(m["building"]), 1e-3);
@@ -420,7 +448,8 @@ TEST(EvalCityCli, DelftExampleBothFormsAgree) {
   std::size_t finest_closed = 0;
   for (const auto& b : w["buildings"])
     if (b["has_lod"] == true)
-      for (const auto& m : b["models"]) finest_closed += m["step"] == b["finest_step"] && m["closed"] == true;
+      for (const auto& m : b["models"])
+        finest_closed += m["step"] == b["finest_step"] && m["closed"] == true;
   EXPECT_EQ(deepest["closed"], finest_closed);
 }
 
@@ -438,9 +467,13 @@ TEST(EvalCityCli, DelftTileFootprintWallsCloseEveryBuilding) {
   if (!fs::exists(las)) GTEST_SKIP() << "shared data missing: " << las;
   auto summary = [&](const std::string& name, const std::string& extra) {
     const fs::path d = tmp_dir("delft_walls_" + name);
-    const CliRun t = run("tile " + q(las) + " --crs EPSG:28992 --threads 2 -q" + extra + " --out " + q(d / "out"));
+    const CliRun t = run("tile " + q(las) + " --crs EPSG:28992 --threads 2 -q" + extra + " --out " +
+                         q(d / "out"));
     EXPECT_EQ(t.code, 0) << t.out;
-    EXPECT_EQ(run("eval " + q(d / "out" / "work") + " -q --samples 5000 --json-file " + q(d / "work.json")).code, 0);
+    EXPECT_EQ(run("eval " + q(d / "out" / "work") + " -q --samples 5000 --json-file " +
+                  q(d / "work.json"))
+                  .code,
+              0);
     return read_json(d / "work.json")["summary"];
   };
   const nlohmann::json with = summary("on", "");

@@ -19,8 +19,12 @@ TEST(EvalCli, CubeAgainstItsOwnSurfaceSamples) {
     for (int i = 0; i <= 20; ++i)
       for (int j = 0; j <= 20; ++j) {
         const double a = i / 20.0, b = j / 20.0;
-        xyz << a << ' ' << b << " 0\n" << a << ' ' << b << " 1\n" << a << " 0 " << b << '\n'
-            << a << " 1 " << b << '\n' << "0 " << a << ' ' << b << '\n' << "1 " << a << ' ' << b << '\n';
+        xyz << a << ' ' << b << " 0\n"
+            << a << ' ' << b << " 1\n"
+            << a << " 0 " << b << '\n'
+            << a << " 1 " << b << '\n'
+            << "0 " << a << ' ' << b << '\n'
+            << "1 " << a << ' ' << b << '\n';
       }
   }
   const CliRun r = run("eval " + q(d / "cube.obj") + " --ref " + q(d / "ref.xyz") + " --json");
@@ -28,7 +32,8 @@ TEST(EvalCli, CubeAgainstItsOwnSurfaceSamples) {
   EXPECT_NE(r.out.find("\"closed\": true"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\"triangles\": 12"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\"volume\": 1.0"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("\"e2_percent\": 0.0"), std::string::npos) << r.out;  // reference points lie on the model
+  EXPECT_NE(r.out.find("\"e2_percent\": 0.0"), std::string::npos)
+      << r.out;  // reference points lie on the model
 }
 
 TEST(EvalCli, UsageAndInputErrors) {

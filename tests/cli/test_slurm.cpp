@@ -4,10 +4,10 @@
 // byte for byte. Skips only when slurmctld cannot be started.
 #include <gtest/gtest.h>
 
-#include "support/cli_run.hpp"
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include "support/cli_run.hpp"
 
 #include <chrono>
 #include <cstdio>
@@ -24,7 +24,6 @@ namespace {
 
 using namespace citylod::test;
 
-
 pid_t read_pid(const fs::path& f) {
   std::ifstream in(f);
   long p = 0;
@@ -35,7 +34,8 @@ pid_t read_pid(const fs::path& f) {
 void stop(pid_t pid) {
   if (pid <= 1) return;
   kill(pid, SIGTERM);
-  for (int i = 0; i < 100 && kill(pid, 0) == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  for (int i = 0; i < 100 && kill(pid, 0) == 0; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
   if (kill(pid, 0) == 0) kill(pid, SIGKILL);
 }
 
@@ -46,16 +46,20 @@ struct Cluster {
   std::string why_not;  // set when slurmctld could not start
 
   explicit Cluster(const fs::path& d) : dir(d) {
-    if (sh("command -v slurmctld && command -v slurmd && command -v sbatch && command -v munged").code != 0) {
+    if (sh("command -v slurmctld && command -v slurmd && command -v sbatch && command -v munged")
+            .code != 0) {
       why_not = "slurm-wlm / munge are not installed (scripts/install-deps.sh --with-test-tools)";
       return;
     }
     // munge: a key, and munged running as the munge user.
     if (sh("munge -n | unmunge").code != 0) {
       sh("mkdir -p /etc/munge /run/munge /var/log/munge /var/lib/munge && "
-         "( [ -s /etc/munge/munge.key ] || dd if=/dev/urandom of=/etc/munge/munge.key bs=1024 count=1 ) && "
-         "chown -R munge:munge /etc/munge /run/munge /var/log/munge /var/lib/munge && chmod 400 /etc/munge/munge.key");
-      const CliRun m = sh("runuser -u munge -- /usr/sbin/munged && sleep 0.5 && cat /run/munge/munged.pid");
+         "( [ -s /etc/munge/munge.key ] || dd if=/dev/urandom of=/etc/munge/munge.key bs=1024 "
+         "count=1 ) && "
+         "chown -R munge:munge /etc/munge /run/munge /var/log/munge /var/lib/munge && chmod 400 "
+         "/etc/munge/munge.key");
+      const CliRun m =
+          sh("runuser -u munge -- /usr/sbin/munged && sleep 0.5 && cat /run/munge/munged.pid");
       munged = pid_t(std::atol(m.out.c_str()));
       if (sh("munge -n | unmunge").code != 0) {
         why_not = "munged does not work: " + m.out;
@@ -70,11 +74,15 @@ struct Cluster {
     std::ofstream f(conf);
     f << "ClusterName=citylodtest\nSlurmctldHost=" << host << "\nSlurmUser=root\nSlurmdUser=root\n"
       << "SlurmctldPort=" << port << "\nSlurmdPort=" << port + 1 << "\nAuthType=auth/munge\n"
-      << "StateSaveLocation=" << (dir / "state").string() << "\nSlurmdSpoolDir=" << (dir / "spool").string() << "\n"
-      << "SlurmctldPidFile=" << (dir / "slurmctld.pid").string() << "\nSlurmdPidFile=" << (dir / "slurmd.pid").string()
-      << "\nSlurmctldLogFile=" << (dir / "slurmctld.log").string() << "\nSlurmdLogFile=" << (dir / "slurmd.log").string()
+      << "StateSaveLocation=" << (dir / "state").string()
+      << "\nSlurmdSpoolDir=" << (dir / "spool").string() << "\n"
+      << "SlurmctldPidFile=" << (dir / "slurmctld.pid").string()
+      << "\nSlurmdPidFile=" << (dir / "slurmd.pid").string()
+      << "\nSlurmctldLogFile=" << (dir / "slurmctld.log").string()
+      << "\nSlurmdLogFile=" << (dir / "slurmd.log").string()
       << "\nProctrackType=proctrack/linuxproc\nTaskPlugin=task/none\nSelectType=select/cons_tres\n"
-      << "SelectTypeParameters=CR_CPU\nJobAcctGatherType=jobacct_gather/none\nAccountingStorageType=accounting_storage/none\n"
+      << "SelectTypeParameters=CR_CPU\nJobAcctGatherType=jobacct_gather/"
+         "none\nAccountingStorageType=accounting_storage/none\n"
       << "MailProg=/bin/true\nMpiDefault=none\nReturnToService=2\nSchedulerType=sched/backfill\n"
       << "NodeName=" << host << " CPUs=" << cpus << " State=UNKNOWN\n"
       << "PartitionName=debug Nodes=" << host << " Default=YES MaxTime=INFINITE State=UP\n";
@@ -90,7 +98,8 @@ struct Cluster {
       if (!up) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
     if (!up) {
-      why_not = "slurmctld could not start: " + c.out + " " + slurp(dir / "slurmctld.log").substr(0, 2000);
+      why_not = "slurmctld could not start: " + c.out + " " +
+                slurp(dir / "slurmctld.log").substr(0, 2000);
       return;
     }
     sh("slurmd -f " + q(conf));
@@ -122,16 +131,19 @@ TEST(Slurm, ArrayJobTilesetEqualsLocalTileRun) {
   ASSERT_TRUE(cluster.node_idle()) << sh("sinfo").out << slurp(d / "cluster" / "slurmd.log");
 
   const fs::path ex = fs::path(CITYLOD_SOURCE_DIR) / "examples";
-  const std::string input = q(ex / "delft_small" / "delft_small.las") + " --crs EPSG:28992 --footprints " +
+  const std::string input = q(ex / "delft_small" / "delft_small.las") +
+                            " --crs EPSG:28992 --footprints " +
                             q(ex / "delft_small" / "footprints.geojson");
-  const CliRun local = sh(std::string(CITYLOD_BINARY) + " -q tile " + input + " --threads 2 --out " + q(d / "local"));
+  const CliRun local = sh(std::string(CITYLOD_BINARY) + " -q tile " + input +
+                          " --threads 2 --out " + q(d / "local"));
   ASSERT_EQ(local.code, 0) << local.out;
 
-  const CliRun sub = sh("WAIT=1 CITYLOD=" + std::string(CITYLOD_BINARY) + " " + q(ex / "slurm" / "submit.sh") + " " +
-                    q(d / "slurm") + " 3 " + input);
+  const CliRun sub = sh("WAIT=1 CITYLOD=" + std::string(CITYLOD_BINARY) + " " +
+                        q(ex / "slurm" / "submit.sh") + " " + q(d / "slurm") + " 3 " + input);
   std::string logs;
   if (fs::exists(d / "slurm" / "logs"))
-    for (const auto& e : fs::directory_iterator(d / "slurm" / "logs")) logs += e.path().string() + ":\n" + slurp(e.path());
+    for (const auto& e : fs::directory_iterator(d / "slurm" / "logs"))
+      logs += e.path().string() + ":\n" + slurp(e.path());
   ASSERT_EQ(sub.code, 0) << sub.out << logs;
   int array_logs = 0;
   for (const auto& e : fs::directory_iterator(d / "slurm" / "logs"))

@@ -1,8 +1,8 @@
 // `citylod split` end to end: the real binary on good and bad inputs.
 #include <gtest/gtest.h>
 
-#include "support/cli_run.hpp"
 #include <sys/wait.h>
+#include "support/cli_run.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -11,8 +11,9 @@
 #include <limits>
 #include <string>
 
-#include "citylod/io/workdir.hpp"
+#include "citylod/io/hash.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/tiler/workdir.hpp"
 #include "fixtures/las_writer.hpp"
 #include "fixtures/synthetic_city.hpp"
 
@@ -22,7 +23,6 @@ using namespace citylod;
 namespace {
 
 using namespace citylod::test;
-
 
 const std::string kData = CITYLOD_SHARED_DATA;
 
@@ -73,9 +73,9 @@ TEST(SplitCli, SplitsThenUpToDate) {
   CliRun r = run(args);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("3 chunks"), std::string::npos) << r.out;
-  const io::Manifest m = io::read_manifest(work.string());
+  const tiler::Manifest m = tiler::read_manifest(work.string());
   EXPECT_EQ(m.chunks.size(), 3u);
-  for (const auto& c : m.chunks) EXPECT_TRUE(fs::exists(io::chunk_path(work.string(), c.id)));
+  for (const auto& c : m.chunks) EXPECT_TRUE(fs::exists(tiler::chunk_path(work.string(), c.id)));
   r = run(args);
   EXPECT_EQ(r.code, 0);
   EXPECT_NE(r.out.find("up to date"), std::string::npos) << r.out;
@@ -158,12 +158,12 @@ TEST(SplitCli, BadInputs) {
   // The good LAS splits, and a later failure leaves that result untouched.
   ASSERT_EQ(run("split " + q(las) + " --crs EPSG:28992 --cell-size 60 -o " + q(work)).code, 0);
   const std::string before = [&] {
-    std::ifstream f(io::manifest_path(work.string()));
+    std::ifstream f(tiler::manifest_path(work.string()));
     return std::string(std::istreambuf_iterator<char>(f), {});
   }();
   expect_one_line_error(run("split " + q(tlas) + " --crs EPSG:28992 -o " + q(work)), tlas.string(),
                         "truncated");
-  std::ifstream f(io::manifest_path(work.string()));
+  std::ifstream f(tiler::manifest_path(work.string()));
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f), {}), before);
   for (const auto& e : fs::directory_iterator(work))
     EXPECT_TRUE(e.path().filename() == "manifest.json" || e.path().filename() == "chunks")
@@ -179,13 +179,14 @@ TEST(SplitCli, DelftWithFootprintsAndGeoid) {
                        " -o " + q(dir / "work"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("EGM96"), std::string::npos) << r.out;
-  const io::Manifest m = io::read_manifest((dir / "work").string());
+  const tiler::Manifest m = tiler::read_manifest((dir / "work").string());
   EXPECT_EQ(m.scene.crs, "EPSG:28992");
   // NAP ~0-25 m + geoid ~43 m near Delft: the ellipsoidal origin height lies in 40..70 m.
   EXPECT_GT(m.scene.origin_h, 40.0);
   EXPECT_LT(m.scene.origin_h, 70.0);
   std::size_t fp_chunks = 0;
-  for (const auto& c : m.chunks) fp_chunks += c.id.rfind("fp-", 0) == 0 && c.status == "pending";
+  for (const auto& c : m.chunks)
+    fp_chunks += c.id.rfind("fp-", 0) == 0 && c.status == tiler::Status::pending;
   EXPECT_GE(fp_chunks, 22u);
 }
 

@@ -3,10 +3,10 @@
 // kill -9 and resume, per-building rebuild, bad input.
 #include <gtest/gtest.h>
 
-#include "support/cli_run.hpp"
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include "support/cli_run.hpp"
 
 #include <chrono>
 #include <cstdio>
@@ -26,11 +26,11 @@ namespace {
 
 using namespace citylod::test;
 
-
 const fs::path kExample = fs::path(CITYLOD_SOURCE_DIR) / "examples" / "delft_small";
 
 std::string example_args() {
-  return q(kExample / "delft_small.las") + " --crs EPSG:28992 --footprints " + q(kExample / "footprints.geojson");
+  return q(kExample / "delft_small.las") + " --crs EPSG:28992 --footprints " +
+         q(kExample / "footprints.geojson");
 }
 
 void expect_same_tree(const fs::path& a, const fs::path& b) {
@@ -66,7 +66,8 @@ std::map<std::string, std::string> finished_reports(const fs::path& work) {
 /// "lod: N buildings (X computed, Y reused)" of a run's log.
 bool lod_counts(const std::string& log, int& total, int& computed, int& reused) {
   std::smatch m;
-  if (!std::regex_search(log, m, std::regex(R"(lod: (\d+) buildings \((\d+) computed, (\d+) reused\))")))
+  if (!std::regex_search(log, m,
+                         std::regex(R"(lod: (\d+) buildings \((\d+) computed, (\d+) reused\))")))
     return false;
   total = std::stoi(m[1]);
   computed = std::stoi(m[2]);
@@ -110,7 +111,8 @@ TEST(TileCli, KilledRunResumesWithoutRecomputingFinishedBuildings) {
   ASSERT_EQ(ref.code, 0) << ref.out;
 
   const fs::path out = d / "run";
-  const std::string cmd = std::string(CITYLOD_BINARY) + " -q tile " + example_args() + " --threads 2 --out " + q(out);
+  const std::string cmd =
+      std::string(CITYLOD_BINARY) + " -q tile " + example_args() + " --threads 2 --out " + q(out);
   const pid_t pid = fork();
   ASSERT_GE(pid, 0);
   if (pid == 0) {
@@ -164,14 +166,17 @@ TEST(TileCli, RebuildChangesOneBuildingAndReportsChangedFiles) {
   const auto before = finished_reports(out / "work");
 
   // A zero-ish time budget forces this building's fallback: its models certainly change.
-  const CliRun r = run("rebuild " + q(out) + " --building " + id + " --set budget.time_budget_s=1e-9");
+  const CliRun r =
+      run("rebuild " + q(out) + " --building " + id + " --set budget.time_budget_s=1e-9");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("changed tiles/"), std::string::npos) << r.out;
   const auto after = finished_reports(out / "work");
   ASSERT_EQ(after.size(), before.size());
   for (const auto& [bid, bytes] : before) {
-    if (bid == id) EXPECT_NE(after.at(bid), bytes) << bid;
-    else EXPECT_EQ(after.at(bid), bytes) << bid << " changed but was not rebuilt";
+    if (bid == id)
+      EXPECT_NE(after.at(bid), bytes) << bid;
+    else
+      EXPECT_EQ(after.at(bid), bytes) << bid << " changed but was not rebuilt";
   }
   const nlohmann::json ov = read_json(out / "work" / "overrides.json");
   EXPECT_EQ(ov["buildings"][id]["set"]["budget.time_budget_s"], "1e-9") << ov.dump();
@@ -192,7 +197,8 @@ TEST(TileCli, RebuildChangesOneBuildingAndReportsChangedFiles) {
   // --select pins models (the fallback's only model: step of the first model).
   const nlohmann::json rep = read_json(out / "work" / "lod" / id / "report.json");
   const int step = rep["models"][0].value("step", 0);
-  const CliRun s = run("rebuild " + q(out) + " --building " + id + " --select " + std::to_string(step));
+  const CliRun s =
+      run("rebuild " + q(out) + " --building " + id + " --select " + std::to_string(step));
   ASSERT_EQ(s.code, 0) << s.out;
   EXPECT_EQ(read_json(out / "work" / "overrides.json")["buildings"][id]["select"][0], step);
   const CliRun bad = run("rebuild " + q(out) + " --building " + id + " --select 999");

@@ -92,9 +92,13 @@ void expect_round_trip(bool quantize, double tolerance) {
   for (const auto& p : d.primitives) EXPECT_EQ(p.property_table, 0);
 }
 
-TEST(GlbReader, RoundTripOfTheWriter) { expect_round_trip(false, 1e-4); }
+TEST(GlbReader, RoundTripOfTheWriter) {
+  expect_round_trip(false, 1e-4);
+}
 
-TEST(GlbReader, RoundTripQuantized) { expect_round_trip(true, 20.0 / 32767 * 2); }
+TEST(GlbReader, RoundTripQuantized) {
+  expect_round_trip(true, 20.0 / 32767 * 2);
+}
 
 TEST(GlbReader, CorruptBytesNameTheFile) {
   TriangleMesh a;
@@ -123,16 +127,18 @@ TEST(GlbReader, CorruptBytesNameTheFile) {
   const nlohmann::json j = nlohmann::json::parse(good.substr(20, jlen));
   const auto& acc = j["accessors"][j["meshes"][0]["primitives"][0]["indices"].get<std::size_t>()];
   ASSERT_EQ(acc["componentType"], 5123);  // uint16
-  const std::size_t at = 20 + jlen + 8 + j["bufferViews"][acc["bufferView"].get<std::size_t>()]["byteOffset"].get<std::size_t>() +
-                         acc.value("byteOffset", std::size_t(0));
+  const std::size_t at =
+      20 + jlen + 8 +
+      j["bufferViews"][acc["bufferView"].get<std::size_t>()]["byteOffset"].get<std::size_t>() +
+      acc.value("byteOffset", std::size_t(0));
   std::string bad_index = good;
   bad_index[at] = char(0xff);
   bad_index[at + 1] = char(0xff);
   fails(bad_index, "index out of range");
   EXPECT_NO_THROW(io::parse_glb(good, "tile.glb"));
-  EXPECT_THROW(io::read_glb((fs::path(CITYLOD_TEST_TMP) / "no_such_dir" / "x.glb").string()), io::IoError);
+  EXPECT_THROW(io::read_glb((fs::path(CITYLOD_TEST_TMP) / "no_such_dir" / "x.glb").string()),
+               io::IoError);
 }
-
 
 // int16 positions must not merge distinct corners of a model (a thin part
 // closer than one quantization step would become non-manifold): such a node is
@@ -143,7 +149,7 @@ TEST(GlbReader, QuantizationNeverMergesCornersOfAModel) {
   opt.quantize = true;
   TriangleMesh far, thin;
   add_box(far, 900, 900, 0, 1000, 1000, 10);  // node extent 1000 m: step ~3 cm
-  add_box(thin, 0, 0, 0, 10, 10, 0.004);       // 4 mm thick slab
+  add_box(thin, 0, 0, 0, 10, 10, 0.004);      // 4 mm thick slab
   io::GlbBuilder merged(origin, opt);
   merged.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
   merged.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);

@@ -34,7 +34,8 @@ TEST(TilesetJson, WritesTheRequiredFields) {
   ts.root.box = io::TileBox::from_bbox(bbox(0, 0, 0, 100, 100, 20));
   ts.root.geometric_error = 10;
   ts.root.refine = "REPLACE";
-  ts.root.transform = std::array<double, 16>{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 3900000, 300000, 5000000, 1};
+  ts.root.transform =
+      std::array<double, 16>{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 3900000, 300000, 5000000, 1};
   ts.root.content_uri = "tiles/r.glb";
   ts.root.content_box = io::TileBox::from_bbox(bbox(1, 1, 0, 99, 99, 18));
   io::Tile child;

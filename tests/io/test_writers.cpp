@@ -162,8 +162,10 @@ TEST(Readers, NonConvexPolygonsAreTriangulatedExactly) {
   pm.faces = {{0, 1, 2, 3, 4, 5}};
   for (const std::string ext : {"obj", "ply"}) {
     const std::string path = tmp_path("l_shape." + ext);
-    if (ext == "obj") write_obj(path, pm);
-    else write_ply(path, pm);
+    if (ext == "obj")
+      write_obj(path, pm);
+    else
+      write_ply(path, pm);
     const TriangleMesh t = read_mesh(path);
     ASSERT_EQ(t.triangles.size(), 4u) << ext;
     double signed_sum = 0, abs_sum = 0;
@@ -197,8 +199,10 @@ double unsigned_area_sum(const TriangleMesh& t) {
     const auto& a = t.vertices[tr[0]];
     const auto& b = t.vertices[tr[1]];
     const auto& c = t.vertices[tr[2]];
-    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    const double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+                 v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                         u[0] * v[1] - u[1] * v[0]};
     s += 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
   }
   return s;

@@ -23,7 +23,8 @@ using citylod::lod::detail::ExtractCache;
 
 namespace {
 
-// axis-aligned rectangle on plane coordinate `axis` == v, spanning [a0,a1] x [b0,b1] on the other two axes (cyclic)
+// axis-aligned rectangle on plane coordinate `axis` == v, spanning [a0,a1] x [b0,b1] on the other
+// two axes (cyclic)
 BspPolygon rect(int axis, double v, double a0, double a1, double b0, double b1, int prim) {
   const int u = (axis + 1) % 3, w = (axis + 2) % 3;
   std::vector<Vec3> pts(4, Vec3::Zero());
@@ -54,9 +55,9 @@ std::vector<BspPolygon> box_faces(const Vec3& lo, const Vec3& hi, int prim0) {
 }
 
 struct MeshReport {
-  bool closed = true;      // every undirected edge used by exactly 2 triangles
-  bool oriented = true;    // every directed edge used once
-  bool degenerate = false; // repeated index in a triangle
+  bool closed = true;       // every undirected edge used by exactly 2 triangles
+  bool oriented = true;     // every directed edge used once
+  bool degenerate = false;  // repeated index in a triangle
   int edges = 0;
   int pinched = 0;         // vertices whose triangles form more than one fan through edges at the vertex
 };
@@ -100,7 +101,8 @@ MeshReport check_mesh(const TriangleMesh& m) {
   return r;
 }
 
-// Polygon mesh closedness: every directed edge of the face loops appears once, and its reverse once.
+// Polygon mesh closedness: every directed edge of the face loops appears once, and its reverse
+// once.
 bool polygon_mesh_closed(const PolygonMesh& m) {
   std::map<std::pair<int, int>, int> dir;
   for (const auto& f : m.faces)
@@ -115,18 +117,21 @@ bool polygon_mesh_closed(const PolygonMesh& m) {
 
 double mesh_volume(const TriangleMesh& m) {
   double v = 0;
-  for (const auto& t : m.triangles) v += m.vertices[t[0]].dot(m.vertices[t[1]].cross(m.vertices[t[2]]));
+  for (const auto& t : m.triangles)
+    v += m.vertices[t[0]].dot(m.vertices[t[1]].cross(m.vertices[t[2]]));
   return v / 6.0;
 }
 
-double sum_inside_volume(const Bsp& bsp, const std::vector<int>& part, const std::vector<char>& in) {
+double sum_inside_volume(const Bsp& bsp, const std::vector<int>& part,
+                         const std::vector<char>& in) {
   double v = 0;
   for (size_t i = 0; i < part.size(); ++i)
     if (in[i]) v += bsp.nodes()[part[i]].volume;
   return v;
 }
 
-std::vector<char> label_by(const Bsp& bsp, const std::vector<int>& part, const std::function<bool(const Vec3&)>& f) {
+std::vector<char> label_by(const Bsp& bsp, const std::vector<int>& part,
+                           const std::function<bool(const Vec3&)>& f) {
   std::vector<char> in;
   for (int n : part) in.push_back(f(bsp.nodes()[n].center) ? 1 : 0);
   return in;
@@ -244,7 +249,8 @@ TEST(Bsp, CubeInsideEnlargedBox) {
   EXPECT_EQ(s.labels_flipped, 0);
 
   // the same from the full leaf partition
-  const auto in = label_by(bsp, leaves, [](const Vec3& p) { return in_box(p, Vec3(0, 0, 0), Vec3(1, 1, 1)); });
+  const auto in =
+      label_by(bsp, leaves, [](const Vec3& p) { return in_box(p, Vec3(0, 0, 0), Vec3(1, 1, 1)); });
   const BspSurface s2 = bsp.extract(leaves, in);
   expect_good_surface(s2, "cube (leaves)");
   EXPECT_EQ(s2.merged_regions, 6);
@@ -271,14 +277,15 @@ TEST(Bsp, CubeInsideEnlargedBox) {
 TEST(Bsp, SmallPolygonsSplitOnlyTheCellsTheyCross) {
   const Vec3 lo(0, 0, 0), hi(4, 4, 4);
   std::vector<BspPolygon> polys{
-      rect(0, 2.0, -1, 5, -1, 5, 0),       // x = 2 through everything: 2 leaves
+      rect(0, 2.0, -1, 5, -1, 5, 0),        // x = 2 through everything: 2 leaves
       rect(1, 1.0, 0.5, 1.5, 0.5, 1.5, 1),  // y = 1, z in [.5,1.5], x in [.5,1.5]: only x<2 -> 3
       rect(2, 3.0, 1.0, 3.0, 0.0, 4.0, 2),  // z = 3, x in [1,3], y in [0,4]: 3 cells -> 6
       rect(2, 1.0, 2.5, 3.5, 0.5, 1.5, 3),  // z = 1, x in [2.5,3.5]: only x>2, z<3 -> 7
       rect(0, 1.0, 2.0, 3.0, 3.5, 3.9, 4),  // x = 1, y in [2,3], z in [3.5,3.9]: x<2, y>1, z>3 -> 8
       rect(0, 3.0, 5.0, 6.0, 1.0, 2.0, 5),  // outside the box: nothing
   };
-  // note rect() spans (u,w) = cyclic axes: for axis 0 (x) u = y, w = z; axis 1 (y): u = z, w = x; axis 2: u = x, w = y
+  // note rect() spans (u,w) = cyclic axes: for axis 0 (x) u = y, w = z; axis 1 (y): u = z, w = x;
+  // axis 2: u = x, w = y
   Bsp bsp(lo, hi, polys, 0);
   EXPECT_EQ(bsp.leaves().size(), 8u);
   double total = 0;
@@ -302,17 +309,18 @@ TEST(Bsp, LShapePrism) {
   // L in xy: [0,2]x[0,1] U [0,1]x[1,2], z in [0,1]
   auto inL = [](const Vec3& p) {
     if (p.z() <= 0 || p.z() >= 1) return false;
-    return (p.x() > 0 && p.x() < 2 && p.y() > 0 && p.y() < 1) || (p.x() > 0 && p.x() < 1 && p.y() > 0 && p.y() < 2);
+    return (p.x() > 0 && p.x() < 2 && p.y() > 0 && p.y() < 1) ||
+           (p.x() > 0 && p.x() < 1 && p.y() > 0 && p.y() < 2);
   };
   std::vector<BspPolygon> polys{
       rect(2, 0, 0, 2, 0, 1, 0), rect(2, 0, 0, 1, 1, 2, 1),  // bottom (two convex parts)
       rect(2, 1, 0, 2, 0, 1, 2), rect(2, 1, 0, 1, 1, 2, 3),  // top
-      rect(0, 0, 0, 2, 0, 1, 4),                              // x = 0, y 0..2
-      rect(1, 0, 0, 1, 0, 2, 5),                              // y = 0, (z,x) = z 0..1, x 0..2
-      rect(0, 2, 0, 1, 0, 1, 6),                              // x = 2, y 0..1
-      rect(1, 1, 0, 1, 1, 2, 7),                              // y = 1, x 1..2
-      rect(0, 1, 1, 2, 0, 1, 8),                              // x = 1, y 1..2
-      rect(1, 2, 0, 1, 0, 1, 9),                              // y = 2, x 0..1
+      rect(0, 0, 0, 2, 0, 1, 4),                             // x = 0, y 0..2
+      rect(1, 0, 0, 1, 0, 2, 5),                             // y = 0, (z,x) = z 0..1, x 0..2
+      rect(0, 2, 0, 1, 0, 1, 6),                             // x = 2, y 0..1
+      rect(1, 1, 0, 1, 1, 2, 7),                             // y = 1, x 1..2
+      rect(0, 1, 1, 2, 0, 1, 8),                             // x = 1, y 1..2
+      rect(1, 2, 0, 1, 0, 1, 9),                             // y = 2, x 0..1
   };
   Bsp bsp(Vec3(-1, -1, -1), Vec3(3, 3, 2), polys, 0);
   const auto leaves = bsp.leaves();
@@ -334,14 +342,16 @@ TEST(Bsp, LShapePrism) {
 }
 
 TEST(Bsp, TJunctionBoxOnBox) {
-  // big box [0,4]x[0,4]x[0,2], small box [0,1]x[0,1]x[2,3] on its corner (shares the walls x=0, y=0)
+  // big box [0,4]x[0,4]x[0,2], small box [0,1]x[0,1]x[2,3] on its corner (shares the walls x=0,
+  // y=0)
   const Vec3 blo(0, 0, 0), bhi(4, 4, 2), slo(0, 0, 2), shi(1, 1, 3);
   auto polys = box_faces(blo, bhi, 0);
   auto small = box_faces(slo, shi, 6);
   polys.insert(polys.end(), small.begin(), small.end());
   Bsp bsp(Vec3(-1, -1, -1), Vec3(5, 5, 4), polys, 0);
   const auto leaves = bsp.leaves();
-  const auto in = label_by(bsp, leaves, [&](const Vec3& p) { return in_box(p, blo, bhi) || in_box(p, slo, shi); });
+  const auto in = label_by(
+      bsp, leaves, [&](const Vec3& p) { return in_box(p, blo, bhi) || in_box(p, slo, shi); });
   EXPECT_NEAR(sum_inside_volume(bsp, leaves, in), 33.0, 1e-9);
   const BspSurface s = bsp.extract(leaves, in);
   expect_good_surface(s, "T-junction");
@@ -357,7 +367,8 @@ TEST(Bsp, TJunctionBoxOnBox) {
   polys2.insert(polys2.end(), mid.begin(), mid.end());
   Bsp bsp2(Vec3(-1, -1, -1), Vec3(5, 5, 4), polys2, 0);
   const auto l2 = bsp2.leaves();
-  const auto in2 = label_by(bsp2, l2, [&](const Vec3& p) { return in_box(p, blo, bhi) || in_box(p, mlo, mhi); });
+  const auto in2 =
+      label_by(bsp2, l2, [&](const Vec3& p) { return in_box(p, blo, bhi) || in_box(p, mlo, mhi); });
   const BspSurface s2 = bsp2.extract(l2, in2);
   expect_good_surface(s2, "T-junction hole");
   EXPECT_NEAR(mesh_volume(s2.triangles), 33.0, 1e-12);
@@ -375,7 +386,8 @@ TEST(Bsp, WindowCutout) {
   polys.push_back(rect(2, 2, 1, 2, 0, 0.5, 10));  // z = 2
   Bsp bsp(Vec3(-1, -1, -1), Vec3(5, 5, 4), polys, 0);
   const auto leaves = bsp.leaves();
-  const auto in = label_by(bsp, leaves, [&](const Vec3& p) { return in_box(p, blo, bhi) && !in_box(p, wlo, whi); });
+  const auto in = label_by(
+      bsp, leaves, [&](const Vec3& p) { return in_box(p, blo, bhi) && !in_box(p, wlo, whi); });
   EXPECT_NEAR(sum_inside_volume(bsp, leaves, in), 47.5, 1e-9);
   const BspSurface s = bsp.extract(leaves, in);
   expect_good_surface(s, "window");
@@ -391,7 +403,8 @@ TEST(Bsp, DiagonalCubesNonManifoldEdgeRepaired) {
   polys.insert(polys.end(), b.begin(), b.end());
   Bsp bsp(Vec3(-1, -1, -1), Vec3(3, 3, 2), polys, 0);
   const auto leaves = bsp.leaves();
-  const auto in = label_by(bsp, leaves, [&](const Vec3& p) { return in_box(p, alo, ahi) || in_box(p, blo, bhi); });
+  const auto in = label_by(
+      bsp, leaves, [&](const Vec3& p) { return in_box(p, alo, ahi) || in_box(p, blo, bhi); });
   const BspSurface s = bsp.extract(leaves, in);
   expect_good_surface(s, "diagonal");
   EXPECT_EQ(s.labels_flipped, 1);
@@ -483,9 +496,11 @@ TEST(Bsp, RandomStressClosedOrientedVolume) {
     const double t2 = now_s();
     const BspSurface s = bsp.extract(leaves, in);
     const double t3 = now_s();
-    std::printf("[ stress %u ] %zu leaves in %.1f ms (%.0f leaves/s); extract %zu tris, %d regions, %d flipped in %.1f ms\n",
-                seed, leaves.size(), 1e3 * (t1 - t0), leaves.size() / (t1 - t0), s.triangles.triangles.size(),
-                s.merged_regions, s.labels_flipped, 1e3 * (t3 - t2));
+    std::printf(
+        "[ stress %u ] %zu leaves in %.1f ms (%.0f leaves/s); extract %zu tris, %d regions, %d "
+        "flipped in %.1f ms\n",
+        seed, leaves.size(), 1e3 * (t1 - t0), leaves.size() / (t1 - t0),
+        s.triangles.triangles.size(), s.merged_regions, s.labels_flipped, 1e3 * (t3 - t2));
     expect_good_surface(s, "stress");
     const double vin = sum_inside_volume(bsp, leaves, s.inside);
     EXPECT_NEAR(mesh_volume(s.triangles), vin, 1e-6 * std::max(1.0, vin)) << "seed " << seed;
@@ -506,7 +521,8 @@ TEST(Bsp, RandomStressClosedOrientedVolume) {
       for (int n : cut) cin.push_back((bsp.nodes()[n].center - Vec3(5, 5, 5)).norm() < 4);
       const BspSurface sc = bsp.extract(cut, cin);
       expect_good_surface(sc, "cut");
-      EXPECT_NEAR(mesh_volume(sc.triangles), sum_inside_volume(bsp, cut, sc.inside), 1e-6 * L * L * L);
+      EXPECT_NEAR(mesh_volume(sc.triangles), sum_inside_volume(bsp, cut, sc.inside),
+                  1e-6 * L * L * L);
       double cv = 0;
       for (int n : cut) cv += bsp.nodes()[n].volume;
       EXPECT_NEAR(cv, L * L * L, 1e-9 * L * L * L);
@@ -606,13 +622,19 @@ TEST(Bsp, GableRidgeOnBoxFaceThenCut) {
   const double s = 0.76970758677521134, c = 0.63839660937436082;
   BspPolygon r1, r2;
   r1.plane = {-s, 0, c, -5.1011201157849229};
-  r1.polygon = {Vec3(1.6666666666666665, 1.6666666666666665, 10), Vec3(-1.3333333333333335, 1.6666666666666665, 6.3829338589554663),
-                Vec3(-1.3333333333333335, 5.6666666666666661, 6.3829338589554663), Vec3(1.6666666666666665, 5.6666666666666661, 10)};
+  r1.polygon = {Vec3(1.6666666666666665, 1.6666666666666665, 10),
+                Vec3(-1.3333333333333335, 1.6666666666666665, 6.3829338589554663),
+                Vec3(-1.3333333333333335, 5.6666666666666661, 6.3829338589554663),
+                Vec3(1.6666666666666665, 5.6666666666666661, 10)};
   r2.plane = {s, 0, c, -7.6668120717022941};
-  r2.polygon = {Vec3(1.6666666666666665, 1.6666666666666665, 10), Vec3(4.6666666666666661, 1.6666666666666665, 6.3829338589554663),
-                Vec3(4.6666666666666661, 5.6666666666666661, 6.3829338589554663), Vec3(1.6666666666666665, 5.6666666666666661, 10)};
+  r2.polygon = {Vec3(1.6666666666666665, 1.6666666666666665, 10),
+                Vec3(4.6666666666666661, 1.6666666666666665, 6.3829338589554663),
+                Vec3(4.6666666666666661, 5.6666666666666661, 6.3829338589554663),
+                Vec3(1.6666666666666665, 5.6666666666666661, 10)};
   r1.primitive = r2.primitive = 1;
-  std::vector<BspPolygon> polys{r1, r2, rect(1, 5, 1.6666666666666665, 8.3333333333333339, 1.6666666666666665, 3.333333333333333, 6)};
+  std::vector<BspPolygon> polys{
+      r1, r2,
+      rect(1, 5, 1.6666666666666665, 8.3333333333333339, 1.6666666666666665, 3.333333333333333, 6)};
   Bsp bsp(Vec3(0, 0, 0), Vec3(10, 10, 10), polys, 0);
   const auto leaves = bsp.leaves();
   double total = 0;
@@ -641,7 +663,8 @@ TEST(Bsp, BuildingLikeStress) {
         for (size_t i = 0; i < leaves.size(); ++i) {
           const Vec3 c = bsp.nodes()[leaves[i]].center;
           in[i] = lab == 0 ? char(rng() % 2)
-                           : char((c - Vec3(4, 5, 5)).norm() < 3.0 || (c.z() < 4 && c.x() > 3 && c.y() > 2 && c.y() < 7));
+                           : char((c - Vec3(4, 5, 5)).norm() < 3.0 ||
+                                  (c.z() < 4 && c.x() > 3 && c.y() > 2 && c.y() < 7));
         }
         const BspSurface surf = bsp.extract(leaves, in);
         const MeshReport r = check_mesh(surf.triangles);

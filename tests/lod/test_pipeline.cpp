@@ -16,7 +16,9 @@ namespace {
 
 using test::first_anchor;
 using test::last_anchor;
-int count(const LodResult& r, ModelKind k) { return test::count_models(r, k); }
+int count(const LodResult& r, ModelKind k) {
+  return test::count_models(r, k);
+}
 
 /// Every model closed, oriented, edge-manifold, without self-intersections;
 /// face counts non-decreasing along the candidate set.
@@ -117,7 +119,8 @@ TEST(LodPipeline, RobustToNoise) {
   expect_valid_models(r);
   EXPECT_EQ(count(r, ModelKind::Anchor), count(clean, ModelKind::Anchor));
   EXPECT_EQ(first_anchor(r)->polygons.faces.size(), first_anchor(clean)->polygons.faces.size());
-  EXPECT_NEAR(first_anchor(r)->volume, first_anchor(clean)->volume, 0.02 * first_anchor(clean)->volume);
+  EXPECT_NEAR(first_anchor(r)->volume, first_anchor(clean)->volume,
+              0.02 * first_anchor(clean)->volume);
 }
 
 TEST(LodPipeline, NormalsEstimatedWhenMissing) {
@@ -219,8 +222,9 @@ TEST(LodPipeline, WallWithInwardNormalsIsTurnedRound) {
 // short of the scene's bounding box, so they are not terrain).
 TEST(LodPipeline, OpenBottomIsClosedAtTheLowestSample) {
   std::vector<test::Face> f;
-  test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 6), 16);                             // no bottom
-  test::add_rect(f, Vec3(2, 1.5, 1.2), Vec3::UnitX(), 6, Vec3::UnitY(), 3);  // interior floor (lowest quarter), faces up
+  test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 6), 16);  // no bottom
+  test::add_rect(f, Vec3(2, 1.5, 1.2), Vec3::UnitX(), 6, Vec3::UnitY(),
+                 3);  // interior floor (lowest quarter), faces up
   const auto b = test::finish(std::move(f), 360.0, 6, SynthOptions{}, false);
   const LodResult r = build_lod_tree(b.input, fast_params());
   expect_valid_models(r);
@@ -252,7 +256,7 @@ static bool has_note(const LodResult& r, const std::string& what) {
 // plinth 0.5 m deep under the whole scene: the model is all of the input.
 TEST(LodPipeline, TerrainSheetIsCutOrKeptAsAPlinth) {
   std::vector<test::Face> f;
-  test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 4), 16);                    // house, no bottom
+  test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 4), 16);                         // house, no bottom
   test::add_rect(f, Vec3(-10, -10, 0), Vec3::UnitX(), 30, Vec3::UnitY(), 26);  // terrain, faces up
   const auto b = test::finish(std::move(f), 240.0, 6, SynthOptions{}, false);
   const LodResult r = build_lod_tree(b.input, terrain_params("cut"));
@@ -286,10 +290,11 @@ TEST(LodPipeline, HouseInATerrainHoleIsSolidDownToTheGround) {
   // 8 of their 10 m (shop windows, a garage door: what MVS leaves of a ground floor).
   const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY(), Z = Vec3::UnitZ();
   test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 8), 16 | 4 | 8);
-  test::add_rect(f, Vec3(0, 0, 0), X, 10, Z, 8, {{1, 9, 0.5, 4.5}});   // -y wall
-  test::add_rect(f, Vec3(0, 6, 0), Z, 8, X, 10, {{0.5, 4.5, 1, 9}});   // +y wall
-  test::add_rect(f, Vec3(1, 0.5, 4.5), X, 8, Y, 5);                       // first floor, seen through them
-  test::add_rect(f, Vec3(-10, -10, 0), X, 30, Y, 26, {{10, 20, 10, 16}});  // terrain minus the house
+  test::add_rect(f, Vec3(0, 0, 0), X, 10, Z, 8, {{1, 9, 0.5, 4.5}});  // -y wall
+  test::add_rect(f, Vec3(0, 6, 0), Z, 8, X, 10, {{0.5, 4.5, 1, 9}});  // +y wall
+  test::add_rect(f, Vec3(1, 0.5, 4.5), X, 8, Y, 5);  // first floor, seen through them
+  test::add_rect(f, Vec3(-10, -10, 0), X, 30, Y, 26,
+                 {{10, 20, 10, 16}});  // terrain minus the house
   const auto b = test::finish(std::move(f), 480.0, 6, SynthOptions{}, false);
   const LodResult r = build_lod_tree(b.input, terrain_params("cut"));
   expect_valid_models(r);
@@ -328,7 +333,8 @@ TEST(LodPipeline, NoModelReachesBeyondTheDataBox) {
 TEST(LodPipeline, PlinthFollowsASlopingTerrain) {
   std::vector<test::Face> f;
   const Vec3 Y = Vec3::UnitY();
-  const Vec3 S = Vec3(1, 0, 0.1).normalized();  // terrain: z = -2 + 0.1 (x + 10), 10 % slope along x
+  const Vec3 S =
+      Vec3(1, 0, 0.1).normalized();  // terrain: z = -2 + 0.1 (x + 10), 10 % slope along x
   const double L = 30.0 / S.x();
   // House 10 x 6 m on it, walls from the terrain up to z = 4, no bottom.
   test::add_box(f, Vec3(0, 0, -1.0), Vec3(10, 6, 4), 16);
@@ -342,7 +348,8 @@ TEST(LodPipeline, PlinthFollowsASlopingTerrain) {
   int edge_vertices = 0;
   double worst = -1e9;
   for (const auto& v : last_anchor(r)->mesh.vertices) {
-    if (v.x() > -8 && v.x() < 18 && v.y() > -8 && v.y() < 14) continue;  // the house and its surroundings
+    if (v.x() > -8 && v.x() < 18 && v.y() > -8 && v.y() < 14)
+      continue;  // the house and its surroundings
     const double terrain = -2.0 + 0.1 * (v.x() + 10);
     EXPECT_LE(v.z(), terrain + 0.3) << v.transpose();
     worst = std::max(worst, v.z() - terrain);

@@ -23,7 +23,9 @@ double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-std::string data(const std::string& rel) { return std::string(CITYLOD_SHARED_DATA) + "/" + rel; }
+std::string data(const std::string& rel) {
+  return std::string(CITYLOD_SHARED_DATA) + "/" + rel;
+}
 
 struct Detected {
   Samples s;
@@ -140,7 +142,8 @@ TEST(Planes, NoiseFreeBoxGivesSixExactPlanes) {
   EXPECT_GE(find_plane(r.prims, -Z, 0, 1e-3), 0);
   EXPECT_GE(find_plane(r.prims, Z, 6, 1e-3), 0);
   // Largest first; shapes filled; hulls CCW about the normal.
-  for (std::size_t i = 1; i < r.prims.size(); ++i) EXPECT_GE(r.prims[i - 1].inliers.size(), r.prims[i].inliers.size());
+  for (std::size_t i = 1; i < r.prims.size(); ++i)
+    EXPECT_GE(r.prims[i - 1].inliers.size(), r.prims[i].inliers.size());
   for (const auto& p : r.prims) {
     EXPECT_GT(p.alpha_area, 0.9 * p.hull_area);
     EXPECT_NEAR(p.u.cross(p.v).dot(p.normal), 1, 1e-9);
@@ -233,8 +236,9 @@ TEST(Alpha, FillsAHoleOnlyWithALargeAlpha) {
   const double filled = p.alpha_area;
   compute_shape(p, s, AlphaParams{0.3});
   const double holed = p.alpha_area;
-  EXPECT_NEAR(filled, 98.01, 0.05);         // the hull of the samples: 9.9^2
-  EXPECT_NEAR(filled - holed, 1.1 * 1.1, 0.25);  // the hole (1 m + half spacing each side) stays open
+  EXPECT_NEAR(filled, 98.01, 0.05);  // the hull of the samples: 9.9^2
+  EXPECT_NEAR(filled - holed, 1.1 * 1.1,
+              0.25);  // the hole (1 m + half spacing each side) stays open
   // Point containment: the hole's centre is covered only by the alpha-7 shape.
   auto covers = [](const Primitive& q, const Vec3& x) {
     for (const auto& t : q.alpha_tris) {
@@ -408,7 +412,10 @@ TEST(MeshCheck, Cases) {
       int f = -1;
       for (std::size_t j = 0; j < vs.size(); ++j)
         if (vs[j] == two.vertices[i]) f = int(j);
-      if (f < 0) { vs.push_back(two.vertices[i]); f = int(vs.size() - 1); }
+      if (f < 0) {
+        vs.push_back(two.vertices[i]);
+        f = int(vs.size() - 1);
+      }
       remap[i] = f;
     }
     for (auto& t : two.triangles)
@@ -507,8 +514,8 @@ TEST(Fidelity, ExactCubeVsItsSamples) {
 // ------------------------------------------------------------------ real data
 
 namespace {
-void report(const char* name, const BuildingInput& in, const LodParams& p, int expect_min, int expect_max,
-            bool closure = false) {
+void report(const char* name, const BuildingInput& in, const LodParams& p, int expect_min,
+            int expect_max, bool closure = false) {
   const std::clock_t c0 = std::clock();
   const double t0 = now();
   const Samples s = make_samples(in, p.normals);
@@ -524,10 +531,14 @@ void report(const char* name, const BuildingInput& in, const LodParams& p, int e
   const double cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
   double area = 0;
   for (const auto& pr : prims) area += pr.alpha_area;
-  std::printf("[%s] %zu input pts, %zu tris, %zu samples (normals %s): %zu planes (closure +%d), alpha area %.0f m2\n"
-              "    samples %.3f s, detection+shapes %.3f s, closure %.3f s, regularize(30) %.3f s, total %.3f s wall, %.3f s CPU\n",
-              name, in.points.size(), in.triangles.size(), s.points.size(), s.normals_estimated ? "estimated" : "given",
-              prims.size(), added, area, t1 - t0, t2 - t1, t3 - t2, t4 - t3, t4 - t0, cpu);
+  std::printf(
+      "[%s] %zu input pts, %zu tris, %zu samples (normals %s): %zu planes (closure +%d), alpha "
+      "area %.0f m2\n"
+      "    samples %.3f s, detection+shapes %.3f s, closure %.3f s, regularize(30) %.3f s, total "
+      "%.3f s wall, %.3f s CPU\n",
+      name, in.points.size(), in.triangles.size(), s.points.size(),
+      s.normals_estimated ? "estimated" : "given", prims.size(), added, area, t1 - t0, t2 - t1,
+      t3 - t2, t4 - t3, t4 - t0, cpu);
   EXPECT_GE(int(prims.size()), expect_min);
   EXPECT_LE(int(prims.size()), expect_max);
 }
@@ -550,8 +561,9 @@ TEST(RealData, CgalBuildingWithoutNormals) {
   const Samples s = make_samples(in, {});
   int agree = 0;
   for (std::size_t i = 0; i < ref.size(); ++i) agree += s.normals[i].dot(ref[i]) > 0;
-  std::printf("[cgal_building] estimated normals agreeing in orientation with the file's: %.1f %%\n",
-              100.0 * agree / ref.size());
+  std::printf(
+      "[cgal_building] estimated normals agreeing in orientation with the file's: %.1f %%\n",
+      100.0 * agree / ref.size());
   EXPECT_GT(agree, int(0.8 * ref.size()));
 }
 
@@ -565,8 +577,11 @@ TEST(RealData, Easy3dMesh) {
   for (auto& p : in.points) p -= c;
   report("easy3d_building", in, {}, 10, 400);
   const MeshCheck k = check_mesh(TriangleMesh{in.points, in.triangles});
-  std::printf("[easy3d_building] closed %d manifold %d oriented %d self-intersecting %d boundary %d nonmanifold %d\n",
-              k.closed, k.edge_manifold, k.oriented, k.self_intersecting, k.boundary_edges, k.nonmanifold_edges);
+  std::printf(
+      "[easy3d_building] closed %d manifold %d oriented %d self-intersecting %d boundary %d "
+      "nonmanifold %d\n",
+      k.closed, k.edge_manifold, k.oriented, k.self_intersecting, k.boundary_edges,
+      k.nonmanifold_edges);
 }
 
 TEST(RealData, Ahn3Lod2) {

@@ -17,7 +17,9 @@ using namespace citylod::lod;
 
 namespace {
 
-std::string data(const std::string& rel) { return std::string(CITYLOD_SHARED_DATA) + "/" + rel; }
+std::string data(const std::string& rel) {
+  return std::string(CITYLOD_SHARED_DATA) + "/" + rel;
+}
 
 /// Recentres on the bbox centre rounded to whole metres, as `citylod lod`
 /// does (the engine wants small coordinates). The frame matters at the last
@@ -49,8 +51,9 @@ void check_building(BuildingInput in, double max_finest_e2, double max_overhang)
   EXPECT_GE(interps, 1);
   const LodModel* f = test::last_anchor(r);
   ASSERT_NE(f, nullptr);
-  std::printf("[%s] %zu models (%d anchors), finest anchor: %zu triangles, e1 %.3f %%, e2 %.3f %%\n",
-              in.name.c_str(), r.models.size(), anchors, f->mesh.triangles.size(), f->e1, f->e2);
+  std::printf(
+      "[%s] %zu models (%d anchors), finest anchor: %zu triangles, e1 %.3f %%, e2 %.3f %%\n",
+      in.name.c_str(), r.models.size(), anchors, f->mesh.triangles.size(), f->e1, f->e2);
   EXPECT_LE(f->e2, max_finest_e2);
 }
 

@@ -33,7 +33,9 @@ inline CliRun sh(const std::string& cmd) {
 }
 
 /// Runs `citylod ARGS`.
-inline CliRun run(const std::string& args) { return sh(std::string(CITYLOD_BINARY) + " " + args); }
+inline CliRun run(const std::string& args) {
+  return sh(std::string(CITYLOD_BINARY) + " " + args);
+}
 
 /// A fresh, empty directory under the test tmp dir.
 inline fs::path tmp_dir(const std::string& name) {
@@ -44,7 +46,9 @@ inline fs::path tmp_dir(const std::string& name) {
 }
 
 /// Shell-quoted path.
-inline std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
+inline std::string q(const fs::path& p) {
+  return "'" + p.string() + "'";
+}
 
 inline std::string slurp(const fs::path& p) {
   std::ifstream f(p, std::ios::binary);

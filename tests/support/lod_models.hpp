@@ -66,7 +66,8 @@ inline InputBox input_box(const lod::BuildingInput& in) {
 /// How far a model's vertices reach beyond a box (m; 0 when inside).
 inline double overhang(const lod::LodModel& m, const InputBox& b) {
   double worst = 0;
-  for (const auto& v : m.mesh.vertices) worst = std::max({worst, (b.lo - v).maxCoeff(), (v - b.hi).maxCoeff()});
+  for (const auto& v : m.mesh.vertices)
+    worst = std::max({worst, (b.lo - v).maxCoeff(), (v - b.hi).maxCoeff()});
   return worst;
 }
 

@@ -20,24 +20,52 @@ namespace ply_detail {
 inline int type_size(const std::string& t) {
   if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
   if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
-  if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" || t == "float32") return 4;
+  if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" || t == "float32")
+    return 4;
   if (t == "double" || t == "float64") return 8;
   throw std::runtime_error("ply: unknown type " + t);
 }
 inline double read_bin(const char* p, const std::string& t) {
   if (t == "char" || t == "int8") return *reinterpret_cast<const std::int8_t*>(p);
   if (t == "uchar" || t == "uint8") return *reinterpret_cast<const std::uint8_t*>(p);
-  std::int16_t s; std::uint16_t us; std::int32_t i; std::uint32_t ui; float f; double d;
-  if (t == "short" || t == "int16") { std::memcpy(&s, p, 2); return s; }
-  if (t == "ushort" || t == "uint16") { std::memcpy(&us, p, 2); return us; }
-  if (t == "int" || t == "int32") { std::memcpy(&i, p, 4); return i; }
-  if (t == "uint" || t == "uint32") { std::memcpy(&ui, p, 4); return ui; }
-  if (t == "float" || t == "float32") { std::memcpy(&f, p, 4); return f; }
+  std::int16_t s;
+  std::uint16_t us;
+  std::int32_t i;
+  std::uint32_t ui;
+  float f;
+  double d;
+  if (t == "short" || t == "int16") {
+    std::memcpy(&s, p, 2);
+    return s;
+  }
+  if (t == "ushort" || t == "uint16") {
+    std::memcpy(&us, p, 2);
+    return us;
+  }
+  if (t == "int" || t == "int32") {
+    std::memcpy(&i, p, 4);
+    return i;
+  }
+  if (t == "uint" || t == "uint32") {
+    std::memcpy(&ui, p, 4);
+    return ui;
+  }
+  if (t == "float" || t == "float32") {
+    std::memcpy(&f, p, 4);
+    return f;
+  }
   std::memcpy(&d, p, 8);
   return d;
 }
-struct Prop { std::string name, type, count_type; bool list = false; };
-struct Elem { std::string name; long count = 0; std::vector<Prop> props; };
+struct Prop {
+  std::string name, type, count_type;
+  bool list = false;
+};
+struct Elem {
+  std::string name;
+  long count = 0;
+  std::vector<Prop> props;
+};
 }  // namespace ply_detail
 
 /// Reads a PLY point cloud or triangle mesh into a BuildingInput.
@@ -52,27 +80,49 @@ inline lod::BuildingInput read_ply_min(const std::string& path) {
     std::istringstream ls(line);
     std::string w;
     ls >> w;
-    if (w == "format") ls >> format;
-    else if (w == "element") { Elem e; ls >> e.name >> e.count; elems.push_back(e); }
-    else if (w == "property") {
+    if (w == "format")
+      ls >> format;
+    else if (w == "element") {
+      Elem e;
+      ls >> e.name >> e.count;
+      elems.push_back(e);
+    } else if (w == "property") {
       Prop p;
       std::string t;
       ls >> t;
-      if (t == "list") { p.list = true; ls >> p.count_type >> p.type >> p.name; }
-      else { p.type = t; ls >> p.name; }
+      if (t == "list") {
+        p.list = true;
+        ls >> p.count_type >> p.type >> p.name;
+      } else {
+        p.type = t;
+        ls >> p.name;
+      }
       elems.back().props.push_back(p);
-    } else if (w == "end_header") break;
+    } else if (w == "end_header")
+      break;
   }
   const bool ascii = format == "ascii";
-  if (!ascii && format != "binary_little_endian") throw std::runtime_error("ply: unsupported format " + format);
+  if (!ascii && format != "binary_little_endian")
+    throw std::runtime_error("ply: unsupported format " + format);
   lod::BuildingInput in;
   for (const Elem& e : elems) {
     int ix = -1, iy = -1, iz = -1, inx = -1, iny = -1, inz = -1, ilist = -1;
     for (int k = 0; k < static_cast<int>(e.props.size()); ++k) {
       const std::string& n = e.props[k].name;
-      if (n == "x") ix = k; else if (n == "y") iy = k; else if (n == "z") iz = k;
-      else if (n == "nx") inx = k; else if (n == "ny") iny = k; else if (n == "nz") inz = k;
-      else if (e.props[k].list && (n == "vertex_indices" || n == "vertex_index")) ilist = k;
+      if (n == "x")
+        ix = k;
+      else if (n == "y")
+        iy = k;
+      else if (n == "z")
+        iz = k;
+      else if (n == "nx")
+        inx = k;
+      else if (n == "ny")
+        iny = k;
+      else if (n == "nz")
+        inz = k;
+      else if (e.props[k].list && (n == "vertex_indices" || n == "vertex_index"))
+        ilist = k;
     }
     std::vector<double> vals(e.props.size());
     std::vector<long> idx;
@@ -82,13 +132,21 @@ inline lod::BuildingInput read_ply_min(const std::string& path) {
         const Prop& p = e.props[k];
         if (p.list) {
           double cnt;
-          if (ascii) f >> cnt;
-          else { f.read(buf, type_size(p.count_type)); cnt = read_bin(buf, p.count_type); }
+          if (ascii)
+            f >> cnt;
+          else {
+            f.read(buf, type_size(p.count_type));
+            cnt = read_bin(buf, p.count_type);
+          }
           if (static_cast<int>(k) == ilist) idx.clear();
           for (long j = 0; j < static_cast<long>(cnt); ++j) {
             double v;
-            if (ascii) f >> v;
-            else { f.read(buf, type_size(p.type)); v = read_bin(buf, p.type); }
+            if (ascii)
+              f >> v;
+            else {
+              f.read(buf, type_size(p.type));
+              v = read_bin(buf, p.type);
+            }
             if (static_cast<int>(k) == ilist) idx.push_back(static_cast<long>(v));
           }
         } else if (ascii) {
@@ -100,7 +158,8 @@ inline lod::BuildingInput read_ply_min(const std::string& path) {
       }
       if (e.name == "vertex") {
         in.points.emplace_back(vals[ix], vals[iy], vals[iz]);
-        if (inx >= 0 && iny >= 0 && inz >= 0) in.normals.emplace_back(vals[inx], vals[iny], vals[inz]);
+        if (inx >= 0 && iny >= 0 && inz >= 0)
+          in.normals.emplace_back(vals[inx], vals[iny], vals[inz]);
       } else if (e.name == "face" && ilist >= 0) {
         for (std::size_t j = 1; j + 1 < idx.size(); ++j)
           in.triangles.push_back({int(idx[0]), int(idx[j]), int(idx[j + 1])});
@@ -140,31 +199,51 @@ inline lod::BuildingInput read_off_min(const std::string& path) {
 
 /// Reads LAS 1.0-1.4 (legacy point count) xyz, keeping points of `cls` (or all
 /// with cls < 0), re-centred on `origin_out` (set to the bbox centre of the kept points).
-inline lod::BuildingInput read_las_min(const std::string& path, int cls, lod::Vec3* origin_out = nullptr) {
+inline lod::BuildingInput read_las_min(const std::string& path, int cls,
+                                       lod::Vec3* origin_out = nullptr) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw std::runtime_error("cannot open " + path);
   std::vector<char> h(375, 0);
   f.read(h.data(), 227);
-  auto u32 = [&](int o) { std::uint32_t v; std::memcpy(&v, &h[o], 4); return v; };
-  auto u16 = [&](int o) { std::uint16_t v; std::memcpy(&v, &h[o], 2); return v; };
-  auto f64 = [&](int o) { double v; std::memcpy(&v, &h[o], 8); return v; };
+  auto u32 = [&](int o) {
+    std::uint32_t v;
+    std::memcpy(&v, &h[o], 4);
+    return v;
+  };
+  auto u16 = [&](int o) {
+    std::uint16_t v;
+    std::memcpy(&v, &h[o], 2);
+    return v;
+  };
+  auto f64 = [&](int o) {
+    double v;
+    std::memcpy(&v, &h[o], 8);
+    return v;
+  };
   const std::uint32_t offset = u32(96);
   const int fmt = static_cast<unsigned char>(h[104]) & 0x3f;
   const std::uint16_t rec = u16(105);
   const std::uint32_t n = u32(107);
-  const double sx = f64(131), sy = f64(139), sz = f64(147), ox = f64(155), oy = f64(163), oz = f64(171);
+  const double sx = f64(131), sy = f64(139), sz = f64(147), ox = f64(155), oy = f64(163),
+               oz = f64(171);
   f.seekg(offset);
   std::vector<char> r(rec);
   std::vector<lod::Vec3> pts;
   for (std::uint32_t i = 0; i < n && f.read(r.data(), rec); ++i) {
     std::int32_t X, Y, Z;
-    std::memcpy(&X, &r[0], 4); std::memcpy(&Y, &r[4], 4); std::memcpy(&Z, &r[8], 4);
-    const int c = fmt >= 6 ? static_cast<unsigned char>(r[16]) : (static_cast<unsigned char>(r[15]) & 31);
+    std::memcpy(&X, &r[0], 4);
+    std::memcpy(&Y, &r[4], 4);
+    std::memcpy(&Z, &r[8], 4);
+    const int c =
+        fmt >= 6 ? static_cast<unsigned char>(r[16]) : (static_cast<unsigned char>(r[15]) & 31);
     if (cls >= 0 && c != cls) continue;
     pts.emplace_back(X * sx + ox, Y * sy + oy, Z * sz + oz);
   }
   lod::Vec3 lo = pts.empty() ? lod::Vec3::Zero() : pts[0], hi = lo;
-  for (const auto& p : pts) { lo = lo.cwiseMin(p); hi = hi.cwiseMax(p); }
+  for (const auto& p : pts) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
   const lod::Vec3 c = 0.5 * (lo + hi);
   lod::BuildingInput in;
   for (const auto& p : pts) in.points.push_back(p - c);

@@ -37,19 +37,19 @@ struct Face {
 };
 
 struct SynthOptions {
-  double spacing = 0.1;        ///< m, grid step of the point sampling
-  bool with_normals = true;    ///< false: BuildingInput::normals left empty
-  double noise_sigma = 0.0;    ///< m, isotropic Gaussian noise on the points
-  std::uint32_t seed = 1;      ///< noise seed
-  int refine_levels = 0;       ///< mesh: uniform 1-to-4 splits of every triangle
+  double spacing = 0.1;      ///< m, grid step of the point sampling
+  bool with_normals = true;  ///< false: BuildingInput::normals left empty
+  double noise_sigma = 0.0;  ///< m, isotropic Gaussian noise on the points
+  std::uint32_t seed = 1;    ///< noise seed
+  int refine_levels = 0;     ///< mesh: uniform 1-to-4 splits of every triangle
 };
 
 struct SynthBuilding {
-  BuildingInput input;         ///< point cloud (points [+ normals]) or mesh (points + triangles)
-  double volume = 0.0;         ///< m^3, exact
-  int planes = 0;              ///< number of distinct connected planar regions of the surface
-  std::vector<Face> faces;     ///< the exact surface
-  TriangleMesh mesh;           ///< the exact surface as a closed triangle mesh (both variants)
+  BuildingInput input;      ///< point cloud (points [+ normals]) or mesh (points + triangles)
+  double volume = 0.0;      ///< m^3, exact
+  int planes = 0;           ///< number of distinct connected planar regions of the surface
+  std::vector<Face> faces;  ///< the exact surface
+  TriangleMesh mesh;        ///< the exact surface as a closed triangle mesh (both variants)
 };
 
 // ------------------------------------------------------------------ helpers
@@ -57,12 +57,15 @@ struct SynthBuilding {
 /// Rectangle o + s*e1 + t*e2 (s in [0,l1], t in [0,l2]) minus axis-aligned holes
 /// {s0,s1,t0,t1} (disjoint, inside), as a grid of convex rectangles. Outward
 /// normal = e1 x e2 (e1, e2 unit and orthogonal).
-inline void add_rect(std::vector<Face>& faces, const Vec3& o, const Vec3& e1, double l1, const Vec3& e2, double l2,
+inline void add_rect(std::vector<Face>& faces, const Vec3& o, const Vec3& e1, double l1,
+                     const Vec3& e2, double l2,
                      const std::vector<std::array<double, 4>>& holes = {}) {
   std::vector<double> ss{0, l1}, ts{0, l2};
   for (const auto& h : holes) {
-    ss.push_back(h[0]); ss.push_back(h[1]);
-    ts.push_back(h[2]); ts.push_back(h[3]);
+    ss.push_back(h[0]);
+    ss.push_back(h[1]);
+    ts.push_back(h[2]);
+    ts.push_back(h[3]);
   }
   std::sort(ss.begin(), ss.end());
   ss.erase(std::unique(ss.begin(), ss.end()), ss.end());
@@ -78,8 +81,8 @@ inline void add_rect(std::vector<Face>& faces, const Vec3& o, const Vec3& e1, do
       if (in_hole) continue;
       Face f;
       f.normal = n;
-      f.loop = {o + ss[i] * e1 + ts[j] * e2, o + ss[i + 1] * e1 + ts[j] * e2, o + ss[i + 1] * e1 + ts[j + 1] * e2,
-                o + ss[i] * e1 + ts[j + 1] * e2};
+      f.loop = {o + ss[i] * e1 + ts[j] * e2, o + ss[i + 1] * e1 + ts[j] * e2,
+                o + ss[i + 1] * e1 + ts[j + 1] * e2, o + ss[i] * e1 + ts[j + 1] * e2};
       faces.push_back(std::move(f));
     }
 }
@@ -95,11 +98,11 @@ inline void add_polygon(std::vector<Face>& faces, std::vector<Vec3> loop) {
 inline void add_box(std::vector<Face>& faces, const Vec3& lo, const Vec3& hi, unsigned skip = 0) {
   const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY(), Z = Vec3::UnitZ();
   const Vec3 d = hi - lo;
-  if (!(skip & 1)) add_rect(faces, lo, Z, d.z(), Y, d.y());                          // -x: z x y = -x
+  if (!(skip & 1)) add_rect(faces, lo, Z, d.z(), Y, d.y());  // -x: z x y = -x
   if (!(skip & 2)) add_rect(faces, Vec3(hi.x(), lo.y(), lo.z()), Y, d.y(), Z, d.z());  // +x
-  if (!(skip & 4)) add_rect(faces, lo, X, d.x(), Z, d.z());                          // -y: x x z = -y
-  if (!(skip & 8)) add_rect(faces, Vec3(lo.x(), hi.y(), lo.z()), Z, d.z(), X, d.x());  // +y
-  if (!(skip & 16)) add_rect(faces, lo, Y, d.y(), X, d.x());                         // -z
+  if (!(skip & 4)) add_rect(faces, lo, X, d.x(), Z, d.z());  // -y: x x z = -y
+  if (!(skip & 8)) add_rect(faces, Vec3(lo.x(), hi.y(), lo.z()), Z, d.z(), X, d.x());   // +y
+  if (!(skip & 16)) add_rect(faces, lo, Y, d.y(), X, d.x());                            // -z
   if (!(skip & 32)) add_rect(faces, Vec3(lo.x(), lo.y(), hi.z()), X, d.x(), Y, d.y());  // +z
 }
 
@@ -108,9 +111,12 @@ class Gauss {
  public:
   explicit Gauss(std::uint32_t seed) : rng_(seed) {}
   double operator()() {
-    if (has_) { has_ = false; return spare_; }
+    if (has_) {
+      has_ = false;
+      return spare_;
+    }
     double u1 = (static_cast<double>(rng_()) + 1.0) / 4294967297.0;  // (0,1)
-    double u2 = static_cast<double>(rng_()) / 4294967296.0;           // [0,1)
+    double u2 = static_cast<double>(rng_()) / 4294967296.0;          // [0,1)
     const double r = std::sqrt(-2.0 * std::log(u1)), a = 2.0 * 3.14159265358979323846 * u2;
     spare_ = r * std::sin(a);
     has_ = true;
@@ -129,18 +135,24 @@ inline void sample_faces(const std::vector<Face>& faces, const SynthOptions& o, 
   Gauss g(o.seed);
   for (const Face& f : faces) {
     const Vec3 n = f.normal;
-    const Vec3 u = (std::abs(n.z()) < 0.9 ? Vec3::UnitZ().cross(n) : n.cross(Vec3::UnitX()).cross(n)).normalized();
+    const Vec3 u =
+        (std::abs(n.z()) < 0.9 ? Vec3::UnitZ().cross(n) : n.cross(Vec3::UnitX()).cross(n))
+            .normalized();
     const Vec3 v = n.cross(u);
     const double off = n.dot(f.loop[0]);
     std::vector<Vec2> p2;
     double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
     for (const auto& q : f.loop) {
       p2.emplace_back(q.dot(u), q.dot(v));
-      umin = std::min(umin, p2.back().x()); umax = std::max(umax, p2.back().x());
-      vmin = std::min(vmin, p2.back().y()); vmax = std::max(vmax, p2.back().y());
+      umin = std::min(umin, p2.back().x());
+      umax = std::max(umax, p2.back().x());
+      vmin = std::min(vmin, p2.back().y());
+      vmax = std::max(vmax, p2.back().y());
     }
-    const long i0 = static_cast<long>(std::floor(umin / h - 0.5)), i1 = static_cast<long>(std::ceil(umax / h));
-    const long j0 = static_cast<long>(std::floor(vmin / h - 0.5)), j1 = static_cast<long>(std::ceil(vmax / h));
+    const long i0 = static_cast<long>(std::floor(umin / h - 0.5)),
+               i1 = static_cast<long>(std::ceil(umax / h));
+    const long j0 = static_cast<long>(std::floor(vmin / h - 0.5)),
+               j1 = static_cast<long>(std::ceil(vmax / h));
     for (long i = i0; i <= i1; ++i)
       for (long j = j0; j <= j1; ++j) {
         const Vec2 p((i + 0.5) * h, (j + 0.5) * h);
@@ -164,7 +176,8 @@ inline TriangleMesh mesh_faces(const std::vector<Face>& faces, int refine_levels
   TriangleMesh m;
   std::map<std::tuple<long long, long long, long long>, int> index;
   auto vid = [&](const Vec3& p) {
-    const auto k = std::make_tuple(std::llround(p.x() * 1e7), std::llround(p.y() * 1e7), std::llround(p.z() * 1e7));
+    const auto k = std::make_tuple(std::llround(p.x() * 1e7), std::llround(p.y() * 1e7),
+                                   std::llround(p.z() * 1e7));
     auto it = index.find(k);
     if (it != index.end()) return it->second;
     m.vertices.push_back(p);
@@ -174,7 +187,8 @@ inline TriangleMesh mesh_faces(const std::vector<Face>& faces, int refine_levels
   for (const Face& f : faces) {
     std::vector<int> ids;
     for (const auto& p : f.loop) ids.push_back(vid(p));
-    for (std::size_t i = 1; i + 1 < ids.size(); ++i) m.triangles.push_back({ids[0], ids[i], ids[i + 1]});
+    for (std::size_t i = 1; i + 1 < ids.size(); ++i)
+      m.triangles.push_back({ids[0], ids[i], ids[i + 1]});
   }
   // T-junctions: split every triangle edge at the vertices lying inside it.
   bool changed = true;
@@ -229,7 +243,8 @@ inline TriangleMesh mesh_faces(const std::vector<Face>& faces, int refine_levels
 }
 
 /// Fills input as a point cloud (mesh=false) or a triangle mesh (mesh=true).
-inline SynthBuilding finish(std::vector<Face> faces, double volume, int planes, const SynthOptions& o, bool mesh) {
+inline SynthBuilding finish(std::vector<Face> faces, double volume, int planes,
+                            const SynthOptions& o, bool mesh) {
   SynthBuilding b;
   b.volume = volume;
   b.planes = planes;
@@ -247,8 +262,9 @@ inline SynthBuilding finish(std::vector<Face> faces, double volume, int planes, 
 // ------------------------------------------------------------------ buildings
 
 /// Axis-aligned box [lo, hi]: 6 planes.
-inline SynthBuilding sample_box(const Vec3& lo, const Vec3& hi, double spacing = 0.1, bool with_normals = true,
-                                double noise_sigma = 0.0, std::uint32_t seed = 1) {
+inline SynthBuilding sample_box(const Vec3& lo, const Vec3& hi, double spacing = 0.1,
+                                bool with_normals = true, double noise_sigma = 0.0,
+                                std::uint32_t seed = 1) {
   std::vector<Face> f;
   add_box(f, lo, hi);
   SynthOptions o;
@@ -259,7 +275,8 @@ inline SynthBuilding sample_box(const Vec3& lo, const Vec3& hi, double spacing =
   const Vec3 d = hi - lo;
   return finish(std::move(f), d.x() * d.y() * d.z(), 6, o, false);
 }
-inline SynthBuilding box(const Vec3& lo, const Vec3& hi, const SynthOptions& o = {}, bool mesh = false) {
+inline SynthBuilding box(const Vec3& lo, const Vec3& hi, const SynthOptions& o = {},
+                         bool mesh = false) {
   std::vector<Face> f;
   add_box(f, lo, hi);
   const Vec3 d = hi - lo;
@@ -293,18 +310,21 @@ inline SynthBuilding chimney_windows(const SynthOptions& o = {}, bool mesh = fal
   std::vector<Face> f;
   add_box(f, Vec3(0, 0, 0), Vec3(S::L, S::W, S::H), 4 | 32);  // without front wall and roof
   std::vector<std::array<double, 4>> holes;
-  for (int k = 0; k < S::windows; ++k) holes.push_back({S::win_x(k), S::win_x(k) + S::win_w, S::win_z, S::win_z + S::win_h});
+  for (int k = 0; k < S::windows; ++k)
+    holes.push_back({S::win_x(k), S::win_x(k) + S::win_w, S::win_z, S::win_z + S::win_h});
   add_rect(f, Vec3(0, 0, 0), X, S::L, Z, S::H, holes);  // front wall (normal -y)
   for (int k = 0; k < S::windows; ++k) {
     const double a = S::win_x(k), b = a + S::win_w, c = S::win_z, d = c + S::win_h, dp = S::depth;
-    add_rect(f, Vec3(a, dp, c), X, S::win_w, Z, S::win_h);   // back, -y
-    add_rect(f, Vec3(a, 0, c), Y, dp, Z, S::win_h);          // side x=a, +x
-    add_rect(f, Vec3(b, 0, c), Z, S::win_h, Y, dp);          // side x=b, -x
-    add_rect(f, Vec3(a, 0, c), X, S::win_w, Y, dp);          // sill z=c, +z
-    add_rect(f, Vec3(a, 0, d), Y, dp, X, S::win_w);          // lintel z=d, -z
+    add_rect(f, Vec3(a, dp, c), X, S::win_w, Z, S::win_h);  // back, -y
+    add_rect(f, Vec3(a, 0, c), Y, dp, Z, S::win_h);         // side x=a, +x
+    add_rect(f, Vec3(b, 0, c), Z, S::win_h, Y, dp);         // side x=b, -x
+    add_rect(f, Vec3(a, 0, c), X, S::win_w, Y, dp);         // sill z=c, +z
+    add_rect(f, Vec3(a, 0, d), Y, dp, X, S::win_w);         // lintel z=d, -z
   }
-  add_rect(f, Vec3(0, 0, S::H), X, S::L, Y, S::W, {{S::cx0, S::cx1, S::cy0, S::cy1}});  // roof with hole
-  add_box(f, Vec3(S::cx0, S::cy0, S::H), Vec3(S::cx1, S::cy1, S::H + S::ch), 16);     // chimney, no bottom
+  add_rect(f, Vec3(0, 0, S::H), X, S::L, Y, S::W,
+           {{S::cx0, S::cx1, S::cy0, S::cy1}});  // roof with hole
+  add_box(f, Vec3(S::cx0, S::cy0, S::H), Vec3(S::cx1, S::cy1, S::H + S::ch),
+          16);  // chimney, no bottom
   const double vol = S::L * S::W * S::H - S::windows * S::win_w * S::win_h * S::depth +
                      (S::cx1 - S::cx0) * (S::cy1 - S::cy0) * S::ch;
   return finish(std::move(f), vol, 6 + 5 + 5 * S::windows, o, mesh);
@@ -315,15 +335,15 @@ inline SynthBuilding l_shape(const SynthOptions& o = {}, bool mesh = false) {
   const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY(), Z = Vec3::UnitZ();
   const double H = 5;
   std::vector<Face> f;
-  add_rect(f, Vec3(0, 0, 0), X, 10, Z, H);     // y=0, -y
-  add_rect(f, Vec3(10, 0, 0), Y, 4, Z, H);     // x=10, +x
-  add_rect(f, Vec3(4, 4, 0), Z, H, X, 6);      // y=4 (x 4..10), +y
-  add_rect(f, Vec3(4, 4, 0), Y, 6, Z, H);      // x=4 (y 4..10), +x
-  add_rect(f, Vec3(0, 10, 0), Z, H, X, 4);     // y=10, +y
-  add_rect(f, Vec3(0, 0, 0), Z, H, Y, 10);     // x=0, -x
-  add_rect(f, Vec3(0, 0, 0), Y, 4, X, 10);     // floor, -z
+  add_rect(f, Vec3(0, 0, 0), X, 10, Z, H);  // y=0, -y
+  add_rect(f, Vec3(10, 0, 0), Y, 4, Z, H);  // x=10, +x
+  add_rect(f, Vec3(4, 4, 0), Z, H, X, 6);   // y=4 (x 4..10), +y
+  add_rect(f, Vec3(4, 4, 0), Y, 6, Z, H);   // x=4 (y 4..10), +x
+  add_rect(f, Vec3(0, 10, 0), Z, H, X, 4);  // y=10, +y
+  add_rect(f, Vec3(0, 0, 0), Z, H, Y, 10);  // x=0, -x
+  add_rect(f, Vec3(0, 0, 0), Y, 4, X, 10);  // floor, -z
   add_rect(f, Vec3(0, 4, 0), Y, 6, X, 4);
-  add_rect(f, Vec3(0, 0, H), X, 10, Y, 4);     // roof, +z
+  add_rect(f, Vec3(0, 0, H), X, 10, Y, 4);  // roof, +z
   add_rect(f, Vec3(0, 4, H), X, 4, Y, 6);
   return finish(std::move(f), (40.0 + 24.0) * H, 8, o, mesh);
 }
@@ -338,21 +358,23 @@ inline SynthBuilding gable_dormer(const SynthOptions& o = {}, bool mesh = false)
   const double dx0 = 3, dx1 = 6, yf = 1, zt = 7.25;
   const double zf = H + R * yf / (Dy / 2), yb = (zt - H) * (Dy / 2) / R;
   std::vector<Face> f;
-  add_rect(f, Vec3(0, 0, 0), X, Wx, Z, H);         // y=0 wall, -y
-  add_rect(f, Vec3(0, Dy, 0), Z, H, X, Wx);        // y=8 wall, +y
-  add_rect(f, Vec3(0, 0, 0), Y, Dy, X, Wx);        // floor, -z
-  add_polygon(f, {Vec3(0, 0, 0), Vec3(0, 0, H), Vec3(0, Dy / 2, H + R), Vec3(0, Dy, H), Vec3(0, Dy, 0)});  // -x
-  add_polygon(f, {Vec3(Wx, Dy, 0), Vec3(Wx, Dy, H), Vec3(Wx, Dy / 2, H + R), Vec3(Wx, 0, H), Vec3(Wx, 0, 0)});  // +x
+  add_rect(f, Vec3(0, 0, 0), X, Wx, Z, H);   // y=0 wall, -y
+  add_rect(f, Vec3(0, Dy, 0), Z, H, X, Wx);  // y=8 wall, +y
+  add_rect(f, Vec3(0, 0, 0), Y, Dy, X, Wx);  // floor, -z
+  add_polygon(f, {Vec3(0, 0, 0), Vec3(0, 0, H), Vec3(0, Dy / 2, H + R), Vec3(0, Dy, H),
+                  Vec3(0, Dy, 0)});  // -x
+  add_polygon(f, {Vec3(Wx, Dy, 0), Vec3(Wx, Dy, H), Vec3(Wx, Dy / 2, H + R), Vec3(Wx, 0, H),
+                  Vec3(Wx, 0, 0)});                          // +x
   const double sl = std::sqrt((Dy / 2) * (Dy / 2) + R * R);  // slope length
   const Vec3 up_s = Vec3(0, Dy / 2, R) / sl, up_n = Vec3(0, -Dy / 2, R) / sl;
   // South roof (e1 = x, e2 = up the slope), with the dormer's footprint as a hole.
   add_rect(f, Vec3(0, 0, H), X, Wx, up_s, sl, {{dx0, dx1, yf / (Dy / 2) * sl, yb / (Dy / 2) * sl}});
-  add_rect(f, Vec3(0, Dy, H), up_n, sl, X, Wx);    // north roof
+  add_rect(f, Vec3(0, Dy, H), up_n, sl, X, Wx);  // north roof
   // Dormer.
-  add_rect(f, Vec3(dx0, yf, zf), X, dx1 - dx0, Z, zt - zf);  // front, -y
+  add_rect(f, Vec3(dx0, yf, zf), X, dx1 - dx0, Z, zt - zf);                   // front, -y
   add_polygon(f, {Vec3(dx0, yf, zf), Vec3(dx0, yf, zt), Vec3(dx0, yb, zt)});  // side x=3, -x
   add_polygon(f, {Vec3(dx1, yf, zf), Vec3(dx1, yb, zt), Vec3(dx1, yf, zt)});  // side x=6, +x
-  add_rect(f, Vec3(dx0, yf, zt), X, dx1 - dx0, Y, yb - yf);  // top, +z
+  add_rect(f, Vec3(dx0, yf, zt), X, dx1 - dx0, Y, yb - yf);                   // top, +z
   const double vol = Wx * Dy * H + Wx * 0.5 * Dy * R + (dx1 - dx0) * 0.5 * (yb - yf) * (zt - zf);
   return finish(std::move(f), vol, 11, o, mesh);
 }

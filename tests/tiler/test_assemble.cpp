@@ -8,10 +8,10 @@
 #include <chrono>
 #include <cstdio>
 
-#include "../../tiler/src/assemble.hpp"
 #include "citylod/geo/georef.hpp"
 #include "citylod/io/error.hpp"
-#include "tiler/test_assemble_support.hpp"
+#include "citylod/tiler/assemble.hpp"
+#include "tiler/test_work_support.hpp"
 
 namespace citylod::test {
 namespace {
@@ -61,10 +61,12 @@ TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {
   std::vector<tiler::ModelEntry> entries;
   std::vector<TriangleMesh> meshes;
   for (const auto& m : chain) {
-    entries.push_back({"x", m.kind == "anchor", m.level, m.step * 2});
+    entries.push_back(
+        {"x", m.kind == "anchor" ? tiler::ModelKind::anchor : tiler::ModelKind::interpolation,
+         m.level, m.step * 2});
     meshes.push_back(m.mesh);
   }
-  entries.insert(entries.begin() + 2, {"dup", false, 1, 3});
+  entries.insert(entries.begin() + 2, {"dup", tiler::ModelKind::interpolation, 1, 3});
   meshes.insert(meshes.begin() + 2, chain[2].mesh);
   const tiler::ModelChoice c = tiler::choose_models(entries, meshes, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3, 4}));
@@ -86,7 +88,9 @@ TEST(AssembleMetrics, DropsInterpolationsThatDoNotGetCloser) {
   TriangleMesh box_annex;
   add_box(box_annex, 0, 0, 0, 12, 9, 8);
   add_box(box_annex, 12, 0, 0, 16, 4.5, 4);
-  const auto c = tiler::choose_models({{"a", true, 0, 0}, {"b", false, 1, 1}, {"c", true, 2, 2}},
+  const auto c = tiler::choose_models({{"a", tiler::ModelKind::anchor, 0, 0},
+                                       {"b", tiler::ModelKind::interpolation, 1, 1},
+                                       {"c", tiler::ModelKind::anchor, 2, 2}},
                                       {c4[0].mesh, box_annex, c4[3].mesh}, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 2}));
 }
@@ -95,7 +99,8 @@ TEST(AssembleMetrics, ErrorsStrictlyDecreaseEvenWhenDistancesDoNot) {
   // Anchors 2 m and 3 m away from the finest, in that order: the coarser one
   // is charged the finer one's error + 1 cm. Identical anchors count once.
   const TriangleMesh fin = box_mesh(0, 0, 0, 10, 10, 10);
-  std::vector<tiler::ModelEntry> e{{"a", true, 0, 0}, {"b", true, 1, 1}, {"c", true, 2, 2}, {"d", true, 3, 3}};
+  const auto A = tiler::ModelKind::anchor;
+  std::vector<tiler::ModelEntry> e{{"a", A, 0, 0}, {"b", A, 1, 1}, {"c", A, 2, 2}, {"d", A, 3, 3}};
   const auto c = tiler::choose_models(
       e, {box_mesh(2, 0, 0, 12, 10, 10), box_mesh(3, 0, 0, 13, 10, 10), fin, fin}, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3}));
@@ -115,9 +120,11 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   const auto t0 = std::chrono::steady_clock::now();
   const tiler::AssembleStats st = tiler::assemble(work, out, quiet_params());
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("[ measure  ] 50 buildings x 3 models: %.3f s, %zu tiles (%zu glb, depth %d), %zu B of tiles "
-              "(largest %zu B), %zu B of building glbs\n",
-              secs, st.tiles, st.content_tiles, st.depth, st.glb_bytes, st.max_glb_bytes, st.building_glb_bytes);
+  std::printf(
+      "[ measure  ] 50 buildings x 3 models: %.3f s, %zu tiles (%zu glb, depth %d), %zu B of tiles "
+      "(largest %zu B), %zu B of building glbs\n",
+      secs, st.tiles, st.content_tiles, st.depth, st.glb_bytes, st.max_glb_bytes,
+      st.building_glb_bytes);
   EXPECT_EQ(st.buildings, 50u);
   EXPECT_EQ(st.models_read, 150u);
   EXPECT_EQ(st.models_kept, 150u);
@@ -137,7 +144,9 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   const GlbFile root = read_glb(out + "/" + ts["root"]["content"]["uri"].get<std::string>());
   const auto& table = root.json["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
   EXPECT_EQ(table["count"], 50);
-  EXPECT_EQ(root.json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["building"]["properties"].size(),
+  EXPECT_EQ(root.json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["building"]
+                     ["properties"]
+                         .size(),
             9u);
   std::set<int> features;
   for (const auto& v : glb_vertices(root)) features.insert(v.feature);
@@ -279,8 +288,10 @@ TEST(Assemble, DelftBuildingLandsWhereItIs) {
   // whose corner is at RD (84950, 447450) (Delft centre), base 43.5 m.
   geo::TransformOptions to;
   to.height = geo::HeightMode::Ellipsoidal;
-  geo::Georef g = geo::Georef::from_crs(geo::Crs::parse("EPSG:28992"), Eigen::Vector3d(84000, 447000, 43.0), to);
-  io::Manifest man = synthetic_manifest(g.frame().origin().x(), g.frame().origin().y(), g.frame().origin().z());
+  geo::Georef g = geo::Georef::from_crs(geo::Crs::parse("EPSG:28992"),
+                                        Eigen::Vector3d(84000, 447000, 43.0), to);
+  tiler::Manifest man =
+      synthetic_manifest(g.frame().origin().x(), g.frame().origin().y(), g.frame().origin().z());
   man.scene.crs = "EPSG:28992";
   man.scene.origin_crs = {84000, 447000, 43.0};
   const Eigen::Vector3d corner_rd(84950.0, 447450.0, 43.5);
@@ -326,10 +337,12 @@ TEST(Assemble, DelftBuildingLandsWhereItIs) {
   proj_context_destroy(ctx);
 
   const Eigen::Vector3d d = ecef - ref;
-  const Eigen::Vector3d up(std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat));
+  const Eigen::Vector3d up(std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon),
+                           std::sin(lat));
   const double vertical = d.dot(up), horizontal = (d - vertical * up).norm();
-  std::printf("[ measure  ] Delft corner: ECEF off PROJ by %.4f m horizontally, %.4f m vertically\n", horizontal,
-              vertical);
+  std::printf(
+      "[ measure  ] Delft corner: ECEF off PROJ by %.4f m horizontally, %.4f m vertically\n",
+      horizontal, vertical);
   EXPECT_LT(horizontal, 0.05);
   EXPECT_LT(std::fabs(vertical), 0.05);  // ellipsoidal height kept
 }
@@ -351,7 +364,8 @@ TEST(Assemble, MissingManifestIsAClearError) {
   const std::string e = error_of([&] { tiler::assemble(work, work + ".out", quiet_params()); });
   EXPECT_NE(e.find("manifest.json"), std::string::npos) << e;
   EXPECT_FALSE(fs::exists(work + ".out"));
-  const std::string e2 = error_of([&] { tiler::assemble(work + "/nope", work + ".out", quiet_params()); });
+  const std::string e2 =
+      error_of([&] { tiler::assemble(work + "/nope", work + ".out", quiet_params()); });
   EXPECT_NE(e2.find("does not exist"), std::string::npos) << e2;
 }
 
@@ -381,7 +395,7 @@ TEST(Assemble, BuildingWithoutModelsIsAClearError) {
   ASSERT_EQ(st.warnings.size(), 2u);
   EXPECT_NE(st.warnings[1].find("'b-0002' has no LOD models"), std::string::npos) << st.warnings[1];
   // A model file listed but missing.
-  fs::remove(fs::path(io::lod_dir(work, "b-0000")) / "model_01_interpolation_L1.ply");
+  fs::remove(fs::path(tiler::lod_dir(work, "b-0000")) / "model_01_interpolation_L1.ply");
   e = error_of([&] { tiler::assemble(work, work + ".out2", quiet_params()); });
   EXPECT_NE(e.find("model_01_interpolation_L1.ply: model listed in"), std::string::npos) << e;
 }
@@ -393,7 +407,7 @@ TEST(Assemble, ReplacesAPreviousTilesetAtomicallyAndKeepsItOnFailure) {
   tiler::assemble(work, out, quiet_params());
   const auto before = dir_contents(out);
   // A failing run (a building lost its report) leaves the old tileset intact.
-  fs::remove(fs::path(io::lod_dir(work, "b-0003")) / "report.json");
+  fs::remove(fs::path(tiler::lod_dir(work, "b-0003")) / "report.json");
   EXPECT_FALSE(error_of([&] { tiler::assemble(work, out, quiet_params()); }).empty());
   EXPECT_EQ(dir_contents(out), before);
   EXPECT_FALSE(fs::exists(out + ".partial"));

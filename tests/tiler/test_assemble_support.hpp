@@ -21,8 +21,8 @@
 #include <vector>
 
 #include "citylod/io/atomic_file.hpp"
+#include "citylod/io/hash.hpp"
 #include "citylod/io/types.hpp"
-#include "citylod/io/workdir.hpp"
 #include "citylod/io/writers.hpp"
 
 namespace citylod::test {
@@ -35,7 +35,8 @@ using io::Vec3d;
 
 /// Closed convex solid from its vertices and faces (any winding): faces are fan
 /// triangulated and oriented outward (away from the vertex centroid).
-inline void add_convex(TriangleMesh& m, const std::vector<Vec3d>& v, const std::vector<std::vector<int>>& faces) {
+inline void add_convex(TriangleMesh& m, const std::vector<Vec3d>& v,
+                       const std::vector<std::vector<int>>& faces) {
   const std::uint32_t base = std::uint32_t(m.vertices.size());
   Vec3d c{0, 0, 0};
   for (const auto& p : v)
@@ -45,27 +46,40 @@ inline void add_convex(TriangleMesh& m, const std::vector<Vec3d>& v, const std::
     for (std::size_t i = 1; i + 1 < f.size(); ++i) {
       std::array<int, 3> t{f[0], f[i], f[i + 1]};
       const Vec3d &a = v[size_t(t[0])], &b = v[size_t(t[1])], &d = v[size_t(t[2])];
-      const Vec3d u{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w{d[0] - a[0], d[1] - a[1], d[2] - a[2]};
-      const Vec3d n{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-      const Vec3d g{(a[0] + b[0] + d[0]) / 3 - c[0], (a[1] + b[1] + d[1]) / 3 - c[1], (a[2] + b[2] + d[2]) / 3 - c[2]};
+      const Vec3d u{b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+          w{d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+      const Vec3d n{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0]};
+      const Vec3d g{(a[0] + b[0] + d[0]) / 3 - c[0], (a[1] + b[1] + d[1]) / 3 - c[1],
+                    (a[2] + b[2] + d[2]) / 3 - c[2]};
       if (n[0] * g[0] + n[1] * g[1] + n[2] * g[2] < 0) std::swap(t[1], t[2]);
-      m.triangles.push_back({base + std::uint32_t(t[0]), base + std::uint32_t(t[1]), base + std::uint32_t(t[2])});
+      m.triangles.push_back(
+          {base + std::uint32_t(t[0]), base + std::uint32_t(t[1]), base + std::uint32_t(t[2])});
     }
 }
 
 /// Axis-aligned box [x0,x1]x[y0,y1]x[z0,z1].
-inline void add_box(TriangleMesh& m, double x0, double y0, double z0, double x1, double y1, double z1) {
+inline void add_box(TriangleMesh& m, double x0, double y0, double z0, double x1, double y1,
+                    double z1) {
   std::vector<Vec3d> v;
-  for (int i = 0; i < 8; ++i) v.push_back({(i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0});
-  add_convex(m, v, {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}});
+  for (int i = 0; i < 8; ++i)
+    v.push_back({(i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0});
+  add_convex(m, v,
+             {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}});
 }
 
 /// House with walls of height h and a gable roof of rise r (ridge along x).
 inline void add_house(TriangleMesh& m, double w, double d, double h, double r) {
-  std::vector<Vec3d> v{{0, 0, 0}, {w, 0, 0}, {w, d, 0}, {0, d, 0}, {0, 0, h},
+  std::vector<Vec3d> v{{0, 0, 0}, {w, 0, 0}, {w, d, 0}, {0, d, 0},         {0, 0, h},
                        {w, 0, h}, {w, d, h}, {0, d, h}, {0, d / 2, h + r}, {w, d / 2, h + r}};
-  add_convex(m, v, {{0, 1, 2, 3}, {0, 1, 5, 4}, {3, 2, 6, 7}, {0, 3, 7, 8, 4}, {1, 2, 6, 9, 5}, {4, 5, 9, 8},
-                    {7, 6, 9, 8}});
+  add_convex(m, v,
+             {{0, 1, 2, 3},
+              {0, 1, 5, 4},
+              {3, 2, 6, 7},
+              {0, 3, 7, 8, 4},
+              {1, 2, 6, 9, 5},
+              {4, 5, 9, 8},
+              {7, 6, 9, 8}});
 }
 
 // ------------------------------------------------------------ work directories
@@ -117,7 +131,8 @@ inline std::vector<SynthModel> lod_chain(double w, double d, double h, int n) {
   out.push_back(m2);
   SynthModel m3{"anchor", 2, 3, {}};
   m3.mesh = m2.mesh;
-  add_box(m3.mesh, w * 0.3, d / 2 - 0.5, h + 2, w * 0.3 + 1, d / 2 + 0.5, h + 4.5);  // 1.5 m above the ridge
+  add_box(m3.mesh, w * 0.3, d / 2 - 0.5, h + 2, w * 0.3 + 1, d / 2 + 0.5,
+          h + 4.5);  // 1.5 m above the ridge
   out.push_back(m3);
   return out;
 }
@@ -139,52 +154,6 @@ inline std::vector<SynthBuilding> synthetic_city(int n, int models, double pitch
   }
   return out;
 }
-
-inline io::Manifest synthetic_manifest(double lon = 4.3571, double lat = 52.0116, double h = 45.0) {
-  io::Manifest m;
-  m.scene.crs = "";
-  m.scene.origin_lon = lon;
-  m.scene.origin_lat = lat;
-  m.scene.origin_h = h;
-  return m;
-}
-
-/// Writes WORK/manifest.json and WORK/lod/<id>/{report.json, model_*.ply}.
-inline void write_work(const std::string& work, io::Manifest man, const std::vector<SynthBuilding>& bs) {
-  fs::create_directories(work);
-  man.chunks.clear();
-  for (const auto& b : bs) {
-    io::ChunkRecord r;
-    r.id = b.id;
-    r.origin = b.origin;
-    io::BBox3 box;
-    for (const auto& m : b.models)
-      for (const auto& v : m.mesh.vertices) box.add(Vec3d{v[0] + b.origin[0], v[1] + b.origin[1], v[2] + b.origin[2]});
-    if (!box.empty()) {
-      r.bbox_min = box.min;
-      r.bbox_max = box.max;
-    }
-    r.status = "ok";
-    man.chunks.push_back(r);
-    const std::string dir = io::lod_dir(work, b.id);
-    fs::create_directories(dir);
-    nlohmann::json models = nlohmann::json::array();
-    for (const auto& m : b.models) {
-      char name[64];
-      std::snprintf(name, sizeof name, "model_%02d_%s_L%d.ply", m.step, m.kind.c_str(), m.level);
-      io::write_ply((fs::path(dir) / name).string(), m.mesh);
-      models.push_back({{"file", name}, {"kind", m.kind}, {"level", m.level}, {"step", m.step},
-                        {"triangles", m.mesh.triangles.size()}});
-    }
-    if (b.write_report) {
-      nlohmann::json rep{{"input", "synthetic"}, {"status", "ok"}, {"models", models}};
-      io::atomic_write_file((fs::path(dir) / "report.json").string(), rep.dump(2));
-    }
-  }
-  io::write_manifest(work, man);
-}
-
-// ------------------------------------------------------------ glb reading (independent of io/)
 
 struct GlbFile {
   nlohmann::json json;
@@ -231,8 +200,8 @@ inline double accessor_value(const GlbFile& g, int acc, std::size_t e, int i) {
   const std::string type = a["type"];
   const std::size_t ncomp = type == "SCALAR" ? 1 : type == "VEC2" ? 2 : type == "VEC3" ? 3 : 4;
   const std::size_t stride = bv.value("byteStride", ncomp * csize);
-  const std::size_t off = bv.value("byteOffset", std::size_t(0)) + a.value("byteOffset", std::size_t(0)) + e * stride +
-                          size_t(i) * csize;
+  const std::size_t off = bv.value("byteOffset", std::size_t(0)) +
+                          a.value("byteOffset", std::size_t(0)) + e * stride + size_t(i) * csize;
   const bool norm = a.value("normalized", false);
   switch (ct) {
     case 5126: {
@@ -258,7 +227,8 @@ inline double accessor_value(const GlbFile& g, int acc, std::size_t e, int i) {
     case 5121:
       return norm ? double(std::uint8_t(g.bin[off])) / 255.0 : double(std::uint8_t(g.bin[off]));
     case 5120:
-      return norm ? std::max(double(std::int8_t(g.bin[off])) / 127.0, -1.0) : double(std::int8_t(g.bin[off]));
+      return norm ? std::max(double(std::int8_t(g.bin[off])) / 127.0, -1.0)
+                  : double(std::int8_t(g.bin[off]));
   }
   throw std::runtime_error("unsupported componentType");
 }
@@ -276,17 +246,20 @@ inline std::vector<GlbVertex> glb_vertices(const GlbFile& g) {
     if (!node.contains("mesh")) continue;
     Eigen::Vector3d t(0, 0, 0), s(1, 1, 1);
     if (node.contains("translation"))
-      t = Eigen::Vector3d(node["translation"][0].get<double>(), node["translation"][1].get<double>(),
+      t = Eigen::Vector3d(node["translation"][0].get<double>(),
+                          node["translation"][1].get<double>(),
                           node["translation"][2].get<double>());
     if (node.contains("scale"))
-      s = Eigen::Vector3d(node["scale"][0].get<double>(), node["scale"][1].get<double>(), node["scale"][2].get<double>());
+      s = Eigen::Vector3d(node["scale"][0].get<double>(), node["scale"][1].get<double>(),
+                          node["scale"][2].get<double>());
     std::set<int> done;
     for (const auto& prim : g.json["meshes"][node["mesh"].get<size_t>()]["primitives"]) {
       const int pa = prim["attributes"]["POSITION"], fa = prim["attributes"]["_FEATURE_ID_0"];
       if (!done.insert(pa).second) continue;
       const std::size_t n = g.json["accessors"][size_t(pa)]["count"];
       for (std::size_t e = 0; e < n; ++e) {
-        Eigen::Vector3d y(accessor_value(g, pa, e, 0), accessor_value(g, pa, e, 1), accessor_value(g, pa, e, 2));
+        Eigen::Vector3d y(accessor_value(g, pa, e, 0), accessor_value(g, pa, e, 1),
+                          accessor_value(g, pa, e, 2));
         y = y.cwiseProduct(s) + t;
         out.push_back({Eigen::Vector3d(y.x(), -y.z(), y.y()), int(accessor_value(g, fa, e, 0)),
                        node.value("name", std::string())});
@@ -318,7 +291,8 @@ inline Eigen::Matrix4d matrix_of(const nlohmann::json& t) {
   return m;
 }
 /// Is point p (global frame) inside box b given in a frame with transform T?
-inline bool inside_box(const Eigen::Vector3d& p, const Box& b, const Eigen::Matrix4d& T, double tol = 1e-6) {
+inline bool inside_box(const Eigen::Vector3d& p, const Box& b, const Eigen::Matrix4d& T,
+                       double tol = 1e-6) {
   const Eigen::Vector4d l = T.inverse() * Eigen::Vector4d(p.x(), p.y(), p.z(), 1.0);
   const Eigen::Vector3d u = b.h.inverse() * (l.head<3>() - b.c);
   return u.cwiseAbs().maxCoeff() <= 1.0 + tol;
@@ -354,8 +328,10 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
     return r;
   }
   auto bad = [&](const std::string& s) { r.problems.push_back(s); };
-  if (!ts.contains("asset") || ts["asset"].value("version", "") != "1.1") bad("asset.version is not 1.1");
-  if (!ts.contains("geometricError") || !ts["geometricError"].is_number()) bad("no top-level geometricError");
+  if (!ts.contains("asset") || ts["asset"].value("version", "") != "1.1")
+    bad("asset.version is not 1.1");
+  if (!ts.contains("geometricError") || !ts["geometricError"].is_number())
+    bad("no top-level geometricError");
   if (!ts.contains("root")) {
     bad("no root");
     return r;
@@ -365,7 +341,8 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
   std::function<void(const nlohmann::json&, const std::string&, const Eigen::Matrix4d&, const Box*,
                      const Eigen::Matrix4d*, double, int)>
       walk = [&](const nlohmann::json& t, const std::string& path, const Eigen::Matrix4d& parentT,
-                 const Box* parent_box, const Eigen::Matrix4d* parent_boxT, double parent_error, int depth) {
+                 const Box* parent_box, const Eigen::Matrix4d* parent_boxT, double parent_error,
+                 int depth) {
         ++r.tiles;
         ++r.tiles_per_depth[depth];
         r.depth = std::max(r.depth, depth);
@@ -381,7 +358,8 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
         const Eigen::Matrix4d T = parentT * matrix_of(t.value("transform", nlohmann::json()));
         const Box box = box_of(t["boundingVolume"]);
         if (depth == 0 ? ge > parent_error : ge >= parent_error)
-          bad(path + ": geometricError " + std::to_string(ge) + " not below parent's " + std::to_string(parent_error));
+          bad(path + ": geometricError " + std::to_string(ge) + " not below parent's " +
+              std::to_string(parent_error));
         const bool leaf = !t.contains("children") || t["children"].empty();
         if (leaf) ++r.leaves;
         if (leaf && ge != 0) bad(path + ": leaf with geometricError " + std::to_string(ge));
@@ -412,7 +390,8 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
             try {
               const GlbFile g = read_glb(file);
               for (const auto& v : glb_vertices(g)) {
-                const Eigen::Vector3d p = (T * Eigen::Vector4d(v.p.x(), v.p.y(), v.p.z(), 1)).head<3>();
+                const Eigen::Vector3d p =
+                    (T * Eigen::Vector4d(v.p.x(), v.p.y(), v.p.z(), 1)).head<3>();
                 if (!inside_box(p, cbox, T, 1e-7)) {
                   bad(path + ": a vertex of " + uri + " lies outside its content bounding volume");
                   break;
@@ -435,7 +414,8 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
 inline std::map<std::string, std::string> dir_contents(const std::string& dir) {
   std::map<std::string, std::string> out;
   for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.is_regular_file()) out[fs::relative(e.path(), dir).string()] = read_bytes(e.path().string());
+    if (e.is_regular_file())
+      out[fs::relative(e.path(), dir).string()] = read_bytes(e.path().string());
   return out;
 }
 

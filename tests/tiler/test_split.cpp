@@ -1,6 +1,6 @@
 // split_scene(): synthetic scenes (clusters, footprints, meshes, cell borders,
 // halo growth, idempotence, atomicity) and the real data sets when present.
-#include "../../tiler/src/split.hpp"
+#include "citylod/tiler/split.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -11,10 +11,11 @@
 #include <map>
 #include <set>
 
-#include "../../tiler/src/footprints.hpp"
+#include "citylod/io/hash.hpp"
 #include "citylod/io/reader.hpp"
-#include "citylod/io/workdir.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/tiler/footprints.hpp"
+#include "citylod/tiler/workdir.hpp"
 #include "fixtures/las_writer.hpp"
 #include "fixtures/synthetic_city.hpp"
 
@@ -40,7 +41,7 @@ bool have(const std::string& rel) {
 }
 
 /// Index of the synthetic box whose outline contains the chunk's bbox centre, or -1.
-int box_of(const test::SynthCity& c, const io::ChunkRecord& r) {
+int box_of(const test::SynthCity& c, const tiler::ChunkRecord& r) {
   const double x = 0.5 * (r.bbox_min[0] + r.bbox_max[0]), y = 0.5 * (r.bbox_min[1] + r.bbox_max[1]);
   for (std::size_t i = 0; i < c.boxes.size(); ++i)
     if (x >= c.boxes[i].x0 && x <= c.boxes[i].x1 && y >= c.boxes[i].y0 && y <= c.boxes[i].y1)
@@ -160,12 +161,12 @@ TEST_F(SplitSynthetic, ClustersWithoutClassesFindBuildingsAndRejectTrees) {
   SplitOptions o = local_options(in, dir / "work");
   const SplitReport r = tiler::split_scene(o);
   EXPECT_FALSE(r.up_to_date);
-  const io::Manifest m = io::read_manifest(o.work_dir);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
   ASSERT_EQ(m.chunks.size(), city.boxes.size());
   std::set<int> seen;
   for (const auto& c : m.chunks) {
     EXPECT_EQ(c.id.rfind("b-", 0), 0u);
-    EXPECT_EQ(c.status, "pending");
+    EXPECT_EQ(c.status, tiler::Status::pending);
     EXPECT_EQ(c.source, "cluster");
     const int b = box_of(city, c);
     ASSERT_GE(b, 0) << c.id;
@@ -174,9 +175,9 @@ TEST_F(SplitSynthetic, ClustersWithoutClassesFindBuildingsAndRejectTrees) {
     EXPECT_NEAR(c.bbox_max[2], city.boxes[std::size_t(b)].h, 0.1);
     EXPECT_GE(c.outline.size(), 4u);
     // chunk file: relative coordinates, the whole building (roof + walls above min height)
-    const io::PointSet pts = io::read_points(io::chunk_path(o.work_dir, c.id));
+    const io::PointSet pts = io::read_points(tiler::chunk_path(o.work_dir, c.id));
     EXPECT_EQ(pts.size(), c.points);
-    EXPECT_EQ(io::hash_file(io::chunk_path(o.work_dir, c.id)), c.content_hash);
+    EXPECT_EQ(io::hash_file(tiler::chunk_path(o.work_dir, c.id)), c.content_hash);
     for (const auto& p : pts.positions) {
       EXPECT_LT(std::abs(p[0]), 60.0);
       EXPECT_LT(std::abs(p[1]), 60.0);
@@ -197,7 +198,7 @@ TEST_F(SplitSynthetic, BuildingsOnCellBordersAreWholeAndOwnedOnce) {
     SplitOptions o = local_options(in, dir / ("work" + std::to_string(int(cell))));
     o.cell_size = cell;
     tiler::split_scene(o);
-    const io::Manifest m = io::read_manifest(o.work_dir);
+    const tiler::Manifest m = tiler::read_manifest(o.work_dir);
     ASSERT_EQ(m.chunks.size(), city.boxes.size()) << "cell " << cell;
     for (const auto& c : m.chunks) {
       const int b = box_of(city, c);
@@ -215,10 +216,10 @@ TEST_F(SplitSynthetic, IgnoreClassesGivesTheSameBuildings) {
   SplitOptions o = local_options(in, dir / "work");
   o.ignore_classes = true;
   const SplitReport r = tiler::split_scene(o);
-  const io::Manifest m = io::read_manifest(o.work_dir);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
   EXPECT_EQ(m.chunks.size(), city.boxes.size());
   for (const auto& c : m.chunks) {
-    const io::PointSet pts = io::read_points(io::chunk_path(o.work_dir, c.id));
+    const io::PointSet pts = io::read_points(tiler::chunk_path(o.work_dir, c.id));
     ASSERT_TRUE(pts.has_classes());
     std::size_t trees = 0;
     for (auto k : pts.classes) trees += k == 5;
@@ -240,18 +241,18 @@ TEST_F(SplitSynthetic, FootprintsAssignPointsAndReportEveryFootprint) {
   EXPECT_EQ(r.footprints_total, 5u);
   EXPECT_EQ(r.footprints_in_scene, 4u);
   EXPECT_EQ(r.footprints_with_chunk, 3u);
-  const io::Manifest m = io::read_manifest(o.work_dir);
-  std::map<std::string, io::ChunkRecord> by_id;
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
+  std::map<std::string, tiler::ChunkRecord> by_id;
   for (const auto& c : m.chunks) by_id[c.id] = c;
   ASSERT_EQ(by_id.size(), 4u);
   for (const char* id : {"fp-A", "fp-B", "fp-C"}) {
     ASSERT_TRUE(by_id.count(id)) << id;
-    EXPECT_EQ(by_id[id].status, "pending");
+    EXPECT_EQ(by_id[id].status, tiler::Status::pending);
     EXPECT_EQ(by_id[id].outline.size(), 4u);
     EXPECT_GT(by_id[id].points, 500u);
-    EXPECT_TRUE(fs::exists(io::chunk_path(o.work_dir, id)));
+    EXPECT_TRUE(fs::exists(tiler::chunk_path(o.work_dir, id)));
   }
-  EXPECT_EQ(by_id["fp-E"].status, "skipped");
+  EXPECT_EQ(by_id["fp-E"].status, tiler::Status::skipped);
   EXPECT_FALSE(by_id["fp-E"].reason.empty());
 }
 
@@ -263,7 +264,7 @@ TEST_F(SplitSynthetic, MeshScenesSplitTriangles) {
   SplitOptions o = local_options(in, dir / "work");
   const SplitReport r = tiler::split_scene(o);
   EXPECT_EQ(r.triangles, mesh.triangles.size());
-  const io::Manifest m = io::read_manifest(o.work_dir);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
   ASSERT_EQ(m.chunks.size(), city.boxes.size());
   for (const auto& c : m.chunks) {
     const int b = box_of(city, c);
@@ -272,7 +273,7 @@ TEST_F(SplitSynthetic, MeshScenesSplitTriangles) {
     const std::size_t roof =
         std::size_t(2 * std::lround((bx.x1 - bx.x0) / 0.5) * std::lround((bx.y1 - bx.y0) / 0.5));
     EXPECT_GE(c.triangles, roof) << bx.id;
-    const io::TriangleMesh cm = io::read_mesh(io::chunk_path(o.work_dir, c.id));
+    const io::TriangleMesh cm = io::read_mesh(tiler::chunk_path(o.work_dir, c.id));
     EXPECT_EQ(cm.triangles.size(), c.triangles);
     EXPECT_EQ(cm.vertices.size(), c.points);
   }
@@ -283,18 +284,18 @@ TEST_F(SplitSynthetic, RerunIsUpToDateAndOptionChangesResplit) {
   const std::string in = write_points(dir, true);
   SplitOptions o = local_options(in, dir / "work");
   tiler::split_scene(o);
-  const auto mtime = fs::last_write_time(io::manifest_path(o.work_dir));
+  const auto mtime = fs::last_write_time(tiler::manifest_path(o.work_dir));
   const SplitReport again = tiler::split_scene(o);
   EXPECT_TRUE(again.up_to_date);
   EXPECT_EQ(again.chunks, city.boxes.size());
-  EXPECT_EQ(fs::last_write_time(io::manifest_path(o.work_dir)), mtime);
+  EXPECT_EQ(fs::last_write_time(tiler::manifest_path(o.work_dir)), mtime);
   o.seg.min_area = 13;
   EXPECT_FALSE(tiler::split_scene(o).up_to_date);
   // Deleting a chunk file makes it stale too.
-  const io::Manifest m = io::read_manifest(o.work_dir);
-  fs::remove(io::chunk_path(o.work_dir, m.chunks[0].id));
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
+  fs::remove(tiler::chunk_path(o.work_dir, m.chunks[0].id));
   EXPECT_FALSE(tiler::split_scene(o).up_to_date);
-  EXPECT_TRUE(fs::exists(io::chunk_path(o.work_dir, m.chunks[0].id)));
+  EXPECT_TRUE(fs::exists(tiler::chunk_path(o.work_dir, m.chunks[0].id)));
 }
 
 TEST_F(SplitSynthetic, FailedRunLeavesWorkUntouched) {
@@ -303,7 +304,7 @@ TEST_F(SplitSynthetic, FailedRunLeavesWorkUntouched) {
   SplitOptions o = local_options(good, dir / "work");
   tiler::split_scene(o);
   const std::string manifest_before = [&] {
-    std::ifstream f(io::manifest_path(o.work_dir));
+    std::ifstream f(tiler::manifest_path(o.work_dir));
     return std::string(std::istreambuf_iterator<char>(f), {});
   }();
   // Truncated copy of the input.
@@ -312,7 +313,7 @@ TEST_F(SplitSynthetic, FailedRunLeavesWorkUntouched) {
   fs::resize_file(bad, fs::file_size(bad) - 1000);
   o.inputs = {bad};
   EXPECT_THROW(tiler::split_scene(o), io::IoError);
-  std::ifstream f(io::manifest_path(o.work_dir));
+  std::ifstream f(tiler::manifest_path(o.work_dir));
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f), {}), manifest_before);
   for (const auto& e : fs::directory_iterator(o.work_dir))
     EXPECT_TRUE(e.path().filename() == "manifest.json" || e.path().filename() == "chunks")
@@ -373,8 +374,8 @@ struct ChunkStats {
   std::size_t points = 0, class6 = 0;
 };
 
-ChunkStats class_stats(const std::string& work, const io::ChunkRecord& c) {
-  const io::PointSet pts = io::read_points(io::chunk_path(work, c.id));
+ChunkStats class_stats(const std::string& work, const tiler::ChunkRecord& c) {
+  const io::PointSet pts = io::read_points(tiler::chunk_path(work, c.id));
   ChunkStats s;
   s.points = pts.size();
   for (auto k : pts.classes) s.class6 += k == 6;
@@ -408,10 +409,10 @@ TEST(SplitRealData, DelftWithAndWithoutFootprints) {
     oc.ignore_classes = ignore;
     oc.work_dir = (dir / (ignore ? "noclass" : "class")).string();
     const SplitReport r = tiler::split_scene(oc);
-    const io::Manifest m = io::read_manifest(oc.work_dir);
+    const tiler::Manifest m = tiler::read_manifest(oc.work_dir);
     // Footprints inside the tile that some chunk covers (footprint centroid inside a chunk
     // outline), chunks that are not buildings (< 50 % class-6 points).
-    const io::Manifest mf = io::read_manifest(o.work_dir);
+    const tiler::Manifest mf = tiler::read_manifest(o.work_dir);
     std::size_t covered = 0, inside = 0;
     for (const auto& rec : mf.chunks) {  // footprint records carry the footprint outline (ENU)
       if (rec.outline.size() < 3) continue;
@@ -459,7 +460,7 @@ TEST(SplitRealData, AutzenFeetAreConverted) {
   bool feet = false;
   for (const auto& n : r.notes) feet |= n.find("foot") != std::string::npos;
   EXPECT_TRUE(feet);
-  const io::Manifest m = io::read_manifest(o.work_dir);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
   EXPECT_FALSE(m.scene.crs.empty());
   EXPECT_NEAR(m.scene.origin_lat, 44.06, 0.05);
   EXPECT_NEAR(m.scene.origin_lon, -123.07, 0.05);
@@ -483,7 +484,7 @@ TEST(SplitRealData, SampleCRoofWithOrigin) {
   o.work_dir = (dir / "work").string();
   o.origin = "40.0,-105.0,1600";
   tiler::split_scene(o);
-  const io::Manifest m = io::read_manifest(o.work_dir);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
   ASSERT_GE(m.chunks.size(), 1u);
   std::size_t biggest = 0;
   for (const auto& c : m.chunks) biggest = std::max<std::size_t>(biggest, c.points);
@@ -499,7 +500,7 @@ TEST(SplitRealData, City3dBlockBuildingsWithoutTrees) {
   o.work_dir = (dir / "work").string();
   o.origin = "52.0,4.37,45";
   const SplitReport r = tiler::split_scene(o);
-  const io::Manifest m = io::read_manifest(o.work_dir);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
   // The footprint file holds the outline of the block's building (one polygon). The scene also
   // holds a detached building and a small annex without footprint, and many trees.
   const io::PolygonMesh fp = io::read_polygon_mesh(kData + "/ahn3_block/city3d_001_footprint.obj");
@@ -511,7 +512,7 @@ TEST(SplitRealData, City3dBlockBuildingsWithoutTrees) {
   }
   std::size_t mostly_inside = 0, fp_points = 0;
   for (const auto& c : m.chunks) {
-    const io::PointSet pts = io::read_points(io::chunk_path(o.work_dir, c.id));
+    const io::PointSet pts = io::read_points(tiler::chunk_path(o.work_dir, c.id));
     std::size_t in = 0;
     for (const auto& p : pts.positions)
       for (const auto& ring : rings)

@@ -7,7 +7,8 @@
 //
 //   const io::GlbDocument d = io::read_glb("tiles/r_0.glb");
 //   for (const auto& p : d.primitives)       // node-local positions + node matrix
-//     for (const auto& t : p.triangles) ...  // p.feature_ids[t[k]] -> d.property_tables[p.property_table]
+//     for (const auto& t : p.triangles) ...  // p.feature_ids[t[k]] ->
+//     d.property_tables[p.property_table]
 #pragma once
 
 #include <array>
@@ -22,7 +23,7 @@ namespace citylod::io {
 
 /// One TRIANGLES primitive of one mesh instance (a node with a mesh).
 struct GlbPrimitive {
-  int node = 0;                ///< node index in the glb
+  int node = 0;  ///< node index in the glb
   std::string node_name;
   int position_accessor = -1;  ///< POSITION accessor (primitives of a node often share it)
   /// Node to scene transform (glTF y-up frame), column-major 4x4, the product

@@ -34,13 +34,13 @@ const char* to_string(LodKind k);  ///< "anchor" | "interpolation" | "fallback"
 struct GlbFeature {
   std::string building_id;
   LodKind kind = LodKind::anchor;
-  int level = 0;               ///< LOD-Tree level set of the model
-  int step = 0;                ///< traversal step that produced it (report.json)
-  int model_index = 0;         ///< position in the building's kept chain, 0 = coarsest
-  int model_count = 1;         ///< models kept for the building
-  double height_m = 0;         ///< vertical extent of the model
+  int level = 0;        ///< LOD-Tree level set of the model
+  int step = 0;         ///< traversal step that produced it (report.json)
+  int model_index = 0;  ///< position in the building's kept chain, 0 = coarsest
+  int model_count = 1;  ///< models kept for the building
+  double height_m = 0;  ///< vertical extent of the model
   double footprint_area_m2 = 0;
-  double error_m = 0;          ///< geometric error: distance to the building's finest model
+  double error_m = 0;  ///< geometric error: distance to the building's finest model
 };
 
 struct GlbOptions {

@@ -27,19 +27,19 @@ struct TileBox {
 };
 
 struct Tile {
-  TileBox box;                                  ///< boundingVolume: contains content and children
-  double geometric_error = 0;                   ///< metres
+  TileBox box;                 ///< boundingVolume: contains content and children
+  double geometric_error = 0;  ///< metres
   std::optional<std::array<double, 16>> transform;  ///< column-major, relative to the parent
-  std::string refine;                           ///< "REPLACE" / "ADD"; "" inherits (root must set it)
-  std::string content_uri;                      ///< relative to tileset.json; "" = no content
-  std::optional<TileBox> content_box;           ///< content.boundingVolume (tighter than box)
+  std::string refine;                  ///< "REPLACE" / "ADD"; "" inherits (root must set it)
+  std::string content_uri;             ///< relative to tileset.json; "" = no content
+  std::optional<TileBox> content_box;  ///< content.boundingVolume (tighter than box)
   std::vector<Tile> children;
 };
 
 struct Tileset {
-  double geometric_error = 0;   ///< error when the tileset is not rendered at all
+  double geometric_error = 0;  ///< error when the tileset is not rendered at all
   std::string generator = "citylod";
-  std::string tileset_version;  ///< asset.tilesetVersion, optional
+  std::string tileset_version;    ///< asset.tilesetVersion, optional
   nlohmann::ordered_json extras;  ///< top-level "extras" (object or null)
   Tile root;
 };

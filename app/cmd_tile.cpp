@@ -1,0 +1,62 @@
+// `citylod tile INPUT... --out DIR`: split -> lod -> assemble in one command
+// (tiler::run_city, city_run.hpp).
+#include <cstdio>
+
+#include "citylod/tiler/city_run.hpp"
+#include "cli.hpp"
+#include "stage_options.hpp"
+
+namespace citylod::app {
+
+int cmd_tile(ArgParser& args) {
+  args.usage("INPUT... --out DIR")
+      .describe(
+          "One-command city run: split the scene into buildings (DIR/work), build every\n"
+          "building's LOD-Tree (in parallel, resumable, each building isolated: a crash or\n"
+          "failure gives that building its fallback model and the reason) and assemble the\n"
+          "3D Tiles tileset (DIR/tileset). Writes DIR/run_report.json. Re-running the same\n"
+          "command resumes: an up-to-date split is kept and finished buildings are reused.\n"
+          "Per-building changes: 'citylod rebuild DIR --building ID'.");
+  args.option("out", 'o', "DIR", "output directory (work/, tileset/, run_report.json)");
+  declare_split_options(args);
+  declare_lod_param_options(args);
+  declare_threads_option(args, "buildings processed at once (LOD stage) and assemble's threads");
+  declare_assemble_options(args);
+  args.flag("force", 'f', "split again even if DIR/work is up to date");
+  args.positional("INPUT", "point cloud or mesh file(s) of one scene", Arity::one_or_more);
+  if (!args.parse()) return 0;
+  if (!args.has("out")) throw UsageError("--out DIR is required");
+
+  tiler::CityRunOptions o;
+  o.out_dir = args.get("out");
+  o.split =
+      parse_split_options(args, args.positionals(), o.out_dir + "/work");  // run_city sets it too
+  o.split.force = args.has("force");
+  o.lod = parse_lod_params(args, city_lod_params());
+  o.threads = parse_threads(args);
+  o.assemble = parse_assemble_options(args);
+
+  ProgressDisplay bars;
+  const tiler::CityRunResult r = usage_errors([&] { return tiler::run_city(o, bars.fn()); });
+  bars.finish();
+
+  const tiler::RunReport& rep = r.report;
+  log_info(
+      "tile: " + std::to_string(rep.buildings.size()) + " buildings: " + std::to_string(rep.ok) +
+      " ok, " + std::to_string(rep.fallback) + " fallback, " + std::to_string(rep.failed) +
+      " failed" +
+      (rep.skipped ? ", " + std::to_string(rep.skipped) + " skipped by split" : std::string()) +
+      "; lod " + std::to_string(rep.lod.computed) + " computed, " + std::to_string(rep.lod.reused) +
+      " reused");
+  for (const auto& p : r.problems) log_info("  " + p);
+  log_info("tile: time split " + strf("%.1f", rep.split.seconds) + " s, lod " +
+           strf("%.1f", rep.lod.seconds) + " s, assemble " + strf("%.1f", rep.assemble.seconds) +
+           " s, total " + strf("%.1f", rep.seconds_total) + " s; peak memory " +
+           strf("%.0f", double(rep.peak_rss_self) / (1 << 20)) + " MiB (this process), " +
+           strf("%.0f", double(rep.peak_rss_children) / (1 << 20)) + " MiB (LOD stage)");
+  log_info("tile: wrote " + o.out_dir + "/tileset/tileset.json (" +
+           std::to_string(rep.assemble.tiles) + " tiles) and " + o.out_dir + "/run_report.json");
+  return 0;
+}
+
+}  // namespace citylod::app

@@ -1,0 +1,133 @@
+// The shared option declarations / parsing of the split, lod and assemble
+// stages (see stage_options.hpp).
+#include "stage_options.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <stdexcept>
+
+namespace citylod::app {
+
+namespace {
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return std::string(b);
+}
+}  // namespace
+
+// ------------------------------------------------------------ split
+void declare_split_options(ArgParser& args) {
+  const SplitOptions d;
+  args.option("crs", 0, "CRS",
+              "CRS of the input: EPSG:nnnn, WKT or PROJ string (default: from the LAS file)")
+      .option("origin", 0, "LAT,LON,H",
+              "data in local ENU metres at this origin (degrees, ellipsoidal m)")
+      .option("geoid", 0, "MODEL", "input heights are orthometric on MODEL (egm96)")
+      .option("footprints", 0, "FILE",
+              "building footprints (GeoJSON Polygon/MultiPolygon with an id property)")
+      .option("footprint-buffer", 0, "M", "points this close outside a footprint belong to it",
+              num(d.footprint_buffer))
+      .option("memory-limit", 'm', "SIZE", "memory budget, e.g. 512M, 2G", "2G")
+      .option("cell-size", 0, "M", "grid cell size", num(d.cell_size))
+      .option("halo", 0, "M", "margin loaded around each cell", num(d.halo))
+      .option("max-halo", 0, "M", "halo growth limit for buildings larger than the halo",
+              num(d.max_halo))
+      .option("min-height", 0, "M", "building points lie this high above the ground",
+              num(d.seg.min_height))
+      .option("min-area", 0, "M2", "smaller clusters are not buildings", num(d.seg.min_area))
+      .option("cluster-tolerance", 0, "M", "clustering distance", num(d.seg.cluster_tolerance))
+      .option("dtm-window", 0, "M", "ground filter window (without a ground class)",
+              num(d.seg.dtm_window))
+      .flag("ignore-classes", 0, "segment as if the input had no LAS classes");
+}
+
+SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::string>& inputs,
+                                 const std::string& work_dir) {
+  SplitOptions o;
+  o.inputs = inputs;
+  o.work_dir = work_dir;
+  o.crs = args.get("crs");
+  o.origin = args.get("origin");
+  o.geoid = args.get("geoid");
+  o.footprints = args.get("footprints");
+  o.footprint_buffer = args.get_double("footprint-buffer");
+  o.cell_size = args.get_double("cell-size");
+  o.halo = args.get_double("halo");
+  o.max_halo = std::max(args.get_double("max-halo"), o.halo);
+  o.seg.min_height = args.get_double("min-height");
+  o.seg.min_area = args.get_double("min-area");
+  o.seg.cluster_tolerance = args.get_double("cluster-tolerance");
+  o.seg.dtm_window = args.get_double("dtm-window");
+  o.ignore_classes = args.has("ignore-classes");
+  usage_errors([&] {
+    o.memory_limit = parse_memory_size(args.get("memory-limit"));
+    o.validate();
+  });
+  return o;
+}
+
+// ------------------------------------------------------------ lod
+void declare_lod_param_options(ArgParser& args) {
+  args.option("set", 's', "NAME=VALUE[,...]",
+              "override parameters, e.g. planes.epsilon=0.2,tree.merge_k=8");
+  args.option("config", 'c', "FILE", "JSON object of parameters (as written to params.json)");
+}
+
+lod::LodParams parse_lod_params(const ArgParser& args, lod::LodParams params) {
+  if (args.has("config")) apply_lod_config(params, args.get("config"));
+  if (args.has("set")) usage_errors([&] { apply_lod_settings(params, args.get("set")); });
+  return params;
+}
+
+// ------------------------------------------------------------ threads
+void declare_threads_option(ArgParser& args, const std::string& what) {
+  args.option("threads", 't', "N", what + " (0 = all cores); the output does not depend on it",
+              "0");
+}
+
+int parse_threads(const ArgParser& args) {
+  const auto threads = args.get_int("threads");
+  if (threads < 0) throw UsageError("--threads must be >= 0 (0 = all cores)");
+  return int(threads);
+}
+
+// ------------------------------------------------------------ assemble
+void declare_assemble_options(ArgParser& args) {
+  args.option("max-triangles", 0, "N", "triangle budget of one tile glb", "250000");
+  args.option("max-bytes", 0, "BYTES", "geometry byte budget of one tile glb", "4194304");
+  args.option(
+      "extent-factor", 0, "F",
+      "children of a tile with error e span at most F*e metres each (0 = only the budgets split)",
+      "50");
+  args.option("min-change", 0, "M",
+              "keep an interpolation model only if it differs by >= M metres (Hausdorff) from its "
+              "kept neighbours",
+              "0.1");
+  args.option("hausdorff-tolerance", 0, "M",
+              "accuracy of the Hausdorff distances between models, metres", "0.1");
+  args.flag("quantize", 0, "KHR_mesh_quantization: int16 positions and normals (smaller glbs)");
+  args.flag("no-building-models", 0,
+            "do not write buildings/*.glb (the viewer's LOD slider needs them)");
+  args.flag("skip-missing", 0, "skip buildings without LOD models (warning) instead of failing");
+}
+
+AssembleParams parse_assemble_options(const ArgParser& args) {
+  AssembleParams p;
+  const auto max_tris = args.get_int("max-triangles");
+  const auto max_bytes = args.get_int("max-bytes");
+  if (max_tris < 1) throw UsageError("--max-triangles must be >= 1");
+  if (max_bytes < 1024) throw UsageError("--max-bytes must be >= 1024");
+  p.max_tile_triangles = std::size_t(max_tris);
+  p.max_tile_bytes = std::size_t(max_bytes);
+  p.tile_extent_factor = args.get_double("extent-factor");
+  p.min_change_m = args.get_double("min-change");
+  p.hausdorff_tolerance_m = args.get_double("hausdorff-tolerance");
+  p.quantize = args.has("quantize");
+  p.building_models = !args.has("no-building-models");
+  p.skip_missing = args.has("skip-missing");
+  usage_errors([&] { p.validate(); });
+  return p;
+}
+
+}  // namespace citylod::app

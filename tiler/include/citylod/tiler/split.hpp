@@ -1,0 +1,94 @@
+// The split stage (`citylod split`) as a library function.
+//
+//   SplitOptions o;
+//   o.inputs = {"tile.las"}; o.crs = "EPSG:28992"; o.work_dir = "work";
+//   SplitReport r = split_scene(o, progress);   // ProgressFn, task "split"
+//
+// Streams the inputs (any size) into per-building chunks in WORK/chunks/<id>.ply
+// and writes WORK/manifest.json (workdir.hpp), with memory bounded by
+// o.memory_limit rather than by the input size:
+//   pass 1  headers (LAS: header bbox; others: streamed bbox), CRS, area-of-use
+//           check, scene origin (bbox centre) -> local ENU frame;
+//   pass 2  points -> ENU float64 -> grid cells spilled to disk in batches;
+//   pass 3  per cell + halo: ground (class 2 or grid-minimum opening), vegetation
+//           (classes, or PCA scatter/planarity), buildings (footprints, or 2D
+//           Euclidean clusters owned by the cell holding their centroid; the halo
+//           grows while an owned cluster touches its edge), chunk files.
+// Mesh inputs are held in memory (vertices are clustered like points, each
+// triangle goes to the building holding the majority of its vertices).
+// Everything is staged in WORK/.split.tmp.<pid>/ and published by rename; a
+// failed run leaves WORK as it was. Re-running with identical inputs (paths,
+// sizes, mtimes) and options returns up_to_date without touching WORK.
+// Errors: io::IoError("<file>: <reason>") for inputs / work dir (CRS problems
+// included), std::invalid_argument for bad options, Cancelled when the
+// progress function returned false.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "citylod/io/types.hpp"
+#include "citylod/tiler/progress.hpp"
+#include "citylod/tiler/segment.hpp"
+
+namespace citylod::tiler {
+
+struct SplitOptions {
+  std::vector<std::string> inputs;  ///< point clouds / meshes (PLY, LAS, OBJ, OFF, XYZ)
+  std::string work_dir;             ///< WORK
+  std::string crs;                  ///< --crs; "" = the CRS inside the (LAS) file
+  std::string origin;               ///< --origin "LAT,LON,H": data already in local ENU metres
+  std::string geoid;                ///< "" or "egm96" (orthometric heights -> ellipsoidal)
+  std::string footprints;           ///< GeoJSON footprints ("" = cluster the points)
+  double footprint_buffer = 0.5;    ///< m, points this close outside a footprint belong to it
+  std::uint64_t memory_limit = 2ull << 30;  ///< bytes
+  double cell_size = 100;                   ///< m (reduced automatically when the density needs it)
+  double halo = 20;                         ///< m around each cell
+  double max_halo = 120;                    ///< m, growth limit for buildings larger than the halo
+  bool ignore_classes = false;              ///< segment as if the input had no LAS classes
+  bool force = false;                       ///< re-split even when up to date
+  int min_footprint_points = 10;            ///< fewer -> the footprint's record is "skipped"
+  SegmentParams seg;
+
+  /// Throws std::invalid_argument naming the option.
+  void validate() const;
+  /// Canonical "key=value;..." of everything that changes the output (not inputs).
+  std::string canonical() const;
+};
+
+struct SplitReport {
+  bool up_to_date = false;
+  std::string crs;  ///< label of the CRS used ("" for --origin)
+  double origin_lon = 0, origin_lat = 0, origin_h = 0;
+  std::uint64_t points = 0;           ///< points / vertices read
+  std::uint64_t triangles = 0;        ///< mesh triangles read
+  io::BBox3 bbox;                     ///< scene ENU box of the data (metres)
+  std::string class_mode;             ///< how classes were used
+  double cell_size = 0;               ///< cell size actually used
+  std::size_t cells = 0;              ///< non-empty cells
+  std::size_t halo_growths = 0;       ///< cells reprocessed with a larger halo
+  std::size_t max_region_points = 0;  ///< largest cell + halo held in memory
+  std::uint64_t spill_bytes = 0;
+  std::size_t chunks = 0;  ///< chunk files written
+  std::size_t clusters_rejected = 0;
+  std::map<std::string, std::size_t> rejected_by;  ///< "small", "low", "vegetation" -> count
+  std::size_t footprints_total = 0;                ///< in the file
+  std::size_t footprints_in_scene = 0;             ///< bbox meets the data bbox
+  std::size_t footprints_inside = 0;               ///< entirely inside the data bbox
+  std::size_t footprints_with_chunk = 0;           ///< of those in the scene
+  std::size_t footprints_inside_with_chunk = 0;
+  std::vector<std::string> notes;  ///< also in the manifest's scene notes
+  /// One line per owned cluster: centroid, size, features, decision (for --log-level debug).
+  std::vector<std::string> cluster_log;
+  double seconds = 0;
+};
+
+SplitReport split_scene(const SplitOptions& options, const ProgressFn& progress = {});
+
+/// "2G", "512M", "1.5GiB", "1073741824" -> bytes; throws std::invalid_argument.
+std::uint64_t parse_memory_size(const std::string& s);
+
+}  // namespace citylod::tiler

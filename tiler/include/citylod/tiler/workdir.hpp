@@ -1,0 +1,227 @@
+// The work directory of a city run and its records: the contract between the
+// stages (split -> lod -> assemble, eval, rebuild). This header and
+// tiler/src/workdir.cpp are the ONLY code that reads or writes these JSON
+// files; every stage goes through the typed records below.
+//
+//   WORK/manifest.json            Manifest: scene georeferencing + one ChunkRecord per building
+//   WORK/chunks/<id>.ply          a building's points (or triangles), binary PLY,
+//                                 double xyz relative to the chunk origin (metres, scene ENU axes)
+//   WORK/lod/<id>/report.json     LodReport: the LOD engine's outcome for that building
+//   WORK/lod/<id>/model_*.ply     its candidate models (triangles), relative to the chunk origin
+//   WORK/overrides.json           Overrides: per-building choices of `citylod rebuild`
+//   DIR/run_report.json           RunReport: what a `citylod tile` run did (DIR = WORK/..)
+//
+// Coordinates: the scene frame is ENU metres at the scene origin (SceneInfo);
+// each chunk has its own origin in that frame so its numbers stay small.
+// Everything is written atomically (temp file + rename).
+//
+// Defaults when a field is absent (one rule for every reader):
+//   - report.json without "status": Status::failed (a report that does not say
+//     it succeeded is not trusted; citylod always writes the status);
+//   - a model without "kind": anchor; without "step": its index; without "level": 0;
+//   - an unknown kind or status: the file is malformed (io::IoError naming it).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "citylod/io/gltf.hpp"
+#include "citylod/tiler/assemble.hpp"
+
+namespace citylod::tiler {
+
+// ------------------------------------------------------------ enums
+
+/// The outcome of one building, in the manifest, report.json and run_report.json.
+/// JSON spelling: "pending" | "ok" | "fallback" | "failed" | "skipped".
+enum class Status { pending, ok, fallback, failed, skipped };
+const char* to_string(Status s);
+/// Throws std::invalid_argument for an unknown spelling.
+Status status_from_string(const std::string& s);
+
+/// The kind of a candidate model: the glb writer's enum is the one spelling
+/// (lod::ModelKind converts through bridge.hpp). JSON: "anchor" |
+/// "interpolation" | "fallback". A fallback counts as an anchor.
+using ModelKind = io::LodKind;
+/// Throws std::invalid_argument for an unknown spelling.
+ModelKind model_kind_from_string(const std::string& s);
+inline bool is_anchor(ModelKind k) {
+  return k != ModelKind::interpolation;
+}
+
+// ------------------------------------------------------------ manifest.json
+
+struct SceneInfo {
+  std::string crs;  ///< CRS spec as given ("EPSG:28992", WKT, or "" for --origin)
+  std::array<double, 3> origin_crs{0, 0, 0};  ///< scene origin in CRS units
+  double origin_lon = 0, origin_lat = 0;      ///< degrees (WGS84)
+  double origin_h = 0;                        ///< metres, ellipsoidal (WGS84)
+  std::vector<std::string> inputs;            ///< input files
+  std::string options;                        ///< split options as a canonical string
+  std::vector<std::string> notes;             ///< e.g. "heights NAP -> ellipsoidal via EGM96"
+};
+
+struct ChunkRecord {
+  std::string id;  ///< stable id ("fp-<footprint id>" or "b-<position hash>")
+  std::array<double, 3> origin{0, 0, 0};    ///< chunk origin, scene ENU metres
+  std::array<double, 3> bbox_min{0, 0, 0};  ///< scene ENU metres
+  std::array<double, 3> bbox_max{0, 0, 0};
+  std::uint64_t points = 0;
+  std::uint64_t triangles = 0;
+  std::vector<std::array<double, 2>> outline;  ///< footprint/outline, scene ENU xy, CCW
+  double ground_z = 0;                         ///< ground height, scene ENU z
+  std::string source;                          ///< "footprint:<id>", "cluster", ...
+  Status status = Status::pending;             ///< split writes pending or skipped
+  std::string reason;                          ///< why skipped
+  std::string content_hash;                    ///< hash of the chunk file (hex)
+  bool skipped() const { return status == Status::skipped; }
+};
+
+struct Manifest {
+  int version = 1;
+  SceneInfo scene;
+  std::vector<ChunkRecord> chunks;  ///< sorted by id
+};
+
+/// Throws io::IoError("<WORK>/manifest.json: ...") when missing or malformed.
+Manifest read_manifest(const std::string& work_dir);
+/// Throws io::IoError naming the manifest when the scene origin is not a valid
+/// longitude / latitude / height (assemble and eval need it; split writes it).
+void require_valid_origin(const Manifest& m, const std::string& work_dir);
+/// Atomic; chunks are written sorted by id.
+void write_manifest(const std::string& work_dir, const Manifest& m);
+
+std::string manifest_path(const std::string& work_dir);
+std::string chunk_path(const std::string& work_dir, const std::string& id);
+std::string lod_dir(const std::string& work_dir, const std::string& id);
+std::string lod_report_path(const std::string& work_dir, const std::string& id);
+
+// ------------------------------------------------------------ lod/<id>/report.json
+
+/// One candidate model of a building.
+struct ModelRecord {
+  std::string file;  ///< PLY, relative to the report's directory (or absolute)
+  ModelKind kind = ModelKind::anchor;
+  int level = 0, step = 0;
+  int cuts = 0;
+  double diff_sum = 0;
+  std::uint64_t polygons = 0, triangles = 0;
+  double volume = 0;
+  double e1 = -1, e2 = -1;  ///< % of the bbox diagonal (-1: not computed)
+  double hausdorff_m = -1;
+};
+
+/// The LOD outcome of one building (written by the LOD stage and `citylod lod`).
+struct LodReport {
+  std::string input;  ///< the file the models were built from
+  Status status = Status::failed;
+  std::string reason;   ///< why fallback / failed
+  std::string id, key;  ///< city runs: building id and resume key ("" otherwise)
+  std::map<std::string, std::string> parameters;  ///< every LOD parameter (LodParams::items())
+  std::map<std::string, std::int64_t> counts;     ///< input_points, P, S, principal, ..., models
+  std::map<std::string, std::int64_t> lod_tree_vs_bsp_tree;
+  double bbox_diagonal_m = 0;
+  bool normals_estimated = false, walls_inferred = false;
+  std::map<std::string, double> timings_s;  ///< T1_ioview, T2_tree, T3_traversal, metrics
+  std::vector<std::string> notes;
+  std::vector<ModelRecord> models;  ///< what assemble sees (the selection when one is pinned)
+  /// With a pinned selection (`rebuild --select`): every model and the steps shown.
+  std::optional<std::vector<ModelRecord>> models_all;
+  std::vector<int> selected_steps;
+
+  /// The models before any selection.
+  const std::vector<ModelRecord>& all_models() const { return models_all ? *models_all : models; }
+};
+
+/// Throws io::IoError naming the file when it is missing, not JSON, or malformed.
+LodReport read_lod_report(const std::string& path);
+/// nullopt when WORK/lod/<id>/report.json does not exist; throws like read_lod_report otherwise.
+std::optional<LodReport> find_lod_report(const std::string& work_dir, const std::string& id);
+/// Atomic. Returns false (and writes nothing) when the file already holds exactly these bytes.
+bool write_lod_report(const std::string& path, const LodReport& r);
+
+// ------------------------------------------------------------ overrides.json
+
+/// Per-building choices made with `citylod rebuild`, persisted in WORK/overrides.json:
+/// {"buildings": {"<id>": {"set": {"planes.epsilon": "0.2"}, "select": [0, 3]}}}.
+struct BuildingOverride {
+  std::map<std::string, std::string> set;  ///< LOD parameter overrides
+  std::vector<int> select;                 ///< model steps shown (empty = assemble chooses)
+};
+using Overrides = std::map<std::string, BuildingOverride>;
+
+std::string overrides_path(const std::string& work_dir);
+/// Empty when the file is absent; throws std::runtime_error when it is malformed.
+Overrides read_overrides(const std::string& work_dir);
+void write_overrides(const std::string& work_dir, const Overrides& o);  ///< atomic
+
+// ------------------------------------------------------------ run_report.json
+
+/// One building of a city run as the run report lists it.
+struct BuildingRecord {
+  std::string id, source;
+  Status status = Status::failed;
+  std::string reason;
+  std::size_t models = 0;
+  std::map<std::string, std::string> set;  ///< its overrides
+  std::vector<int> select;
+};
+
+struct RunReport {
+  std::string command = "tile";
+  std::vector<std::string> inputs;
+  int threads = 1;
+  struct Split {
+    double seconds = 0;
+    bool up_to_date = false;
+    std::size_t chunks = 0;
+    std::uint64_t points = 0;
+    std::string crs;
+  } split;
+  struct Lod {
+    double seconds = 0;
+    std::size_t buildings = 0, computed = 0, reused = 0, restarts = 0;
+  } lod;
+  struct Assemble {
+    double seconds = 0;
+    std::size_t buildings = 0, tiles = 0, glb_bytes = 0, models_kept = 0;
+    int depth = 0;
+    std::vector<std::string> warnings;
+  } assemble;
+  std::size_t ok = 0, fallback = 0, failed = 0, skipped = 0;  ///< "summary"
+  double seconds_total = 0;
+  std::uint64_t peak_rss_self = 0, peak_rss_children = 0;  ///< bytes
+  std::map<std::string, std::string> lod_params;           ///< without "threads"
+  AssembleParams assemble_params;                          ///< threads and force are not recorded
+  std::string work = "work", tileset = "tileset";
+  std::vector<BuildingRecord> buildings;
+  struct LastRebuild {
+    std::string building;
+    std::map<std::string, std::string> set;
+    std::vector<int> select;
+    bool report_changed = false;
+    std::vector<std::string> changed, added, removed;
+  };
+  std::optional<LastRebuild> last_rebuild;
+};
+
+// JSON of the stage records: the field names are the keys; absent keys keep the defaults.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Split, seconds, up_to_date, chunks,
+                                                points, crs)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Lod, seconds, buildings, computed,
+                                                reused, restarts)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Assemble, seconds, buildings, tiles,
+                                                glb_bytes, models_kept, depth, warnings)
+
+std::string run_report_path(const std::string& out_dir);
+/// Throws std::runtime_error naming the file when it is missing or malformed.
+RunReport read_run_report(const std::string& out_dir);
+void write_run_report(const std::string& out_dir, const RunReport& r);  ///< atomic
+
+}  // namespace citylod::tiler

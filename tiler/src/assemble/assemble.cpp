@@ -1,0 +1,622 @@
+// `citylod assemble`: work directory -> hierarchical 3D Tiles 1.1 tileset.
+// Reads top to bottom: load buildings, build the tile tree, write the files.
+#include "citylod/tiler/assemble.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+
+#include <omp.h>
+#include <nlohmann/json.hpp>
+
+#include "citylod/geo/local_frame.hpp"
+#include "citylod/io/atomic_file.hpp"
+#include "citylod/io/error.hpp"
+#include "citylod/io/gltf.hpp"
+#include "citylod/io/hash.hpp"
+#include "citylod/io/reader.hpp"
+#include "citylod/io/tileset.hpp"
+#include "citylod/lod/polygon2d.hpp"
+#include "citylod/tiler/threads.hpp"
+#include "citylod/tiler/workdir.hpp"
+
+namespace citylod::tiler {
+
+namespace fs = std::filesystem;
+using io::BBox3;
+using io::Vec3d;
+
+void AssembleParams::validate() const {
+  if (max_tile_triangles < 1) throw std::invalid_argument("max_tile_triangles must be >= 1");
+  if (max_tile_bytes < 1024) throw std::invalid_argument("max_tile_bytes must be >= 1024");
+  if (!(tile_extent_factor >= 0) || !std::isfinite(tile_extent_factor))
+    throw std::invalid_argument("tile_extent_factor must be >= 0");
+  if (!(min_change_m >= 0) || !std::isfinite(min_change_m))
+    throw std::invalid_argument("min_change_m must be >= 0");
+  if (!(hausdorff_tolerance_m > 0) || !std::isfinite(hausdorff_tolerance_m))
+    throw std::invalid_argument("hausdorff_tolerance_m must be > 0");
+  if (threads < 0) throw std::invalid_argument("threads must be >= 0");
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+// ------------------------------------------------------------ buildings
+struct KeptModel {
+  std::string file;  // PLY path
+  io::LodKind kind = io::LodKind::anchor;
+  int level = 0, step = 0;
+  double error_m = 0, hausdorff_m = 0, height_m = 0;
+  BBox3 bbox;  // scene ENU
+  std::size_t triangles = 0, bytes = 0;
+};
+
+struct Building {
+  std::string id;
+  std::string file_stem;  // safe file name for buildings/<stem>.glb
+  Vec3d origin{0, 0, 0};  // chunk origin, scene ENU
+  double footprint_area_m2 = 0;
+  Vec3d centre{0, 0, 0};          // of the finest model's bbox
+  std::vector<KeptModel> models;  // coarse -> fine
+  std::size_t models_read = 0;
+  BBox3 bbox;               // all kept models
+  double error_none_m = 0;  // error of showing nothing: > error of the coarsest model
+};
+
+std::string safe_stem(const std::string& id) {
+  bool ok = !id.empty() && id.size() <= 100 && id[0] != '.';
+  for (char c : id)
+    ok = ok && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                c == '-' || c == '_' || c == '.');
+  return ok ? id : "id-" + io::hash_hex(id.data(), id.size());
+}
+
+/// Footprint of a closed model: projected area of its downward faces (of its
+/// upward faces if it has no floor).
+double projected_area(const io::TriangleMesh& m) {
+  double down = 0, up = 0;
+  for (const auto& t : m.triangles) {
+    const Vec3d &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
+    const double z = ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])) / 2;
+    (z < 0 ? down : up) += std::fabs(z);
+  }
+  return down > 0 ? down : up;
+}
+
+io::TriangleMesh read_model(const std::string& file, const Vec3d& origin) {
+  io::TriangleMesh m = io::read_mesh(file);
+  for (auto& v : m.vertices)
+    for (int k = 0; k < 3; ++k) v[size_t(k)] += origin[size_t(k)];
+  return m;
+}
+
+/// Reads one building's report and models and chooses its kept chain.
+Building load_building(const std::string& work, const ChunkRecord& rec, const AssembleParams& p) {
+  Building b;
+  b.id = rec.id;
+  b.file_stem = safe_stem(rec.id);
+  b.origin = rec.origin;
+  const std::string dir = lod_dir(work, rec.id);
+  const std::string report_path = lod_report_path(work, rec.id);
+  if (!fs::exists(report_path))
+    throw io::IoError(report_path,
+                      "building '" + rec.id +
+                          "' has no LOD models (run 'citylod lod' on the work directory first)");
+  const LodReport rep = read_lod_report(report_path);
+  if (rep.models.empty()) {
+    std::string why = "building '" + rec.id + "' has no models in report.json (status \"" +
+                      std::string(to_string(rep.status)) + "\"";
+    if (!rep.reason.empty()) why += ": " + nlohmann::json(rep.reason).dump();
+    throw io::IoError(report_path, why + ")");
+  }
+  std::vector<ModelEntry> entries;
+  std::vector<io::TriangleMesh> meshes;
+  for (const ModelRecord& m : rep.models) {
+    ModelEntry e;
+    const fs::path f = m.file;
+    e.file = (f.is_absolute() ? f : fs::path(dir) / f).string();
+    e.kind = m.kind;
+    e.level = m.level;
+    e.step = m.step;
+    if (!fs::exists(e.file))
+      throw io::IoError(e.file, "model listed in " + report_path + " is missing");
+    meshes.push_back(read_model(e.file, rec.origin));
+    entries.push_back(e);
+  }
+  b.models_read = entries.size();
+  const ModelChoice choice =
+      choose_models(entries, meshes, p.min_change_m, p.hausdorff_tolerance_m);
+  if (choice.kept.empty())
+    throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
+  for (std::size_t i = 0; i < choice.kept.size(); ++i) {
+    const std::size_t k = choice.kept[i];
+    const io::TriangleMesh& mesh = meshes[k];
+    KeptModel km;
+    km.file = entries[k].file;
+    km.kind = entries[k].kind;
+    km.level = entries[k].level;
+    km.step = entries[k].step;
+    km.error_m = choice.error_m[i];
+    km.hausdorff_m = choice.hausdorff_m[i];
+    for (const auto& t : mesh.triangles)
+      for (auto v : t) km.bbox.add(mesh.vertices[v]);
+    km.height_m = km.bbox.max[2] - km.bbox.min[2];
+    const io::GlbMeshSize s = io::glb_mesh_size(mesh, p.quantize);
+    km.triangles = s.triangles;
+    km.bytes = s.bytes;
+    b.bbox.add(km.bbox);
+    b.models.push_back(km);
+  }
+  const io::TriangleMesh& finest = meshes[choice.kept.back()];
+  b.footprint_area_m2 =
+      rec.outline.size() >= 3 ? std::fabs(poly2::signed_area(rec.outline)) : projected_area(finest);
+  const BBox3& fb = b.models.back().bbox;
+  for (int k = 0; k < 3; ++k) b.centre[size_t(k)] = (fb.min[size_t(k)] + fb.max[size_t(k)]) / 2;
+  double diag = 0;
+  for (int k = 0; k < 3; ++k) diag += std::pow(b.bbox.max[size_t(k)] - b.bbox.min[size_t(k)], 2);
+  b.error_none_m = std::max(std::sqrt(diag), b.models.front().error_m + 0.01);
+  return b;
+}
+
+// ------------------------------------------------------------ tile tree
+struct Item {
+  std::uint32_t b;  // building
+  std::uint32_t m;  // kept model
+};
+
+struct TileNode {
+  std::string name;  // "r", "r_0", "r_0_3", ...
+  std::vector<Item> items;
+  double error = 0;
+  std::size_t triangles = 0, bytes = 0;
+  BBox3 content_box;  // padded, of the shown models
+  BBox3 box;          // rounded, contains content and children
+  std::vector<std::size_t> children;
+};
+
+class TreeBuilder {
+ public:
+  TreeBuilder(const std::vector<Building>& b, const AssembleParams& p) : bs_(b), p_(p) {}
+
+  std::vector<TileNode> tiles;
+  double tileset_error = 0;
+
+  void build() {
+    std::vector<Item> first;
+    for (std::uint32_t i = 0; i < bs_.size(); ++i) {
+      first.push_back({i, 0});
+      tileset_error = std::max(tileset_error, bs_[i].error_none_m);
+    }
+    if (fits(first)) {
+      make_tile(first, "r");
+      return;
+    }
+    // Even the coarsest models of all buildings exceed one glb: an empty root
+    // over a spatial split of them.
+    tiles.emplace_back();
+    tiles[0].name = "r";
+    tiles[0].error = tileset_error;
+    std::vector<std::vector<Item>> groups;
+    partition(first, max_extent(tileset_error), groups);
+    for (std::size_t k = 0; k < groups.size(); ++k) {
+      const std::size_t c = make_tile(groups[k], "r_" + std::to_string(k));
+      tiles[0].children.push_back(c);
+    }
+    finish_box(0);
+  }
+
+ private:
+  const KeptModel& model(const Item& it) const { return bs_[it.b].models[it.m]; }
+
+  bool fits(const std::vector<Item>& items) const {
+    std::size_t t = 0, by = 0;
+    for (const auto& it : items) {
+      t += model(it).triangles;
+      by += model(it).bytes;
+    }
+    return t <= p_.max_tile_triangles && by <= p_.max_tile_bytes;
+  }
+
+  /// Splits by the midpoint of the building centres' xy extent (up to 4
+  /// quadrants, SW SE NW NE order); one group when all centres coincide.
+  std::vector<std::vector<Item>> quadrants(const std::vector<Item>& items) const {
+    double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (const auto& it : items) {
+      const Vec3d& c = bs_[it.b].centre;
+      x0 = std::min(x0, c[0]);
+      x1 = std::max(x1, c[0]);
+      y0 = std::min(y0, c[1]);
+      y1 = std::max(y1, c[1]);
+    }
+    std::vector<std::vector<Item>> q(4);
+    const double mx = (x0 + x1) / 2, my = (y0 + y1) / 2;
+    for (const auto& it : items) {
+      const Vec3d& c = bs_[it.b].centre;
+      const int k = (x1 - x0 > 1e-6 && c[0] >= mx ? 1 : 0) + (y1 - y0 > 1e-6 && c[1] >= my ? 2 : 0);
+      q[size_t(k)].push_back(it);
+    }
+    std::vector<std::vector<Item>> out;
+    for (auto& g : q)
+      if (!g.empty()) out.push_back(std::move(g));
+    return out;
+  }
+
+  /// xy diagonal of the buildings' boxes (all their kept models).
+  double extent(const std::vector<Item>& items) const {
+    BBox3 b;
+    for (const auto& it : items) b.add(bs_[it.b].bbox);
+    return std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1]);
+  }
+
+  double max_extent(double error) const {
+    return p_.tile_extent_factor > 0 ? p_.tile_extent_factor * error
+                                     : std::numeric_limits<double>::infinity();
+  }
+
+  /// Groups of `items` for sibling tiles: quadrant splits (repeated) while a
+  /// group is over the glb budget or wider than `max_extent`.
+  void partition(const std::vector<Item>& items, double max_extent,
+                 std::vector<std::vector<Item>>& out) const {
+    if (items.size() <= 1 || (fits(items) && extent(items) <= max_extent)) {
+      out.push_back(items);
+      return;
+    }
+    std::vector<std::vector<Item>> q = quadrants(items);
+    if (q.size() == 1) {
+      if (fits(items)) {
+        out.push_back(items);
+        return;
+      }
+      // Coincident centres and over budget: halve in id order.
+      const auto mid = items.begin() + long(items.size() / 2);
+      q = {std::vector<Item>(items.begin(), mid), std::vector<Item>(mid, items.end())};
+    }
+    for (const auto& g : q) partition(g, max_extent, out);
+  }
+
+  std::size_t make_tile(const std::vector<Item>& items, const std::string& name) {
+    const std::size_t id = tiles.size();
+    tiles.emplace_back();
+    {
+      TileNode& t = tiles[id];
+      t.name = name;
+      t.items = items;
+      BBox3 exact;
+      for (const auto& it : items) {
+        const KeptModel& m = model(it);
+        t.error = std::max(t.error, m.error_m);
+        t.triangles += m.triangles;
+        t.bytes += m.bytes;
+        exact.add(m.bbox);
+      }
+      // Room for float32 rounding of positions relative to the tile centre
+      // (and for int16 quantization steps).
+      double r = 0;
+      for (int k = 0; k < 3; ++k) r = std::max(r, exact.max[size_t(k)] - exact.min[size_t(k)]);
+      const double pad = 1e-3 + r * 1e-6 + (p_.quantize ? 2 * r / 32767 : 0);
+      t.content_box = exact;
+      for (int k = 0; k < 3; ++k) {
+        t.content_box.min[size_t(k)] -= pad;
+        t.content_box.max[size_t(k)] += pad;
+      }
+    }
+    if (tiles[id].error > 0) {
+      std::vector<Item> next = items;
+      for (auto& it : next)
+        if (it.m + 1 < bs_[it.b].models.size()) ++it.m;
+      std::vector<std::vector<Item>> groups;
+      partition(next, max_extent(tiles[id].error), groups);
+      for (std::size_t k = 0; k < groups.size(); ++k) {
+        const std::size_t c = make_tile(groups[k], name + "_" + std::to_string(k));
+        tiles[id].children.push_back(c);
+      }
+    }
+    finish_box(id);
+    return id;
+  }
+
+  void finish_box(std::size_t id) {
+    TileNode& t = tiles[id];
+    BBox3 b;
+    if (!t.items.empty()) b.add(io::TileBox::from_bbox(t.content_box).to_bbox());
+    for (std::size_t c : t.children) b.add(tiles[c].box);
+    t.box = io::TileBox::from_bbox(b).to_bbox();
+  }
+
+  const std::vector<Building>& bs_;
+  const AssembleParams& p_;
+};
+
+// ------------------------------------------------------------ output
+io::GlbFeature feature_of(const Building& b, std::size_t m) {
+  const KeptModel& km = b.models[m];
+  io::GlbFeature f;
+  f.building_id = b.id;
+  f.kind = km.kind;
+  f.level = km.level;
+  f.step = km.step;
+  f.model_index = int(m);
+  f.model_count = int(b.models.size());
+  f.height_m = km.height_m;
+  f.footprint_area_m2 = b.footprint_area_m2;
+  f.error_m = km.error_m;
+  return f;
+}
+
+Vec3d rounded_centre(const BBox3& b) {
+  Vec3d c;
+  for (int k = 0; k < 3; ++k)
+    c[size_t(k)] = std::round((b.min[size_t(k)] + b.max[size_t(k)]) / 2 * 100) / 100;
+  return c;
+}
+
+bool inside(const BBox3& in, const BBox3& out) {
+  for (int k = 0; k < 3; ++k)
+    if (in.min[size_t(k)] < out.min[size_t(k)] || in.max[size_t(k)] > out.max[size_t(k)])
+      return false;
+  return true;
+}
+
+io::Tile to_tile(const std::vector<TileNode>& tiles, std::size_t id) {
+  const TileNode& n = tiles[id];
+  io::Tile t;
+  t.box = io::TileBox::from_bbox(n.box);
+  t.geometric_error = n.error;
+  if (!n.items.empty()) {
+    t.content_uri = "tiles/" + n.name + ".glb";
+    t.content_box = io::TileBox::from_bbox(n.content_box);
+  }
+  for (std::size_t c : n.children) t.children.push_back(to_tile(tiles, c));
+  return t;
+}
+
+/// Replaces `out` by the staged directory. Refuses to delete a directory that
+/// is not a previous tileset unless `force`.
+void check_output_dir(const fs::path& out, bool force) {
+  const fs::path old = out.string() + ".old";
+  if (!fs::exists(out) && fs::exists(old / "tileset.json"))
+    fs::rename(old, out);  // killed mid-swap
+  if (!fs::exists(out)) return;
+  if (!fs::is_directory(out)) throw io::IoError(out.string(), "exists and is not a directory");
+  const bool empty = fs::directory_iterator(out) == fs::directory_iterator();
+  if (!empty && !fs::exists(out / "tileset.json") && !force)
+    throw io::IoError(out.string(),
+                      "exists and is not a tileset (no tileset.json); use --force to replace it");
+}
+
+}  // namespace
+
+AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
+                       const AssembleParams& params, const ProgressFn& progress) {
+  params.validate();
+  AssembleStats st;
+  const auto t0 = Clock::now();
+  auto report = [&](double f, const char* stage) {
+    notify_progress(progress, "assemble", f, stage);
+  };
+  if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
+  const Manifest man = read_manifest(work_dir);
+  if (man.chunks.empty())
+    throw io::IoError(manifest_path(work_dir),
+                      "the manifest lists no buildings (nothing to assemble)");
+  require_valid_origin(man, work_dir);
+  const auto& sc = man.scene;
+  fs::path out = fs::absolute(out_dir).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();  // "DIR/"
+  if (out.filename().empty() || out == out.root_path())
+    throw io::IoError(out_dir, "not a valid output directory");
+  check_output_dir(out, params.force);
+
+  // ---- 1. buildings
+  std::vector<const ChunkRecord*> recs;
+  for (const auto& c : man.chunks) {
+    if (c.skipped()) {
+      ++st.skipped;
+      continue;
+    }
+    recs.push_back(&c);
+  }
+  std::sort(recs.begin(), recs.end(), [](const auto* a, const auto* b) { return a->id < b->id; });
+  for (std::size_t i = 1; i < recs.size(); ++i)
+    if (recs[i]->id == recs[i - 1]->id)
+      throw io::IoError(manifest_path(work_dir), "building id '" + recs[i]->id + "' appears twice");
+  std::vector<Building> loaded(recs.size());
+  std::vector<std::string> errors(recs.size());
+  std::atomic<std::size_t> done{0};
+  std::mutex progress_mutex;
+  const int nthreads = resolve_threads(params.threads);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+  for (long i = 0; i < long(recs.size()); ++i) {
+    try {
+      loaded[size_t(i)] = load_building(work_dir, *recs[size_t(i)], params);
+    } catch (const std::exception& e) {
+      errors[size_t(i)] = e.what();
+    }
+    const std::size_t d = ++done;
+    if (progress) {
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      report(0.5 * double(d) / double(recs.size()), "reading models");
+    }
+  }
+  std::vector<Building> buildings;
+  for (std::size_t i = 0; i < recs.size(); ++i) {
+    if (!errors[i].empty()) {
+      if (!params.skip_missing) throw std::runtime_error(errors[i]);
+      st.warnings.push_back("skipped: " + errors[i]);
+      ++st.skipped;
+      continue;
+    }
+    st.models_read += loaded[i].models_read;
+    st.models_kept += loaded[i].models.size();
+    buildings.push_back(std::move(loaded[i]));
+  }
+  if (buildings.empty())
+    throw io::IoError(work_dir, "no building has LOD models (nothing to assemble)");
+  st.buildings = buildings.size();
+  st.seconds_read = seconds_since(t0);
+
+  // ---- 2. tile tree
+  TreeBuilder tree(buildings, params);
+  tree.build();
+  const std::vector<TileNode>& tiles = tree.tiles;
+
+  // ---- 3. files, staged next to the output
+  const auto t1 = Clock::now();
+  const fs::path stage = out.string() + ".partial";
+  fs::remove_all(stage);
+  fs::create_directories(stage / "tiles");
+  if (params.building_models) fs::create_directories(stage / "buildings");
+  io::GlbOptions gopt;
+  gopt.quantize = params.quantize;
+
+  std::vector<std::size_t> glb_size(tiles.size(), 0);
+  std::vector<std::string> write_errors(tiles.size());
+  done = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+  for (long i = 0; i < long(tiles.size()); ++i) {
+    const TileNode& t = tiles[size_t(i)];
+    if (t.items.empty()) continue;
+    try {
+      io::GlbBuilder g(rounded_centre(t.content_box), gopt);
+      for (const auto& it : t.items) {
+        const Building& b = buildings[it.b];
+        g.add_feature(feature_of(b, it.m), read_model(b.models[it.m].file, b.origin));
+      }
+      if (!inside(g.stored_bounds(), t.content_box))
+        throw std::logic_error("tile " + t.name + ": stored positions leave the content box");
+      const std::string bytes = g.glb();
+      io::atomic_write_file((stage / "tiles" / (t.name + ".glb")).string(), bytes);
+      glb_size[size_t(i)] = bytes.size();
+    } catch (const std::exception& e) {
+      write_errors[size_t(i)] = e.what();
+    }
+    if (progress) {
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      report(0.5 + 0.4 * double(++done) / double(tiles.size()), "writing tiles");
+    }
+  }
+  for (const auto& e : write_errors)
+    if (!e.empty()) {
+      fs::remove_all(stage);
+      throw std::runtime_error(e);
+    }
+  for (std::size_t i = 0; i < tiles.size(); ++i) {
+    st.glb_bytes += glb_size[i];
+    st.max_glb_bytes = std::max(st.max_glb_bytes, glb_size[i]);
+    st.max_tile_triangles = std::max(st.max_tile_triangles, tiles[i].triangles);
+    if (!tiles[i].items.empty()) {
+      ++st.content_tiles;
+      if (tiles[i].triangles > params.max_tile_triangles || tiles[i].bytes > params.max_tile_bytes)
+        st.warnings.push_back("tile " + tiles[i].name + " exceeds the tile budget (" +
+                              std::to_string(tiles[i].triangles) +
+                              " triangles): a single building is too large");
+    }
+  }
+
+  // Per-building glbs (every kept model as a node) + index for the viewer.
+  const geo::LocalFrame frame(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
+  const std::array<double, 16> root_transform = frame.enu_to_ecef_matrix();
+  nlohmann::ordered_json index;
+  index["version"] = 1;
+  index["root_transform"] = root_transform;
+  index["origin"] = {
+      {"longitude", sc.origin_lon}, {"latitude", sc.origin_lat}, {"height", sc.origin_h}};
+  if (!sc.crs.empty()) index["crs"] = sc.crs;
+  nlohmann::ordered_json blist = nlohmann::ordered_json::object();
+  std::vector<std::size_t> bsize(buildings.size(), 0);
+  std::vector<std::string> berrors(buildings.size());
+  std::atomic<std::size_t> bdone{0};
+  if (params.building_models) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+    for (long i = 0; i < long(buildings.size()); ++i) {
+      const Building& b = buildings[size_t(i)];
+      try {
+        io::GlbBuilder g(rounded_centre(b.bbox), gopt);
+        for (std::size_t m = 0; m < b.models.size(); ++m) {
+          g.begin_node("model_" + std::to_string(m));
+          g.add_feature(feature_of(b, m), read_model(b.models[m].file, b.origin));
+        }
+        const std::string bytes = g.glb();
+        io::atomic_write_file((stage / "buildings" / (b.file_stem + ".glb")).string(), bytes);
+        bsize[size_t(i)] = bytes.size();
+      } catch (const std::exception& e) {
+        berrors[size_t(i)] = e.what();
+      }
+      if (progress) {
+        std::lock_guard<std::mutex> lock(progress_mutex);
+        report(0.9 + 0.09 * double(++bdone) / double(buildings.size()), "writing building models");
+      }
+    }
+    for (const auto& e : berrors)
+      if (!e.empty()) {
+        fs::remove_all(stage);
+        throw std::runtime_error(e);
+      }
+  }
+  for (std::size_t i = 0; i < buildings.size(); ++i) {
+    const Building& b = buildings[i];
+    st.building_glb_bytes += bsize[i];
+    nlohmann::ordered_json e;
+    if (params.building_models) e["glb"] = "buildings/" + b.file_stem + ".glb";
+    e["centre"] = b.centre;
+    e["footprint_area"] = b.footprint_area_m2;
+    nlohmann::ordered_json ms = nlohmann::ordered_json::array();
+    for (std::size_t m = 0; m < b.models.size(); ++m) {
+      const KeptModel& km = b.models[m];
+      ms.push_back({{"node", "model_" + std::to_string(m)},
+                    {"kind", io::to_string(km.kind)},
+                    {"level", km.level},
+                    {"step", km.step},
+                    {"error_m", km.error_m},
+                    {"hausdorff_m", km.hausdorff_m},
+                    {"height", km.height_m},
+                    {"triangles", km.triangles},
+                    {"file", fs::path(km.file).filename().string()}});
+    }
+    e["models"] = ms;
+    blist[b.id] = e;
+  }
+  index["buildings"] = blist;
+  io::atomic_write_file((stage / "buildings.json").string(), index.dump(1) + "\n");
+
+  io::Tileset ts;
+  ts.root = to_tile(tiles, 0);
+  ts.root.refine = "REPLACE";
+  ts.root.transform = root_transform;
+  ts.geometric_error = std::max(tree.tileset_error, tiles[0].error);
+  ts.extras = {{"citylod", {{"buildings", "buildings.json"}, {"crs", sc.crs}}}};
+  io::write_tileset((stage / "tileset.json").string(), ts);  // last file of the stage
+  st.tiles = io::tile_count(ts.root);
+  st.depth = io::tile_depth(ts.root);
+  st.root_error_m = tiles[0].error;
+
+  // ---- 4. swap the staged directory in
+  if (fs::exists(out)) {
+    const fs::path old = out.string() + ".old";
+    fs::remove_all(old);
+    fs::rename(out, old);
+    fs::rename(stage, out);
+    fs::remove_all(old);
+  } else {
+    if (out.has_parent_path()) fs::create_directories(out.parent_path());
+    fs::rename(stage, out);
+  }
+  st.seconds_write = seconds_since(t1);
+  report(1.0, "done");
+  notify_finished(progress, "assemble");
+  return st;
+}
+
+}  // namespace citylod::tiler

@@ -1,0 +1,331 @@
+// Hausdorff distances between LOD models (branch and bound over the triangles
+// of one mesh, an AABB tree of the other's) and the choice of the models a building keeps in the
+// tileset.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+
+#include "citylod/tiler/assemble.hpp"
+
+namespace citylod::tiler {
+
+namespace {
+
+using io::Vec3d;
+
+inline Vec3d sub(const Vec3d& a, const Vec3d& b) {
+  return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+}
+inline double dot(const Vec3d& a, const Vec3d& b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+inline Vec3d axpy(const Vec3d& p, double s, const Vec3d& d) {
+  return {p[0] + s * d[0], p[1] + s * d[1], p[2] + s * d[2]};
+}
+inline double norm2(const Vec3d& a) {
+  return dot(a, a);
+}
+
+/// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5).
+Vec3d closest_on_triangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+  const Vec3d ab = sub(b, a), ac = sub(c, a), ap = sub(p, a);
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Vec3d bp = sub(p, b);
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return axpy(a, d1 / (d1 - d3), ab);
+  const Vec3d cp = sub(p, c);
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return axpy(a, d2 / (d2 - d6), ac);
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return axpy(b, (d4 - d3) / ((d4 - d3) + (d5 - d6)), sub(c, b));
+  const double denom = 1.0 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  return axpy(axpy(a, v, ab), w, ac);
+}
+
+/// Bounding-volume hierarchy of a mesh's triangles for nearest-distance queries.
+class TriangleTree {
+ public:
+  explicit TriangleTree(const io::TriangleMesh& m) : mesh_(m) {
+    order_.resize(m.triangles.size());
+    std::iota(order_.begin(), order_.end(), 0u);
+    centroids_.reserve(m.triangles.size());
+    for (const auto& t : m.triangles) {
+      const Vec3d &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
+      centroids_.push_back(
+          {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3});
+    }
+    if (!order_.empty()) build(0, order_.size());
+  }
+
+  double distance2(const Vec3d& p) const {
+    std::uint32_t tri;
+    return nearest(p, tri);
+  }
+
+  /// Squared distance from p to the mesh and the nearest triangle.
+  double nearest(const Vec3d& p, std::uint32_t& tri) const {
+    double best = std::numeric_limits<double>::infinity();
+    tri = 0;
+    if (nodes_.empty()) return best;
+    std::array<std::uint32_t, 128> stack;
+    std::size_t top = 0;
+    stack[top++] = 0;
+    while (top) {
+      const Node& n = nodes_[stack[--top]];
+      if (box_distance2(n, p) >= best) continue;
+      if (n.count) {
+        for (std::uint32_t i = n.first; i < n.first + n.count; ++i) {
+          const auto& t = mesh_.triangles[order_[i]];
+          const Vec3d q = closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]],
+                                              mesh_.vertices[t[2]]);
+          const double d2 = norm2(sub(p, q));
+          if (d2 < best) {
+            best = d2;
+            tri = order_[i];
+          }
+        }
+      } else {
+        // Nearer child last so it is popped first.
+        const double dl = box_distance2(nodes_[n.left], p), dr = box_distance2(nodes_[n.right], p);
+        if (top + 2 > stack.size()) throw std::logic_error("triangle tree too deep");
+        if (dl < dr) {
+          stack[top++] = n.right;
+          stack[top++] = n.left;
+        } else {
+          stack[top++] = n.left;
+          stack[top++] = n.right;
+        }
+      }
+    }
+    return best;
+  }
+
+  /// Distance from p to triangle `tri` of the mesh.
+  double distance_to(const Vec3d& p, std::uint32_t tri) const {
+    const auto& t = mesh_.triangles[tri];
+    return std::sqrt(norm2(sub(p, closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]],
+                                                      mesh_.vertices[t[2]]))));
+  }
+
+ private:
+  struct Node {
+    Vec3d lo, hi;
+    std::uint32_t left = 0, right = 0, first = 0, count = 0;
+  };
+
+  static double box_distance2(const Node& n, const Vec3d& p) {
+    double d = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double e =
+          std::max({n.lo[size_t(k)] - p[size_t(k)], 0.0, p[size_t(k)] - n.hi[size_t(k)]});
+      d += e * e;
+    }
+    return d;
+  }
+
+  std::uint32_t build(std::size_t first, std::size_t last) {
+    Node n;
+    n.lo = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+            std::numeric_limits<double>::infinity()};
+    n.hi = {-n.lo[0], -n.lo[1], -n.lo[2]};
+    Vec3d clo = n.lo, chi = n.hi;
+    for (std::size_t i = first; i < last; ++i) {
+      const auto& t = mesh_.triangles[order_[i]];
+      for (int v = 0; v < 3; ++v)
+        for (int k = 0; k < 3; ++k) {
+          n.lo[size_t(k)] = std::min(n.lo[size_t(k)], mesh_.vertices[t[size_t(v)]][size_t(k)]);
+          n.hi[size_t(k)] = std::max(n.hi[size_t(k)], mesh_.vertices[t[size_t(v)]][size_t(k)]);
+        }
+      for (int k = 0; k < 3; ++k) {
+        clo[size_t(k)] = std::min(clo[size_t(k)], centroids_[order_[i]][size_t(k)]);
+        chi[size_t(k)] = std::max(chi[size_t(k)], centroids_[order_[i]][size_t(k)]);
+      }
+    }
+    const std::uint32_t id = std::uint32_t(nodes_.size());
+    nodes_.push_back(n);
+    if (last - first <= 8) {
+      nodes_[id].first = std::uint32_t(first);
+      nodes_[id].count = std::uint32_t(last - first);
+      return id;
+    }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+      if (chi[size_t(k)] - clo[size_t(k)] > chi[size_t(axis)] - clo[size_t(axis)]) axis = k;
+    const std::size_t mid = (first + last) / 2;
+    std::nth_element(order_.begin() + long(first), order_.begin() + long(mid),
+                     order_.begin() + long(last), [&](std::uint32_t x, std::uint32_t y) {
+                       const double cx = centroids_[x][size_t(axis)],
+                                    cy = centroids_[y][size_t(axis)];
+                       return cx < cy || (cx == cy && x < y);
+                     });
+    const std::uint32_t l = build(first, mid);
+    const std::uint32_t r = build(mid, last);
+    nodes_[id].left = l;
+    nodes_[id].right = r;
+    return id;
+  }
+
+  const io::TriangleMesh& mesh_;
+  std::vector<std::uint32_t> order_;
+  std::vector<Vec3d> centroids_;
+  std::vector<Node> nodes_;
+};
+
+/// Largest distance from a vertex of A to B.
+double vertex_distance(const io::TriangleMesh& a, const TriangleTree& tb) {
+  double best2 = 0;
+  for (const auto& v : a.vertices) best2 = std::max(best2, tb.distance2(v));
+  return std::sqrt(best2);
+}
+
+/// Raises `best` to the directed Hausdorff distance h(A -> B) = max over the
+/// surface of A of the distance to B, to within `tol`, by branch and bound on
+/// A's triangles. Upper bounds of the distance to B on a triangle with
+/// centroid g: d(g) + R (the distance is 1-Lipschitz; R = centroid to farthest
+/// vertex), and max_i d_T(v_i) for T the triangle of B nearest to g (the
+/// distance to one triangle is convex, so its maximum is at a vertex, and
+/// d_B <= d_T). Triangles that cannot beat `best` by more than `tol` are
+/// dropped, the others split in four. `best` starts at what is already known (the other
+/// direction, the vertices), so the large surfaces two LOD models share are
+/// dropped at once. Stops once best >= stop_above.
+void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, double stop_above,
+              double& best) {
+  struct Tri {
+    Vec3d a, b, c;
+  };
+  std::vector<Tri> stack;
+  for (const auto& t : a.triangles)
+    stack.push_back({a.vertices[t[0]], a.vertices[t[1]], a.vertices[t[2]]});
+  std::size_t budget = 2000000;  // distance queries; bounds the worst case (coincident surfaces)
+  while (!stack.empty() && budget > 0 && best < stop_above) {
+    const Tri t = stack.back();
+    stack.pop_back();
+    const Vec3d g{(t.a[0] + t.b[0] + t.c[0]) / 3, (t.a[1] + t.b[1] + t.c[1]) / 3,
+                  (t.a[2] + t.b[2] + t.c[2]) / 3};
+    const double r =
+        std::sqrt(std::max({norm2(sub(t.a, g)), norm2(sub(t.b, g)), norm2(sub(t.c, g))}));
+    if (r <= tol * 0.5) continue;  // within tol of its (evaluated) vertices
+    std::uint32_t near;
+    const double dg = std::sqrt(tb.nearest(g, near));
+    --budget;
+    best = std::max(best, dg);
+    if (dg + r <= best + tol) continue;
+    if (std::max({tb.distance_to(t.a, near), tb.distance_to(t.b, near),
+                  tb.distance_to(t.c, near)}) <= best + tol)
+      continue;
+    const Vec3d ab{(t.a[0] + t.b[0]) / 2, (t.a[1] + t.b[1]) / 2, (t.a[2] + t.b[2]) / 2};
+    const Vec3d bc{(t.b[0] + t.c[0]) / 2, (t.b[1] + t.c[1]) / 2, (t.b[2] + t.c[2]) / 2};
+    const Vec3d ca{(t.c[0] + t.a[0]) / 2, (t.c[1] + t.a[1]) / 2, (t.c[2] + t.a[2]) / 2};
+    for (const Vec3d& m : {ab, bc, ca}) best = std::max(best, std::sqrt(tb.distance2(m)));
+    budget -= std::min<std::size_t>(budget, 3);
+    stack.push_back({t.a, ab, ca});
+    stack.push_back({ab, t.b, bc});
+    stack.push_back({ca, bc, t.c});
+    stack.push_back({ab, bc, ca});
+  }
+}
+
+}  // namespace
+
+double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, double tolerance,
+                          double stop_above) {
+  if (a.triangles.empty() || b.triangles.empty()) return std::numeric_limits<double>::infinity();
+  if (!(tolerance > 0)) throw std::invalid_argument("hausdorff_distance: tolerance must be > 0");
+  if (a.vertices == b.vertices && a.triangles == b.triangles)
+    return 0.0;  // the same model (common)
+  const TriangleTree ta(a), tb(b);
+  double best = std::max(vertex_distance(a, tb), vertex_distance(b, ta));
+  directed(a, tb, tolerance, stop_above, best);
+  directed(b, ta, tolerance, stop_above, best);
+  return best;
+}
+
+ModelChoice choose_models(const std::vector<ModelEntry>& entries,
+                          const std::vector<io::TriangleMesh>& meshes, double min_change_m,
+                          double tolerance_m) {
+  if (entries.size() != meshes.size())
+    throw std::invalid_argument("choose_models: entries and meshes differ in size");
+  ModelChoice out;
+  if (entries.empty()) return out;
+  std::vector<std::size_t> order(entries.size());
+  std::iota(order.begin(), order.end(), std::size_t(0));
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t x, std::size_t y) { return entries[x].step < entries[y].step; });
+  // The finest model: the last anchor (the last model if none is an anchor);
+  // models without triangles never count.
+  std::ptrdiff_t finest_pos = -1;
+  for (std::size_t i = 0; i < order.size(); ++i)
+    if (!meshes[order[i]].triangles.empty() && (entries[order[i]].anchor() || finest_pos < 0 ||
+                                                !entries[order[size_t(finest_pos)]].anchor()))
+      finest_pos = std::ptrdiff_t(i);
+  if (finest_pos < 0) return out;
+  order.resize(size_t(finest_pos) + 1);
+  const std::size_t finest = order.back();
+
+  // Distance of every candidate to the finest model.
+  std::vector<double> to_finest(entries.size(), 0.0);
+  for (std::size_t m : order)
+    if (m != finest && !meshes[m].triangles.empty())
+      to_finest[m] = hausdorff_distance(meshes[m], meshes[finest], tolerance_m);
+  auto next_anchor_after = [&](std::size_t i) {
+    for (std::size_t j = i + 1; j < order.size(); ++j)
+      if (entries[order[j]].anchor() && !meshes[order[j]].triangles.empty()) return order[j];
+    return finest;
+  };
+  constexpr double kSame = 1e-3;  // metres: the same surface
+
+  // Walk coarse -> fine.
+  std::vector<std::size_t> kept;
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const std::size_t m = order[i];
+    if (meshes[m].triangles.empty()) continue;
+    if (m == finest) {
+      kept.push_back(m);
+      continue;
+    }
+    const std::size_t next_anchor = next_anchor_after(i);
+    if (entries[m].anchor()) {
+      // Every anchor, unless it is the very same model as the next one.
+      if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, kSame) >= kSame)
+        kept.push_back(m);
+      continue;
+    }
+    // An interpolation changes the look when it differs from the previous kept
+    // model and from the next anchor, and brings the building closer to its
+    // finest model (a lower error: otherwise a client refines both at once).
+    if (!kept.empty()) {
+      const std::size_t prev = kept.back();
+      if (to_finest[m] > to_finest[prev] - min_change_m) continue;
+      if (hausdorff_distance(meshes[m], meshes[prev], tolerance_m, min_change_m) < min_change_m)
+        continue;
+    }
+    if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, min_change_m) <
+        min_change_m)
+      continue;
+    kept.push_back(m);
+  }
+  out.kept = kept;
+  out.hausdorff_m.resize(kept.size());
+  out.error_m.resize(kept.size());
+  for (std::size_t i = 0; i < kept.size(); ++i) out.hausdorff_m[i] = to_finest[kept[i]];
+  // Strictly decreasing, 0 only for the finest: a coarser model whose distance
+  // happens to be smaller than a finer one's is charged the finer error + 1 cm.
+  double next = 0;
+  for (std::size_t i = kept.size(); i-- > 0;) {
+    out.error_m[i] = (i + 1 == kept.size()) ? 0.0 : std::max(out.hausdorff_m[i], next + 0.01);
+    next = out.error_m[i];
+  }
+  return out;
+}
+
+}  // namespace citylod::tiler

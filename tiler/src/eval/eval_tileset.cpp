@@ -1,0 +1,394 @@
+// `citylod eval TILESET [--work WORK]`: what a tileset holds, per tile depth and
+// per building mesh (see citylod/tiler/eval.hpp).
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <tuple>
+
+#include <nlohmann/json.hpp>
+
+#include "citylod/geo/local_frame.hpp"
+#include "citylod/io/error.hpp"
+#include "citylod/io/glb_reader.hpp"
+#include "citylod/io/json_file.hpp"
+#include "citylod/io/reader.hpp"
+#include "citylod/tiler/bridge.hpp"
+#include "citylod/tiler/eval.hpp"
+#include "citylod/tiler/threads.hpp"
+#include "citylod/tiler/workdir.hpp"
+
+namespace citylod::tiler {
+
+namespace fs = std::filesystem;
+using Mat4 = std::array<double, 16>;
+using io::Vec3d;
+
+namespace {
+
+constexpr Mat4 kIdentity{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+constexpr int kMaxExternalDepth = 8;
+
+struct ContentRef {
+  std::string file;  // path to read
+  std::string rel;   // relative to the top tileset's directory
+  int level = 0;
+  double error = 0;
+  Mat4 transform = kIdentity;  // content (z-up) frame -> tileset world frame
+};
+
+using io::read_json_file;
+
+struct Walker {
+  fs::path top_dir;
+  std::vector<ContentRef> contents;
+  std::size_t tiles = 0;
+  int depth = 0;
+
+  void tileset(const std::string& path, int level, const Mat4& parent, int external_depth) {
+    const nlohmann::json ts = read_json_file(path);
+    if (!ts.is_object() || !ts.contains("root") || !ts["root"].is_object())
+      throw io::IoError(path, "not a 3D Tiles tileset (no \"root\" tile)");
+    tile(ts["root"], path, fs::path(path).parent_path(), "root", level, parent, external_depth);
+  }
+
+  void tile(const nlohmann::json& t, const std::string& file, const fs::path& base,
+            const std::string& where, int level, const Mat4& parent, int external_depth) {
+    if (!t.is_object()) throw io::IoError(file, where + " is not a JSON object");
+    ++tiles;
+    depth = std::max(depth, level);
+    Mat4 m = parent;
+    if (t.contains("transform")) {
+      const auto& tr = t["transform"];
+      if (!tr.is_array() || tr.size() != 16)
+        throw io::IoError(file, where + ": \"transform\" is not 16 numbers");
+      Mat4 local;
+      for (std::size_t i = 0; i < 16; ++i) {
+        if (!tr[i].is_number())
+          throw io::IoError(file, where + ": \"transform\" is not 16 numbers");
+        local[i] = tr[i].get<double>();
+      }
+      m = io::multiply(parent, local);
+    }
+    const double error = t.contains("geometricError") && t["geometricError"].is_number()
+                             ? t["geometricError"].get<double>()
+                             : 0.0;
+    std::vector<const nlohmann::json*> cs;
+    if (t.contains("content")) cs.push_back(&t["content"]);
+    if (t.contains("contents")) {
+      if (!t["contents"].is_array())
+        throw io::IoError(file, where + ": \"contents\" is not an array");
+      for (const auto& c : t["contents"]) cs.push_back(&c);
+    }
+    for (const auto* c : cs) {
+      if (!c->is_object()) throw io::IoError(file, where + ": content is not a JSON object");
+      const char* key = c->contains("uri") ? "uri" : "url";  // 1.1 / 1.0
+      if (!c->contains(key) || !(*c)[key].is_string())
+        throw io::IoError(file, where + ": content has no uri");
+      std::string uri = (*c)[key].get<std::string>();
+      if (uri.find("://") != std::string::npos || uri.rfind("data:", 0) == 0)
+        throw io::IoError(file,
+                          where + ": content '" + uri + "' is not a local file (not supported)");
+      uri = uri.substr(0, uri.find('?'));
+      const fs::path p = (base / uri).lexically_normal();
+      const std::string ext = "." + io::extension_of(p.string());
+      if (ext == ".json") {
+        if (external_depth >= kMaxExternalDepth)
+          throw io::IoError(p.string(), "external tilesets nested deeper than " +
+                                            std::to_string(kMaxExternalDepth));
+        tileset(p.string(), level + 1, m, external_depth + 1);
+      } else if (ext == ".glb") {
+        ContentRef r;
+        r.file = p.string();
+        r.rel = p.lexically_relative(top_dir).generic_string();
+        if (r.rel.empty()) r.rel = r.file;
+        r.level = level;
+        r.error = error;
+        r.transform = m;
+        contents.push_back(r);
+      } else {
+        throw io::IoError(
+            p.string(), "unsupported tile content '" + ext + "' (only glb and external tilesets)");
+      }
+    }
+    if (t.contains("children")) {
+      const auto& ch = t["children"];
+      if (!ch.is_array()) throw io::IoError(file, where + ": \"children\" is not an array");
+      for (std::size_t i = 0; i < ch.size(); ++i)
+        tile(ch[i], file, base, where + ".children[" + std::to_string(i) + "]", level + 1, m,
+             external_depth);
+    }
+  }
+};
+
+/// One building's triangles in one glb.
+struct Group {
+  std::string building;
+  int model_index = -1, step = -1;
+  std::string kind;
+  io::TriangleMesh
+      mesh;  // content frame, z-up (node transforms and the y-up -> z-up rotation applied)
+};
+
+/// glTF y-up -> 3D Tiles z-up: (x, y, z) -> (x, -z, y).
+Vec3d to_zup(const Vec3d& p) {
+  return {p[0], -p[2], p[1]};
+}
+
+/// Splits a glb's triangles by building; vertices with the same stored
+/// position in the same node are welded (the writer splits them per face normal).
+std::vector<Group> read_groups(const ContentRef& c) {
+  const io::GlbDocument d = io::read_glb(c.file);
+  struct Building {
+    Group g;
+    std::map<std::tuple<int, double, double, double>, std::uint32_t>
+        weld;  // node, stored position -> vertex
+  };
+  std::map<std::string, Building> groups;
+  for (const auto& p : d.primitives) {
+    const io::GlbPropertyTable* table =
+        p.property_table >= 0 ? &d.property_tables[std::size_t(p.property_table)] : nullptr;
+    std::map<std::int64_t, Building*> by_feature;  // of this primitive
+    for (const auto& t : p.triangles) {
+      const std::int64_t f = p.feature_ids.empty() ? -1 : p.feature_ids[t[0]];
+      auto found = by_feature.find(f);
+      if (found == by_feature.end()) {
+        std::string id = f >= 0 ? "feature-" + std::to_string(f) : "(no feature id)";
+        int model_index = -1, step = -1;
+        std::string kind;
+        if (table && f >= 0 && std::size_t(f) < table->count) {
+          const auto s = table->strings.find("building_id");
+          if (s != table->strings.end()) id = s->second[std::size_t(f)];
+          const auto mi = table->numbers.find("model_index");
+          if (mi != table->numbers.end()) model_index = int(mi->second[std::size_t(f)]);
+          const auto st = table->numbers.find("step");
+          if (st != table->numbers.end()) step = int(st->second[std::size_t(f)]);
+          const auto k = table->strings.find("lod_kind");
+          if (k != table->strings.end()) kind = k->second[std::size_t(f)];
+        }
+        auto [it, fresh] = groups.try_emplace(id);
+        if (fresh) {
+          it->second.g.building = id;
+          it->second.g.model_index = model_index;
+          it->second.g.step = step;
+          it->second.g.kind = kind;
+        }
+        found = by_feature.emplace(f, &it->second).first;
+      }
+      Building& b = *found->second;
+      std::array<std::uint32_t, 3> tri;
+      for (int k = 0; k < 3; ++k) {
+        const Vec3d& v = p.positions[t[std::size_t(k)]];
+        const auto [w, added] =
+            b.weld.try_emplace({p.node, v[0], v[1], v[2]}, std::uint32_t(b.g.mesh.vertices.size()));
+        if (added) b.g.mesh.vertices.push_back(to_zup(io::transform_point(p.matrix, v)));
+        tri[std::size_t(k)] = w->second;
+      }
+      b.g.mesh.triangles.push_back(tri);
+    }
+  }
+  std::vector<Group> out;
+  for (auto& [id, b] : groups) out.push_back(std::move(b.g));
+  return out;
+}
+
+}  // namespace
+
+TilesetEval evaluate_tileset(const std::string& path, const std::string& work_dir,
+                             const EvalOptions& o, const ProgressFn& progress) {
+  TilesetEval r;
+  r.samples = o.samples;
+  r.work = work_dir;
+  fs::path ts = path;
+  if (fs::is_directory(ts)) ts /= "tileset.json";
+  r.tileset = ts.string();
+  Walker w;
+  w.top_dir = ts.parent_path().lexically_normal();
+  w.tileset(ts.string(), 0, kIdentity, 0);
+  r.tiles = w.tiles;
+  r.depth = w.depth;
+  if (w.contents.empty()) throw io::IoError(r.tileset, "the tileset has no glb content");
+
+  // References: the manifest (scene frame, chunk origins).
+  Manifest man;
+  std::map<std::string, const ChunkRecord*> chunks;
+  std::unique_ptr<geo::LocalFrame> frame;
+  if (!work_dir.empty()) {
+    if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
+    man = read_manifest(work_dir);
+    for (const auto& c : man.chunks) chunks[c.id] = &c;
+    require_valid_origin(man, work_dir);
+    const auto& sc = man.scene;
+    frame =
+        std::make_unique<geo::LocalFrame>(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
+  }
+  const int threads = resolve_threads(o.threads);
+
+  // ---- 1. read every glb (parallel over contents)
+  std::vector<std::vector<Group>> groups(w.contents.size());
+  std::vector<std::string> errors(w.contents.size());
+  {
+    std::mutex mutex;
+    std::size_t done = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (long i = 0; i < long(w.contents.size()); ++i) {
+      try {
+        groups[size_t(i)] = read_groups(w.contents[size_t(i)]);
+      } catch (const std::exception& e) {
+        errors[size_t(i)] = e.what();
+      }
+      std::lock_guard<std::mutex> lock(mutex);
+      notify_count(progress, "reading tiles", ++done, w.contents.size(), "tiles");
+    }
+    notify_finished(progress, "reading tiles");
+  }
+  for (const auto& e : errors)
+    if (!e.empty()) throw std::runtime_error(e);  // the first in tree order
+
+  // ---- 2. rows, sorted by level, building, tile order
+  struct Row {
+    std::size_t content, group;
+  };
+  std::vector<Row> rows;
+  for (std::size_t c = 0; c < groups.size(); ++c) {
+    TileInfo ti;
+    ti.uri = w.contents[c].rel;
+    ti.level = w.contents[c].level;
+    ti.geometric_error = w.contents[c].error;
+    ti.buildings = groups[c].size();
+    for (std::size_t g = 0; g < groups[c].size(); ++g) {
+      ti.triangles += groups[c][g].mesh.triangles.size();
+      rows.push_back({c, g});
+    }
+    r.contents.push_back(ti);
+  }
+  std::stable_sort(rows.begin(), rows.end(), [&](const Row& a, const Row& b) {
+    const int la = w.contents[a.content].level, lb = w.contents[b.content].level;
+    if (la != lb) return la < lb;
+    return groups[a.content][a.group].building < groups[b.content][b.group].building;
+  });
+  r.meshes.resize(rows.size());
+  std::map<std::string, std::vector<std::size_t>> by_building;  // row indices
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Group& g = groups[rows[i].content][rows[i].group];
+    TileMeshEval& m = r.meshes[i];
+    m.building = g.building;
+    m.level = w.contents[rows[i].content].level;
+    m.tile = w.contents[rows[i].content].rel;
+    m.model_index = g.model_index;
+    m.step = g.step;
+    m.kind = g.kind;
+    m.triangles = g.mesh.triangles.size();
+    m.vertices = g.mesh.vertices.size();
+    by_building[g.building].push_back(i);
+    if (frame && !chunks.count(g.building))
+      throw io::IoError(
+          manifest_path(work_dir),
+          "building '" + g.building + "' of " + m.tile +
+              " is not in the manifest (was the tileset assembled from this work directory?)");
+  }
+
+  // ---- 3. per building (parallel): validity, and e1/e2 against its chunk
+  std::vector<std::string> ids;
+  for (const auto& [id, v] : by_building) ids.push_back(id);
+  std::vector<std::string> berrors(ids.size());
+  {
+    std::mutex mutex;
+    std::size_t done = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (long k = 0; k < long(ids.size()); ++k) {
+      const std::string& id = ids[size_t(k)];
+      try {
+        std::unique_ptr<LoadedBuilding> ref;
+        const ChunkRecord* rec = nullptr;
+        if (frame) {
+          rec = chunks.at(id);
+          const std::string chunk = chunk_path(work_dir, id);
+          if (!fs::exists(chunk))
+            throw io::IoError(chunk, "chunk of building '" + id + "' is missing");
+          ref = std::make_unique<LoadedBuilding>(load_building(chunk));
+          if (ref->input.points.empty())
+            throw io::IoError(chunk, "chunk of building '" + id + "' is empty");
+        }
+        for (std::size_t i : by_building.at(id)) {
+          const Group& g = groups[rows[i].content][rows[i].group];
+          TileMeshEval& m = r.meshes[i];
+          if (!ref) {
+            const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [](const Vec3d& v) { return v; });
+            m.check = lod::check_mesh(lm);
+            m.volume = lod::mesh_volume(lm);
+            continue;
+          }
+          // content frame -> tileset world (ECEF) -> scene ENU -> chunk frame -> reference's local
+          // frame
+          const Mat4& t = w.contents[rows[i].content].transform;
+          const Vec3d& co = rec->origin;
+          const Vec3d& ro = ref->origin;
+          const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [&](const Vec3d& v) {
+            const Vec3d world = io::transform_point(t, v);
+            const Eigen::Vector3d enu =
+                frame->ecef_to_enu(Eigen::Vector3d(world[0], world[1], world[2]));
+            return Vec3d{enu.x() - co[0] - ro[0], enu.y() - co[1] - ro[1], enu.z() - co[2] - ro[2]};
+          });
+          const lod::ModelEvaluation e = lod::evaluate_model(lm, ref->input, o.samples);
+          m.check = e.check;
+          m.volume = e.volume;
+          m.evaluated = true;
+          m.e1 = e.e1;
+          m.e2 = e.e2;
+          m.hausdorff = e.hausdorff;
+        }
+      } catch (const std::exception& e) {
+        berrors[size_t(k)] = e.what();
+      }
+      std::lock_guard<std::mutex> lock(mutex);
+      notify_count(progress, "eval", ++done, ids.size(), "buildings");
+    }
+    notify_finished(progress, "eval");
+  }
+  for (const auto& e : berrors)
+    if (!e.empty()) throw std::runtime_error(e);  // the first in id order
+
+  // ---- 4. per level
+  std::map<int, LevelSummary> levels;
+  std::map<int, std::set<std::string>> level_buildings;
+  for (const auto& c : r.contents) {
+    LevelSummary& l = levels[c.level];
+    l.level = c.level;
+    ++l.tiles;
+  }
+  for (const auto& m : r.meshes) {
+    LevelSummary& l = levels[m.level];
+    ++l.meshes;
+    level_buildings[m.level].insert(m.building);
+    l.triangles += m.triangles;
+    l.closed += m.check.closed;
+    l.edge_manifold += m.check.edge_manifold;
+    l.self_intersecting += m.check.self_intersecting;
+    if (m.evaluated) {
+      ++l.evaluated;
+      l.mean_e1 += m.e1;
+      l.mean_e2 += m.e2;
+      if (l.max_e2_building.empty() || m.e2 > l.max_e2) {
+        l.max_e2 = m.e2;
+        l.max_e2_building = m.building;
+      }
+    }
+  }
+  for (auto& [level, l] : levels) {
+    l.buildings = level_buildings[level].size();
+    if (l.evaluated) {
+      l.mean_e1 /= double(l.evaluated);
+      l.mean_e2 /= double(l.evaluated);
+    }
+    r.levels.push_back(l);
+  }
+  return r;
+}
+
+}  // namespace citylod::tiler

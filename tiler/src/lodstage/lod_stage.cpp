@@ -1,0 +1,306 @@
+// The LOD stage (lod_stage.hpp): parameters of a city run, one building, and
+// every building of a work directory.
+#include "citylod/tiler/lod_stage.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "citylod/io/atomic_file.hpp"
+#include "citylod/io/hash.hpp"
+#include "citylod/io/json_file.hpp"
+#include "citylod/tiler/bridge.hpp"
+#include "citylod/tiler/log.hpp"
+
+namespace citylod::tiler {
+
+namespace fs = std::filesystem;
+
+namespace {
+constexpr const char* kEngineVersion = "citylod-lod-6";
+}  // namespace
+
+// ------------------------------------------------------------ parameters
+lod::LodParams city_lod_params() {
+  lod::LodParams p;
+  p.closure.terrain = "cut";
+  p.closure.footprint_walls = true;
+  return p;
+}
+
+void apply_lod_settings(lod::LodParams& p, const std::string& list) {
+  std::stringstream ss(list);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item.empty()) continue;
+    const auto eq = item.find('=');
+    if (eq == std::string::npos)
+      throw std::invalid_argument("--set expects NAME=VALUE, got '" + item + "'");
+    try {
+      p.set(item.substr(0, eq), item.substr(eq + 1));
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("--set: ") + e.what());
+    }
+  }
+}
+
+void apply_lod_config(lod::LodParams& p, const std::string& path) {
+  const nlohmann::json j = io::read_json_file(path);
+  if (!j.is_object()) throw std::runtime_error(path + ": expected a JSON object of parameters");
+  for (const auto& [k, v] : j.items()) {
+    try {
+      p.set(k, v.is_string() ? v.get<std::string>() : v.dump());
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(path + ": " + e.what());
+    }
+  }
+}
+
+lod::LodParams params_for(const lod::LodParams& global, const Overrides& o, const std::string& id) {
+  lod::LodParams p = global;
+  auto it = o.find(id);
+  if (it != o.end())
+    for (const auto& [k, v] : it->second.set) p.set(k, v);
+  return p;
+}
+
+std::string lod_key(const std::string& content_hash, const lod::LodParams& p) {
+  std::string s = std::string(kEngineVersion) + "|" + content_hash;
+  for (const auto& [k, v] : p.items())
+    if (k != "threads") s += "|" + k + "=" + v;
+  return io::hash_hex(s.data(), s.size());
+}
+
+void parse_shard(const std::string& s, int& index, int& count) {
+  const auto slash = s.find('/');
+  try {
+    if (slash == std::string::npos) throw std::invalid_argument("");
+    size_t a = 0, b = 0;
+    index = std::stoi(s.substr(0, slash), &a);
+    count = std::stoi(s.substr(slash + 1), &b);
+    if (a != slash || b != s.size() - slash - 1) throw std::invalid_argument("");
+  } catch (const std::exception&) {
+    throw std::invalid_argument("--shard expects I/N, got '" + s + "'");
+  }
+  if (count < 1 || index < 0 || index >= count)
+    throw std::invalid_argument("--shard " + s + ": need 0 <= I < N");
+}
+
+// ------------------------------------------------------------ one building
+BuildingLodResult build_building_lod(const BuildingLodOptions& o, const ProgressFn& progress) {
+  BuildingLodResult out;
+  out.building = load_building(o.input);
+  const LoadedBuilding& b = out.building;
+  log_info("lod: " + o.input + ": " + std::to_string(b.input.points.size()) +
+           (b.is_mesh ? " vertices, " + std::to_string(b.input.triangles.size()) + " triangles"
+                      : std::string(" points") +
+                            (b.input.normals.empty() ? " (no normals)" : " with normals")));
+  struct Ctx {
+    const ProgressFn* fn;
+  } ctx{&progress};
+  lod::ProgressFn cb = nullptr;
+  if (progress)
+    cb = [](double f, const char* stage, void* user) {
+      const ProgressFn& fn = *static_cast<Ctx*>(user)->fn;
+      ProgressEvent e;
+      e.task = "lod";
+      e.fraction = f;
+      e.detail = stage;
+      return fn(e);
+    };
+  try {
+    out.result = lod::build_lod_tree(b.input, o.params, cb, &ctx);
+  } catch (const lod::LodError& e) {
+    throw std::runtime_error(o.input + ": " + e.what());
+  }
+  notify_finished(progress, "lod");
+  out.files = write_lod_output(o.out_dir, out.result, o.params, o.input, b.origin, o.dump_planes);
+  return out;
+}
+
+// ------------------------------------------------------------ a work directory
+namespace {
+
+/// The key recorded in a finished building's report.json ("" when absent/unreadable).
+std::string recorded_key(const std::string& work, const std::string& id) {
+  try {
+    const auto r = find_lod_report(work, id);
+    return r ? r->key : "";
+  } catch (const std::exception&) {
+    return "";
+  }
+}
+
+/// f(0..n-1) on `threads` std::threads, dynamic schedule; the first exception is
+/// rethrown after all have joined. Not OpenMP: the stage runs in a forked child
+/// (supervise.hpp), and a child forked after the parent used OpenMP (a program
+/// calling run_city() twice) cannot start an OpenMP team.
+void run_parallel(std::size_t n, int threads, const std::function<void(std::size_t)>& f) {
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto worker = [&]() {
+    for (std::size_t i; (i = next++) < n;) {
+      try {
+        f(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+      }
+    }
+  };
+  const std::size_t k = std::min<std::size_t>(std::size_t(std::max(1, threads)), n);
+  if (k <= 1) {
+    worker();
+  } else {
+    std::vector<std::thread> pool;
+    for (std::size_t t = 0; t < k; ++t) pool.emplace_back(worker);
+    for (auto& t : pool) t.join();
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+struct Outcome {
+  Status status = Status::failed;
+  std::string reason;
+};
+
+/// Runs one building and publishes WORK/lod/<id>/ atomically (its report.json
+/// carries the resume key). Never throws for the building's own trouble: the
+/// reason goes into the report. A building that crashed an earlier run is not
+/// retried: it gets the engine's fallback model.
+Outcome process_building(const std::string& work, const ChunkRecord& c, const lod::LodParams& p,
+                         const std::string& key, bool crashed_before) {
+  const std::string dir = lod_dir(work, c.id);
+  const std::string stage = dir + ".tmp." + std::to_string(::getpid());
+  fs::remove_all(stage);
+  lod::LodResult r;
+  try {
+    const lod::BuildingInput in = chunk_input(work, c);
+    r = crashed_before ? lod::fallback_result(in, "crashed in an earlier run; not retried")
+                       : lod::build_lod_tree(in, p);
+  } catch (const std::exception& e) {  // unreadable chunk, or no model at all (no points, no area)
+    r = lod::LodResult{};
+    r.status = "failed";
+    r.reason = e.what();
+  }
+  write_lod_output(stage, r, p, chunk_path(work, c.id), {0, 0, 0}, false, c.id, key);
+  fs::remove_all(dir);
+  fs::rename(stage, dir);
+  return {to_status(r.status), r.reason};
+}
+
+}  // namespace
+
+std::size_t LodStagePlan::up_to_date() const {
+  return std::size_t(
+      std::count_if(items.begin(), items.end(), [](const Item& i) { return i.up_to_date; }));
+}
+
+LodStagePlan plan_lod_stage(const LodStageOptions& o) {
+  LodStagePlan plan;
+  plan.manifest = read_manifest(o.work_dir);
+  lod::LodParams params = o.params;
+  params.threads = 1;  // parallelism is across buildings; results do not depend on it
+  params.validate();
+  const Overrides overrides = read_overrides(o.work_dir);
+  // This shard's chunks (rank in id order, so every shard agrees), largest first.
+  std::vector<const ChunkRecord*> todo;
+  const auto& chunks = plan.manifest.chunks;
+  for (size_t i = 0; i < chunks.size(); ++i) {
+    const auto& c = chunks[i];
+    if (!o.only.empty() && std::find(o.only.begin(), o.only.end(), c.id) == o.only.end()) continue;
+    if (o.only.empty() && int(i % size_t(o.shard_count)) != o.shard_index) continue;
+    if (c.skipped()) continue;
+    todo.push_back(&c);
+  }
+  std::stable_sort(todo.begin(), todo.end(), [](const ChunkRecord* a, const ChunkRecord* b) {
+    const auto sa = a->points + a->triangles, sb = b->points + b->triangles;
+    return sa != sb ? sa > sb : a->id < b->id;
+  });
+  for (const ChunkRecord* c : todo) {
+    LodStagePlan::Item it;
+    it.chunk = c;
+    it.params = params_for(params, overrides, c->id);
+    it.params.threads = 1;
+    it.key = lod_key(c->content_hash, it.params);
+    it.up_to_date = o.only.empty() && recorded_key(o.work_dir, c->id) == it.key;
+    plan.items.push_back(std::move(it));
+  }
+  return plan;
+}
+
+LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  LodStageReport rep;
+  const LodStagePlan plan = plan_lod_stage(o);
+  rep.total = plan.items.size();
+  fs::create_directories(fs::path(o.work_dir) / "lod");
+
+  std::mutex mu;
+  size_t done = 0;
+  auto run_one = [&](const LodStagePlan::Item& item) {
+    const ChunkRecord& c = *item.chunk;
+    const std::string dir = lod_dir(o.work_dir, c.id);
+    const std::string running = dir + ".running", suspect = dir + ".suspect",
+                      crashed = dir + ".crashed";
+    Outcome out;
+    bool reused = false;
+    if (item.up_to_date) {
+      reused = true;
+      try {
+        const auto r = find_lod_report(o.work_dir, c.id);
+        if (r) out = {r->status, r->reason};
+      } catch (const std::exception& e) {
+        out = {Status::failed, e.what()};
+      }
+    } else {
+      const bool crashed_before = fs::exists(crashed);
+      io::atomic_write_file(running, c.id + "\n");
+      fs::remove(suspect);
+      out = process_building(o.work_dir, c, item.params, item.key, crashed_before);
+      fs::remove(running);
+      fs::remove(crashed);
+    }
+    std::lock_guard<std::mutex> lock(mu);
+    (reused ? rep.reused : rep.computed)++;
+    if (out.status == Status::ok)
+      ++rep.ok;
+    else if (out.status == Status::fallback)
+      ++rep.fallback;
+    else
+      ++rep.failed;
+    if (out.status != Status::ok) rep.problems.emplace_back(c.id, out.reason);
+    ++done;
+    notify_count(progress, "lod", done, rep.total, "buildings");
+  };
+  // Buildings that were running when an earlier process crashed go first, one
+  // at a time: if one crashes again it is the only one running, and the
+  // supervisor (supervise.hpp) marks it crashed.
+  std::vector<const LodStagePlan::Item*> rest;
+  for (const auto& it : plan.items) {
+    if (fs::exists(lod_dir(o.work_dir, it.chunk->id) + ".suspect"))
+      run_one(it);
+    else
+      rest.push_back(&it);
+  }
+  run_parallel(rest.size(), std::max(1, o.threads), [&](std::size_t i) { run_one(*rest[i]); });
+  notify_finished(progress, "lod");
+  std::sort(rep.problems.begin(), rep.problems.end());
+  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return rep;
+}
+
+}  // namespace citylod::tiler

@@ -1,0 +1,422 @@
+// Ground model, point features and building clustering of one cell (+ halo).
+#include "citylod/tiler/segment.hpp"
+
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/extract_clusters.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+
+namespace citylod::tiler {
+
+const char* class_mode_name(ClassMode m) {
+  switch (m) {
+    case ClassMode::none:
+      return "no classes (DTM by grid-minimum opening, vegetation by PCA features)";
+    case ClassMode::ground:
+      return "ground class 2 (vegetation by PCA features)";
+    case ClassMode::buildings:
+      return "ground class 2 and building class 6";
+  }
+  return "";
+}
+
+bool non_building_class(std::uint8_t c) {
+  switch (c) {
+    case 2:   // ground
+    case 3:   // low vegetation
+    case 4:   // medium vegetation
+    case 5:   // high vegetation
+    case 7:   // low point (noise)
+    case 9:   // water
+    case 10:  // rail
+    case 11:  // road surface
+    case 18:  // high noise
+      return true;
+    default:
+      return false;
+  }
+}
+
+double GroundGrid::at(double x, double y) const {
+  if (nx == 0 || ny == 0) return 0.0;
+  int i = static_cast<int>(std::floor((x - x0) / res));
+  int j = static_cast<int>(std::floor((y - y0) / res));
+  i = std::clamp(i, 0, nx - 1);
+  j = std::clamp(j, 0, ny - 1);
+  return z[static_cast<std::size_t>(j) * static_cast<std::size_t>(nx) +
+           static_cast<std::size_t>(i)];
+}
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// Smallest extent of a convex polygon over all directions (an edge direction is optimal).
+double hull_width(const Ring& h) {
+  if (h.size() < 3) return 0.0;
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    const Vec2& a = h[i];
+    const Vec2& b = h[(i + 1) % h.size()];
+    const double len = std::hypot(b[0] - a[0], b[1] - a[1]);
+    if (len <= 0) continue;
+    double far = 0;
+    for (const Vec2& v : h)
+      far = std::max(far,
+                     std::abs((b[0] - a[0]) * (v[1] - a[1]) - (b[1] - a[1]) * (v[0] - a[0])) / len);
+    best = std::min(best, far);
+  }
+  return std::isfinite(best) ? best : 0.0;
+}
+
+// Min (or max) over a (2r+1)-window along rows then columns; +inf cells are empty and ignored.
+void window_filter(std::vector<float>& z, int nx, int ny, int r, bool take_min) {
+  std::vector<float> tmp(z.size(), kInf);
+  auto better = [take_min](float a, float b) { return take_min ? std::min(a, b) : std::max(a, b); };
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      float best = kInf;
+      bool any = false;
+      for (int k = std::max(0, i - r); k <= std::min(nx - 1, i + r); ++k) {
+        const float v = z[std::size_t(j) * std::size_t(nx) + std::size_t(k)];
+        if (v == kInf) continue;
+        best = any ? better(best, v) : v;
+        any = true;
+      }
+      tmp[std::size_t(j) * std::size_t(nx) + std::size_t(i)] = any ? best : kInf;
+    }
+  for (int i = 0; i < nx; ++i)
+    for (int j = 0; j < ny; ++j) {
+      float best = kInf;
+      bool any = false;
+      for (int k = std::max(0, j - r); k <= std::min(ny - 1, j + r); ++k) {
+        const float v = tmp[std::size_t(k) * std::size_t(nx) + std::size_t(i)];
+        if (v == kInf) continue;
+        best = any ? better(best, v) : v;
+        any = true;
+      }
+      z[std::size_t(j) * std::size_t(nx) + std::size_t(i)] = any ? best : kInf;
+    }
+}
+
+// Empty cells take the mean of their filled 8-neighbours, repeatedly (nearest-fill).
+void fill_holes(std::vector<float>& z, int nx, int ny) {
+  bool any_filled = false;
+  for (float v : z)
+    if (v != kInf) any_filled = true;
+  if (!any_filled) {
+    std::fill(z.begin(), z.end(), 0.0f);
+    return;
+  }
+  for (;;) {
+    std::vector<std::size_t> todo;
+    std::vector<float> val;
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        const std::size_t c = std::size_t(j) * std::size_t(nx) + std::size_t(i);
+        if (z[c] != kInf) continue;
+        double s = 0;
+        int n = 0;
+        for (int dj = -1; dj <= 1; ++dj)
+          for (int di = -1; di <= 1; ++di) {
+            const int a = i + di, b = j + dj;
+            if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+            const float v = z[std::size_t(b) * std::size_t(nx) + std::size_t(a)];
+            if (v == kInf) continue;
+            s += v;
+            ++n;
+          }
+        if (n) {
+          todo.push_back(c);
+          val.push_back(static_cast<float>(s / n));
+        }
+      }
+    if (todo.empty()) break;
+    for (std::size_t k = 0; k < todo.size(); ++k) z[todo[k]] = val[k];
+  }
+}
+
+GroundGrid build_dtm(const std::vector<io::Vec3d>& pos, const std::vector<std::uint8_t>& cls,
+                     ClassMode mode, const SegmentParams& p, const std::array<double, 4>& region) {
+  GroundGrid g;
+  g.res = p.dtm_resolution;
+  g.x0 = std::floor(region[0] / g.res) * g.res;
+  g.y0 = std::floor(region[1] / g.res) * g.res;
+  g.nx = std::max(1, static_cast<int>(std::ceil((region[2] - g.x0) / g.res)) + 1);
+  g.ny = std::max(1, static_cast<int>(std::ceil((region[3] - g.y0) / g.res)) + 1);
+  g.z.assign(std::size_t(g.nx) * std::size_t(g.ny), kInf);
+
+  auto cell_of = [&](const io::Vec3d& q) -> long {
+    const int i = static_cast<int>(std::floor((q[0] - g.x0) / g.res));
+    const int j = static_cast<int>(std::floor((q[1] - g.y0) / g.res));
+    if (i < 0 || j < 0 || i >= g.nx || j >= g.ny) return -1;
+    return long(j) * g.nx + i;
+  };
+  bool use_class2 = mode != ClassMode::none && !cls.empty();
+  if (use_class2) {
+    std::size_t n2 = 0;
+    for (std::size_t k = 0; k < pos.size(); ++k)
+      if (cls[k] == 2) ++n2;
+    use_class2 = n2 > 0;
+  }
+  for (std::size_t k = 0; k < pos.size(); ++k) {
+    if (use_class2 && cls[k] != 2) continue;
+    if (!use_class2 && !cls.empty() && (cls[k] == 7 || cls[k] == 18)) continue;  // noise
+    const long c = cell_of(pos[k]);
+    if (c < 0) continue;
+    g.z[std::size_t(c)] = std::min(g.z[std::size_t(c)], static_cast<float>(pos[k][2]));
+  }
+  if (!use_class2) {
+    // Grid-minimum opening: erosion removes everything narrower than the window
+    // (buildings, trees), dilation restores the terrain's level.
+    const int r = std::max(1, static_cast<int>(std::ceil(0.5 * p.dtm_window / g.res)));
+    window_filter(g.z, g.nx, g.ny, r, true);
+    window_filter(g.z, g.nx, g.ny, r, false);
+  }
+  fill_holes(g.z, g.nx, g.ny);
+  return g;
+}
+
+}  // namespace
+
+CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
+                              const std::vector<std::uint8_t>& cls, ClassMode mode,
+                              const SegmentParams& p, const std::array<double, 4>& region,
+                              bool cluster) {
+  CellSegmentation out;
+  const std::size_t n = pos.size();
+  out.dtm = build_dtm(pos, cls, mode, p, region);
+  out.hag.resize(n);
+  out.ground.assign(n, 0);
+  out.foliage.assign(n, 0);
+  const bool have_cls = !cls.empty() && mode != ClassMode::none;
+  for (std::size_t k = 0; k < n; ++k) {
+    out.hag[k] = static_cast<float>(pos[k][2] - out.dtm.at(pos[k][0], pos[k][1]));
+    out.ground[k] = have_cls ? (cls[k] == 2) : (out.hag[k] < p.ground_tolerance);
+  }
+  if (n == 0) return out;
+
+  // Local frame for PCL (float): the region centre.
+  const double cx = 0.5 * (region[0] + region[2]);
+  const double cy = 0.5 * (region[1] + region[3]);
+  const double cz = out.dtm.at(cx, cy);
+
+  // ---- point features (not when the building class is trusted)
+  std::vector<float> planarity(n, 1.0f);
+  if (mode != ClassMode::buildings) {
+    std::vector<std::uint32_t> idx;
+    for (std::size_t k = 0; k < n; ++k)
+      if (!out.ground[k] && out.hag[k] > p.ground_tolerance &&
+          !(have_cls && non_building_class(cls[k])))
+        idx.push_back(static_cast<std::uint32_t>(k));
+    const int kk = std::min<int>(p.feature_neighbours, static_cast<int>(idx.size()));
+    if (kk >= 5) {
+      pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+      cloud->resize(idx.size());
+      for (std::size_t m = 0; m < idx.size(); ++m) {
+        const auto& q = pos[idx[m]];
+        (*cloud)[m] = pcl::PointXYZ(float(q[0] - cx), float(q[1] - cy), float(q[2] - cz));
+      }
+      pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+      tree.setInputCloud(cloud);
+      std::vector<int> nn(static_cast<std::size_t>(kk));
+      std::vector<float> d2(static_cast<std::size_t>(kk));
+      for (std::size_t m = 0; m < idx.size(); ++m) {
+        const int found = tree.nearestKSearch((*cloud)[m], kk, nn, d2);
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (int t = 0; t < found; ++t)
+          mean += (*cloud)[std::size_t(nn[std::size_t(t)])].getVector3fMap().cast<double>();
+        mean /= std::max(1, found);
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (int t = 0; t < found; ++t) {
+          const Eigen::Vector3d d =
+              (*cloud)[std::size_t(nn[std::size_t(t)])].getVector3fMap().cast<double>() - mean;
+          cov += d * d.transpose();
+        }
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
+        const Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0.0);  // ascending
+        const double l1 = std::max(ev[2], 1e-12);
+        const double scatter = ev[0] / l1;
+        planarity[idx[m]] = static_cast<float>((ev[1] - ev[0]) / l1);
+        if (scatter > p.max_scatter) out.foliage[idx[m]] = 1;
+      }
+    }
+  }
+  if (!cluster) return out;
+
+  // ---- building candidates
+  std::vector<std::uint32_t> cand;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (mode == ClassMode::buildings) {
+      if (cls[k] == 6) cand.push_back(static_cast<std::uint32_t>(k));
+      continue;
+    }
+    if (out.ground[k] || out.foliage[k] || out.hag[k] < p.min_height) continue;
+    if (have_cls && non_building_class(cls[k])) continue;
+    cand.push_back(static_cast<std::uint32_t>(k));
+  }
+  if (cand.size() < static_cast<std::size_t>(std::max(1, p.min_cluster_points))) return out;
+
+  pcl::PointCloud<pcl::PointXYZ>::Ptr flat(new pcl::PointCloud<pcl::PointXYZ>);
+  flat->resize(cand.size());
+  for (std::size_t m = 0; m < cand.size(); ++m) {
+    const auto& q = pos[cand[m]];
+    (*flat)[m] = pcl::PointXYZ(float(q[0] - cx), float(q[1] - cy), 0.0f);
+  }
+  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
+  tree->setInputCloud(flat);
+  std::vector<pcl::PointIndices> found;
+  pcl::EuclideanClusterExtraction<pcl::PointXYZ> ec;
+  ec.setClusterTolerance(p.cluster_tolerance);
+  ec.setMinClusterSize(std::max(1, p.min_cluster_points));
+  ec.setMaxClusterSize(std::numeric_limits<int>::max());
+  ec.setSearchMethod(tree);
+  ec.setInputCloud(flat);
+  ec.extract(found);
+
+  // Edges and ridges look like foliage to the PCA (their neighbourhood spans two
+  // planes), which cuts walls from roofs and roof halves apart. Foliage-like points
+  // within reach of clustered points join them, and bridge the clusters they touch.
+  std::vector<int> parent(found.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
+  std::function<int(int)> root = [&](int i) {
+    return parent[std::size_t(i)] == i ? i : parent[std::size_t(i)] = root(parent[std::size_t(i)]);
+  };
+  std::vector<int> label(n, -1);
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (int m : found[c].indices) label[cand[std::size_t(m)]] = int(c);
+  std::vector<std::pair<std::uint32_t, int>> attached;  // foliage point -> cluster
+  if (mode != ClassMode::buildings && !found.empty()) {
+    pcl::PointCloud<pcl::PointXYZ>::Ptr c3(new pcl::PointCloud<pcl::PointXYZ>);
+    c3->resize(cand.size());
+    for (std::size_t m = 0; m < cand.size(); ++m) {
+      const auto& q = pos[cand[m]];
+      (*c3)[m] = pcl::PointXYZ(float(q[0] - cx), float(q[1] - cy), float(q[2] - cz));
+    }
+    pcl::KdTreeFLANN<pcl::PointXYZ> t3;
+    t3.setInputCloud(c3);
+    const double reach = 1.5 * p.cluster_tolerance;
+    std::vector<int> nn;
+    std::vector<float> d2;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!out.foliage[k] || out.hag[k] < p.min_height) continue;
+      if (have_cls && non_building_class(cls[k])) continue;
+      const pcl::PointXYZ q(float(pos[k][0] - cx), float(pos[k][1] - cy), float(pos[k][2] - cz));
+      if (t3.radiusSearch(q, reach, nn, d2) <= 0) continue;
+      int first = -1;
+      for (int m : nn) {
+        const int l = label[cand[std::size_t(m)]];
+        if (l < 0) continue;
+        if (first < 0)
+          first = l;
+        else if (root(l) != root(first))
+          parent[std::size_t(root(l))] = root(first);
+      }
+      if (first >= 0) attached.push_back({std::uint32_t(k), first});
+    }
+  }
+  std::vector<std::vector<std::uint32_t>> groups(found.size());
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (int m : found[c].indices)
+      groups[std::size_t(root(int(c)))].push_back(cand[std::size_t(m)]);
+  for (const auto& [k, c] : attached) {
+    groups[std::size_t(root(c))].push_back(k);
+    label[k] = root(c);
+  }
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (int m : found[c].indices) label[cand[std::size_t(m)]] = root(int(c));
+
+  // Foliage points above building height, bucketed for the vegetation ratio.
+  const double bucket = 2.0;
+  const int bx = std::max(1, int(std::ceil((region[2] - region[0]) / bucket)) + 1);
+  const int by = std::max(1, int(std::ceil((region[3] - region[1]) / bucket)) + 1);
+  std::vector<std::vector<std::uint32_t>> buckets;
+  if (mode != ClassMode::buildings) {
+    buckets.resize(std::size_t(bx) * std::size_t(by));
+    for (std::size_t k = 0; k < n; ++k)
+      if (out.foliage[k] && out.hag[k] >= p.min_height) {
+        const int i = std::clamp(int((pos[k][0] - region[0]) / bucket), 0, bx - 1);
+        const int j = std::clamp(int((pos[k][1] - region[1]) / bucket), 0, by - 1);
+        buckets[std::size_t(j) * std::size_t(bx) + std::size_t(i)].push_back(std::uint32_t(k));
+      }
+  }
+
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    if (groups[g].empty()) continue;
+    Cluster c;
+    c.members.reserve(groups[g].size());
+    std::vector<Vec2> xy;
+    xy.reserve(groups[g].size());
+    double sx = 0, sy = 0, sz = 0;
+    std::size_t planar = 0;
+    c.anchor = pos[groups[g].front()];
+    for (const std::uint32_t k : groups[g]) {
+      c.members.push_back(k);
+      if (pos[k] < c.anchor) c.anchor = pos[k];
+      sx += pos[k][0];
+      sy += pos[k][1];
+      sz += pos[k][2];
+      xy.push_back({pos[k][0], pos[k][1]});
+      c.height = std::max(c.height, double(out.hag[k]));
+      if (planarity[k] > 0.5f) ++planar;
+    }
+    std::sort(c.members.begin(), c.members.end());
+    const double cnt = double(c.members.size());
+    c.centroid = {sx / cnt, sy / cnt, sz / cnt};
+    c.hull = convex_hull(std::move(xy));
+    c.area = c.hull.size() >= 3 ? signed_area(c.hull) : 0.0;
+    c.width = hull_width(c.hull);
+    c.planar_fraction = double(planar) / cnt;
+    if (!buckets.empty() && c.hull.size() >= 3) {
+      double xmin = 1e300, ymin = 1e300, xmax = -1e300, ymax = -1e300;
+      for (const auto& v : c.hull) {
+        xmin = std::min(xmin, v[0]);
+        ymin = std::min(ymin, v[1]);
+        xmax = std::max(xmax, v[0]);
+        ymax = std::max(ymax, v[1]);
+      }
+      const int i0 = std::clamp(int((xmin - region[0]) / bucket), 0, bx - 1);
+      const int i1 = std::clamp(int((xmax - region[0]) / bucket), 0, bx - 1);
+      const int j0 = std::clamp(int((ymin - region[1]) / bucket), 0, by - 1);
+      const int j1 = std::clamp(int((ymax - region[1]) / bucket), 0, by - 1);
+      std::size_t inside = 0;
+      for (int j = j0; j <= j1; ++j)
+        for (int i = i0; i <= i1; ++i)
+          for (std::uint32_t k : buckets[std::size_t(j) * std::size_t(bx) + std::size_t(i)])
+            if (label[k] != int(g) && point_in_ring(c.hull, {pos[k][0], pos[k][1]})) ++inside;
+      c.vegetation_ratio = double(inside) / cnt;
+    }
+    char why[160] = "";
+    if (c.area < p.min_area)
+      std::snprintf(why, sizeof why, "small (%.1f m2 < %.1f m2)", c.area, p.min_area);
+    else if (c.height < p.min_building_height)
+      std::snprintf(why, sizeof why, "low (%.1f m < %.1f m above ground)", c.height,
+                    p.min_building_height);
+    else if (c.width < p.min_width)
+      std::snprintf(why, sizeof why, "narrow (%.1f m < %.1f m wide)", c.width, p.min_width);
+    else if (mode != ClassMode::buildings && c.height < p.low_height &&
+             (c.vegetation_ratio > p.low_max_vegetation_ratio ||
+              c.planar_fraction < p.low_min_planar_fraction))
+      std::snprintf(why, sizeof why, "low object (%.1f m high, %.0f%% foliage, %.0f%% planar)",
+                    c.height, 100 * c.vegetation_ratio, 100 * c.planar_fraction);
+    else if (mode != ClassMode::buildings && c.vegetation_ratio > p.max_vegetation_ratio)
+      std::snprintf(why, sizeof why, "vegetation (%.0f%% foliage-like points in its outline)",
+                    100 * c.vegetation_ratio);
+    else if (mode != ClassMode::buildings && c.planar_fraction < p.min_planar_fraction)
+      std::snprintf(why, sizeof why, "vegetation (only %.0f%% planar points)",
+                    100 * c.planar_fraction);
+    c.reject_reason = why;
+    c.building = c.reject_reason.empty();
+    out.clusters.push_back(std::move(c));
+  }
+  return out;
+}
+
+}  // namespace citylod::tiler

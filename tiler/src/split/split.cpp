@@ -1,0 +1,1206 @@
+// `citylod split`: georeferenced, out-of-core ingest and building splitting.
+// See split.hpp for the passes; this file reads top to bottom in that order.
+#include "citylod/tiler/split.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <unordered_map>
+#include <vector>
+
+#include "citylod/geo/georef.hpp"
+#include "citylod/geo/units.hpp"
+#include "citylod/io/error.hpp"
+#include "citylod/io/hash.hpp"
+#include "citylod/io/reader.hpp"
+#include "citylod/io/writers.hpp"
+#include "citylod/tiler/workdir.hpp"
+
+namespace citylod::tiler {
+
+namespace fs = std::filesystem;
+using io::IoError;
+using io::Vec3d;
+
+// ====================================================================== options
+std::uint64_t parse_memory_size(const std::string& s) {
+  std::size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(s, &used);
+  } catch (const std::exception&) {
+    throw std::invalid_argument("--memory-limit: '" + s + "' is not a size (e.g. 2G, 512M)");
+  }
+  std::string unit = s.substr(used);
+  for (auto& c : unit) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  double mul = 1;
+  if (unit.empty() || unit == "B")
+    mul = 1;
+  else if (unit == "K" || unit == "KB" || unit == "KIB")
+    mul = 1024.0;
+  else if (unit == "M" || unit == "MB" || unit == "MIB")
+    mul = 1024.0 * 1024;
+  else if (unit == "G" || unit == "GB" || unit == "GIB")
+    mul = 1024.0 * 1024 * 1024;
+  else if (unit == "T" || unit == "TB" || unit == "TIB")
+    mul = 1024.0 * 1024 * 1024 * 1024;
+  else
+    throw std::invalid_argument("--memory-limit: unknown unit '" + unit + "' in '" + s + "'");
+  if (!(v > 0) || !std::isfinite(v))
+    throw std::invalid_argument("--memory-limit: must be positive");
+  return static_cast<std::uint64_t>(v * mul);
+}
+
+void SplitOptions::validate() const {
+  auto positive = [](double v, const char* name) {
+    if (!(v > 0) || !std::isfinite(v))
+      throw std::invalid_argument(std::string(name) + " must be a positive number");
+  };
+  if (inputs.empty()) throw std::invalid_argument("no input file");
+  if (work_dir.empty()) throw std::invalid_argument("--out WORK is required");
+  if (!crs.empty() && !origin.empty())
+    throw std::invalid_argument(
+        "--crs and --origin exclude each other (--origin is for data in a local metric frame)");
+  if (!geoid.empty() && geoid != "egm96")
+    throw std::invalid_argument("--geoid: only 'egm96' is supported, got '" + geoid + "'");
+  if (!geoid.empty() && !origin.empty())
+    throw std::invalid_argument(
+        "--geoid needs a CRS; with --origin heights are relative to the given ellipsoidal H");
+  positive(cell_size, "--cell-size");
+  positive(halo, "--halo");
+  positive(seg.cluster_tolerance, "--cluster-tolerance");
+  positive(seg.dtm_resolution, "dtm resolution");
+  if (max_halo < halo) throw std::invalid_argument("--max-halo must be >= --halo");
+  if (footprint_buffer < 0) throw std::invalid_argument("--footprint-buffer must be >= 0");
+  if (memory_limit < (64ull << 20))
+    throw std::invalid_argument("--memory-limit must be at least 64M");
+  if (seg.min_height < 0) throw std::invalid_argument("--min-height must be >= 0");
+  if (seg.min_area < 0) throw std::invalid_argument("--min-area must be >= 0");
+}
+
+std::string SplitOptions::canonical() const {
+  std::ostringstream o;
+  o.precision(17);
+  o << "v=1;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
+    << ";footprints=" << footprints << ";footprint_buffer=" << footprint_buffer
+    << ";memory_limit=" << memory_limit << ";cell=" << cell_size << ";halo=" << halo
+    << ";max_halo=" << max_halo << ";ignore_classes=" << ignore_classes
+    << ";min_footprint_points=" << min_footprint_points << ";dtm_res=" << seg.dtm_resolution
+    << ";dtm_window=" << seg.dtm_window << ";ground_tol=" << seg.ground_tolerance
+    << ";min_height=" << seg.min_height << ";tol=" << seg.cluster_tolerance
+    << ";min_pts=" << seg.min_cluster_points << ";min_area=" << seg.min_area
+    << ";min_bh=" << seg.min_building_height << ";k=" << seg.feature_neighbours
+    << ";max_scatter=" << seg.max_scatter << ";max_veg=" << seg.max_vegetation_ratio
+    << ";min_planar=" << seg.min_planar_fraction << ";min_width=" << seg.min_width
+    << ";low=" << seg.low_height << "," << seg.low_max_vegetation_ratio << ","
+    << seg.low_min_planar_fraction;
+  return o.str();
+}
+
+namespace {
+
+// ====================================================================== helpers
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+/// "<size>:<mtime ns>" of a file; IoError when it does not exist.
+std::string fingerprint(const std::string& path) {
+  std::error_code ec;
+  const auto st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) throw IoError(path, "no such file");
+  if (fs::is_directory(st)) throw IoError(path, "is a directory, not a point cloud or mesh file");
+  const auto size = fs::file_size(path, ec);
+  if (ec) throw IoError(path, "cannot stat: " + ec.message());
+  const auto mtime = fs::last_write_time(path, ec).time_since_epoch().count();
+  return std::to_string(size) + ":" + std::to_string(static_cast<long long>(mtime));
+}
+
+std::string sanitize_id(const std::string& s) {
+  std::string r;
+  for (char c : s)
+    r +=
+        (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.') ? c : '_';
+  if (r.empty() || r[0] == '.') r = "_" + r;
+  return r.substr(0, 120);
+}
+
+using CellKey = std::pair<int, int>;
+struct CellKeyHash {
+  std::size_t operator()(const CellKey& k) const {
+    // unsigned: shifting a negative cell index is undefined behaviour
+    return std::hash<unsigned long long>()(
+        (static_cast<unsigned long long>(static_cast<unsigned>(k.first)) << 32) ^
+        static_cast<unsigned>(k.second));
+  }
+};
+
+// One spilled point: 48 bytes.
+struct SpillRec {
+  double x, y, z;
+  float nx, ny, nz;
+  std::uint8_t r, g, b, cls;
+  std::uint64_t src;  ///< mesh vertex reference (input << 40 | vertex), or kNoSrc
+};
+static_assert(sizeof(SpillRec) == 48, "spill record layout");
+constexpr std::uint64_t kNoSrc = ~0ull;
+constexpr double kMeshSamplesPerM2 = 4.0;  ///< triangle samples per m^2 (plus each centroid)
+
+/// Grid of cells spilled to per-cell files. Points collect in one fixed buffer;
+/// when it is full it is sorted by cell and each run is appended to its cell's file.
+class Spiller {
+ public:
+  Spiller(fs::path dir, double cell, std::size_t budget_records)
+      : dir_(std::move(dir)), cell_(cell), budget_(std::max<std::size_t>(budget_records, 4096)) {
+    buf_.reserve(budget_);
+  }
+
+  CellKey key(double x, double y) const {
+    return {static_cast<int>(std::floor(x / cell_)), static_cast<int>(std::floor(y / cell_))};
+  }
+  fs::path file(const CellKey& k) const {
+    return dir_ / (std::to_string(k.first) + "_" + std::to_string(k.second) + ".bin");
+  }
+  void add(const SpillRec& r) {
+    buf_.push_back(r);
+    if (buf_.size() >= budget_) flush();
+  }
+  void flush() {
+    std::sort(buf_.begin(), buf_.end(), [this](const SpillRec& a, const SpillRec& b) {
+      return key(a.x, a.y) < key(b.x, b.y);
+    });
+    for (std::size_t i = 0; i < buf_.size();) {
+      const CellKey k = key(buf_[i].x, buf_[i].y);
+      std::size_t j = i + 1;
+      while (j < buf_.size() && key(buf_[j].x, buf_[j].y) == k) ++j;
+      const fs::path p = file(k);
+      std::FILE* f = std::fopen(p.c_str(), "ab");
+      if (!f)
+        throw IoError(p.string(), std::string("cannot open spill file: ") + std::strerror(errno));
+      const std::size_t n = std::fwrite(buf_.data() + i, sizeof(SpillRec), j - i, f);
+      const bool ok = std::fclose(f) == 0 && n == j - i;
+      if (!ok)
+        throw IoError(p.string(), std::string("cannot write spill file: ") + std::strerror(errno));
+      counts_[k] += j - i;
+      bytes_ += (j - i) * sizeof(SpillRec);
+      i = j;
+    }
+    buf_.clear();
+  }
+  /// Frees the buffer (after the last flush).
+  void release() { std::vector<SpillRec>().swap(buf_); }
+  const std::map<CellKey, std::uint64_t>& counts() const { return counts_; }
+  std::uint64_t bytes() const { return bytes_; }
+  double cell() const { return cell_; }
+
+ private:
+  fs::path dir_;
+  double cell_;
+  std::size_t budget_;
+  std::vector<SpillRec> buf_;
+  std::map<CellKey, std::uint64_t> counts_;
+  std::uint64_t bytes_ = 0;
+};
+
+/// Points of a cell + halo, gathered from the spill files.
+struct RegionPoints {
+  std::array<double, 4> box{0, 0, 0, 0};  ///< xmin ymin xmax ymax
+  std::vector<Vec3d> pos;
+  std::vector<io::Vec3f> nrm;
+  std::vector<io::Rgb8> rgb;
+  std::vector<std::uint8_t> cls;
+  std::vector<std::uint64_t> src;
+};
+
+/// The work directory transaction: a staging dir inside WORK, removed unless committed.
+class Staging {
+ public:
+  explicit Staging(const fs::path& work) : work_(work) {
+    created_work_ = !fs::exists(work_);
+    std::error_code ec;
+    fs::create_directories(work_, ec);
+    if (ec) throw IoError(work_.string(), "cannot create work directory: " + ec.message());
+    remove_stale();
+    dir_ = work_ / (".split.tmp." + std::to_string(::getpid()));
+    fs::remove_all(dir_, ec);
+    fs::create_directories(dir_ / "spill", ec);
+    fs::create_directories(dir_ / "chunks", ec);
+    if (ec) throw IoError(dir_.string(), "cannot create staging directory: " + ec.message());
+  }
+  ~Staging() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+    if (!committed_ && created_work_ && fs::is_empty(work_, ec)) fs::remove(work_, ec);
+  }
+  Staging(const Staging&) = delete;
+  Staging& operator=(const Staging&) = delete;
+
+  fs::path spill() const { return dir_ / "spill"; }
+  fs::path chunks() const { return dir_ / "chunks"; }
+  void drop_spill() {
+    std::error_code ec;
+    fs::remove_all(spill(), ec);
+  }
+
+  /// Swaps the staged chunks in and writes the manifest; restores the old state on failure.
+  void commit(const Manifest& m) {
+    const fs::path live = work_ / "chunks";
+    const fs::path old = dir_ / "chunks.old";
+    std::error_code ec;
+    const bool had_live = fs::exists(live);
+    if (had_live) {
+      fs::rename(live, old, ec);
+      if (ec) throw IoError(live.string(), "cannot move old chunks aside: " + ec.message());
+    }
+    fs::rename(chunks(), live, ec);
+    if (ec) {
+      if (had_live) fs::rename(old, live, ec);
+      throw IoError(live.string(), "cannot publish chunks: " + ec.message());
+    }
+    try {
+      write_manifest(work_.string(), m);
+    } catch (...) {
+      std::error_code e2;
+      fs::rename(live, chunks(), e2);
+      if (had_live) fs::rename(old, live, e2);
+      throw;
+    }
+    committed_ = true;
+  }
+
+ private:
+  void remove_stale() {
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(work_, ec)) {
+      const std::string name = e.path().filename().string();
+      const std::string prefix = ".split.tmp.";
+      if (name.rfind(prefix, 0) != 0) continue;
+      const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+      if (pid > 0 && pid != ::getpid() && ::kill(static_cast<pid_t>(pid), 0) == 0)
+        throw IoError(work_.string(), "another 'citylod split' (pid " + std::to_string(pid) +
+                                          ") is writing this work directory");
+      std::error_code e2;
+      fs::remove_all(e.path(), e2);
+    }
+  }
+
+  fs::path work_, dir_;
+  bool created_work_ = false, committed_ = false;
+};
+
+/// Progress over weighted stages.
+class Stages {
+ public:
+  explicit Stages(const ProgressFn& fn) : fn_(fn) {}
+  void report(double begin, double end, double f, const char* stage) {
+    if (!fn_) return;
+    report_progress(fn_, "split", begin + (end - begin) * std::clamp(f, 0.0, 1.0), stage);
+  }
+
+ private:
+  const ProgressFn& fn_;
+};
+
+struct InputInfo {
+  std::string path;  ///< as given
+  std::string abs;   ///< absolute, normalised (recorded in the manifest)
+  io::FileInfo info;
+  bool mesh = false;
+};
+
+std::string crs_spec_of(const io::FileInfo& i) {
+  if (!i.crs_wkt.empty()) return i.crs_wkt;
+  if (i.epsg)
+    return "EPSG:" + std::to_string(i.epsg) +
+           (i.vertical_epsg ? "+" + std::to_string(i.vertical_epsg) : "");
+  return {};
+}
+
+Eigen::AlignedBox3d to_eigen(const io::BBox3& b) {
+  return Eigen::AlignedBox3d(Eigen::Vector3d(b.min[0], b.min[1], b.min[2]),
+                             Eigen::Vector3d(b.max[0], b.max[1], b.max[2]));
+}
+
+std::string inputs_label(const std::vector<InputInfo>& in) {
+  std::string s = in.front().path;
+  if (in.size() > 1) s += " (+" + std::to_string(in.size() - 1) + " more)";
+  return s;
+}
+
+/// A chunk being assembled, before the file is written.
+struct PendingChunk {
+  ChunkRecord rec;
+  std::vector<std::uint64_t> mesh_refs;  ///< mesh scenes: triangle of each member sample
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const auto mid = v.begin() + static_cast<long>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+// ====================================================================== the splitter
+class Splitter {
+ public:
+  Splitter(const SplitOptions& o, const ProgressFn& progress) : opt_(o), stages_(progress) {}
+
+  SplitReport run();
+
+ private:
+  void pass1_headers();
+  void georeference();
+  void choose_cell_size();
+  void pass2_spill(Spiller& spill);
+  void load_footprints();
+  void pass3_cells(const Spiller& spill);
+  void process_cell_clusters(const Spiller& spill, const CellKey& key);
+  void process_cell_footprints(const Spiller& spill, const CellKey& key,
+                               const std::vector<std::size_t>& owned);
+  std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
+                          std::size_t max_points);
+  void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
+                  const std::vector<std::uint32_t>& members, const std::string& id,
+                  const std::string& source, Ring outline);
+  void write_mesh_chunks();
+  std::string unique_id(std::string id);
+
+  const SplitOptions& opt_;
+  Stages stages_;
+  SplitReport rep_;
+  std::unique_ptr<Staging> staging_;
+
+  std::vector<InputInfo> inputs_;
+  std::string crs_spec_;  // recorded in the manifest
+  std::optional<geo::Crs> crs_;
+  std::optional<geo::Georef> georef_;
+  io::BBox3 bbox_crs_;  // union of input boxes (CRS units)
+  io::BBox3 bbox_enu_;  // after pass 2
+  std::uint64_t total_points_ = 0;
+  bool has_normals_ = true, has_colors_ = true, has_classes_ = true;
+  std::uint64_t class_hist_[256] = {};
+  ClassMode mode_ = ClassMode::none;
+  double cell_ = 100;
+  std::size_t region_budget_points_ = 0;
+
+  std::vector<io::TriangleMesh> meshes_;               // mesh scenes (in memory), ENU
+  std::vector<std::vector<std::int32_t>> tri_label_;   // mesh triangle -> chunk
+  std::vector<std::vector<std::uint32_t>> tri_votes_;  // samples behind that choice
+
+  std::vector<Footprint> fps_;  // ENU, those meeting the data bbox
+  std::vector<char> fp_inside_;
+  std::map<CellKey, std::vector<std::size_t>> fp_owned_;
+  std::unordered_map<CellKey, std::vector<std::size_t>, CellKeyHash> fp_index_;  // 2D bucket index
+  double fp_bucket_ = 50;
+
+  std::vector<PendingChunk> chunks_;
+  std::set<std::string> ids_;
+};
+
+// ---------------------------------------------------------------------- pass 1
+void Splitter::pass1_headers() {
+  for (const auto& p : opt_.inputs) {
+    InputInfo in;
+    in.path = p;
+    in.abs = fs::absolute(p).lexically_normal().string();
+    in.info = io::read_header(p);
+    in.mesh = in.info.has_faces;
+    if (in.info.compressed)
+      throw IoError(p,
+                    "LAZ is not decoded; convert it first (e.g. 'pdal translate in.laz out.las')");
+    if (in.info.point_count == 0) throw IoError(p, "no points (empty file)");
+    inputs_.push_back(std::move(in));
+  }
+  const bool any_mesh =
+      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; });
+  const bool any_points =
+      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return !i.mesh; });
+  if (any_mesh && any_points)
+    throw std::invalid_argument("mixing meshes and point clouds in one split is not supported");
+
+  // Bounding boxes: the LAS header's, or streamed (also validates the file).
+  const double n = static_cast<double>(inputs_.size());
+  for (std::size_t i = 0; i < inputs_.size(); ++i) {
+    InputInfo& in = inputs_[i];
+    if (!(in.info.bbox_from_header && !in.info.bbox.empty())) {
+      struct Ctx {
+        Stages* s;
+        double a, b;
+      } ctx{&stages_, 0.05 * double(i) / n, 0.05 * double(i + 1) / n};
+      in.info = io::scan_file(
+          in.path,
+          [](double f, const char*, void* u) {
+            auto* c = static_cast<Ctx*>(u);
+            c->s->report(c->a, c->b, f, "scan");
+            return true;
+          },
+          &ctx);
+      in.mesh = in.info.has_faces;
+      if (in.info.point_count == 0) throw IoError(in.path, "no points (empty file)");
+    }
+    for (int a = 0; a < 3; ++a)
+      if (!std::isfinite(in.info.bbox.min[a]) || !std::isfinite(in.info.bbox.max[a]))
+        throw IoError(in.path, "bounding box is not finite");
+    bbox_crs_.add(in.info.bbox);
+    total_points_ += in.info.point_count;
+  }
+}
+
+// ---------------------------------------------------------------------- georeferencing
+void Splitter::georeference() {
+  const std::string label = inputs_label(inputs_);
+  try {
+    if (!opt_.origin.empty()) {
+      georef_.emplace(geo::Georef::local(geo::parse_origin(opt_.origin)));
+      rep_.notes.push_back("data in a local ENU frame at --origin " + opt_.origin + " (no CRS)");
+      return;
+    }
+    if (!opt_.crs.empty()) {
+      crs_spec_ = opt_.crs;
+    } else {
+      for (const auto& in : inputs_) {
+        const std::string s = crs_spec_of(in.info);
+        if (s.empty())
+          throw IoError(
+              in.path,
+              "no CRS in the file; pass --crs EPSG:nnnn (or --origin LAT,LON,H for local data)");
+        if (!crs_spec_.empty() && s != crs_spec_)
+          throw IoError(in.path,
+                        "its CRS differs from that of " + inputs_.front().path + "; pass --crs");
+        crs_spec_ = s;
+      }
+    }
+    crs_.emplace(geo::Crs::parse(crs_spec_));
+    crs_->require_projected("to split a scene");
+    geo::TransformOptions to;
+    if (opt_.geoid == "egm96") to.height = geo::HeightMode::Egm96;
+    georef_.emplace(geo::Georef::from_crs_bbox(*crs_, to_eigen(bbox_crs_), to));
+    rep_.crs = crs_->label();
+    const auto& hu = crs_->horizontal_unit();
+    if (std::abs(hu.to_si - 1.0) > 1e-12)
+      rep_.notes.push_back("coordinates in " + hu.name + " (" + fmt("%.10g", hu.to_si) +
+                           " m) converted to metres");
+    const auto& vu = crs_->vertical_unit();
+    if (std::abs(vu.to_si - 1.0) > 1e-12)
+      rep_.notes.push_back("heights in " + vu.name + " (" + fmt("%.10g", vu.to_si) +
+                           " m) converted to metres");
+    if (opt_.geoid == "egm96")
+      rep_.notes.push_back("heights orthometric -> ellipsoidal via EGM96");
+    else if (!crs_->has_vertical_datum())
+      rep_.notes.push_back(
+          "heights taken as ellipsoidal (no vertical datum; use --geoid egm96 for orthometric "
+          "heights)");
+    for (const auto& w : georef_->warnings()) rep_.notes.push_back(w);
+    for (const auto& w : geo::check_units(*crs_, to_eigen(bbox_crs_)).warnings)
+      rep_.notes.push_back(w);
+  } catch (const geo::GeoError& e) {
+    throw IoError(label, e.what());
+  }
+}
+
+// ---------------------------------------------------------------------- memory plan
+// Processing a region costs about kRegionBytesPerPoint (points + attributes +
+// PCL clouds + kd-trees + labels); spilling buffers take a quarter of the budget.
+constexpr double kRegionBytesPerPoint = 400;
+
+void Splitter::choose_cell_size() {
+  region_budget_points_ =
+      static_cast<std::size_t>(0.45 * double(opt_.memory_limit) / kRegionBytesPerPoint);
+  cell_ = opt_.cell_size;
+  // Density from the header counts over the (CRS) box, in points per m^2 (units converted).
+  double to_m = 1;
+  if (crs_) to_m = crs_->horizontal_unit().to_si;
+  const double area = std::max(1.0, (bbox_crs_.max[0] - bbox_crs_.min[0]) *
+                                        (bbox_crs_.max[1] - bbox_crs_.min[1]) * to_m * to_m);
+  const double density = double(total_points_) / area;
+  while (cell_ > 10 && (cell_ + 2 * opt_.halo) * (cell_ + 2 * opt_.halo) * density >
+                           0.5 * double(region_budget_points_))
+    cell_ *= 0.5;
+  if (cell_ != opt_.cell_size)
+    rep_.notes.push_back("cell size reduced to " + fmt("%.1f", cell_) + " m to fit --memory-limit");
+  rep_.cell_size = cell_;
+}
+
+// ---------------------------------------------------------------------- pass 2
+void Splitter::pass2_spill(Spiller& spill) {
+  for (const auto& in : inputs_) {
+    if (!in.info.has_normals) has_normals_ = false;
+    if (!in.info.has_colors) has_colors_ = false;
+    if (!in.info.has_classes) has_classes_ = false;
+  }
+  io::BBox3 seen_crs;
+  const double n_in = static_cast<double>(inputs_.size());
+  const std::string label = inputs_label(inputs_);
+  for (std::size_t ii = 0; ii < inputs_.size(); ++ii) {
+    const InputInfo& in = inputs_[ii];
+    const double a = 0.05 + 0.45 * double(ii) / n_in, b = 0.05 + 0.45 * double(ii + 1) / n_in;
+    // Point k of a batch as a spill record (position, normal, colour); grows the ENU bbox.
+    auto to_rec = [&](const io::PointSet& batch, std::size_t k) {
+      const Vec3d& p = batch.positions[k];
+      bbox_enu_.add(p);
+      SpillRec r{};
+      r.x = p[0];
+      r.y = p[1];
+      r.z = p[2];
+      if (has_normals_) {
+        r.nx = batch.normals[k][0];
+        r.ny = batch.normals[k][1];
+        r.nz = batch.normals[k][2];
+      }
+      if (has_colors_) {
+        r.r = batch.colors[k][0];
+        r.g = batch.colors[k][1];
+        r.b = batch.colors[k][2];
+      }
+      return r;
+    };
+    auto push = [&](const io::PointSet& batch, std::uint64_t first_src, bool mesh) {
+      for (std::size_t k = 0; k < batch.size(); ++k) {
+        const Vec3d& p = batch.positions[k];
+        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+          throw IoError(in.path, "point #" + std::to_string(first_src + k) +
+                                     " has no valid local coordinates (CRS transform failed)");
+        SpillRec r = to_rec(batch, k);
+        if (has_classes_) {
+          r.cls = batch.classes[k];
+          ++class_hist_[r.cls];
+        }
+        r.src = mesh ? ((std::uint64_t(ii) << 40) | (first_src + k)) : kNoSrc;
+        spill.add(r);
+      }
+    };
+    // Mesh samples: `refs[k]` is the triangle of sample k.
+    auto push_refs = [&](io::PointSet& batch, const std::vector<std::uint64_t>& refs,
+                         std::size_t input) {
+      for (std::size_t k = 0; k < batch.size(); ++k) {
+        const Vec3d& p = batch.positions[k];
+        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+          throw IoError(in.path,
+                        "triangle #" + std::to_string(refs[k]) + " has no valid local coordinates");
+        SpillRec r = to_rec(batch, k);
+        r.src = (std::uint64_t(input) << 40) | refs[k];
+        spill.add(r);
+      }
+      batch.clear();
+    };
+    auto to_local = [&](std::vector<Vec3d>& v) {
+      if (v.empty()) return;
+      for (const auto& p : v) seen_crs.add(p);
+      Eigen::Map<Eigen::Matrix3Xd> m(v[0].data(), 3, static_cast<Eigen::Index>(v.size()));
+      try {
+        georef_->to_local_inplace(m);
+      } catch (const geo::GeoError& e) {
+        throw IoError(in.path, e.what());
+      }
+    };
+    if (in.mesh) {
+      // Meshes are split in memory: check that they fit.
+      const double need = double(in.info.point_count) * 200.0 + double(in.info.face_count) * 60.0;
+      if (need > 0.5 * double(opt_.memory_limit))
+        throw IoError(in.path, "mesh of " + std::to_string(in.info.point_count) +
+                                   " vertices needs ~" + fmt("%.0f", need / 1048576) +
+                                   " MiB (meshes are split in memory); raise --memory-limit");
+      io::TriangleMesh mesh = io::read_mesh(in.path);
+      to_local(mesh.vertices);
+      if (has_normals_ && mesh.normals.size() != mesh.vertices.size()) has_normals_ = false;
+      if (has_colors_ && mesh.colors.size() != mesh.vertices.size()) has_colors_ = false;
+      // Triangles are sampled (centroid + ~kMeshSamplesPerM2 per m^2): the samples are
+      // segmented like points and vote for their triangle's building.
+      io::PointSet ps;
+      std::vector<std::uint64_t> tri_of;  // sample -> triangle, per batch
+      std::uint64_t rng = 0x9E3779B97F4A7C15ULL;
+      auto uni = [&rng]() {
+        rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
+        return double(rng >> 11) / double(1ull << 53);
+      };
+      for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const auto& tri = mesh.triangles[t];
+        const Vec3d& p0 = mesh.vertices[tri[0]];
+        const Vec3d& p1 = mesh.vertices[tri[1]];
+        const Vec3d& p2 = mesh.vertices[tri[2]];
+        const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
+        const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
+        const double area = 0.5 * e1.cross(e2).norm();
+        const std::size_t n = 1 + static_cast<std::size_t>(std::min(1e6, area * kMeshSamplesPerM2));
+        for (std::size_t k = 0; k < n; ++k) {
+          double u = 1.0 / 3, v = 1.0 / 3;
+          if (k > 0) {
+            u = uni();
+            v = uni();
+            if (u + v > 1) u = 1 - u, v = 1 - v;
+          }
+          ps.positions.push_back({p0[0] + u * e1[0] + v * e2[0], p0[1] + u * e1[1] + v * e2[1],
+                                  p0[2] + u * e1[2] + v * e2[2]});
+          if (has_normals_) ps.normals.push_back(mesh.normals[tri[0]]);
+          if (has_colors_) ps.colors.push_back(mesh.colors[tri[0]]);
+          tri_of.push_back(t);
+        }
+        if (ps.size() >= (1u << 16)) {
+          push_refs(ps, tri_of, ii);
+          tri_of.clear();
+        }
+      }
+      if (!ps.empty()) push_refs(ps, tri_of, ii);
+      rep_.points += mesh.vertices.size();
+      rep_.triangles += mesh.triangles.size();
+      tri_label_.resize(ii + 1);
+      tri_label_[ii].assign(mesh.triangles.size(), -1);
+      tri_votes_.resize(ii + 1);
+      tri_votes_[ii].assign(mesh.triangles.size(), 0);
+      meshes_.resize(ii + 1);
+      meshes_[ii] = std::move(mesh);
+      stages_.report(a, b, 1.0, "ingest");
+      continue;
+    }
+    auto reader = io::PointReader::open(in.path);
+    io::PointSet batch;
+    std::uint64_t first = 0;
+    while (true) {
+      const std::size_t got = reader->read(batch, 1 << 16);
+      if (got == 0) break;
+      to_local(batch.positions);
+      push(batch, first, false);
+      first += got;
+      stages_.report(a, b, reader->progress(), "ingest");
+    }
+    if (first == 0) throw IoError(in.path, "no points (empty file)");
+    rep_.points += first;
+  }
+  spill.flush();
+  spill.release();
+  if (bbox_enu_.empty()) throw IoError(label, "no points");
+
+  // A LAS header box that lies: check the area of use again with the real box.
+  if (crs_) {
+    const double ex =
+        std::max(bbox_crs_.max[0] - bbox_crs_.min[0], bbox_crs_.max[1] - bbox_crs_.min[1]);
+    const double tol = 1e-6 * std::max(1.0, ex) + 0.01;
+    bool outside = false;
+    for (int a = 0; a < 3; ++a)
+      if (seen_crs.min[a] < bbox_crs_.min[a] - tol || seen_crs.max[a] > bbox_crs_.max[a] + tol)
+        outside = true;
+    if (outside) {
+      rep_.notes.push_back("points lie outside the header bounding box of " + label);
+      try {
+        geo::TransformOptions to;
+        geo::Transformer t(*crs_, to);
+        t.check_in_area(to_eigen(seen_crs));
+      } catch (const geo::GeoError& e) {
+        throw IoError(label, e.what());
+      }
+    }
+  }
+
+  // How classes can be used.
+  if (opt_.ignore_classes || !has_classes_)
+    mode_ = ClassMode::none;
+  else if (class_hist_[2] > 0 && class_hist_[6] > 0)
+    mode_ = ClassMode::buildings;
+  else if (class_hist_[2] > 0)
+    mode_ = ClassMode::ground;
+  else
+    mode_ = ClassMode::none;
+  rep_.class_mode = class_mode_name(mode_);
+  rep_.bbox = bbox_enu_;
+  rep_.spill_bytes = spill.bytes();
+}
+
+// ---------------------------------------------------------------------- footprints
+void Splitter::load_footprints() {
+  int skipped = 0;
+  FootprintSet set = read_footprints_geojson(opt_.footprints, &skipped);
+  rep_.footprints_total = set.footprints.size();
+  if (skipped)
+    rep_.notes.push_back(std::to_string(skipped) +
+                         " footprint features without polygon geometry ignored");
+  // To ENU: through the scene georef when the file has no CRS or the scene's; else via WGS84.
+  std::unique_ptr<geo::Transformer> other;
+  try {
+    if (!set.crs.empty() && crs_) {
+      geo::Crs fcrs = geo::Crs::parse(set.crs);
+      const bool same = fcrs.epsg() && crs_->epsg() && *fcrs.epsg() == *crs_->epsg();
+      if (!same) other = std::make_unique<geo::Transformer>(fcrs);
+    }
+    const double z0 = georef_->origin_crs()[2];
+    for (auto& f : set.footprints) {
+      for (auto& poly : f.polygons)
+        for (auto& ring : poly.rings)
+          for (auto& v : ring) {
+            Eigen::Vector3d e;
+            if (other) {
+              geo::LonLatH g = other->to_wgs84(Eigen::Vector3d(v[0], v[1], 0));
+              g[2] = georef_->frame().origin()[2];
+              e = georef_->frame().geodetic_to_enu(g);
+            } else {
+              e = georef_->to_local(Eigen::Vector3d(v[0], v[1], z0));
+            }
+            v = {e[0], e[1]};
+          }
+      for (auto& poly : f.polygons) normalise(poly);
+      f.update_bbox();
+    }
+  } catch (const geo::GeoError& e) {
+    throw IoError(opt_.footprints, e.what());
+  }
+  const double buf = opt_.footprint_buffer;
+  std::set<std::string> seen;
+  for (auto& f : set.footprints) {
+    if (f.bbox[2] + buf < bbox_enu_.min[0] || f.bbox[0] - buf > bbox_enu_.max[0] ||
+        f.bbox[3] + buf < bbox_enu_.min[1] || f.bbox[1] - buf > bbox_enu_.max[1])
+      continue;
+    if (!seen.insert(f.id).second)
+      throw IoError(opt_.footprints, "duplicate footprint id '" + f.id + "'");
+    const bool inside = f.bbox[0] >= bbox_enu_.min[0] && f.bbox[2] <= bbox_enu_.max[0] &&
+                        f.bbox[1] >= bbox_enu_.min[1] && f.bbox[3] <= bbox_enu_.max[1];
+    fp_inside_.push_back(inside);
+    fps_.push_back(std::move(f));
+  }
+  rep_.footprints_in_scene = fps_.size();
+  for (char c : fp_inside_) rep_.footprints_inside += c ? 1 : 0;
+  for (std::size_t i = 0; i < fps_.size(); ++i) {
+    const Vec2 c = fps_[i].centroid();
+    fp_owned_[{int(std::floor(c[0] / cell_)), int(std::floor(c[1] / cell_))}].push_back(i);
+    const auto& b = fps_[i].bbox;
+    for (int bx = int(std::floor((b[0] - buf) / fp_bucket_));
+         bx <= int(std::floor((b[2] + buf) / fp_bucket_)); ++bx)
+      for (int by = int(std::floor((b[1] - buf) / fp_bucket_));
+           by <= int(std::floor((b[3] + buf) / fp_bucket_)); ++by)
+        fp_index_[{bx, by}].push_back(i);
+  }
+}
+
+// ---------------------------------------------------------------------- pass 3
+std::size_t Splitter::load_region(const Spiller& spill, const std::array<double, 4>& box,
+                                  RegionPoints& out, std::size_t max_points) {
+  out = RegionPoints{};
+  out.box = box;
+  const double c = spill.cell();
+  const int i0 = int(std::floor(box[0] / c)), i1 = int(std::floor(box[2] / c));
+  const int j0 = int(std::floor(box[1] / c)), j1 = int(std::floor(box[3] / c));
+  std::uint64_t upper = 0;
+  for (int i = i0; i <= i1; ++i)
+    for (int j = j0; j <= j1; ++j) {
+      auto it = spill.counts().find({i, j});
+      if (it != spill.counts().end()) upper += it->second;
+    }
+  if (upper > max_points) return static_cast<std::size_t>(upper);  // caller decides
+  std::vector<SpillRec> buf(8192);
+  for (int i = i0; i <= i1; ++i)
+    for (int j = j0; j <= j1; ++j) {
+      if (!spill.counts().count({i, j})) continue;
+      const fs::path p = spill.file({i, j});
+      std::FILE* f = std::fopen(p.c_str(), "rb");
+      if (!f)
+        throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
+      std::size_t got;
+      while ((got = std::fread(buf.data(), sizeof(SpillRec), buf.size(), f)) > 0) {
+        for (std::size_t k = 0; k < got; ++k) {
+          const SpillRec& r = buf[k];
+          if (r.x < box[0] || r.x >= box[2] || r.y < box[1] || r.y >= box[3]) continue;
+          out.pos.push_back({r.x, r.y, r.z});
+          if (has_normals_) out.nrm.push_back({r.nx, r.ny, r.nz});
+          if (has_colors_) out.rgb.push_back({r.r, r.g, r.b});
+          if (has_classes_) out.cls.push_back(r.cls);
+          if (!meshes_.empty()) out.src.push_back(r.src);
+        }
+      }
+      const bool err = std::ferror(f);
+      std::fclose(f);
+      if (err) throw IoError(p.string(), "cannot read spill file");
+    }
+  rep_.max_region_points = std::max(rep_.max_region_points, out.pos.size());
+  return out.pos.size();
+}
+
+std::string Splitter::unique_id(std::string id) {
+  std::string u = id;
+  for (int k = 2; !ids_.insert(u).second; ++k) u = id + "-" + std::to_string(k);
+  return u;
+}
+
+void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
+                          const std::vector<std::uint32_t>& members, const std::string& id,
+                          const std::string& source, Ring outline) {
+  PendingChunk pc;
+  ChunkRecord& rec = pc.rec;
+  rec.id = unique_id(id);
+  rec.source = source;
+  io::BBox3 bb;
+  std::vector<double> ground;
+  ground.reserve(members.size());
+  for (std::uint32_t k : members) {
+    bb.add(pts.pos[k]);
+    ground.push_back(pts.pos[k][2] - double(seg.hag[k]));
+  }
+  rec.ground_z = median(std::move(ground));
+  rec.bbox_min = bb.min;
+  rec.bbox_max = bb.max;
+  rec.origin = {0.5 * (bb.min[0] + bb.max[0]), 0.5 * (bb.min[1] + bb.max[1]), rec.ground_z};
+  if (outline.size() < 3) {
+    std::vector<Vec2> xy;
+    for (std::uint32_t k : members) xy.push_back({pts.pos[k][0], pts.pos[k][1]});
+    outline = convex_hull(std::move(xy));
+  }
+  rec.outline = std::move(outline);
+  rec.points = members.size();
+  rec.status = Status::pending;
+  if (!meshes_.empty()) {
+    for (std::uint32_t k : members) pc.mesh_refs.push_back(pts.src[k]);
+    chunks_.push_back(std::move(pc));
+    return;
+  }
+  io::PointSet ps;
+  ps.positions.reserve(members.size());
+  for (std::uint32_t k : members) {
+    const Vec3d& p = pts.pos[k];
+    ps.positions.push_back({p[0] - rec.origin[0], p[1] - rec.origin[1], p[2] - rec.origin[2]});
+    if (has_normals_) ps.normals.push_back(pts.nrm[k]);
+    if (has_colors_) ps.colors.push_back(pts.rgb[k]);
+    if (has_classes_) ps.classes.push_back(pts.cls[k]);
+  }
+  const std::string path = (staging_->chunks() / (rec.id + ".ply")).string();
+  io::PlyWriteOptions wo;
+  wo.comment = "citylod chunk " + rec.id + " (xyz relative to the chunk origin, scene ENU metres)";
+  io::write_ply(path, ps, wo);
+  rec.content_hash = io::hash_file(path);
+  ++rep_.chunks;
+  chunks_.push_back(std::move(pc));
+}
+
+// Clusters: owned by the cell holding their centroid; the halo doubles while an
+// owned building touches the edge of what was loaded (so it is never cut).
+void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
+  const double c = cell_;
+  const double cx0 = key.first * c, cy0 = key.second * c, cx1 = cx0 + c, cy1 = cy0 + c;
+  // Exact ownership: the cell holding the cluster's anchor point.
+  auto owns = [&](const Cluster& cl) { return spill.key(cl.anchor[0], cl.anchor[1]) == key; };
+  double halo = opt_.halo;
+  RegionPoints pts;
+  CellSegmentation seg;
+  for (;;) {
+    const std::array<double, 4> box{cx0 - halo, cy0 - halo, cx1 + halo, cy1 + halo};
+    const std::size_t n = load_region(spill, box, pts, region_budget_points_);
+    if (n > region_budget_points_) {
+      if (halo > opt_.halo) {  // keep the previous (smaller) result
+        rep_.notes.push_back("cell " + std::to_string(key.first) + "," +
+                             std::to_string(key.second) +
+                             ": a building larger than the halo was cut (memory limit)");
+        const std::array<double, 4> prev{cx0 - halo / 2, cy0 - halo / 2, cx1 + halo / 2,
+                                         cy1 + halo / 2};
+        load_region(spill, prev, pts, ~std::size_t(0));
+        seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, prev, true);
+        break;
+      }
+      throw IoError(opt_.work_dir,
+                    "cell " + std::to_string(key.first) + "," + std::to_string(key.second) +
+                        " holds " + std::to_string(n) +
+                        " points, more than --memory-limit allows; lower --cell-size");
+    }
+    seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, true);
+    // Does an owned building touch an edge of the region behind which there is data?
+    const double tol = opt_.seg.cluster_tolerance;
+    bool truncated = false;
+    for (const auto& cl : seg.clusters) {
+      if (!cl.building) continue;
+      if (!owns(cl)) continue;
+      for (std::uint32_t k : cl.members) {
+        const Vec3d& p = pts.pos[k];
+        if ((p[0] - box[0] < tol && box[0] > bbox_enu_.min[0]) ||
+            (box[2] - p[0] < tol && box[2] < bbox_enu_.max[0]) ||
+            (p[1] - box[1] < tol && box[1] > bbox_enu_.min[1]) ||
+            (box[3] - p[1] < tol && box[3] < bbox_enu_.max[1])) {
+          truncated = true;
+          break;
+        }
+      }
+      if (truncated) break;
+    }
+    if (!truncated || halo >= opt_.max_halo) {
+      if (truncated)
+        rep_.notes.push_back("cell " + std::to_string(key.first) + "," +
+                             std::to_string(key.second) +
+                             ": a building larger than --max-halo was cut");
+      break;
+    }
+    halo = std::min(2 * halo, opt_.max_halo);
+    ++rep_.halo_growths;
+  }
+  for (const auto& cl : seg.clusters) {
+    if (!owns(cl)) continue;
+    {
+      char line[256];
+      std::snprintf(line, sizeof line,
+                    "cluster at (%.1f, %.1f): %zu points, area %.1f m2, width %.1f m, height %.1f "
+                    "m, foliage ratio %.2f, "
+                    "planar %.2f: %s",
+                    cl.centroid[0], cl.centroid[1], cl.members.size(), cl.area, cl.width, cl.height,
+                    cl.vegetation_ratio, cl.planar_fraction,
+                    cl.building ? "building" : cl.reject_reason.c_str());
+      rep_.cluster_log.push_back(line);
+    }
+    if (!cl.building) {
+      ++rep_.clusters_rejected;
+      ++rep_.rejected_by[cl.reject_reason.substr(0, cl.reject_reason.find(' '))];
+      continue;
+    }
+    const geo::LonLatH g = georef_->to_geodetic(Eigen::Vector3d(cl.centroid[0], cl.centroid[1], 0));
+    char key_text[64];
+    std::snprintf(key_text, sizeof key_text, "%.5f,%.5f", g[0], g[1]);
+    const std::string id = "b-" + io::hash_hex(key_text, std::strlen(key_text)).substr(0, 12);
+    emit_chunk(pts, seg, cl.members, id, "cluster", cl.hull);
+  }
+}
+
+// Footprints: owned by the cell holding their centroid; a point goes to the
+// footprint containing it, else to the nearest within the buffer.
+void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
+                                       const std::vector<std::size_t>& owned) {
+  const double c = cell_;
+  std::array<double, 4> box{key.first * c - opt_.halo, key.second * c - opt_.halo,
+                            (key.first + 1) * c + opt_.halo, (key.second + 1) * c + opt_.halo};
+  const double margin = opt_.footprint_buffer + opt_.halo;
+  for (std::size_t i : owned) {
+    const auto& b = fps_[i].bbox;
+    box = {std::min(box[0], b[0] - margin), std::min(box[1], b[1] - margin),
+           std::max(box[2], b[2] + margin), std::max(box[3], b[3] + margin)};
+  }
+  RegionPoints pts;
+  const std::size_t n = load_region(spill, box, pts, region_budget_points_);
+  if (n > region_budget_points_)
+    throw IoError(opt_.work_dir, "cell " + std::to_string(key.first) + "," +
+                                     std::to_string(key.second) + " holds " + std::to_string(n) +
+                                     " points, more than --memory-limit allows; lower --cell-size");
+  const CellSegmentation seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, false);
+  std::map<std::size_t, std::vector<std::uint32_t>> members;
+  const std::set<std::size_t> mine(owned.begin(), owned.end());
+  const double buf = opt_.footprint_buffer;
+  const bool have_cls = mode_ != ClassMode::none;
+  for (std::size_t k = 0; k < pts.pos.size(); ++k) {
+    if (mode_ == ClassMode::buildings) {
+      if (pts.cls[k] != 6) continue;
+    } else {
+      if (seg.ground[k] || seg.hag[k] < opt_.seg.ground_tolerance) continue;
+      if (have_cls && non_building_class(pts.cls[k])) continue;
+      if (seg.foliage[k] && seg.hag[k] >= opt_.seg.min_height) continue;
+    }
+    const Vec2 q{pts.pos[k][0], pts.pos[k][1]};
+    auto it =
+        fp_index_.find({int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))});
+    if (it == fp_index_.end()) continue;
+    std::size_t best = SIZE_MAX;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (std::size_t i : it->second) {  // increasing index: ties go to the first footprint
+      const auto& b = fps_[i].bbox;
+      if (q[0] < b[0] - buf || q[0] > b[2] + buf || q[1] < b[1] - buf || q[1] > b[3] + buf)
+        continue;
+      const double d = distance_to_footprint(fps_[i], q);
+      if (d < best_d) {
+        best = i;
+        best_d = d;
+        if (d == 0) break;
+      }
+    }
+    if (best_d > buf) continue;
+    if (best != SIZE_MAX && mine.count(best))
+      members[best].push_back(static_cast<std::uint32_t>(k));
+  }
+  for (std::size_t i : owned) {
+    const auto it = members.find(i);
+    const std::size_t count = it == members.end() ? 0 : it->second.size();
+    if (count < static_cast<std::size_t>(std::max(1, opt_.min_footprint_points))) {
+      PendingChunk pc;
+      pc.rec.id = unique_id("fp-" + sanitize_id(fps_[i].id));
+      pc.rec.source = "footprint:" + fps_[i].id;
+      pc.rec.status = Status::skipped;
+      pc.rec.reason =
+          count == 0 ? "no building points inside the footprint"
+                     : "only " + std::to_string(count) + " building points inside the footprint";
+      const Ring& r = fps_[i].main_ring();
+      pc.rec.outline = r;
+      const Vec2 ce = fps_[i].centroid();
+      pc.rec.origin = {ce[0], ce[1], 0};
+      pc.rec.bbox_min = {fps_[i].bbox[0], fps_[i].bbox[1], 0};
+      pc.rec.bbox_max = {fps_[i].bbox[2], fps_[i].bbox[3], 0};
+      chunks_.push_back(std::move(pc));
+      continue;
+    }
+    ++rep_.footprints_with_chunk;
+    if (fp_inside_[i]) ++rep_.footprints_inside_with_chunk;
+    emit_chunk(pts, seg, it->second, "fp-" + sanitize_id(fps_[i].id), "footprint:" + fps_[i].id,
+               fps_[i].main_ring());
+  }
+}
+
+void Splitter::pass3_cells(const Spiller& spill) {
+  std::vector<CellKey> cells;
+  if (opt_.footprints.empty()) {
+    for (const auto& [k, n] : spill.counts()) cells.push_back(k);
+  } else {
+    for (const auto& [k, v] : fp_owned_) cells.push_back(k);
+  }
+  rep_.cells = spill.counts().size();
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    if (opt_.footprints.empty())
+      process_cell_clusters(spill, cells[i]);
+    else
+      process_cell_footprints(spill, cells[i], fp_owned_.at(cells[i]));
+    stages_.report(0.5, 0.97, double(i + 1) / double(cells.size()), "segment");
+  }
+}
+
+// Mesh scenes: a triangle goes to the chunk holding most of its samples.
+void Splitter::write_mesh_chunks() {
+  for (std::size_t c = 0; c < chunks_.size(); ++c) {
+    std::unordered_map<std::uint64_t, std::uint32_t> votes;
+    for (std::uint64_t s : chunks_[c].mesh_refs) ++votes[s];
+    for (const auto& [s, n] : votes) {
+      const std::size_t m = std::size_t(s >> 40), t = std::size_t(s & ((1ull << 40) - 1));
+      if (n > tri_votes_[m][t]) {
+        tri_votes_[m][t] = n;
+        tri_label_[m][t] = static_cast<std::int32_t>(c);
+      }
+    }
+  }
+  std::vector<std::vector<std::pair<std::size_t, std::size_t>>> tris(
+      chunks_.size());  // (mesh, tri)
+  for (std::size_t m = 0; m < meshes_.size(); ++m)
+    for (std::size_t t = 0; t < tri_label_[m].size(); ++t)
+      if (tri_label_[m][t] >= 0) tris[std::size_t(tri_label_[m][t])].push_back({m, t});
+  for (std::size_t c = 0; c < chunks_.size(); ++c) {
+    ChunkRecord& rec = chunks_[c].rec;
+    if (rec.status != Status::pending) continue;
+    if (tris[c].empty()) {
+      rec.status = Status::skipped;
+      rec.reason = "no triangles assigned";
+      continue;
+    }
+    io::TriangleMesh out;
+    std::map<std::pair<std::size_t, std::uint32_t>, std::uint32_t> remap;
+    io::BBox3 bb;
+    for (const auto& [m, t] : tris[c]) {
+      const auto& mesh = meshes_[m];
+      std::array<std::uint32_t, 3> nt{};
+      for (int v = 0; v < 3; ++v) {
+        const std::uint32_t vi = mesh.triangles[t][std::size_t(v)];
+        auto [it, fresh] =
+            remap.emplace(std::make_pair(m, vi), static_cast<std::uint32_t>(out.vertices.size()));
+        if (fresh) {
+          const Vec3d& p = mesh.vertices[vi];
+          bb.add(p);
+          out.vertices.push_back(p);
+          if (has_normals_) out.normals.push_back(mesh.normals[vi]);
+          if (has_colors_) out.colors.push_back(mesh.colors[vi]);
+        }
+        nt[std::size_t(v)] = it->second;
+      }
+      out.triangles.push_back(nt);
+    }
+    rec.bbox_min = bb.min;
+    rec.bbox_max = bb.max;
+    rec.origin = {0.5 * (bb.min[0] + bb.max[0]), 0.5 * (bb.min[1] + bb.max[1]), rec.ground_z};
+    for (auto& v : out.vertices)
+      v = {v[0] - rec.origin[0], v[1] - rec.origin[1], v[2] - rec.origin[2]};
+    rec.points = out.vertices.size();
+    rec.triangles = out.triangles.size();
+    const std::string path = (staging_->chunks() / (rec.id + ".ply")).string();
+    io::write_ply(path, out);
+    rec.content_hash = io::hash_file(path);
+    ++rep_.chunks;
+  }
+}
+
+SplitReport Splitter::run() {
+  const auto t0 = std::chrono::steady_clock::now();
+  opt_.validate();
+
+  // Up to date? Compare inputs (absolute paths), their sizes/mtimes and the options.
+  std::vector<std::string> abs_inputs;
+  std::string canonical = opt_.canonical();
+  for (const auto& p : opt_.inputs) {
+    abs_inputs.push_back(fs::absolute(p).lexically_normal().string());
+    canonical += ";input=" + abs_inputs.back() + ":" + fingerprint(p);
+  }
+  if (!opt_.footprints.empty()) canonical += ";footprints_file=" + fingerprint(opt_.footprints);
+  if (!opt_.force && fs::exists(manifest_path(opt_.work_dir))) {
+    try {
+      const Manifest old = read_manifest(opt_.work_dir);
+      bool ok = old.scene.inputs == abs_inputs && old.scene.options == canonical;
+      for (const auto& c : old.chunks)
+        if (ok && !c.skipped() && !fs::exists(chunk_path(opt_.work_dir, c.id))) ok = false;
+      if (ok) {
+        rep_.up_to_date = true;
+        rep_.crs = old.scene.crs.size() > 40 ? old.scene.crs.substr(0, 37) + "..." : old.scene.crs;
+        rep_.origin_lon = old.scene.origin_lon;
+        rep_.origin_lat = old.scene.origin_lat;
+        rep_.origin_h = old.scene.origin_h;
+        for (const auto& c : old.chunks) rep_.chunks += !c.skipped() ? 1 : 0;
+        rep_.notes = old.scene.notes;
+        return rep_;
+      }
+    } catch (const IoError&) {
+      // unreadable manifest: split again
+    }
+  }
+
+  pass1_headers();
+  georeference();
+  choose_cell_size();
+  const auto& o = georef_->frame().origin();
+  rep_.origin_lon = o[0];
+  rep_.origin_lat = o[1];
+  rep_.origin_h = o[2];
+
+  staging_ = std::make_unique<Staging>(opt_.work_dir);
+  // The spill buffer only batches writes: a quarter of the budget, at most 32 MiB.
+  const double spill_bytes = std::min(0.25 * double(opt_.memory_limit), 32.0 * 1024 * 1024);
+  const std::size_t spill_budget = static_cast<std::size_t>(spill_bytes / sizeof(SpillRec));
+  Spiller spill(staging_->spill(), cell_, spill_budget);
+  pass2_spill(spill);
+  if (!opt_.footprints.empty()) load_footprints();
+  pass3_cells(spill);
+  staging_->drop_spill();
+  if (!meshes_.empty()) write_mesh_chunks();
+  stages_.report(0.97, 1.0, 0.5, "manifest");
+
+  Manifest m;
+  m.scene.crs = crs_spec_;
+  const auto& oc = georef_->origin_crs();
+  m.scene.origin_crs = {oc[0], oc[1], oc[2]};
+  m.scene.origin_lon = o[0];
+  m.scene.origin_lat = o[1];
+  m.scene.origin_h = o[2];
+  m.scene.inputs = abs_inputs;
+  m.scene.options = canonical;
+  m.scene.notes = rep_.notes;
+  for (auto& c : chunks_) m.chunks.push_back(std::move(c.rec));
+  staging_->commit(m);
+  stages_.report(0.97, 1.0, 1.0, "done");
+  rep_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return rep_;
+}
+
+}  // namespace
+
+SplitReport split_scene(const SplitOptions& options, const ProgressFn& progress) {
+  Splitter s(options, progress);
+  SplitReport r = s.run();
+  notify_finished(progress, "split");
+  return r;
+}
+
+}  // namespace citylod::tiler

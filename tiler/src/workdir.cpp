@@ -1,0 +1,489 @@
+// Every JSON record of the work directory, read and written in one place
+// (see workdir.hpp for the files and the defaults of absent fields).
+#include "citylod/tiler/workdir.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "citylod/io/atomic_file.hpp"
+#include "citylod/io/error.hpp"
+#include "citylod/io/json_file.hpp"
+
+namespace citylod::tiler {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// ------------------------------------------------------------ enums
+const char* to_string(Status s) {
+  switch (s) {
+    case Status::pending:
+      return "pending";
+    case Status::ok:
+      return "ok";
+    case Status::fallback:
+      return "fallback";
+    case Status::failed:
+      return "failed";
+    case Status::skipped:
+      return "skipped";
+  }
+  return "failed";
+}
+
+Status status_from_string(const std::string& s) {
+  for (Status v : {Status::pending, Status::ok, Status::fallback, Status::failed, Status::skipped})
+    if (s == to_string(v)) return v;
+  throw std::invalid_argument("unknown status '" + s + "'");
+}
+
+ModelKind model_kind_from_string(const std::string& s) {
+  for (ModelKind k : {ModelKind::anchor, ModelKind::interpolation, ModelKind::fallback})
+    if (s == io::to_string(k)) return k;
+  throw std::invalid_argument("unknown kind '" + s + "'");
+}
+
+// ------------------------------------------------------------ paths
+std::string manifest_path(const std::string& w) {
+  return (fs::path(w) / "manifest.json").string();
+}
+std::string chunk_path(const std::string& w, const std::string& id) {
+  return (fs::path(w) / "chunks" / (id + ".ply")).string();
+}
+std::string lod_dir(const std::string& w, const std::string& id) {
+  return (fs::path(w) / "lod" / id).string();
+}
+std::string lod_report_path(const std::string& w, const std::string& id) {
+  return (fs::path(lod_dir(w, id)) / "report.json").string();
+}
+std::string overrides_path(const std::string& w) {
+  return (fs::path(w) / "overrides.json").string();
+}
+std::string run_report_path(const std::string& d) {
+  return (fs::path(d) / "run_report.json").string();
+}
+
+namespace {
+
+using io::read_json_file;
+
+/// A double that may have been written as null (NaN, inf).
+double number(const json& j, const char* key, double def) {
+  auto it = j.find(key);
+  if (it == j.end()) return def;
+  if (it->is_null()) return std::numeric_limits<double>::quiet_NaN();
+  return it->get<double>();
+}
+
+std::map<std::string, std::string> string_map(const json& j) {
+  std::map<std::string, std::string> m;
+  if (!j.is_object()) return m;
+  for (const auto& [k, v] : j.items()) m[k] = v.is_string() ? v.get<std::string>() : v.dump();
+  return m;
+}
+
+// ------------------------------------------------------------ manifest
+json to_json(const ChunkRecord& c) {
+  json o;
+  o["id"] = c.id;
+  o["origin"] = c.origin;
+  o["bbox_min"] = c.bbox_min;
+  o["bbox_max"] = c.bbox_max;
+  o["points"] = c.points;
+  o["triangles"] = c.triangles;
+  o["outline"] = c.outline;
+  o["ground_z"] = c.ground_z;
+  o["source"] = c.source;
+  o["status"] = to_string(c.status);
+  if (!c.reason.empty()) o["reason"] = c.reason;
+  o["content_hash"] = c.content_hash;
+  return o;
+}
+
+ChunkRecord chunk_from_json(const json& o) {
+  ChunkRecord c;
+  c.id = o.at("id").get<std::string>();
+  c.origin = o.at("origin").get<std::array<double, 3>>();
+  c.bbox_min = o.at("bbox_min").get<std::array<double, 3>>();
+  c.bbox_max = o.at("bbox_max").get<std::array<double, 3>>();
+  c.points = o.value("points", std::uint64_t(0));
+  c.triangles = o.value("triangles", std::uint64_t(0));
+  if (o.contains("outline")) c.outline = o.at("outline").get<std::vector<std::array<double, 2>>>();
+  c.ground_z = o.value("ground_z", 0.0);
+  c.source = o.value("source", "");
+  c.status = status_from_string(o.value("status", "pending"));
+  c.reason = o.value("reason", "");
+  c.content_hash = o.value("content_hash", "");
+  return c;
+}
+
+// ------------------------------------------------------------ report.json
+json to_json(const ModelRecord& m) {
+  return {{"file", m.file},
+          {"kind", io::to_string(m.kind)},
+          {"level", m.level},
+          {"step", m.step},
+          {"cuts", m.cuts},
+          {"diff_sum", m.diff_sum},
+          {"polygons", m.polygons},
+          {"triangles", m.triangles},
+          {"volume", m.volume},
+          {"e1", m.e1},
+          {"e2", m.e2},
+          {"hausdorff_m", m.hausdorff_m}};
+}
+
+std::vector<ModelRecord> models_from_json(const json& arr, const std::string& path) {
+  if (!arr.is_array()) throw io::IoError(path, "\"models\" is not an array");
+  std::vector<ModelRecord> out;
+  int index = 0;
+  for (const auto& m : arr) {
+    if (!m.is_object() || !m.contains("file") || !m["file"].is_string())
+      throw io::IoError(path, "model " + std::to_string(index) + " has no \"file\"");
+    ModelRecord r;
+    r.file = m["file"].get<std::string>();
+    try {
+      r.kind = model_kind_from_string(m.value("kind", std::string("anchor")));
+    } catch (const std::invalid_argument& e) {
+      throw io::IoError(path, "model " + std::to_string(index) + ": " + e.what());
+    }
+    r.level = m.contains("level") && m["level"].is_number_integer() ? m["level"].get<int>() : 0;
+    r.step = m.contains("step") && m["step"].is_number_integer() ? m["step"].get<int>() : index;
+    r.cuts = m.value("cuts", 0);
+    r.diff_sum = number(m, "diff_sum", 0);
+    r.polygons = m.value("polygons", std::uint64_t(0));
+    r.triangles = m.value("triangles", std::uint64_t(0));
+    r.volume = number(m, "volume", 0);
+    r.e1 = number(m, "e1", -1);
+    r.e2 = number(m, "e2", -1);
+    r.hausdorff_m = number(m, "hausdorff_m", -1);
+    out.push_back(r);
+    ++index;
+  }
+  return out;
+}
+
+json to_json(const LodReport& r) {
+  json j;
+  j["input"] = r.input;
+  j["status"] = to_string(r.status);
+  if (!r.reason.empty()) j["reason"] = r.reason;
+  if (!r.id.empty()) j["id"] = r.id;
+  if (!r.key.empty()) j["key"] = r.key;
+  j["parameters"] = json::object();
+  for (const auto& [k, v] : r.parameters) j["parameters"][k] = v;
+  j["counts"] = json::object();
+  for (const auto& [k, v] : r.counts) j["counts"][k] = v;
+  j["lod_tree_vs_bsp_tree"] = json::object();
+  for (const auto& [k, v] : r.lod_tree_vs_bsp_tree) j["lod_tree_vs_bsp_tree"][k] = v;
+  j["bbox_diagonal_m"] = r.bbox_diagonal_m;
+  j["normals_estimated"] = r.normals_estimated;
+  j["walls_inferred"] = r.walls_inferred;
+  j["timings_s"] = json::object();
+  for (const auto& [k, v] : r.timings_s) j["timings_s"][k] = v;
+  j["notes"] = r.notes;
+  json models = json::array();
+  for (const auto& m : r.models) models.push_back(to_json(m));
+  j["models"] = models;
+  if (r.models_all) {
+    json all = json::array();
+    for (const auto& m : *r.models_all) all.push_back(to_json(m));
+    j["models_all"] = all;
+    j["selected_steps"] = r.selected_steps;
+  }
+  return j;
+}
+
+LodReport lod_report_from_json(const json& j, const std::string& path) {
+  if (!j.is_object()) throw io::IoError(path, "not a JSON object");
+  LodReport r;
+  try {
+    r.input = j.value("input", std::string());
+    // A report that does not say how it went is not trusted (workdir.hpp).
+    const auto st = j.find("status");
+    r.status = st != j.end() && st->is_string() ? status_from_string(st->get<std::string>())
+                                                : Status::failed;
+    if (st == j.end()) r.reason = "report.json records no status";
+    if (j.contains("reason") && j["reason"].is_string()) r.reason = j["reason"].get<std::string>();
+    r.id = j.value("id", std::string());
+    r.key = j.value("key", std::string());
+    if (j.contains("parameters")) r.parameters = string_map(j["parameters"]);
+    if (j.contains("counts"))
+      for (const auto& [k, v] : j["counts"].items()) r.counts[k] = v.get<std::int64_t>();
+    if (j.contains("lod_tree_vs_bsp_tree"))
+      for (const auto& [k, v] : j["lod_tree_vs_bsp_tree"].items())
+        r.lod_tree_vs_bsp_tree[k] = v.get<std::int64_t>();
+    r.bbox_diagonal_m = number(j, "bbox_diagonal_m", 0);
+    r.normals_estimated = j.value("normals_estimated", false);
+    r.walls_inferred = j.value("walls_inferred", false);
+    if (j.contains("timings_s"))
+      for (const auto& [k, v] : j["timings_s"].items())
+        r.timings_s[k] = v.is_null() ? std::numeric_limits<double>::quiet_NaN() : v.get<double>();
+    r.notes = j.value("notes", std::vector<std::string>{});
+    if (j.contains("models")) r.models = models_from_json(j["models"], path);
+    if (j.contains("models_all")) r.models_all = models_from_json(j["models_all"], path);
+    r.selected_steps = j.value("selected_steps", std::vector<int>{});
+  } catch (const io::IoError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw io::IoError(path, std::string("malformed report: ") + e.what());
+  }
+  return r;
+}
+
+// ------------------------------------------------------------ run_report.json
+json to_json(const BuildingRecord& b) {
+  json o;
+  o["id"] = b.id;
+  o["source"] = b.source;
+  o["status"] = to_string(b.status);
+  if (!b.reason.empty()) o["reason"] = b.reason;
+  o["models"] = b.models;
+  if (!b.set.empty()) o["set"] = b.set;
+  if (!b.select.empty()) o["select"] = b.select;
+  return o;
+}
+
+BuildingRecord building_from_json(const json& o) {
+  BuildingRecord b;
+  b.id = o.at("id").get<std::string>();
+  b.source = o.value("source", std::string());
+  b.status = status_from_string(o.value("status", std::string("failed")));
+  b.reason = o.value("reason", std::string());
+  b.models = o.value("models", std::size_t(0));
+  if (o.contains("set")) b.set = string_map(o["set"]);
+  b.select = o.value("select", std::vector<int>{});
+  return b;
+}
+
+json to_json(const AssembleParams& p) {
+  return {{"max_tile_triangles", p.max_tile_triangles},
+          {"max_tile_bytes", p.max_tile_bytes},
+          {"tile_extent_factor", p.tile_extent_factor},
+          {"min_change_m", p.min_change_m},
+          {"hausdorff_tolerance_m", p.hausdorff_tolerance_m},
+          {"quantize", p.quantize},
+          {"building_models", p.building_models},
+          {"skip_missing", p.skip_missing}};
+}
+
+AssembleParams assemble_params_from_json(const json& j) {
+  AssembleParams p;
+  p.max_tile_triangles = j.value("max_tile_triangles", p.max_tile_triangles);
+  p.max_tile_bytes = j.value("max_tile_bytes", p.max_tile_bytes);
+  p.tile_extent_factor = j.value("tile_extent_factor", p.tile_extent_factor);
+  p.min_change_m = j.value("min_change_m", p.min_change_m);
+  p.hausdorff_tolerance_m = j.value("hausdorff_tolerance_m", p.hausdorff_tolerance_m);
+  p.quantize = j.value("quantize", p.quantize);
+  p.building_models = j.value("building_models", p.building_models);
+  p.skip_missing = j.value("skip_missing", p.skip_missing);
+  p.validate();
+  return p;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------ manifest
+Manifest read_manifest(const std::string& work_dir) {
+  const std::string path = manifest_path(work_dir);
+  if (!fs::exists(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
+  if (!fs::exists(path)) throw io::IoError(path, "missing manifest (run 'citylod split' first)");
+  const json j = read_json_file(path);
+  Manifest m;
+  try {
+    m.version = j.at("version").get<int>();
+    if (m.version != 1)
+      throw io::IoError(path, "unsupported manifest version " + std::to_string(m.version));
+    const json& s = j.at("scene");
+    m.scene.crs = s.value("crs", "");
+    m.scene.origin_crs = s.at("origin_crs").get<std::array<double, 3>>();
+    m.scene.origin_lon = s.at("origin_lon").get<double>();
+    m.scene.origin_lat = s.at("origin_lat").get<double>();
+    m.scene.origin_h = s.at("origin_h").get<double>();
+    m.scene.inputs = s.value("inputs", std::vector<std::string>{});
+    m.scene.options = s.value("options", "");
+    m.scene.notes = s.value("notes", std::vector<std::string>{});
+    for (const auto& c : j.at("chunks")) m.chunks.push_back(chunk_from_json(c));
+  } catch (const io::IoError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw io::IoError(path, std::string("malformed manifest: ") + e.what());
+  }
+  return m;
+}
+
+void require_valid_origin(const Manifest& m, const std::string& work_dir) {
+  const auto& sc = m.scene;
+  if (!std::isfinite(sc.origin_lat) || !std::isfinite(sc.origin_lon) ||
+      std::fabs(sc.origin_lat) > 90 || std::fabs(sc.origin_lon) > 180 ||
+      !std::isfinite(sc.origin_h))
+    throw io::IoError(manifest_path(work_dir),
+                      "scene origin is not a valid longitude/latitude/height");
+}
+
+void write_manifest(const std::string& work_dir, const Manifest& m) {
+  json j;
+  j["version"] = m.version;
+  j["scene"] = {{"crs", m.scene.crs},
+                {"origin_crs", m.scene.origin_crs},
+                {"origin_lon", m.scene.origin_lon},
+                {"origin_lat", m.scene.origin_lat},
+                {"origin_h", m.scene.origin_h},
+                {"inputs", m.scene.inputs},
+                {"options", m.scene.options},
+                {"notes", m.scene.notes}};
+  std::vector<ChunkRecord> sorted = m.chunks;
+  std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
+  json chunks = json::array();
+  for (const auto& c : sorted) chunks.push_back(to_json(c));
+  j["chunks"] = chunks;
+  fs::create_directories(work_dir);
+  io::atomic_write_file(manifest_path(work_dir), j.dump(1) + "\n");
+}
+
+// ------------------------------------------------------------ report.json
+LodReport read_lod_report(const std::string& path) {
+  return lod_report_from_json(read_json_file(path), path);
+}
+
+std::optional<LodReport> find_lod_report(const std::string& work_dir, const std::string& id) {
+  const std::string path = lod_report_path(work_dir, id);
+  if (!fs::exists(path)) return std::nullopt;
+  return read_lod_report(path);
+}
+
+bool write_lod_report(const std::string& path, const LodReport& r) {
+  const std::string text = to_json(r).dump(2) + "\n";
+  if (fs::exists(path)) {
+    std::ifstream f(path, std::ios::binary);
+    const std::string old((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    if (old == text) return false;
+  }
+  io::atomic_write_file(path, text);
+  return true;
+}
+
+// ------------------------------------------------------------ overrides.json
+Overrides read_overrides(const std::string& work_dir) {
+  Overrides o;
+  const std::string path = overrides_path(work_dir);
+  if (!fs::exists(path)) return o;
+  json j;
+  try {
+    j = read_json_file(path);
+  } catch (const io::IoError&) {
+    throw std::runtime_error(path + ": not valid JSON");
+  }
+  if (!j.is_object() || !j.contains("buildings") || !j["buildings"].is_object())
+    throw std::runtime_error(path + ": not a citylod overrides file");
+  try {
+    for (const auto& [id, b] : j["buildings"].items()) {
+      BuildingOverride bo;
+      if (b.contains("set")) bo.set = string_map(b["set"]);
+      if (b.contains("select"))
+        for (const auto& s : b["select"]) bo.select.push_back(s.get<int>());
+      o[id] = bo;
+    }
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": malformed overrides (" + std::string(e.what()) + ")");
+  }
+  return o;
+}
+
+void write_overrides(const std::string& work_dir, const Overrides& o) {
+  json j;
+  j["buildings"] = json::object();
+  for (const auto& [id, b] : o) {
+    if (b.set.empty() && b.select.empty()) continue;
+    json e = json::object();
+    if (!b.set.empty()) e["set"] = b.set;
+    if (!b.select.empty()) e["select"] = b.select;
+    j["buildings"][id] = e;
+  }
+  io::atomic_write_file(overrides_path(work_dir), j.dump(2) + "\n");
+}
+
+// ------------------------------------------------------------ run_report.json
+RunReport read_run_report(const std::string& out_dir) {
+  const std::string path = run_report_path(out_dir);
+  if (!fs::exists(path))
+    throw std::runtime_error(path + ": not found (DIR must be a 'citylod tile' output)");
+  const json j = read_json_file(path);
+  RunReport r;
+  try {
+    r.command = j.value("command", r.command);
+    r.inputs = j.value("inputs", std::vector<std::string>{});
+    r.threads = j.value("threads", r.threads);
+    const json st = j.value("stages", json::object());
+    r.split = st.value("split", json::object()).get<RunReport::Split>();
+    r.lod = st.value("lod", json::object()).get<RunReport::Lod>();
+    r.assemble = st.value("assemble", json::object()).get<RunReport::Assemble>();
+    const json sum = j.value("summary", json::object());
+    r.ok = sum.value("ok", std::size_t(0));
+    r.fallback = sum.value("fallback", std::size_t(0));
+    r.failed = sum.value("failed", std::size_t(0));
+    r.skipped = sum.value("skipped", std::size_t(0));
+    r.seconds_total = number(j, "seconds_total", 0);
+    const json rss = j.value("peak_rss_bytes", json::object());
+    r.peak_rss_self = rss.value("self", std::uint64_t(0));
+    r.peak_rss_children = rss.value("children", std::uint64_t(0));
+    if (j.contains("lod_params")) r.lod_params = string_map(j["lod_params"]);
+    r.assemble_params = assemble_params_from_json(j.value("assemble_params", json::object()));
+    r.work = j.value("work", r.work);
+    r.tileset = j.value("tileset", r.tileset);
+    for (const auto& b : j.value("buildings", json::array()))
+      r.buildings.push_back(building_from_json(b));
+    if (j.contains("last_rebuild")) {
+      const json& l = j["last_rebuild"];
+      RunReport::LastRebuild lr;
+      lr.building = l.value("building", std::string());
+      if (l.contains("set")) lr.set = string_map(l["set"]);
+      lr.select = l.value("select", std::vector<int>{});
+      lr.report_changed = l.value("report_changed", false);
+      lr.changed = l.value("changed", std::vector<std::string>{});
+      lr.added = l.value("added", std::vector<std::string>{});
+      lr.removed = l.value("removed", std::vector<std::string>{});
+      r.last_rebuild = lr;
+    }
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": malformed run report (" + std::string(e.what()) + ")");
+  }
+  return r;
+}
+
+void write_run_report(const std::string& out_dir, const RunReport& r) {
+  json j;
+  j["command"] = r.command;
+  j["inputs"] = r.inputs;
+  j["threads"] = r.threads;
+  j["stages"] = {{"split", r.split}, {"lod", r.lod}, {"assemble", r.assemble}};
+  j["summary"] = {
+      {"ok", r.ok}, {"fallback", r.fallback}, {"failed", r.failed}, {"skipped", r.skipped}};
+  j["seconds_total"] = r.seconds_total;
+  j["peak_rss_bytes"] = {{"self", r.peak_rss_self}, {"children", r.peak_rss_children}};
+  j["lod_params"] = json::object();
+  for (const auto& [k, v] : r.lod_params) j["lod_params"][k] = v;
+  j["assemble_params"] = to_json(r.assemble_params);
+  j["work"] = r.work;
+  j["tileset"] = r.tileset;
+  json bs = json::array();
+  for (const auto& b : r.buildings) bs.push_back(to_json(b));
+  j["buildings"] = bs;
+  if (r.last_rebuild) {
+    const auto& l = *r.last_rebuild;
+    j["last_rebuild"] = {{"building", l.building}, {"set", l.set},
+                         {"select", l.select},     {"report_changed", l.report_changed},
+                         {"changed", l.changed},   {"added", l.added},
+                         {"removed", l.removed}};
+  }
+  fs::create_directories(out_dir);
+  io::atomic_write_file(run_report_path(out_dir), j.dump(2) + "\n");
+}
+
+}  // namespace citylod::tiler
