@@ -25,6 +25,8 @@ std::string to_text(const std::vector<ModelFileEval>& models) {
         e.check.edge_manifold ? "edge-manifold" : "non-manifold",
         e.check.self_intersecting ? "self-intersecting" : "no self-intersections", e.volume, e.e1,
         e.e2, e.hausdorff);
+    text += strf("  %d pinched vertices, %d shells, %d cavities: %s\n", e.check.pinched_vertices,
+                 e.check.shells, e.check.cavities, e.check.valid() ? "a valid solid" : "NOT a valid solid");
   }
   return text;
 }
@@ -72,6 +74,9 @@ nlohmann::ordered_json to_json(const WorkEval& w) {
   sum["edge_manifold"] = s.edge_manifold;
   sum["oriented"] = s.oriented;
   sum["self_intersecting"] = s.self_intersecting;
+  sum["pinched"] = s.pinched;
+  sum["not_one_shell"] = s.not_one_shell;
+  sum["valid"] = s.valid;
   sum["empty"] = s.empty;
   auto stat_json = [](const Stat& st) {
     return J{
@@ -98,9 +103,9 @@ std::string to_text(const WorkEval& w) {
   std::size_t idw = 8;
   for (const auto& b : w.buildings)
     if (b.has_lod) idw = std::max(idw, b.id.size());
-  out += strf("%-*s %4s %-13s %3s %9s %-6s %-8s %-8s %12s %8s %8s %11s\n", int(idw), "building",
-              "step", "kind", "L", "triangles", "closed", "manifold", "self-int", "volume m3",
-              "e1 %", "e2 %", "Hausdorff m");
+  out += strf("%-*s %4s %-13s %3s %9s %-6s %-8s %-8s %7s %6s %12s %8s %8s %11s\n", int(idw),
+              "building", "step", "kind", "L", "triangles", "closed", "manifold", "self-int",
+              "pinched", "shells", "volume m3", "e1 %", "e2 %", "Hausdorff m");
   for (const auto& b : w.buildings) {
     if (!b.has_lod) continue;
     for (std::size_t i = 0; i < b.models.size(); ++i) {
@@ -108,20 +113,24 @@ std::string to_text(const WorkEval& w) {
       const std::string kind = std::string(io::to_string(m.kind)) + (int(i) == b.finest ? "*" : "");
       if (m.empty) {
         out +=
-            strf("%-*s %4d %-13s %3d %9d %-6s %-8s %-8s %12s %8s %8s %11s\n", int(idw),
-                 b.id.c_str(), m.step, kind.c_str(), m.level, 0, "-", "-", "-", "-", "-", "-", "-");
+            strf("%-*s %4d %-13s %3d %9d %-6s %-8s %-8s %7s %6s %12s %8s %8s %11s\n", int(idw),
+                 b.id.c_str(), m.step, kind.c_str(), m.level, 0, "-", "-", "-", "-", "-", "-", "-",
+                 "-", "-");
         continue;
       }
-      out += strf("%-*s %4d %-13s %3d %9zu %-6s %-8s %-8s %12.3f %8.3f %8.3f %11.3f\n", int(idw),
-                  b.id.c_str(), m.step, kind.c_str(), m.level, m.e.triangles,
+      out += strf("%-*s %4d %-13s %3d %9zu %-6s %-8s %-8s %7d %6d %12.3f %8.3f %8.3f %11.3f\n",
+                  int(idw), b.id.c_str(), m.step, kind.c_str(), m.level, m.e.triangles,
                   yes_no(m.e.check.closed), yes_no(m.e.check.edge_manifold),
-                  yes_no(m.e.check.self_intersecting), m.e.volume, m.e.e1, m.e.e2, m.e.hausdorff);
+                  yes_no(m.e.check.self_intersecting), m.e.check.pinched_vertices,
+                  m.e.check.shells, m.e.volume, m.e.e1, m.e.e2, m.e.hausdorff);
     }
   }
   out += "(* = finest model of the building: its last anchor)\n\n";
   out += strf(
       "summary: %zu buildings, %zu models: %zu closed, %zu edge-manifold, %zu self-intersecting",
       s.buildings, s.models, s.closed, s.edge_manifold, s.self_intersecting);
+  out += strf("; %zu valid solids (%zu with pinched vertices, %zu not one solid)", s.valid,
+              s.pinched, s.not_one_shell);
   if (s.empty) out += strf(", %zu empty", s.empty);
   out += "\n";
   out += strf(
@@ -157,7 +166,10 @@ nlohmann::ordered_json to_json(const TilesetEval& t) {
         {"triangles", l.triangles},
         {"closed", l.closed},
         {"edge_manifold", l.edge_manifold},
-        {"self_intersecting", l.self_intersecting}};
+        {"self_intersecting", l.self_intersecting},
+        {"pinched", l.pinched},
+        {"not_one_shell", l.not_one_shell},
+        {"valid", l.valid}};
     if (l.evaluated) {
       j["mean_e1_percent"] = l.mean_e1;
       j["mean_e2_percent"] = l.mean_e2;
@@ -206,19 +218,22 @@ std::string to_text(const TilesetEval& t) {
         t.work.c_str(), t.samples);
   out += "\n\n";
   const bool ev = !t.work.empty();
-  out += strf("%5s %6s %9s %10s %7s %8s %8s", "level", "tiles", "buildings", "triangles", "closed",
-              "manifold", "self-int");
+  out += strf("%5s %6s %9s %10s %7s %8s %8s %7s %9s %6s", "level", "tiles", "buildings",
+              "triangles", "closed", "manifold", "self-int", "pinched", "not-1-shl", "valid");
   if (ev) out += strf(" %9s %9s %9s  %s", "mean e1 %", "mean e2 %", "max e2 %", "(building)");
   out += "\n";
   for (const auto& l : t.levels) {
-    out += strf("%5d %6zu %9zu %10zu %7zu %8zu %8zu", l.level, l.tiles, l.buildings, l.triangles,
-                l.closed, l.edge_manifold, l.self_intersecting);
+    out += strf("%5d %6zu %9zu %10zu %7zu %8zu %8zu %7zu %9zu %6zu", l.level, l.tiles, l.buildings,
+                l.triangles, l.closed, l.edge_manifold, l.self_intersecting, l.pinched,
+                l.not_one_shell, l.valid);
     if (ev)
       out +=
           strf(" %9.3f %9.3f %9.3f  %s", l.mean_e1, l.mean_e2, l.max_e2, l.max_e2_building.c_str());
     out += "\n";
   }
-  out += "(closed / manifold / self-int: building meshes; a level is a tile depth, root = 0)\n\n";
+  out +=
+      "(closed / manifold / self-int / pinched: building meshes with a pinched vertex / not-1-shl: "
+      "not one solid / valid: valid solids; a level is a tile depth, root = 0)\n\n";
   std::size_t idw = 8, tw = 4;
   for (const auto& m : t.meshes) {
     idw = std::max(idw, m.building.size());

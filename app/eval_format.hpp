@@ -33,6 +33,10 @@ inline void put_check(nlohmann::ordered_json& j, const lod::MeshCheck& c) {
   j["self_intersecting"] = c.self_intersecting;
   j["boundary_edges"] = c.boundary_edges;
   j["nonmanifold_edges"] = c.nonmanifold_edges;
+  j["pinched_vertices"] = c.pinched_vertices;
+  j["shells"] = c.shells;
+  j["cavities"] = c.cavities;
+  j["valid"] = c.valid();
 }
 
 /// The measured fields of one model (the keys of `citylod eval MODEL --json`).

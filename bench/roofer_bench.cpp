@@ -22,8 +22,8 @@
 #include "citylod/geo/georef.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/io/types.hpp"
-#include "citylod/io/workdir.hpp"
 #include "citylod/lod/lod.hpp"
+#include "citylod/tiler/workdir.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -169,14 +169,14 @@ struct RooferBuilding {
   int roof_planes = 0;
 };
 
-geo::HeightMode height_mode_of(const io::SceneInfo& s) {
+geo::HeightMode height_mode_of(const tiler::SceneInfo& s) {
   for (const auto& n : s.notes)
     if (n.find("EGM96") != std::string::npos && n.find("ellipsoidal") != std::string::npos)
       return geo::HeightMode::Egm96;
   return geo::HeightMode::FromCrs;
 }
 
-std::map<std::string, RooferBuilding> read_roofer(const std::string& path, const io::SceneInfo& scene,
+std::map<std::string, RooferBuilding> read_roofer(const std::string& path, const tiler::SceneInfo& scene,
                                                   int& skipped_holes) {
   std::ifstream f(path);
   if (!f) throw std::runtime_error(path + ": cannot open");
@@ -275,7 +275,7 @@ int main(int argc, char** argv) {
   for (int i = 3; i + 1 < argc; ++i)
     if (std::string(argv[i]) == "--csv") csv_path = argv[i + 1];
   try {
-    const io::Manifest man = io::read_manifest(work);
+    const tiler::Manifest man = tiler::read_manifest(work);
     int holes = 0;
     const auto roofer = read_roofer(roofer_path, man.scene, holes);
     std::vector<Building> rows;
@@ -291,7 +291,7 @@ int main(int argc, char** argv) {
       b.roof_planes = rf->second.roof_planes;
       const lod::Vec3 o(c.origin[0], c.origin[1], c.origin[2]);
       lod::BuildingInput ref;
-      for (const auto& p : io::read_points(io::chunk_path(work, c.id)).positions)
+      for (const auto& p : io::read_points(tiler::chunk_path(work, c.id)).positions)
         ref.points.emplace_back(p[0], p[1], p[2]);
       if (ref.points.empty()) continue;
       b.points = ref.points.size();
@@ -304,29 +304,26 @@ int main(int argc, char** argv) {
         for (auto& v : pm.vertices) v = {v[0] - o.x(), v[1] - o.y(), v[2] - o.z()};
         b.rf[k] = measure(to_lod(io::triangulate_polygons(pm)), ref, outline);
       }
-      // Ours.
-      const std::string dir = io::lod_dir(work, c.id);
-      std::ifstream rs(dir + "/report.json");
-      if (!rs) {
+      // Ours (the work directory's typed report).
+      const std::string dir = tiler::lod_dir(work, c.id);
+      const auto rep = tiler::find_lod_report(work, c.id);
+      if (!rep) {
         b.status = "no-lod";
         rows.push_back(std::move(b));
         continue;
       }
-      const json rep = json::parse(rs);
-      b.status = rep.value("status", std::string("?"));
-      if (rep.contains("timings_s")) {
-        double t = 0;
-        for (const auto& [k, v] : rep["timings_s"].items())
-          if (v.is_number()) t += v.get<double>();
-        b.t_ours_ms = 1000.0 * t;
-      }
+      b.status = tiler::to_string(rep->status);
+      double t = 0;
+      for (const auto& [k, v] : rep->timings_s) t += v;
+      b.t_ours_ms = 1000.0 * t;
       int finest = -1;
-      const auto& models = rep.at("models");
+      const auto& models = rep->all_models();
       for (std::size_t i = 0; i < models.size(); ++i) {
-        const auto& mj = models[i];
-        const lod::TriangleMesh m = to_lod(io::read_mesh(dir + "/" + mj.at("file").get<std::string>()));
+        const auto& mr = models[i];
+        const std::string file = mr.file.empty() || mr.file[0] == '/' ? mr.file : dir + "/" + mr.file;
+        const lod::TriangleMesh m = to_lod(io::read_mesh(file));
         b.ours.push_back(measure(m, ref, outline));
-        if (mj.value("kind", std::string()) != "interpolation") finest = int(i);
+        if (tiler::is_anchor(mr.kind)) finest = int(i);
       }
       if (!b.ours.empty()) {
         b.coarsest = b.ours.front();

@@ -370,6 +370,9 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
     l.closed += m.check.closed;
     l.edge_manifold += m.check.edge_manifold;
     l.self_intersecting += m.check.self_intersecting;
+    l.pinched += m.check.pinched_vertices > 0;
+    l.not_one_shell += m.check.shells != 1;
+    l.valid += m.check.valid();
     if (m.evaluated) {
       ++l.evaluated;
       l.mean_e1 += m.e1;

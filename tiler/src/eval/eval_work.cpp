@@ -120,6 +120,9 @@ WorkSummary summarize(const WorkEval& w) {
       s.edge_manifold += m.e.check.edge_manifold;
       s.oriented += m.e.check.oriented;
       s.self_intersecting += m.e.check.self_intersecting;
+      s.pinched += m.e.check.pinched_vertices > 0;
+      s.not_one_shell += m.e.check.shells != 1;
+      s.valid += m.e.check.valid();
     }
     if (fallback)
       s.fallbacks.emplace_back(b.id,

@@ -87,6 +87,9 @@ struct Stat {
 struct WorkSummary {
   std::size_t buildings = 0, models = 0, closed = 0, edge_manifold = 0, oriented = 0,
               self_intersecting = 0, empty = 0;
+  std::size_t pinched = 0;        ///< models with a pinched vertex
+  std::size_t not_one_shell = 0;  ///< models with other than one outer shell
+  std::size_t valid = 0;          ///< valid solids (lod::MeshCheck::valid)
   Stat finest_e1, finest_e2;  ///< of each building's finest model
   std::vector<std::pair<std::string, std::string>> fallbacks, without_lod;  ///< id, reason
 };
@@ -117,6 +120,7 @@ struct LevelSummary {
   int level = 0;
   std::size_t tiles = 0, meshes = 0, buildings = 0, triangles = 0;
   std::size_t closed = 0, edge_manifold = 0, self_intersecting = 0;
+  std::size_t pinched = 0, not_one_shell = 0, valid = 0;  ///< building meshes
   std::size_t evaluated = 0;
   double mean_e1 = 0, mean_e2 = 0, max_e2 = 0;
   std::string max_e2_building;
