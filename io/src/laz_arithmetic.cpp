@@ -32,17 +32,27 @@ void BitModel::update() {
   bits_until_update = update_cycle;
 }
 
+void ArithmeticDecoder::bad_interval() {
+  throw CorruptData("invalid arithmetic-coder interval");
+}
+void ArithmeticDecoder::bad_raw_bits() {
+  throw CorruptData("raw bits out of range");
+}
+
 SymbolModel::SymbolModel(std::uint32_t n) : symbols(n), last_symbol(n - 1) {
   if (n < 2 || n > (1u << 11)) throw CorruptData("bad symbol model size");
-  if (n > 16) {
-    std::uint32_t table_bits = 3;
-    while (n > (1u << (table_bits + 2))) ++table_bits;
-    table_size = 1u << table_bits;
-    table_shift = ArithmeticDecoder::kSymbolLengthShift - table_bits;
-    decoder_table.assign(table_size + 2, 0);
-  }
-  distribution.assign(n, 0);
-  symbol_count.assign(n, 1);
+  // about 4 table cells per symbol, 16 .. 2048 cells (8 per symbol removed a
+  // few more bisections but cost more in update() than it saved)
+  std::uint32_t table_bits = 4;
+  while (table_bits < 11 && (1u << table_bits) < 4 * n) ++table_bits;
+  table_size = 1u << table_bits;
+  table_shift = ArithmeticDecoder::kSymbolLengthShift - table_bits;
+  const std::size_t words = (n + 1) + n + (table_size + 2 + 1) / 2;
+  storage_.reset(new std::uint32_t[words]);  // all set by update()
+  distribution = storage_.get();
+  symbol_count = distribution + n + 1;
+  decoder_table = reinterpret_cast<std::uint16_t*>(symbol_count + n);
+  for (std::uint32_t k = 0; k < n; ++k) symbol_count[k] = 1;
   update_cycle = n;
   update();
   symbols_until_update = update_cycle = (n + 6) >> 1;
@@ -58,21 +68,21 @@ void SymbolModel::update() {
   std::uint32_t sum = 0, s = 0;
   const std::uint32_t scale = 0x80000000u / total_count;
   constexpr int kShift = 31 - ArithmeticDecoder::kSymbolLengthShift;
-  if (table_size == 0) {
-    for (std::uint32_t k = 0; k < symbols; ++k) {
-      distribution[k] = (scale * sum) >> kShift;
-      sum += symbol_count[k];
-    }
-  } else {
-    for (std::uint32_t k = 0; k < symbols; ++k) {
-      distribution[k] = (scale * sum) >> kShift;
-      sum += symbol_count[k];
-      const std::uint32_t w = distribution[k] >> table_shift;
-      while (s < w) decoder_table[++s] = k - 1;
-    }
-    decoder_table[0] = 0;
-    while (s <= table_size) decoder_table[++s] = symbols - 1;
+  // table[j] (j >= 1) = (number of symbols k with distribution[k] >> table_shift < j) - 1,
+  // i.e. the symbol whose interval holds the start of cell j; built as a
+  // histogram and its prefix sums (no data-dependent branches).
+  std::uint16_t* table = decoder_table;
+  std::memset(table, 0, (table_size + 2) * sizeof *table);
+  for (std::uint32_t k = 0; k < symbols; ++k) {
+    distribution[k] = (scale * sum) >> kShift;
+    sum += symbol_count[k];
+    ++table[(distribution[k] >> table_shift) + 1];
   }
+  for (std::uint32_t j = 1; j <= table_size + 1; ++j) {
+    s += table[j];
+    table[j] = static_cast<std::uint16_t>(s - 1);
+  }
+  table[0] = 0;
   update_cycle = (5 * update_cycle) >> 2;
   const std::uint32_t max_cycle = (symbols + 6) << 3;
   if (update_cycle > max_cycle) update_cycle = max_cycle;

@@ -261,7 +261,7 @@ struct LazStream::Impl {
     try {
       ByteSource bs(t.data(), t.size());
       laz::ArithmeticDecoder dec;
-      dec.init(&bs);
+      dec.init(bs);
       laz::IntegerDecompressor ic(32, 2);
       std::uint32_t prev_points = 0, prev_bytes = 0;
       for (std::uint32_t i = 0; i < n; ++i) {
@@ -274,6 +274,7 @@ struct LazStream::Impl {
             ic.decompress(dec, static_cast<std::int32_t>(prev_bytes), 1));
         chunks[i].bytes = prev_bytes;
       }
+      if (dec.overrun()) throw CorruptData("compressed data ends early");
     } catch (const CorruptData& e) {
       fail(std::string("corrupt LAZ chunk table: ") + e.what());
     }
@@ -442,14 +443,17 @@ LazStream::LazStream(const LazSource& source, int threads) : impl_(std::make_uni
   for (const Chunk& c : impl_->chunks) largest = std::max<std::uint64_t>(largest, c.points);
   if (threads > 1 && impl_->chunks.size() > 1 &&
       largest * source.record_length <= kMaxParallelChunkBytes) {
+    // the workers start at the first read(): opening a file (read_header,
+    // info) decodes nothing
     impl_->threads = std::min<int>(threads, static_cast<int>(impl_->chunks.size()));
-    impl_->start_workers();
   }
 }
 
 LazStream::~LazStream() = default;
 
 std::size_t LazStream::read(unsigned char* dst, std::size_t n) {
+  if (impl_->threads > 1 && impl_->workers.empty() && impl_->next_chunk == 0 && impl_->left == 0)
+    impl_->start_workers();
   return impl_->workers.empty() ? impl_->read_sequential(dst, n) : impl_->read_parallel(dst, n);
 }
 

@@ -62,10 +62,12 @@ struct Layer {
   ArithmeticDecoder dec;
   bool changed = false;
 
+  bool overrun() const { return changed && dec.overrun(); }
+
   void start(ByteSource s, bool needed) {
     src = s;
     changed = src.remaining() > 0;
-    if (changed && needed) dec.init(&src);
+    if (changed && needed) dec.init(src);
   }
 };
 
@@ -169,6 +171,12 @@ class Point14Decoder {
     p.read(first);
     current_ = p.scanner_channel;
     contexts_[current_] = std::make_unique<Point14Context>(p);
+  }
+
+  bool overrun() const {
+    for (const Layer& l : layers_)
+      if (l.overrun()) return true;
+    return false;
   }
 
   /// Decodes the next point into out (30 bytes); returns its scanner channel.
@@ -359,16 +367,17 @@ class ColorDecoder {
  public:
   explicit ColorDecoder(bool nir) : nir_(nir) {}
   int layers() const { return nir_ ? 2 : 1; }
+  bool overrun() const { return rgb_.overrun() || nir_layer_.overrun(); }
 
   void start(const unsigned char* first, std::uint32_t channel, const std::uint32_t* sizes,
              ByteSource& src, bool more_points) {
     rgb_.start(src.take(sizes[0]), more_points);
     if (nir_) nir_layer_.start(src.take(sizes[1]), more_points);
-    Context c;
+    auto c = std::make_unique<Context>();
     for (int i = 0; i < 4; ++i)
-      c.last[i] = i < (nir_ ? 4 : 3) ? load<std::uint16_t>(first + 2 * i) : 0;
+      c->last[i] = i < (nir_ ? 4 : 3) ? load<std::uint16_t>(first + 2 * i) : 0;
     current_ = channel;
-    contexts_[current_] = std::make_unique<Context>(c);
+    contexts_[current_] = std::move(c);
   }
 
   void decode(unsigned char* out, std::uint32_t channel) {
@@ -424,6 +433,11 @@ class Byte14Decoder {
  public:
   explicit Byte14Decoder(std::size_t n) : n_(n), layers_(n) {}
   int layers() const { return static_cast<int>(n_); }
+  bool overrun() const {
+    for (const Layer& l : layers_)
+      if (l.overrun()) return true;
+    return false;
+  }
 
   void start(const unsigned char* first, std::uint32_t channel, const std::uint32_t* sizes,
              ByteSource& src, bool more_points) {
@@ -492,6 +506,8 @@ class LayeredChunk final : public ChunkDecoder {
         off += items_[k].size;
       }
     }
+    if (point_.overrun() || (color_ && color_->overrun()) || (bytes_ && bytes_->overrun()))
+      throw CorruptData("compressed data ends early");
   }
 
  private:

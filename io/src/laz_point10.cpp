@@ -337,17 +337,26 @@ class PointwiseChunk final : public ChunkDecoder {
         start(dst);
         continue;
       }
+      if (p10_) {  // the usual item order: direct calls, no virtual dispatch per item
+        p10_->decode(dec_, dst);
+        if (gps_) gps_->decode(dec_, dst + gps_off_);
+        if (rgb_) rgb_->decode(dec_, dst + rgb_off_);
+        if (bytes_) bytes_->decode(dec_, dst + bytes_off_);
+        continue;
+      }
       std::size_t off = 0;
       for (std::size_t k = 0; k < decoders_.size(); ++k) {
         decoders_[k]->decode(dec_, dst + off);
         off += items_[k].size;
       }
     }
+    if (dec_.overrun()) throw CorruptData("compressed data ends early");
   }
 
   void finish() override {
-    if (src_.remaining() != 0)
-      throw CorruptData("the decoded points end " + std::to_string(src_.remaining()) +
+    const std::size_t left = decoders_.empty() ? src_.remaining() : dec_.remaining();
+    if (left != 0)
+      throw CorruptData("the decoded points end " + std::to_string(left) +
                         " bytes before the chunk does");
   }
 
@@ -374,7 +383,32 @@ class PointwiseChunk final : public ChunkDecoder {
       }
       off += it.size;
     }
-    dec_.init(&src_);
+    // POINT10 [GPSTIME11] [RGB12] [BYTE]: the item order of formats 0-3 (and
+    // every LASzip writer); anything else takes the generic loop
+    std::size_t k = 0;
+    off = 0;
+    Point10* p10 = nullptr;
+    if (k < items_.size() && items_[k].type == kPoint10) {
+      p10 = static_cast<Point10*>(decoders_[k].get());
+      off += items_[k++].size;
+    }
+    if (k < items_.size() && items_[k].type == kGpsTime11) {
+      gps_ = static_cast<GpsTime11*>(decoders_[k].get());
+      gps_off_ = off;
+      off += items_[k++].size;
+    }
+    if (k < items_.size() && items_[k].type == kRgb12) {
+      rgb_ = static_cast<Rgb12*>(decoders_[k].get());
+      rgb_off_ = off;
+      off += items_[k++].size;
+    }
+    if (k < items_.size() && items_[k].type == kByte) {
+      bytes_ = static_cast<Bytes*>(decoders_[k].get());
+      bytes_off_ = off;
+      off += items_[k++].size;
+    }
+    if (k == items_.size()) p10_ = p10;
+    dec_.init(src_);
   }
 
   ByteSource src_;
@@ -382,6 +416,11 @@ class PointwiseChunk final : public ChunkDecoder {
   std::size_t record_length_ = 0;
   ArithmeticDecoder dec_;
   std::vector<std::unique_ptr<ItemDecoder>> decoders_;
+  Point10* p10_ = nullptr;  // set when the items are in the usual order
+  GpsTime11* gps_ = nullptr;
+  Rgb12* rgb_ = nullptr;
+  Bytes* bytes_ = nullptr;
+  std::size_t gps_off_ = 0, rgb_off_ = 0, bytes_off_ = 0;
 };
 
 }  // namespace
