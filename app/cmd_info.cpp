@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "citylod/io/reader.hpp"
+#include "citylod/io/verify.hpp"
 #include "cli.hpp"
 
 namespace citylod::app {
@@ -47,8 +48,7 @@ void print_text(const io::FileInfo& i) {
   if (!i.version.empty()) format += " " + i.version;
   if (!i.encoding.empty()) format += " (" + i.encoding + ")";
   row("format:", format);
-  if (i.compressed)
-    row("compressed:", "LASzip (points not decoded; convert with 'pdal translate in.laz out.las')");
+  if (i.compressed) row("compressed:", "LASzip");
   if (i.las_point_format >= 0)
     row("point format:", std::to_string(i.las_point_format) + " (" +
                              std::to_string(i.las_record_length) + " bytes per point)");
@@ -151,9 +151,12 @@ int cmd_info(ArgParser& args) {
           "bounding box,\n"
           "attributes, LAS point format, scale/offset, class counts and CRS. Formats: PLY, OBJ, "
           "OFF, XYZ/PTS,\n"
-          "LAS 1.0-1.4 (LAZ: header only).")
+          "LAS 1.0-1.4, LAZ and COPC.")
       .flag("json", 'j', "print JSON (one object, or an array for several files)")
       .flag("header-only", 0, "read only the header: no streaming, bbox and counts as declared")
+      .flag("verify", 0,
+            "LAS/LAZ: decode every point record and print their count, the bbox of the decoded "
+            "coordinates and the SHA-256 of the records (LAS record layout, file order)")
       .positional("FILE", "point cloud or mesh file(s)", Arity::one_or_more);
   if (!args.parse()) return 0;
   const bool json = args.has("json");
@@ -170,11 +173,30 @@ int cmd_info(ArgParser& args) {
         info = io::scan_file(path, &Progress::callback, &progress);
         progress.finish();
       }
+      io::PointRecordDigest d;
+      const bool verify = args.has("verify");
+      if (verify) {
+        Progress progress("verifying " + path);
+        d = io::verify_point_records(path, &Progress::callback, &progress);
+        progress.finish();
+      }
       if (json) {
         all.push_back(to_json(info));
+        if (verify)
+          all.back()["verify"] = {{"records", d.count},
+                                  {"bbox_min", d.bbox.min},
+                                  {"bbox_max", d.bbox.max},
+                                  {"sha256", d.sha256}};
       } else {
         if (!first) std::printf("\n");
         print_text(info);
+        if (verify) {
+          std::printf("  %-15s %llu\n",
+                      "verify records:", static_cast<unsigned long long>(d.count));
+          std::printf("  %-15s %s\n", "verify min:", vec(d.bbox.min, "%.3f").c_str());
+          std::printf("  %-15s %s\n", "verify max:", vec(d.bbox.max, "%.3f").c_str());
+          std::printf("  %-15s %s\n", "sha256:", d.sha256.c_str());
+        }
         std::fflush(stdout);
       }
       first = false;

@@ -20,6 +20,14 @@ if(NOT PROJ_FOUND)
   add_library(PROJ::proj ALIAS PkgConfig::PROJ)
 endif()
 
+# GDAL (footprints from OGR sources; private to citylod_io). Debian 12's
+# libgdal-dev (3.6) ships GDALConfig.cmake (target GDAL::GDAL); CMake's own
+# FindGDAL module is the fallback and defines the same target.
+find_package(GDAL CONFIG QUIET)
+if(NOT GDAL_FOUND)
+  find_package(GDAL REQUIRED)
+endif()
+
 # PCL: its config drags in VTK and fails on MPI; we use none of it (no pcl_io).
 set(CMAKE_DISABLE_FIND_PACKAGE_VTK ON)
 find_package(PCL 1.12 REQUIRED COMPONENTS common search kdtree filters segmentation sample_consensus)

@@ -11,6 +11,7 @@ build_pkgs=(
   libcgal-dev libeigen3-dev libpcl-dev libgeographiclib-dev
   libproj-dev proj-data proj-bin libtinygltf-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libmeshoptimizer-dev libomp-dev
+  libgdal-dev
 )
 test_pkgs=(chromium gdal-bin gnuplot-nox slurm-wlm munge)
 # Node.js/npm: use the machine's own if present (Debian's npm conflicts with a

@@ -62,6 +62,7 @@ struct Transformer::Impl {
   HeightMode effective = HeightMode::Ellipsoidal;
   double vertical_factor = 1.0;
   std::vector<std::string> warnings;
+  std::vector<std::string> missing_grids;  // of the vertical datum's PROJ path (FromCrs fallback)
 
   Impl(Crs c, TransformOptions o) : crs(std::move(c)), options(o) {
     warnings = crs.warnings();
@@ -135,7 +136,10 @@ struct Transformer::Impl {
         int available = 1;
         proj_coordoperation_get_grid_used(ctx.get(), best.get(), g, &name, nullptr, nullptr,
                                           nullptr, nullptr, nullptr, &available);
-        if (!available && name) grids += std::string(grids.empty() ? "" : ", ") + name;
+        if (!available && name) {
+          grids += std::string(grids.empty() ? "" : ", ") + name;
+          missing_grids.emplace_back(name);
+        }
       }
     }
     ctx.clear();
@@ -262,6 +266,10 @@ bool Transformer::uses_geographiclib_utm() const {
 HeightMode Transformer::effective_height_mode() const {
   return impl_->effective;
 }
+const std::vector<std::string>& Transformer::missing_grids() const {
+  return impl_->missing_grids;
+}
+
 const std::vector<std::string>& Transformer::warnings() const {
   return impl_->warnings;
 }

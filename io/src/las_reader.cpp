@@ -1,11 +1,12 @@
-// LAS 1.0-1.4 reader, point formats 0-10 (little endian). LAZ headers are
-// recognised and reported; their points are not decoded (no LASzip library in
-// Debian): read() throws an IoError that says how to convert the file.
+// LAS 1.0-1.4 reader, point formats 0-10 (little endian). LAZ (LASzip, COPC
+// included) is decoded by our own decoder (laz_decoder.hpp): same records,
+// same points as the uncompressed twin.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 
 #include "citylod/geo/wkt.hpp"
+#include "laz_decoder.hpp"
 #include "readers_internal.hpp"
 
 namespace citylod::io::detail {
@@ -48,7 +49,7 @@ const char* unit_name(int code, double* metres) {
   }
 }
 
-class LasReader final : public ReaderBase {
+class LasReader final : public LasRecordReader {
  public:
   explicit LasReader(const std::string& path) : in_(path) {
     info_.path = path;
@@ -61,12 +62,6 @@ class LasReader final : public ReaderBase {
 
   std::size_t read(PointSet& b, std::size_t max_points) override {
     b.clear();
-    if (info_.compressed)
-      in_.fail(
-          "the file is LASzip-compressed (LAZ), which citylod cannot decode; convert it to LAS "
-          "first, e.g. "
-          "'pdal translate in.laz out.las', 'las2las -i in.laz -o out.las' or 'laszip -i in.laz -o "
-          "out.las'");
     std::uint64_t left = info_.point_count - points_read_;
     std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(left, max_points));
     if (n == 0) return 0;
@@ -79,11 +74,18 @@ class LasReader final : public ReaderBase {
     while (i < n) {
       std::size_t k = std::min(chunk, n - i);
       buf_.resize(k * rl);
-      std::size_t got = in_.read_some(buf_.data(), buf_.size());
-      if (got < buf_.size()) truncated(points_read_ + i + got / rl);
+      fetch(buf_.data(), k, points_read_ + i);
       for (std::size_t r = 0; r < k; ++r) decode(buf_.data() + r * rl, b, i + r);
       i += k;
     }
+    points_read_ += n;
+    return n;
+  }
+
+  std::size_t read_records(unsigned char* dst, std::size_t max_records) override {
+    std::uint64_t left = info_.point_count - points_read_;
+    std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(left, max_records));
+    fetch(dst, n, points_read_);
     points_read_ += n;
     return n;
   }
@@ -109,6 +111,19 @@ class LasReader final : public ReaderBase {
             static_cast<std::uint8_t>(rgb16_ ? v >> 8 : std::min<std::uint16_t>(v, 255));
       }
     }
+  }
+
+  // The next k raw records (LAS layout); `first` is the index of the first.
+  void fetch(unsigned char* dst, std::size_t k, std::uint64_t first) {
+    const std::size_t rl = info_.las_record_length;
+    if (laz_) {
+      if (laz_->read(dst, k) < k)
+        in_.fail("LAZ point data ends after " + std::to_string(first) + " of " +
+                 std::to_string(info_.point_count) + " points");
+      return;
+    }
+    std::size_t got = in_.read_some(dst, k * rl);
+    if (got < k * rl) truncated(first + got / rl);
   }
 
   [[noreturn]] void truncated(std::uint64_t holds) {
@@ -208,6 +223,18 @@ class LasReader final : public ReaderBase {
       pos += 54 + len;
     }
 
+    // A LASzip-compressed file has the compression bits or the laszip VLR; a
+    // file merely named .laz without either is read as LAS.
+    if (info_.compressed && (pf_raw & 0xC0) == 0 && laz_vlr_.empty()) {
+      info_.compressed = false;
+      info_.format = Format::las;
+      info_.format_name = "LAS";
+    } else if (!laz_vlr_.empty() && !info_.compressed) {
+      info_.compressed = true;
+      info_.format = Format::laz;
+      info_.format_name = "LAZ";
+    }
+
     // Point data size against the file size, before anything is allocated.
     const std::uint64_t file = in_.size();
     std::uint64_t end = file;
@@ -239,7 +266,35 @@ class LasReader final : public ReaderBase {
     }
     finish_crs();
     in_.seek(point_offset);
+    if (info_.compressed) {
+      if (laz_vlr_.empty())
+        in_.fail("bad LAZ: the compressed file has no laszip VLR (\"laszip encoded\", 22204)");
+      laz_source_.path = info_.path;
+      laz_source_.vlr = laz_vlr_;
+      laz_source_.point_offset = point_offset;
+      laz_source_.data_end = end;
+      laz_source_.file_size = file;
+      laz_source_.point_count = count;
+      laz_source_.record_length = record_length;
+      laz_source_.point_format = pf;
+      if (rgb_offset_ > 0) {
+        LazStream first(laz_source_, 1);
+        detect_rgb_depth_laz(first);
+      }
+      laz_ = std::make_unique<LazStream>(laz_source_, default_laz_threads());
+    }
     if (!info_.compressed && rgb_offset_ > 0) detect_rgb_depth(point_offset);
+  }
+
+  void detect_rgb_depth_laz(LazStream& s) {
+    const std::size_t rl = info_.las_record_length;
+    std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(info_.point_count, 4096));
+    std::vector<unsigned char> tmp(n * rl);
+    std::size_t got = s.read(tmp.data(), n);
+    rgb16_ = false;
+    for (std::size_t r = 0; r < got; ++r)
+      for (int a = 0; a < 3; ++a)
+        if (le<std::uint16_t>(tmp.data() + r * rl + rgb_offset_ + 2 * a) > 255) rgb16_ = true;
   }
 
   // 8-bit colours stored unscaled in the 16-bit fields are common: look at
@@ -258,6 +313,12 @@ class LasReader final : public ReaderBase {
 
   void handle_vlr(const std::string& user, std::uint16_t id, std::uint64_t data,
                   std::uint64_t len) {
+    if (user == "laszip encoded" && id == 22204 && len > 0 && len < (1u << 16)) {
+      laz_vlr_.resize(static_cast<std::size_t>(len));
+      in_.seek(data);
+      in_.read_exact(laz_vlr_.data(), laz_vlr_.size(), "the laszip VLR");
+      return;
+    }
     if (user != "LASF_Projection" || len == 0 || len > (64u << 20)) return;
     std::vector<unsigned char> d(static_cast<std::size_t>(len));
     in_.seek(data);
@@ -313,6 +374,9 @@ class LasReader final : public ReaderBase {
   }
 
   InputFile in_;
+  std::vector<unsigned char> laz_vlr_;
+  LazSource laz_source_;
+  std::unique_ptr<LazStream> laz_;
   bool extended_ = false;
   std::size_t rgb_offset_ = 0;
   bool rgb16_ = true;
@@ -324,6 +388,10 @@ class LasReader final : public ReaderBase {
 }  // namespace
 
 std::unique_ptr<ReaderBase> open_las(const std::string& path) {
+  return std::make_unique<LasReader>(path);
+}
+
+std::unique_ptr<LasRecordReader> open_las_records(const std::string& path) {
   return std::make_unique<LasReader>(path);
 }
 

@@ -300,7 +300,6 @@ FileInfo read_header(const std::string& path) {
 FileInfo scan_file(const std::string& path, ProgressFn progress, void* user) {
   auto r = detail::open_reader(path);
   FileInfo info = r->info();
-  if (info.compressed) return info;  // header only: LAZ points cannot be decoded
   PointSet batch;
   BBox3 box;
   std::uint64_t counts[256] = {};

@@ -23,6 +23,16 @@ class ReaderBase : public PointReader {
   FileInfo& mutable_info() { return info_; }
 };
 
+/// LAS and LAZ: also hands out the raw point records.
+class LasRecordReader : public ReaderBase {
+ public:
+  /// Copies the next up to n point records, in LAS record layout
+  /// (info().las_record_length bytes each; LAZ decoded), into dst. Returns how
+  /// many; 0 at the end. Advances points_read() like read().
+  virtual std::size_t read_records(unsigned char* dst, std::size_t n) = 0;
+};
+std::unique_ptr<LasRecordReader> open_las_records(const std::string& path);
+
 std::unique_ptr<ReaderBase> open_ply(const std::string& path);
 std::unique_ptr<ReaderBase> open_off(const std::string& path);
 std::unique_ptr<ReaderBase> open_obj(const std::string& path);

@@ -420,9 +420,6 @@ void Splitter::pass1_headers() {
     in.abs = fs::absolute(p).lexically_normal().string();
     in.info = io::read_header(p);
     in.mesh = in.info.has_faces;
-    if (in.info.compressed)
-      throw IoError(p,
-                    "LAZ is not decoded; convert it first (e.g. 'pdal translate in.laz out.las')");
     if (in.info.point_count == 0) throw IoError(p, "no points (empty file)");
     inputs_.push_back(std::move(in));
   }

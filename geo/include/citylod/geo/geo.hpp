@@ -7,3 +7,4 @@
 #include "citylod/geo/transformer.hpp"
 #include "citylod/geo/types.hpp"
 #include "citylod/geo/units.hpp"
+#include "citylod/geo/vertical.hpp"

@@ -61,6 +61,9 @@ class Transformer {
   std::string description() const;
   /// Remarks such as the NAP -> EGM96 fallback. The library never prints them.
   const std::vector<std::string>& warnings() const;
+  /// PROJ grids the CRS's vertical datum needs that are not installed, when FromCrs fell back
+  /// to EGM96 (e.g. {"nl_nsgi_nlgeo2018.tif", ...}); empty otherwise.
+  const std::vector<std::string>& missing_grids() const;
 
   /// (x, y, z) in CRS units -> (lon deg, lat deg, ellipsoidal h m).
   LonLatH to_wgs84(const Eigen::Vector3d& crs_point);

@@ -5,9 +5,9 @@
 //   while (reader->read(batch, 1 << 20) > 0) { ... }             // bounded memory
 //
 // Formats: PLY (ascii, binary little/big endian), OBJ, OFF (NOFF/COFF), XYZ/PTS
-// text, LAS 1.0-1.4 (point formats 0-10). LAZ is recognised (header reported,
-// compressed = true) but not decoded: reading its points throws IoError
-// explaining how to convert it. The format is detected from the magic bytes,
+// text, LAS 1.0-1.4 (point formats 0-10), LAZ and COPC (our own LASzip decoder:
+// point formats 0-3 and 6-8 plus extra bytes; waveform packets are refused;
+// FileInfo::compressed = true). The format is detected from the magic bytes,
 // falling back to the extension. Every failure throws IoError("<file>: <reason>").
 #pragma once
 
