@@ -2,7 +2,9 @@
 # Idempotent installer of citylod's build and test dependencies (Debian 12 packages only).
 # Usage: scripts/install-deps.sh [--with-test-tools | --with-bench-tools]
 #   --with-test-tools  also installs what the test suite needs beyond the build
-#                      (nodejs/npm, chromium, gdal-bin, gnuplot, slurm-wlm, munge).
+#                      (nodejs/npm, chromium, gdal-bin, gnuplot, slurm-wlm, munge,
+#                      postgresql-15-postgis-3 for the PostGIS footprint test, which
+#                      runs when CITYLOD_TEST_PG names a server).
 #   --with-bench-tools also installs what scripts/bench.sh needs (gnuplot, gdal-bin for ogr2ogr).
 set -euo pipefail
 
@@ -13,7 +15,7 @@ build_pkgs=(
   libgtest-dev libgmock-dev libmeshoptimizer-dev libomp-dev
   libgdal-dev
 )
-test_pkgs=(chromium gdal-bin gnuplot-nox slurm-wlm munge)
+test_pkgs=(chromium gdal-bin gnuplot-nox slurm-wlm munge postgresql-15-postgis-3)
 # Node.js/npm: use the machine's own if present (Debian's npm conflicts with a
 # nodejs installed from elsewhere); otherwise Debian's.
 if ! command -v npm >/dev/null 2>&1; then test_pkgs+=(nodejs npm); fi

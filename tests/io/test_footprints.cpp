@@ -308,3 +308,31 @@ TEST(Footprints, ReaderVersion) {
   EXPECT_EQ(v.rfind("GDAL ", 0), 0u) << v;
   EXPECT_NE(v.find("GEOS"), std::string::npos) << v;
 }
+
+// With a PostgreSQL + PostGIS server: CITYLOD_TEST_PG="PG:host=... dbname=..." (e.g. a
+// throw-away cluster: initdb, pg_ctl start, CREATE EXTENSION postgis). The test loads the
+// GeoPackage into table citylod_test_bgt with ogr2ogr and reads it back.
+TEST(Footprints, PostgisSameAsGeoPackage) {
+  const char* pg = std::getenv("CITYLOD_TEST_PG");
+  if (!pg || !*pg) GTEST_SKIP() << "CITYLOD_TEST_PG not set (no PostGIS server to test against)";
+  CITYLOD_REQUIRE_SHARED(shared("delft/bgt_pand.gpkg"));
+  if (!have_ogr2ogr()) GTEST_SKIP() << "ogr2ogr (gdal-bin) not installed";
+  const std::string cmd = std::string("ogr2ogr -overwrite -nlt PROMOTE_TO_MULTI -nln citylod_test_bgt "
+                                      "-f PostgreSQL '") +
+                          pg + "' '" + shared("delft/bgt_pand.gpkg") + "' >/dev/null 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << "ogr2ogr into " << pg << " failed";
+  FootprintReadOptions o;
+  o.layer = "citylod_test_bgt";
+  o.id_attribute = "gml_id";
+  const FootprintLayer l = read_footprints(pg, o);
+  EXPECT_EQ(l.driver, "PostgreSQL");
+  EXPECT_EQ(l.crs_epsg, 28992);
+  EXPECT_EQ(l.source_features, 160u);
+  expect_same(gpkg(), l, 1e-9, "PostGIS");
+  // without a layer name: the database has several tables, or one
+  try {
+    read_footprints(pg);
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("citylod_test_bgt"), std::string::npos) << e.what();
+  }
+}
