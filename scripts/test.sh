@@ -33,8 +33,10 @@ ctest --test-dir build --output-on-failure -j"$jobs" --timeout 900
 
 if ((sanitize)); then
   echo "== ASan+UBSan build; unit, CLI (the citylod binary under the sanitizers) and real-data tests"
+  # Not -DCITYLOD_WERROR here: GCC 12 reports false -Wmaybe-uninitialized in libstdc++'s
+  # <regex> under -fsanitize (the Release build above enforces warnings as errors).
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCITYLOD_BUILD_TESTS=ON -DCITYLOD_SANITIZE=ON \
-    -DCITYLOD_WERROR=ON
+    -DCITYLOD_WERROR=OFF
   cmake --build build-asan -j"$jobs"
   ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 1800 -L '^(geo|io|lod|tiler|cli|lodreal)$'
