@@ -188,6 +188,8 @@ TEST(EvalCityCli, WorkDirectoryExactAnswers) {
   const auto& exact = a["models"][1];
   EXPECT_EQ(exact["closed"], true);
   EXPECT_EQ(exact["self_intersecting"], false);
+  EXPECT_EQ(exact["shells"], 1);
+  EXPECT_EQ(exact["valid"], true);
   EXPECT_NEAR(exact["volume"].get<double>(), 480.0, 1e-9);
   EXPECT_NEAR(exact["e2_percent"].get<double>(), 0.0, 1e-9);
   EXPECT_LT(exact["e1_percent"].get<double>(),
@@ -201,6 +203,9 @@ TEST(EvalCityCli, WorkDirectoryExactAnswers) {
   EXPECT_EQ(b["models"][1]["triangles"], 24);
   EXPECT_EQ(b["models"][1]["closed"], true);
   EXPECT_EQ(b["models"][1]["self_intersecting"], true);
+  EXPECT_EQ(b["models"][1]["shells"], 2);  // two boxes through each other
+  EXPECT_EQ(b["models"][1]["pinched_vertices"], 0);
+  EXPECT_EQ(b["models"][1]["valid"], false);
   EXPECT_NEAR(b["models"][1]["volume"].get<double>(), 480.0 + 8 * 6 * 7, 1e-9);
   EXPECT_NEAR(b["models"][1]["e2_percent"].get<double>(), 0.0, 1e-9);
 
@@ -289,8 +294,10 @@ TEST(EvalCityCli, TilesetExactAnswersWithAndWithoutReferences) {
     }
   }
   char row[128];
-  std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d\n", 1, 1, 3, 48, 3, 3,
-                1);  // the text table's row
+  // the text table's row: the self-intersecting mesh (two overlapping boxes)
+  // is also not one solid; the other two are valid solids
+  std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d %7d %9d %6d\n", 1, 1, 3, 48, 3, 3,
+                1, 0, 1, 2);
   EXPECT_NE(r0.out.find(row), std::string::npos) << r0.out;
 
   // With references: positions back in each chunk frame (tile transform ->
