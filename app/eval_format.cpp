@@ -26,7 +26,8 @@ std::string to_text(const std::vector<ModelFileEval>& models) {
         e.check.self_intersecting ? "self-intersecting" : "no self-intersections", e.volume, e.e1,
         e.e2, e.hausdorff);
     text += strf("  %d pinched vertices, %d shells, %d cavities: %s\n", e.check.pinched_vertices,
-                 e.check.shells, e.check.cavities, e.check.valid() ? "a valid solid" : "NOT a valid solid");
+                 e.check.shells, e.check.cavities,
+                 e.check.valid() ? "a valid solid" : "NOT a valid solid");
   }
   return text;
 }
@@ -112,17 +113,16 @@ std::string to_text(const WorkEval& w) {
       const WorkModelEval& m = b.models[i];
       const std::string kind = std::string(io::to_string(m.kind)) + (int(i) == b.finest ? "*" : "");
       if (m.empty) {
-        out +=
-            strf("%-*s %4d %-13s %3d %9d %-6s %-8s %-8s %7s %6s %12s %8s %8s %11s\n", int(idw),
-                 b.id.c_str(), m.step, kind.c_str(), m.level, 0, "-", "-", "-", "-", "-", "-", "-",
-                 "-", "-");
+        out += strf("%-*s %4d %-13s %3d %9d %-6s %-8s %-8s %7s %6s %12s %8s %8s %11s\n", int(idw),
+                    b.id.c_str(), m.step, kind.c_str(), m.level, 0, "-", "-", "-", "-", "-", "-",
+                    "-", "-", "-");
         continue;
       }
       out += strf("%-*s %4d %-13s %3d %9zu %-6s %-8s %-8s %7d %6d %12.3f %8.3f %8.3f %11.3f\n",
                   int(idw), b.id.c_str(), m.step, kind.c_str(), m.level, m.e.triangles,
                   yes_no(m.e.check.closed), yes_no(m.e.check.edge_manifold),
-                  yes_no(m.e.check.self_intersecting), m.e.check.pinched_vertices,
-                  m.e.check.shells, m.e.volume, m.e.e1, m.e.e2, m.e.hausdorff);
+                  yes_no(m.e.check.self_intersecting), m.e.check.pinched_vertices, m.e.check.shells,
+                  m.e.volume, m.e.e1, m.e.e2, m.e.hausdorff);
     }
   }
   out += "(* = finest model of the building: its last anchor)\n\n";

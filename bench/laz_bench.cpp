@@ -7,9 +7,9 @@
 // default decode threads). Files: delft/ahn3_cropped_2 (.las/.laz, point
 // format 1) and laz/lone-star.copc.laz (point format 6).
 #include <chrono>
-#include <ctime>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <sstream>
 #include <string>

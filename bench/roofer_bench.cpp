@@ -53,9 +53,9 @@ struct Building {
   std::string id;
   std::size_t points = 0;
   Measure finest, coarsest;
-  std::vector<Measure> ours;   // every candidate, coarse to fine
-  Measure rf[3];               // roofer LoD1.2, 1.3, 2.2
-  Measure budget[3];           // our best candidate within roofer's triangle count
+  std::vector<Measure> ours;  // every candidate, coarse to fine
+  Measure rf[3];              // roofer LoD1.2, 1.3, 2.2
+  Measure budget[3];          // our best candidate within roofer's triangle count
   double t_ours_ms = NAN, t_roofer_ms = NAN;
   int roof_planes = 0;
   std::string status;
@@ -124,9 +124,12 @@ double roof_rmse(const lod::TriangleMesh& m, const std::vector<lod::Vec3>& pts,
     for (const auto& t : tris) {
       if (q.x() < t.x0 || q.x() > t.x1 || q.y() < t.y0 || q.y() > t.y1) continue;
       // Barycentric in xy.
-      const double d = (t.b.y() - t.c.y()) * (t.a.x() - t.c.x()) + (t.c.x() - t.b.x()) * (t.a.y() - t.c.y());
-      const double l1 = ((t.b.y() - t.c.y()) * (q.x() - t.c.x()) + (t.c.x() - t.b.x()) * (q.y() - t.c.y())) / d;
-      const double l2 = ((t.c.y() - t.a.y()) * (q.x() - t.c.x()) + (t.a.x() - t.c.x()) * (q.y() - t.c.y())) / d;
+      const double d =
+          (t.b.y() - t.c.y()) * (t.a.x() - t.c.x()) + (t.c.x() - t.b.x()) * (t.a.y() - t.c.y());
+      const double l1 =
+          ((t.b.y() - t.c.y()) * (q.x() - t.c.x()) + (t.c.x() - t.b.x()) * (q.y() - t.c.y())) / d;
+      const double l2 =
+          ((t.c.y() - t.a.y()) * (q.x() - t.c.x()) + (t.a.x() - t.c.x()) * (q.y() - t.c.y())) / d;
       const double l3 = 1 - l1 - l2;
       const double eps = -1e-9;
       if (l1 < eps || l2 < eps || l3 < eps) continue;
@@ -141,11 +144,13 @@ double roof_rmse(const lod::TriangleMesh& m, const std::vector<lod::Vec3>& pts,
   return n ? std::sqrt(sum / double(n)) : NAN;
 }
 
-Measure measure(const lod::TriangleMesh& m, const lod::BuildingInput& ref, const std::vector<lod::Vec2>& outline) {
+Measure measure(const lod::TriangleMesh& m, const lod::BuildingInput& ref,
+                const std::vector<lod::Vec2>& outline) {
   Measure r;
   r.present = true;
   r.triangles = m.triangles.size();
-  const lod::ModelEvaluation ev = lod::evaluate_model(m, ref, int(std::max<std::size_t>(20000, ref.points.size())));
+  const lod::ModelEvaluation ev =
+      lod::evaluate_model(m, ref, int(std::max<std::size_t>(20000, ref.points.size())));
   r.rmse = ev.e2 * ev.diagonal / 100.0;
   r.roof = roof_rmse(m, ref.points, outline);
   r.valid = ev.check.valid();
@@ -176,7 +181,8 @@ geo::HeightMode height_mode_of(const tiler::SceneInfo& s) {
   return geo::HeightMode::FromCrs;
 }
 
-std::map<std::string, RooferBuilding> read_roofer(const std::string& path, const tiler::SceneInfo& scene,
+std::map<std::string, RooferBuilding> read_roofer(const std::string& path,
+                                                  const tiler::SceneInfo& scene,
                                                   int& skipped_holes) {
   std::ifstream f(path);
   if (!f) throw std::runtime_error(path + ": cannot open");
@@ -188,7 +194,8 @@ std::map<std::string, RooferBuilding> read_roofer(const std::string& path, const
   geo::TransformOptions to;
   to.height = height_mode_of(scene);
   geo::Georef g = geo::Georef::from_crs(
-      geo::Crs::parse(scene.crs), Eigen::Vector3d(scene.origin_crs[0], scene.origin_crs[1], scene.origin_crs[2]), to);
+      geo::Crs::parse(scene.crs),
+      Eigen::Vector3d(scene.origin_crs[0], scene.origin_crs[1], scene.origin_crs[2]), to);
   std::map<std::string, RooferBuilding> out;
   while (std::getline(f, line)) {
     if (line.empty()) continue;
@@ -207,14 +214,16 @@ std::map<std::string, RooferBuilding> read_roofer(const std::string& path, const
     for (const auto& [oid, obj] : feat.at("CityObjects").items()) {
       if (obj.contains("attributes")) {
         const auto& a = obj["attributes"];
-        if (a.contains("rf_t_run") && a["rf_t_run"].is_number()) b.t_run_ms = a["rf_t_run"].get<double>();
+        if (a.contains("rf_t_run") && a["rf_t_run"].is_number())
+          b.t_run_ms = a["rf_t_run"].get<double>();
         if (a.contains("rf_roof_planes") && a["rf_roof_planes"].is_number())
           b.roof_planes = a["rf_roof_planes"].get<int>();
       }
       if (!obj.contains("geometry")) continue;
       for (const auto& geom : obj["geometry"]) {
         if (geom.at("type") != "Solid") continue;
-        const std::string lod = geom.at("lod").is_string() ? geom["lod"].get<std::string>() : geom["lod"].dump();
+        const std::string lod =
+            geom.at("lod").is_string() ? geom["lod"].get<std::string>() : geom["lod"].dump();
         int k = -1;
         for (int i = 0; i < 3; ++i)
           if (lod == kLods[i]) k = i;
@@ -320,7 +329,8 @@ int main(int argc, char** argv) {
       const auto& models = rep->all_models();
       for (std::size_t i = 0; i < models.size(); ++i) {
         const auto& mr = models[i];
-        const std::string file = mr.file.empty() || mr.file[0] == '/' ? mr.file : dir + "/" + mr.file;
+        const std::string file =
+            mr.file.empty() || mr.file[0] == '/' ? mr.file : dir + "/" + mr.file;
         const lod::TriangleMesh m = to_lod(io::read_mesh(file));
         b.ours.push_back(measure(m, ref, outline));
         if (tiler::is_anchor(mr.kind)) finest = int(i);
@@ -332,16 +342,19 @@ int main(int argc, char** argv) {
       for (int k = 0; k < 3; ++k) {
         if (!b.rf[k].present) continue;
         for (const auto& m : b.ours)
-          if (m.triangles <= b.rf[k].triangles && (!b.budget[k].present || m.rmse < b.budget[k].rmse))
+          if (m.triangles <= b.rf[k].triangles &&
+              (!b.budget[k].present || m.rmse < b.budget[k].rmse))
             b.budget[k] = m;
       }
       rows.push_back(std::move(b));
     }
-    std::sort(rows.begin(), rows.end(), [](const Building& a, const Building& b) { return a.id < b.id; });
+    std::sort(rows.begin(), rows.end(),
+              [](const Building& a, const Building& b) { return a.id < b.id; });
 
-    std::printf("%-40s %6s %3s | %-27s| %-27s| %-27s| %-27s| %-27s| %7s %7s\n", "building (footprint id)", "points",
-                "rp", "citylod finest (tri rmse roof ok)", "citylod coarsest", "roofer LoD1.2", "roofer LoD1.3",
-                "roofer LoD2.2", "ms ours", "ms rf");
+    std::printf("%-40s %6s %3s | %-27s| %-27s| %-27s| %-27s| %-27s| %7s %7s\n",
+                "building (footprint id)", "points", "rp", "citylod finest (tri rmse roof ok)",
+                "citylod coarsest", "roofer LoD1.2", "roofer LoD1.3", "roofer LoD2.2", "ms ours",
+                "ms rf");
     for (const auto& b : rows) {
       std::printf("%-40.40s %6zu %3d |", b.id.c_str(), b.points, b.roof_planes);
       print_measure(b.finest);
@@ -372,7 +385,8 @@ int main(int argc, char** argv) {
         h.push_back(m.roof);
         t.push_back(double(m.triangles));
       }
-      std::printf("%-22s %10.3f %10.3f %10.0f %6d/%-5d\n", name, median(r), median(h), median(t), valid, n);
+      std::printf("%-22s %10.3f %10.3f %10.0f %6d/%-5d\n", name, median(r), median(h), median(t),
+                  valid, n);
     };
     summary("citylod finest", [](const Building& b) -> const Measure& { return b.finest; });
     summary("citylod coarsest", [](const Building& b) -> const Measure& { return b.coarsest; });
@@ -387,8 +401,8 @@ int main(int argc, char** argv) {
         pinched += m.pinched > 0;
         multi += m.shells != 1;
       }
-    std::printf("citylod, all models: %d/%d valid (%d with pinched vertices, %d not one shell)\n", all_valid,
-                all_models, pinched, multi);
+    std::printf("citylod, all models: %d/%d valid (%d with pinched vertices, %d not one shell)\n",
+                all_valid, all_models, pinched, multi);
     auto wins = [&](const char* what, auto ours, auto theirs) {
       int w = 0, n = 0;
       for (const auto& b : rows) {
@@ -401,14 +415,18 @@ int main(int argc, char** argv) {
       std::printf("  %-52s %3d of %d\n", what, w, n);
     };
     std::printf("wins (lower points->model RMSE):\n");
-    wins("finest vs roofer LoD2.2", [](const Building& b) -> const Measure& { return b.finest; },
-         [](const Building& b) -> const Measure& { return b.rf[2]; });
-    wins("coarsest vs roofer LoD1.2", [](const Building& b) -> const Measure& { return b.coarsest; },
-         [](const Building& b) -> const Measure& { return b.rf[0]; });
+    wins(
+        "finest vs roofer LoD2.2", [](const Building& b) -> const Measure& { return b.finest; },
+        [](const Building& b) -> const Measure& { return b.rf[2]; });
+    wins(
+        "coarsest vs roofer LoD1.2", [](const Building& b) -> const Measure& { return b.coarsest; },
+        [](const Building& b) -> const Measure& { return b.rf[0]; });
     for (int k = 0; k < 3; ++k) {
-      const std::string what = std::string("best candidate <= roofer LoD") + kLods[k] + "'s triangles";
-      wins(what.c_str(), [k](const Building& b) -> const Measure& { return b.budget[k]; },
-           [k](const Building& b) -> const Measure& { return b.rf[k]; });
+      const std::string what =
+          std::string("best candidate <= roofer LoD") + kLods[k] + "'s triangles";
+      wins(
+          what.c_str(), [k](const Building& b) -> const Measure& { return b.budget[k]; },
+          [k](const Building& b) -> const Measure& { return b.rf[k]; });
     }
     {
       int w = 0, n = 0;
@@ -422,24 +440,29 @@ int main(int argc, char** argv) {
     std::printf("LOD time per building, median: citylod %.1f ms, roofer %.1f ms\n",
                 median(col([](const Building& b) { return b.t_ours_ms; })),
                 median(col([](const Building& b) { return b.t_roofer_ms; })));
-    std::printf("ratios of medians: finest rmse / roofer LoD2.2 = %.3f, finest roof / roofer LoD2.2 = %.3f, "
-                "coarsest rmse / roofer LoD1.2 = %.3f\n",
-                median(col([](const Building& b) { return b.finest.rmse; })) /
-                    median(col([](const Building& b) { return b.rf[2].rmse; })),
-                median(col([](const Building& b) { return b.finest.roof; })) /
-                    median(col([](const Building& b) { return b.rf[2].roof; })),
-                median(col([](const Building& b) { return b.coarsest.rmse; })) /
-                    median(col([](const Building& b) { return b.rf[0].rmse; })));
+    std::printf(
+        "ratios of medians: finest rmse / roofer LoD2.2 = %.3f, finest roof / roofer LoD2.2 = "
+        "%.3f, "
+        "coarsest rmse / roofer LoD1.2 = %.3f\n",
+        median(col([](const Building& b) { return b.finest.rmse; })) /
+            median(col([](const Building& b) { return b.rf[2].rmse; })),
+        median(col([](const Building& b) { return b.finest.roof; })) /
+            median(col([](const Building& b) { return b.rf[2].roof; })),
+        median(col([](const Building& b) { return b.coarsest.rmse; })) /
+            median(col([](const Building& b) { return b.rf[0].rmse; })));
     if (!csv_path.empty()) {
       std::ofstream csv(csv_path);
-      csv << "id,points,finest_tri,finest_rmse,finest_roof,finest_valid,coarsest_tri,coarsest_rmse,coarsest_roof";
-      for (int k = 0; k < 3; ++k) csv << ",rf" << kLods[k] << "_tri,rf" << kLods[k] << "_rmse,rf" << kLods[k] << "_roof";
+      csv << "id,points,finest_tri,finest_rmse,finest_roof,finest_valid,coarsest_tri,coarsest_rmse,"
+             "coarsest_roof";
+      for (int k = 0; k < 3; ++k)
+        csv << ",rf" << kLods[k] << "_tri,rf" << kLods[k] << "_rmse,rf" << kLods[k] << "_roof";
       csv << ",ms_ours,ms_roofer\n";
       for (const auto& b : rows) {
-        csv << b.id << ',' << b.points << ',' << b.finest.triangles << ',' << b.finest.rmse << ',' << b.finest.roof
-            << ',' << b.finest.valid << ',' << b.coarsest.triangles << ',' << b.coarsest.rmse << ','
-            << b.coarsest.roof;
-        for (int k = 0; k < 3; ++k) csv << ',' << b.rf[k].triangles << ',' << b.rf[k].rmse << ',' << b.rf[k].roof;
+        csv << b.id << ',' << b.points << ',' << b.finest.triangles << ',' << b.finest.rmse << ','
+            << b.finest.roof << ',' << b.finest.valid << ',' << b.coarsest.triangles << ','
+            << b.coarsest.rmse << ',' << b.coarsest.roof;
+        for (int k = 0; k < 3; ++k)
+          csv << ',' << b.rf[k].triangles << ',' << b.rf[k].rmse << ',' << b.rf[k].roof;
         csv << ',' << b.t_ours_ms << ',' << b.t_roofer_ms << '\n';
       }
     }

@@ -67,11 +67,11 @@ VerticalChoice choose_vertical(const Crs& crs, VerticalMode mode) {
   if (mode == VerticalMode::Ellipsoidal) {
     c.options.height = HeightMode::Ellipsoidal;
     c.effective = HeightMode::Ellipsoidal;
-    c.assumption = "heights taken as ellipsoidal (--vertical ellipsoidal)" +
-                   std::string(crs.has_vertical_datum()
-                                   ? "; the vertical datum of " + label + " (" +
-                                         crs.vertical_name() + ") is ignored"
-                                   : "");
+    c.assumption =
+        "heights taken as ellipsoidal (--vertical ellipsoidal)" +
+        std::string(crs.has_vertical_datum() ? "; the vertical datum of " + label + " (" +
+                                                   crs.vertical_name() + ") is ignored"
+                                             : "");
     return c;
   }
 
@@ -111,8 +111,7 @@ VerticalChoice choose_vertical(const Crs& crs, VerticalMode mode) {
       c.effective = HeightMode::Ellipsoidal;
       c.missing_grids = t.missing_grids();
       c.assumption = "heights taken as ellipsoidal: " + label + " heights are often " + v->datum +
-                     ", but PROJ cannot convert " + v->datum + " here (" +
-                     join(t.missing_grids()) +
+                     ", but PROJ cannot convert " + v->datum + " here (" + join(t.missing_grids()) +
                      " not installed); --vertical orthometric for heights above the EGM96 geoid";
       return c;
     }

@@ -373,8 +373,8 @@ FootprintLayer read_footprints(const std::string& source, const FootprintReadOpt
       sid = std::to_string(fid);
     } else if (!f->IsFieldSetAndNotNull(id_field)) {
       sid = std::to_string(fid);
-      out.problems.push_back("feature " + std::to_string(fid) + ": attribute '" +
-                             opt.id_attribute + "' is NULL; its FID is the id");
+      out.problems.push_back("feature " + std::to_string(fid) + ": attribute '" + opt.id_attribute +
+                             "' is NULL; its FID is the id");
     } else {
       sid = f->GetFieldAsString(id_field);
     }

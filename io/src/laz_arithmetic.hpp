@@ -106,9 +106,9 @@ class SymbolModel {
   std::uint32_t total_count = 0;
   std::uint32_t update_cycle;
   std::uint32_t symbols_until_update;
-  std::uint32_t* distribution = nullptr;  // symbols + 1 entries (the last one unused)
-  std::uint32_t* symbol_count = nullptr;  // symbols entries
-  std::uint16_t* decoder_table = nullptr;  // table_size + 2 entries
+  std::uint32_t* distribution = nullptr;      // symbols + 1 entries (the last one unused)
+  std::uint32_t* symbol_count = nullptr;      // symbols entries
+  std::uint16_t* decoder_table = nullptr;     // table_size + 2 entries
   std::unique_ptr<std::uint32_t[]> storage_;  // one allocation for the three arrays
 };
 
@@ -232,7 +232,8 @@ class ArithmeticDecoder {
       const std::uint64_t w = (static_cast<std::uint64_t>(p_[0]) << 24) |
                               (static_cast<std::uint64_t>(p_[1]) << 16) |
                               (static_cast<std::uint64_t>(p_[2]) << 8) | p_[3];
-      value_ = static_cast<std::uint32_t>((static_cast<std::uint64_t>(value_) << s) | (w >> (32 - s)));
+      value_ =
+          static_cast<std::uint32_t>((static_cast<std::uint64_t>(value_) << s) | (w >> (32 - s)));
       length_ = static_cast<std::uint32_t>(static_cast<std::uint64_t>(length_) << s);
       p_ += nb;
     } else if (length_ < kMinLength) {

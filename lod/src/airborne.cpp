@@ -34,7 +34,8 @@ bool point_in_polygon(const Vec2& p, const std::vector<Vec2>& poly) {
 
 double distance_to_boundary(const Vec2& p, const std::vector<Vec2>& poly) {
   double d = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < poly.size(); ++i) d = std::min(d, seg_dist(p, poly[i], poly[(i + 1) % poly.size()]));
+  for (std::size_t i = 0; i < poly.size(); ++i)
+    d = std::min(d, seg_dist(p, poly[i], poly[(i + 1) % poly.size()]));
   return d;
 }
 
@@ -100,7 +101,8 @@ std::vector<std::array<int, 3>> ear_clip(const std::vector<Vec2>& poly) {
 
 }  // namespace
 
-HeightField::HeightField(const Samples& s, const std::vector<Vec2>& outline, double ground_z, const AirborneParams& p)
+HeightField::HeightField(const Samples& s, const std::vector<Vec2>& outline, double ground_z,
+                         const AirborneParams& p)
     : outline_(outline), ground_(ground_z), cell_(p.cell) {
   if (outline_.size() < 3) return;
   Vec2 lo = outline_.front(), hi = lo;
@@ -114,7 +116,8 @@ HeightField::HeightField(const Samples& s, const std::vector<Vec2>& outline, dou
   std::vector<std::vector<float>> bucket(size_t(nx_) * size_t(ny_));
   for (const auto& q : s.points) {
     if (q.z() < ground_ + 0.5) continue;  // ground or low clutter, not roof
-    const int ix = int(std::floor((q.x() - lo_.x()) / cell_)), iy = int(std::floor((q.y() - lo_.y()) / cell_));
+    const int ix = int(std::floor((q.x() - lo_.x()) / cell_)),
+              iy = int(std::floor((q.y() - lo_.y()) / cell_));
     if (ix < 0 || iy < 0 || ix >= nx_ || iy >= ny_) continue;
     bucket[size_t(iy) * size_t(nx_) + size_t(ix)].push_back(float(q.z()));
   }
@@ -161,14 +164,18 @@ HeightField::HeightField(const Samples& s, const std::vector<Vec2>& outline, dou
 
 double HeightField::at(const Vec2& p) const {
   if (z_.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const int ix = int(std::floor((p.x() - lo_.x()) / cell_)), iy = int(std::floor((p.y() - lo_.y()) / cell_));
+  const int ix = int(std::floor((p.x() - lo_.x()) / cell_)),
+            iy = int(std::floor((p.y() - lo_.y()) / cell_));
   if (ix < 0 || iy < 0 || ix >= nx_ || iy >= ny_) return std::numeric_limits<double>::quiet_NaN();
   return z_[size_t(iy) * size_t(nx_) + size_t(ix)];
 }
 
-bool HeightField::inside(const Vec2& p) const { return outline_.size() >= 3 && point_in_polygon(p, outline_); }
+bool HeightField::inside(const Vec2& p) const {
+  return outline_.size() >= 3 && point_in_polygon(p, outline_);
+}
 
-std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins, const HeightField& hf) {
+std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
+                                  const HeightField& hf) {
   std::vector<char> out(origins.size(), 0);
   for (std::size_t i = 0; i < origins.size(); ++i) {
     int in = 0;

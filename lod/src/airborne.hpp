@@ -24,7 +24,8 @@ class HeightField {
  public:
   /// Roof heights of `s` over the polygon `outline` (CCW, xy) with the cell
   /// size and gap filling of `p`. Heights below `ground_z` + 0.5 m are not roof.
-  HeightField(const Samples& s, const std::vector<Vec2>& outline, double ground_z, const AirborneParams& p);
+  HeightField(const Samples& s, const std::vector<Vec2>& outline, double ground_z,
+              const AirborneParams& p);
 
   /// Roof height at p; NaN outside the outline's grid or where no roof point
   /// is within the fill radius.
@@ -46,7 +47,8 @@ class HeightField {
 /// In/out per leaf from its ray origins: in when more than half of them lie
 /// inside the outline, above the ground and under the roof height.
 /// Returns one label per leaf (the same at every level).
-std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins, const HeightField& hf);
+std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
+                                  const HeightField& hf);
 
 /// The outline extruded from the ground to the height that minimises the
 /// RMSE of the samples to the block (a scan over the samples' roof height

@@ -4,9 +4,9 @@
 #include "bsp_impl.hpp"
 
 #include <CGAL/Exact_integer.h>
-#include <gmpxx.h>
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
+#include <gmpxx.h>
 
 #include <algorithm>
 #include <cmath>
@@ -71,11 +71,13 @@ int BspData::find_or_add_plane(const std::array<double, 4>& c, int* flip) {
   return int(dplanes.size()) - 1;
 }
 
-int BspData::add_vertex(const Point3& p, const std::array<int, 3>& def, std::vector<int> on_planes) {
+int BspData::add_vertex(const Point3& p, const std::array<int, 3>& def,
+                        std::vector<int> on_planes) {
   Vertex v;
   v.p = p;
   v.def = def;
-  v.approx = Vec3(CGAL::to_double(p.x()) + 0.0, CGAL::to_double(p.y()) + 0.0, CGAL::to_double(p.z()) + 0.0);  // no -0
+  v.approx = Vec3(CGAL::to_double(p.x()) + 0.0, CGAL::to_double(p.y()) + 0.0,
+                  CGAL::to_double(p.z()) + 0.0);  // no -0
   std::sort(on_planes.begin(), on_planes.end());
   on_planes.erase(std::unique(on_planes.begin(), on_planes.end()), on_planes.end());
   v.planes = std::move(on_planes);
@@ -207,14 +209,16 @@ bool BspData::exact_coords_of(const std::array<int, 3>& def, FT out[3]) const {
       q.canonicalize();
       out[k] = FT(q);
     } else {
-      out[k] = FT(ET(CGAL::Exact_integer(mpz_class(S.N[k]))) / ET(CGAL::Exact_integer(mpz_class(S.D))));
+      out[k] =
+          FT(ET(CGAL::Exact_integer(mpz_class(S.N[k]))) / ET(CGAL::Exact_integer(mpz_class(S.D))));
     }
   }
   return true;
 }
 
 void BspData::exact_coords(int vi, FT out[3]) const {
-  if (!exact_coords_of(verts[vi].def, out)) throw std::logic_error("Bsp: vertex planes are not independent");
+  if (!exact_coords_of(verts[vi].def, out))
+    throw std::logic_error("Bsp: vertex planes are not independent");
 }
 
 // ---------------------------------------------------------------------------
@@ -384,8 +388,9 @@ Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered,
   for (int l = 0; l < 2; ++l)
     for (int j = 0; j < 2; ++j)
       for (int i = 0; i < 2; ++i) {
-        const int id = I.add_vertex(Point3(i ? hi.x() : lo.x(), j ? hi.y() : lo.y(), l ? hi.z() : lo.z()),
-                                    {0 + i, 2 + j, 4 + l}, {0 + i, 2 + j, 4 + l});
+        const int id =
+            I.add_vertex(Point3(i ? hi.x() : lo.x(), j ? hi.y() : lo.y(), l ? hi.z() : lo.z()),
+                         {0 + i, 2 + j, 4 + l}, {0 + i, 2 + j, 4 + l});
         (void)id;
       }
   {
@@ -555,8 +560,12 @@ Bsp::~Bsp() = default;
 Bsp::Bsp(Bsp&&) noexcept = default;
 Bsp& Bsp::operator=(Bsp&&) noexcept = default;
 
-bool Bsp::cap_hit() const { return impl_->cap_hit; }
-const std::vector<BspNode>& Bsp::nodes() const { return impl_->nodes; }
+bool Bsp::cap_hit() const {
+  return impl_->cap_hit;
+}
+const std::vector<BspNode>& Bsp::nodes() const {
+  return impl_->nodes;
+}
 
 std::vector<int> Bsp::leaves() const {
   std::vector<int> out;
@@ -566,7 +575,8 @@ std::vector<int> Bsp::leaves() const {
 }
 
 std::vector<std::array<double, 4>> Bsp::planes() const {
-  return std::vector<std::array<double, 4>>(impl_->dplanes.begin(), impl_->dplanes.begin() + impl_->n_split_planes);
+  return std::vector<std::array<double, 4>>(impl_->dplanes.begin(),
+                                            impl_->dplanes.begin() + impl_->n_split_planes);
 }
 
 std::vector<Vec3> Bsp::cell_vertices(int node) const {
@@ -600,7 +610,9 @@ Poly2 clip_convex(const Poly2& subject, const Poly2& clip) {
     const auto& a = clip[i];
     const auto& b = clip[(i + 1) % clip.size()];
     const Eigen::Vector2d d = b - a;
-    auto side = [&](const Eigen::Vector2d& p) { return d.x() * (p.y() - a.y()) - d.y() * (p.x() - a.x()); };
+    auto side = [&](const Eigen::Vector2d& p) {
+      return d.x() * (p.y() - a.y()) - d.y() * (p.x() - a.x());
+    };
     Poly2 in = std::move(out);
     out.clear();
     for (size_t j = 0; j < in.size(); ++j) {
@@ -649,13 +661,15 @@ std::vector<BspInterface> Bsp::adjacency(const std::vector<int>& partition) cons
       if (area2(P) < 0) std::reverse(P.begin(), P.end());
       double lo2[2] = {1e300, 1e300}, hi2[2] = {-1e300, -1e300};
       for (const auto& p : P)
-        for (int t = 0; t < 2; ++t) lo2[t] = std::min(lo2[t], p[t]), hi2[t] = std::max(hi2[t], p[t]);
+        for (int t = 0; t < 2; ++t)
+          lo2[t] = std::min(lo2[t], p[t]), hi2[t] = std::max(hi2[t], p[t]);
       (refs[r].pos ? bb : ba).emplace_back(lo2, hi2, int(r));
     }
     if (ba.empty() || bb.empty()) continue;
     std::vector<std::pair<int, int>> pairs;
-    CGAL::box_intersection_d(ba.begin(), ba.end(), bb.begin(), bb.end(),
-                             [&](const Box& x, const Box& y) { pairs.emplace_back(x.info(), y.info()); });
+    CGAL::box_intersection_d(
+        ba.begin(), ba.end(), bb.begin(), bb.end(),
+        [&](const Box& x, const Box& y) { pairs.emplace_back(x.info(), y.info()); });
     for (const auto& [ra, rb] : pairs) {
       // ra: cell on the negative side (a); rb: cell on the positive side (b)
       Poly2 inter = clip_convex(p2[ra], p2[rb]);
@@ -685,7 +699,8 @@ std::vector<BspInterface> Bsp::adjacency(const std::vector<int>& partition) cons
   return out;
 }
 
-BspSurface Bsp::extract(const std::vector<int>& partition, std::vector<char> inside, ExtractCache* cache) const {
+BspSurface Bsp::extract(const std::vector<int>& partition, std::vector<char> inside,
+                        ExtractCache* cache) const {
   return extract_surface(*impl_, partition, std::move(inside), cache);
 }
 

@@ -19,28 +19,29 @@ constexpr int kBoxCut = -2;
 
 /// A convex polygon on its plane, used to split space.
 struct BspPolygon {
-  std::array<double, 4> plane;   ///< a,b,c,d with (a,b,c) unit: a x + b y + c z + d = 0
-  std::vector<Vec3> polygon;     ///< convex, vertices (nearly) on the plane, any orientation
-  int primitive = -1;            ///< caller's id, reported back in nodes
+  std::array<double, 4> plane;  ///< a,b,c,d with (a,b,c) unit: a x + b y + c z + d = 0
+  std::vector<Vec3> polygon;    ///< convex, vertices (nearly) on the plane, any orientation
+  int primitive = -1;           ///< caller's id, reported back in nodes
 };
 
 struct BspNode {
   int parent = -1;
-  std::array<int, 2> children{-1, -1};  ///< [0] negative side, [1] positive side of the split plane; -1 for leaves
-  int split_primitive = -1;      ///< caller id of the polygon that split this node (-1 for leaves)
-  int split_plane = -1;          ///< index into planes() of the split plane
+  std::array<int, 2> children{
+      -1, -1};  ///< [0] negative side, [1] positive side of the split plane; -1 for leaves
+  int split_primitive = -1;  ///< caller id of the polygon that split this node (-1 for leaves)
+  int split_plane = -1;      ///< index into planes() of the split plane
   int depth = 0;
-  double volume = 0.0;           ///< m^3
-  Vec3 center = Vec3::Zero();    ///< mean of the cell's vertices (inside the cell)
+  double volume = 0.0;         ///< m^3
+  Vec3 center = Vec3::Zero();  ///< mean of the cell's vertices (inside the cell)
   bool is_leaf() const { return children[0] < 0; }
 };
 
 /// Shared face between two nodes of a partition.
 struct BspInterface {
-  int a = -1, b = -1;            ///< node ids; a on the negative side of the plane, b on the positive side
-  int plane = -1;                ///< index into planes()
-  double area = 0.0;             ///< m^2
-  std::vector<Vec3> polygon;     ///< the shared convex polygon (double)
+  int a = -1, b = -1;  ///< node ids; a on the negative side of the plane, b on the positive side
+  int plane = -1;      ///< index into planes()
+  double area = 0.0;   ///< m^2
+  std::vector<Vec3> polygon;  ///< the shared convex polygon (double)
 };
 
 /// Plane regions of earlier extractions, reused when the faces of inside cells
@@ -59,12 +60,14 @@ class ExtractCache {
 
 /// Surface extracted from a labelled partition.
 struct BspSurface {
-  PolygonMesh polygons;          ///< coplanar faces merged; each face a hole-free CCW (from outside) loop
-  TriangleMesh triangles;        ///< watertight, outward, edge-manifold triangulation of the same surface
-  int merged_regions = 0;        ///< number of merged coplanar regions (polygons with holes count once)
-  int labels_flipped = 0;        ///< cells relabelled to remove non-manifold edges and pinched vertices
-  std::vector<char> inside;      ///< labels actually used (input labels after relabelling), per partition entry
-  std::vector<char> edge_repaired;  ///< per partition entry: turned in to remove a non-manifold edge
+  PolygonMesh polygons;    ///< coplanar faces merged; each face a hole-free CCW (from outside) loop
+  TriangleMesh triangles;  ///< watertight, outward, edge-manifold triangulation of the same surface
+  int merged_regions = 0;  ///< number of merged coplanar regions (polygons with holes count once)
+  int labels_flipped = 0;  ///< cells relabelled to remove non-manifold edges and pinched vertices
+  std::vector<char>
+      inside;  ///< labels actually used (input labels after relabelling), per partition entry
+  std::vector<char>
+      edge_repaired;  ///< per partition entry: turned in to remove a non-manifold edge
 };
 
 class Bsp {
@@ -83,10 +86,11 @@ class Bsp {
   Bsp& operator=(Bsp&&) noexcept;
 
   bool cap_hit() const;
-  const std::vector<BspNode>& nodes() const;     ///< nodes()[0] is the root (the box)
-  std::vector<int> leaves() const;               ///< leaf ids in increasing order
-  std::vector<std::array<double, 4>> planes() const;  ///< distinct split planes (box planes first: 6)
-  std::vector<Vec3> cell_vertices(int node) const;    ///< vertices of a node's polyhedron (double)
+  const std::vector<BspNode>& nodes() const;  ///< nodes()[0] is the root (the box)
+  std::vector<int> leaves() const;            ///< leaf ids in increasing order
+  std::vector<std::array<double, 4>> planes()
+      const;                                        ///< distinct split planes (box planes first: 6)
+  std::vector<Vec3> cell_vertices(int node) const;  ///< vertices of a node's polyhedron (double)
 
   /// Interfaces of positive area between the nodes of `partition` (a set of
   /// disjoint nodes covering the box, e.g. the leaves, or any cut of the tree).

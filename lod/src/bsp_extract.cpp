@@ -14,8 +14,8 @@
 // exact constrained Delaunay triangulation; each connected domain is one merged
 // region. Vertices are converted to double once. Non-manifold edges (and
 // then pinched vertices) are removed by relabelling the smallest adjacent
-// out-cell in and extracting again. Everything is exact (EPECK, lazy with shallow DAGs; the BSP vertices
-// enter as exact rationals computed with integer determinants).
+// out-cell in and extracting again. Everything is exact (EPECK, lazy with shallow DAGs; the BSP
+// vertices enter as exact rationals computed with integer determinants).
 #include "bsp_impl.hpp"
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
@@ -79,7 +79,8 @@ using Vb = CGAL::Triangulation_vertex_base_with_info_2<int, K>;
 using Fbb = CGAL::Triangulation_face_base_with_info_2<FaceInfo, K>;
 using Fb = CGAL::Constrained_triangulation_face_base_2<K, Fbb>;
 using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
-using CDT = CGAL::Constrained_Delaunay_triangulation_2<K, Tds, CGAL::No_constraint_intersection_requiring_constructions_tag>;
+using CDT = CGAL::Constrained_Delaunay_triangulation_2<
+    K, Tds, CGAL::No_constraint_intersection_requiring_constructions_tag>;
 
 struct Prof {
   const bool on = std::getenv("CITYLOD_BSP_PROF") != nullptr;
@@ -107,12 +108,11 @@ int dominant_axis(const std::array<double, 4>& c) {
 /// A face of an inside cell on plane pi, projected (drop axis k), CCW in 2D.
 struct F2 {
   std::vector<Point2> p;
-  std::vector<int> vid;               ///< BSP vertex ids
-  std::vector<int> ep;                ///< edge planes: ep[i] contains edge vid[i] -> vid[i+1]
-  std::vector<Eigen::Vector2d> ap;    ///< approximations
-  bool a = true;                      ///< outward normal +n (else -n)
+  std::vector<int> vid;             ///< BSP vertex ids
+  std::vector<int> ep;              ///< edge planes: ep[i] contains edge vid[i] -> vid[i+1]
+  std::vector<Eigen::Vector2d> ap;  ///< approximations
+  bool a = true;                    ///< outward normal +n (else -n)
 };
-
 
 /// Per-plane context: the table, the projection, and memoized crossing points.
 struct PlaneCtx {
@@ -136,7 +136,8 @@ struct PlaneCtx {
     EvPt e;
     e.def = {pl, E1, E2};
     FT c[3];
-    if (!I.exact_coords_of(e.def, c)) throw std::logic_error("Bsp::extract: crossing lines are parallel");
+    if (!I.exact_coords_of(e.def, c))
+      throw std::logic_error("Bsp::extract: crossing lines are parallel");
     e.p = Point2(c[u], c[w]);
     return cross.emplace(key, std::move(e)).first->second;
   }
@@ -243,7 +244,8 @@ struct Scratch {
 
 /// Boundary of R+ = A - B (out[0]) and R- = B - A (out[1]) along edge ei of face fi,
 /// as directed segments (region on the left in 2D) between local points.
-void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const std::vector<int>& cand, LocalPts& L,
+void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei,
+                   const std::vector<int>& cand, LocalPts& L,
                    std::vector<std::pair<int, int>> out[2], Scratch& S) {
   const F2& f = F[fi];
   const int n = int(f.p.size());
@@ -254,14 +256,19 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
   // points compared are on the edge's line, so one coordinate decides)
   // (exactly: an edge may be tiny, its approximate direction meaningless)
   const Eigen::Vector2d dap = f.ap[(ei + 1) % n] - f.ap[ei];
-  const bool dx0 = CGAL::compare_x(P.p, Q.p) == CGAL::EQUAL, dy0 = !dx0 && CGAL::compare_y(P.p, Q.p) == CGAL::EQUAL;
+  const bool dx0 = CGAL::compare_x(P.p, Q.p) == CGAL::EQUAL,
+             dy0 = !dx0 && CGAL::compare_y(P.p, Q.p) == CGAL::EQUAL;
   const bool byx = !dx0 && (dy0 || std::abs(dap.x()) >= std::abs(dap.y()));
-  const bool asc = byx ? CGAL::compare_x(P.p, Q.p) == CGAL::SMALLER : CGAL::compare_y(P.p, Q.p) == CGAL::SMALLER;
+  const bool asc =
+      byx ? CGAL::compare_x(P.p, Q.p) == CGAL::SMALLER : CGAL::compare_y(P.p, Q.p) == CGAL::SMALLER;
   auto cmp = [byx](const EvPt& x, const EvPt& y) {
-    if (x.vid >= 0 ? x.vid == y.vid : (y.vid < 0 && x.def == y.def)) return CGAL::EQUAL;  // same point
+    if (x.vid >= 0 ? x.vid == y.vid : (y.vid < 0 && x.def == y.def))
+      return CGAL::EQUAL;  // same point
     return byx ? CGAL::compare_x(x.p, y.p) : CGAL::compare_y(x.p, y.p);
   };
-  auto less = [&](const EvPt& x, const EvPt& y) { return cmp(x, y) == (asc ? CGAL::SMALLER : CGAL::LARGER); };
+  auto less = [&](const EvPt& x, const EvPt& y) {
+    return cmp(x, y) == (asc ? CGAL::SMALLER : CGAL::LARGER);
+  };
   auto same = [&](const EvPt& x, const EvPt& y) { return cmp(x, y) == CGAL::EQUAL; };
   auto& ivs = S.ivs;
   auto& o = S.o;
@@ -276,8 +283,9 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
     int zeros = 0;
     for (int j = 0; j < m; ++j) {
       const int gv = G.vid[j];
-      o[j] = (gv == P.vid || gv == Q.vid || C.known_on(EvPt{G.p[j], gv}, E)) ? 0
-                                                                          : int(CGAL::orientation(P.p, Q.p, G.p[j]));
+      o[j] = (gv == P.vid || gv == Q.vid || C.known_on(EvPt{G.p[j], gv}, E))
+                 ? 0
+                 : int(CGAL::orientation(P.p, Q.p, G.p[j]));
       pos |= o[j] > 0;
       neg |= o[j] < 0;
       zeros += o[j] == 0;
@@ -294,7 +302,8 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
           cr.push_back(C.crossing(E, G.ep[j]));
         }
       }
-      if (cr.size() != 2) throw std::logic_error("Bsp::extract: a convex face crosses a line in != 2 points");
+      if (cr.size() != 2)
+        throw std::logic_error("Bsp::extract: a convex face crosses a line in != 2 points");
       if (less(cr[1], cr[0])) std::swap(cr[0], cr[1]);
       s = cr[0];
       e = cr[1];
@@ -340,7 +349,9 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
   const int np = int(ev.size()) - 1;
   auto& fl = S.fl;
   fl.assign(np, f.a ? AL : BL);
-  auto index_of = [&](const EvPt& x) { return int(std::lower_bound(ev.begin(), ev.end(), x, less) - ev.begin()); };
+  auto index_of = [&](const EvPt& x) {
+    return int(std::lower_bound(ev.begin(), ev.end(), x, less) - ev.begin());
+  };
   for (const auto& iv : ivs) {
     const int is = index_of(iv.s), ie = index_of(iv.e);
     for (int j = is; j < ie; ++j) fl[j] |= iv.fl;
@@ -364,7 +375,8 @@ void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei, const 
 }
 
 /// Chain directed segments (region on the left) into loops of local point ids.
-std::vector<std::vector<int>> chain_loops(const std::vector<std::pair<int, int>>& segs, const LocalPts& L) {
+std::vector<std::vector<int>> chain_loops(const std::vector<std::pair<int, int>>& segs,
+                                          const LocalPts& L) {
   std::unordered_map<int, std::vector<int>> outs;
   for (int s = 0; s < int(segs.size()); ++s) outs[segs[s].first].push_back(s);
   std::vector<int> next(segs.size(), -1), used(segs.size(), 0);
@@ -388,7 +400,8 @@ std::vector<std::vector<int>> chain_loops(const std::vector<std::pair<int, int>>
       auto before = [&](int t1, int t2) {
         const int b1 = bucket(t1), b2 = bucket(t2);
         if (b1 != b2) return b1 < b2;
-        return CGAL::orientation(pv, L.pts[segs[t1].second].p, L.pts[segs[t2].second].p) == CGAL::RIGHT_TURN;
+        return CGAL::orientation(pv, L.pts[segs[t1].second].p, L.pts[segs[t2].second].p) ==
+               CGAL::RIGHT_TURN;
       };
       for (int t : cand)
         if (before(t, best)) best = t;
@@ -422,7 +435,8 @@ void remove_collinear(std::vector<int>& loop, const LocalPts& L, const PlaneCtx&
       const Point2& a = L.pts[loop[(i + n - 1) % n]].p;
       const Point2& b = L.pts[loop[i]].p;
       const Point2& c = L.pts[loop[(i + 1) % n]].p;
-      const bool col = C.common_line_plane(L.pts[loop[(i + n - 1) % n]], L.pts[loop[i]], L.pts[loop[(i + 1) % n]]) >= 0 ||
+      const bool col = C.common_line_plane(L.pts[loop[(i + n - 1) % n]], L.pts[loop[i]],
+                                           L.pts[loop[(i + 1) % n]]) >= 0 ||
                        CGAL::collinear(a, b, c);
       if (col && CGAL::collinear_are_strictly_ordered_along_line(a, b, c)) {
         loop.erase(loop.begin() + long(i));
@@ -469,10 +483,10 @@ void mark_domains(CDT& cdt) {
 /// Output of one plane side.
 struct Group {
   int plane = -1, side = 1, k = 2;
-  std::vector<std::vector<int>> loops;       ///< global ids, region on the left in 2D
-  std::unordered_map<int, Point2> p2;        ///< 2D points of the group's own vertices
-  std::vector<std::vector<int>> faces;       ///< output polygons (3D orientation)
-  std::vector<int> tris;                     ///< output triangles, flat (3D orientation)
+  std::vector<std::vector<int>> loops;  ///< global ids, region on the left in 2D
+  std::unordered_map<int, Point2> p2;   ///< 2D points of the group's own vertices
+  std::vector<std::vector<int>> faces;  ///< output polygons (3D orientation)
+  std::vector<int> tris;                ///< output triangles, flat (3D orientation)
   int regions = 0;
 };
 
@@ -483,7 +497,8 @@ struct Extracted {
 
 /// The inside nodes, with every pair of inside siblings replaced by their parent
 /// (recursively): same solid, fewer and larger faces.
-std::vector<int> collapse_inside(const BspData& I, const std::vector<int>& partition, const std::vector<char>& inside) {
+std::vector<int> collapse_inside(const BspData& I, const std::vector<int>& partition,
+                                 const std::vector<char>& inside) {
   std::vector<char> mark(I.nodes.size(), 0);
   std::deque<int> work;
   for (size_t i = 0; i < partition.size(); ++i)
@@ -512,7 +527,8 @@ std::vector<int> collapse_inside(const BspData& I, const std::vector<int>& parti
 
 /// Boundary loops of one plane's region, per side (0: outward +n, 1: -n), as
 /// exact plane points, collinear vertices dropped.
-std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int pl, const std::vector<F2>& F,
+std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int pl,
+                                                          const std::vector<F2>& F,
                                                           Scratch& scratch) {
   using Box2 = CGAL::Box_intersection_d::Box_with_info_d<double, 2, int>;
   const auto& dc = I.dplanes[pl];
@@ -544,8 +560,9 @@ std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int 
     fb.emplace_back(flo, fhi, fi);
   }
   std::vector<std::vector<int>> cand(erefs.size());
-  CGAL::box_intersection_d(eb.begin(), eb.end(), fb.begin(), fb.end(),
-                           [&](const Box2& e, const Box2& f) { cand[e.info()].push_back(f.info()); });
+  CGAL::box_intersection_d(
+      eb.begin(), eb.end(), fb.begin(), fb.end(),
+      [&](const Box2& e, const Box2& f) { cand[e.info()].push_back(f.info()); });
   LocalPts L;
   PlaneCtx C{I, pl, k, u, w, {}};
   std::vector<std::pair<int, int>> segs[2];
@@ -617,8 +634,10 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
   if (prof.on) {
     size_t nf = 0;
     for (const auto& bp : byplane) nf += bp.second.size();
-    std::fprintf(stderr, "  [bsp extract] %zu inside nodes (collapsed), %zu faces on %zu planes, %zu vertices\n", in_nodes.size(), nf,
-                 byplane.size(), exact.size());
+    std::fprintf(
+        stderr,
+        "  [bsp extract] %zu inside nodes (collapsed), %zu faces on %zu planes, %zu vertices\n",
+        in_nodes.size(), nf, byplane.size(), exact.size());
   }
   prof.lap("gather");
 
@@ -645,7 +664,8 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
       }
       std::vector<char> drop(faces0.size(), 0);
       for (const auto& [key, ids] : bykey)
-        if (ids.size() == 2 && faces0[ids[0]].a != faces0[ids[1]].a) drop[ids[0]] = drop[ids[1]] = 1;
+        if (ids.size() == 2 && faces0[ids[0]].a != faces0[ids[1]].a)
+          drop[ids[0]] = drop[ids[1]] = 1;
       for (int i = 0; i < int(faces0.size()); ++i)
         if (!drop[i]) F.push_back(std::move(faces0[i]));
     }
@@ -707,7 +727,8 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
     std::vector<Vec3> ap(nv);
     double scale = 1.0;
     for (size_t i = 0; i < nv; ++i) {
-      ap[i] = Vec3(CGAL::to_double(X.pts[i].x()), CGAL::to_double(X.pts[i].y()), CGAL::to_double(X.pts[i].z()));
+      ap[i] = Vec3(CGAL::to_double(X.pts[i].x()), CGAL::to_double(X.pts[i].y()),
+                   CGAL::to_double(X.pts[i].z()));
       scale = std::max(scale, ap[i].cwiseAbs().maxCoeff());
     }
     const double tol = 1e-7 * scale;
@@ -724,7 +745,8 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
           const Vec3& a = ap[L[i]];
           const Vec3& b = ap[L[(i + 1) % L.size()]];
           double lo3[3], hi3[3];
-          for (int t = 0; t < 3; ++t) lo3[t] = std::min(a[t], b[t]) - tol, hi3[t] = std::max(a[t], b[t]) + tol;
+          for (int t = 0; t < 3; ++t)
+            lo3[t] = std::min(a[t], b[t]) - tol, hi3[t] = std::max(a[t], b[t]) + tol;
           eboxes.emplace_back(lo3, hi3, int(erefs.size()));
           erefs.push_back({r, l, i});
         }
@@ -735,17 +757,20 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
       vboxes.emplace_back(lo3, hi3, int(v));
     }
     std::vector<std::pair<int, int>> cand;
-    CGAL::box_intersection_d(eboxes.begin(), eboxes.end(), vboxes.begin(), vboxes.end(),
-                             [&](const Box& e, const Box& v) { cand.emplace_back(e.info(), v.info()); });
+    CGAL::box_intersection_d(
+        eboxes.begin(), eboxes.end(), vboxes.begin(), vboxes.end(),
+        [&](const Box& e, const Box& v) { cand.emplace_back(e.info(), v.info()); });
     std::sort(cand.begin(), cand.end());
-    std::map<std::pair<int, int>, std::map<int, std::vector<int>>> inserts;  // (r,l) -> i -> vertices
+    std::map<std::pair<int, int>, std::map<int, std::vector<int>>>
+        inserts;  // (r,l) -> i -> vertices
     for (const auto& [ei, v] : cand) {
       const ERef& er = erefs[ei];
       const auto& L = X.groups[er.r].loops[er.l];
       const int a = L[er.i], b = L[(er.i + 1) % L.size()];
       if (v == a || v == b) continue;
       const Point3 &pa = X.pts[a], &pb = X.pts[b], &pv = X.pts[v];
-      if (CGAL::collinear(pa, pb, pv) && CGAL::collinear_are_strictly_ordered_along_line(pa, pv, pb))
+      if (CGAL::collinear(pa, pb, pv) &&
+          CGAL::collinear_are_strictly_ordered_along_line(pa, pv, pb))
         inserts[{er.r, er.l}][er.i].push_back(v);
     }
     for (auto& [rl, byedge] : inserts) {
@@ -780,7 +805,8 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
       vh.reserve(Lp.size());
       for (int id : Lp) {
         auto it = G.p2.find(id);
-        const Point2 q = it != G.p2.end() ? it->second : Point2(X.pts[id].cartesian(u), X.pts[id].cartesian(w));
+        const Point2 q =
+            it != G.p2.end() ? it->second : Point2(X.pts[id].cartesian(u), X.pts[id].cartesian(w));
         CDT::Vertex_handle h = cdt.insert(q);
         h->info() = id;
         vh.push_back(h);
@@ -809,7 +835,8 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
           if (cdt.is_constrained(CDT::Edge(fh, i))) {
             const int a = fh->vertex(CDT::ccw(i))->info(), b = fh->vertex(CDT::cw(i))->info();
             auto it = edge_loop.find((uint64_t(uint32_t(a)) << 32) | uint32_t(b));
-            if (it == edge_loop.end()) throw std::logic_error("Bsp::extract: constraint not on a loop");
+            if (it == edge_loop.end())
+              throw std::logic_error("Bsp::extract: constraint not on a loop");
             dloops.push_back(it->second);
             continue;
           }
@@ -839,12 +866,14 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
     };
     for (int d = 0; d < ndom; ++d) {
       const auto& dtris = dom_tris[d];
-      if (dom_loops[d].size() == 1 && loop_doms[dom_loops[d][0]] == 1 && simple(G.loops[dom_loops[d][0]])) {
+      if (dom_loops[d].size() == 1 && loop_doms[dom_loops[d][0]] == 1 &&
+          simple(G.loops[dom_loops[d][0]])) {
         std::vector<int> face = G.loops[dom_loops[d][0]];
         if (flip) std::reverse(face.begin(), face.end());
         G.faces.push_back(std::move(face));
       } else {
-        for (size_t i = 0; i < dtris.size(); i += 3) G.faces.push_back({dtris[i], dtris[i + 1], dtris[i + 2]});
+        for (size_t i = 0; i < dtris.size(); i += 3)
+          G.faces.push_back({dtris[i], dtris[i + 1], dtris[i + 2]});
       }
       G.tris.insert(G.tris.end(), dtris.begin(), dtris.end());
     }
@@ -883,7 +912,8 @@ std::vector<std::pair<int, int>> nonmanifold_edges(const Extracted& X) {
 std::vector<int> pinched_vertices(const Extracted& X) {
   std::vector<std::array<int, 3>> tris;
   for (const auto& G : X.groups)
-    for (size_t i = 0; i + 2 < G.tris.size(); i += 3) tris.push_back({G.tris[i], G.tris[i + 1], G.tris[i + 2]});
+    for (size_t i = 0; i + 2 < G.tris.size(); i += 3)
+      tris.push_back({G.tris[i], G.tris[i + 1], G.tris[i + 2]});
   std::vector<std::vector<int>> around(X.pts.size());
   for (size_t t = 0; t < tris.size(); ++t)
     for (int v : tris[t]) around[size_t(v)].push_back(int(t));
@@ -923,32 +953,36 @@ bool cell_contains(const BspData& I, const Cell& c, const Point3& p) {
 
 }  // namespace
 
-BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& partition, std::vector<char> inside,
-                                 ExtractCache* cache) {
+BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& partition,
+                                 std::vector<char> inside, ExtractCache* cache) {
   const auto& cells = D.cells;
   const auto& nodes = D.nodes;
   const auto& verts = D.verts;
-  if (inside.size() != partition.size()) throw std::invalid_argument("Bsp::extract: labels / partition size mismatch");
+  if (inside.size() != partition.size())
+    throw std::invalid_argument("Bsp::extract: labels / partition size mismatch");
   for (int n : partition)
     if (n < 0 || n >= int(cells.size())) throw std::out_of_range("Bsp::extract: node id");
   BspSurface S;
   Extracted X;
   std::vector<std::pair<Vec3, Vec3>> bbox;  // lazily filled
   const int max_rounds = 64;
-  std::vector<char> locked(partition.size(), 0);  // flipped by the pinch repair once: not chosen again
+  std::vector<char> locked(partition.size(),
+                           0);  // flipped by the pinch repair once: not chosen again
   S.edge_repaired.assign(partition.size(), 0);
   for (int round = 0;; ++round) {
     X = extract_once(D, collapse_inside(D, partition, inside), cache);
     const auto bad = nonmanifold_edges(X);
     // Pinched vertices are repaired in the first half of the rounds only, so
     // the last rounds always end the edge repair (which never fails).
-    const auto pinched = bad.empty() && round < max_rounds / 2 ? pinched_vertices(X) : std::vector<int>{};
+    const auto pinched =
+        bad.empty() && round < max_rounds / 2 ? pinched_vertices(X) : std::vector<int>{};
     if ((bad.empty() && pinched.empty()) || round >= max_rounds) break;
     if (bbox.empty()) {
       bbox.resize(partition.size());
       for (size_t i = 0; i < partition.size(); ++i) {
         Vec3 lo3 = Vec3::Constant(1e300), hi3 = Vec3::Constant(-1e300);
-        for (int v : D.cell_vertex_ids(cells[partition[i]])) lo3 = lo3.cwiseMin(verts[v].approx), hi3 = hi3.cwiseMax(verts[v].approx);
+        for (int v : D.cell_vertex_ids(cells[partition[i]]))
+          lo3 = lo3.cwiseMin(verts[v].approx), hi3 = hi3.cwiseMax(verts[v].approx);
         bbox[i] = {lo3, hi3};
       }
     }
@@ -962,11 +996,13 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
       const Vec3 qa(CGAL::to_double(pa.x()), CGAL::to_double(pa.y()), CGAL::to_double(pa.z()));
       const Vec3 qb(CGAL::to_double(pb.x()), CGAL::to_double(pb.y()), CGAL::to_double(pb.z()));
       const Vec3 elo = qa.cwiseMin(qb), ehi = qa.cwiseMax(qb);
-      const double tol = 1e-6 * (1.0 + std::max(elo.cwiseAbs().maxCoeff(), ehi.cwiseAbs().maxCoeff()));
+      const double tol =
+          1e-6 * (1.0 + std::max(elo.cwiseAbs().maxCoeff(), ehi.cwiseAbs().maxCoeff()));
       int best = -1;
       for (size_t i = 0; i < partition.size(); ++i) {
         if (inside[i]) continue;
-        if ((bbox[i].first.array() > ehi.array() + tol).any() || (bbox[i].second.array() < elo.array() - tol).any())
+        if ((bbox[i].first.array() > ehi.array() + tol).any() ||
+            (bbox[i].second.array() < elo.array() - tol).any())
           continue;
         const Cell& c = cells[partition[i]];
         if (!cell_contains(D, c, mid)) continue;
@@ -988,7 +1024,8 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
       int best = -1;
       for (size_t i = 0; i < partition.size(); ++i) {
         if (locked[i]) continue;
-        if ((bbox[i].first.array() > q.array() + tol).any() || (bbox[i].second.array() < q.array() - tol).any())
+        if ((bbox[i].first.array() > q.array() + tol).any() ||
+            (bbox[i].second.array() < q.array() - tol).any())
           continue;
         if (!cell_contains(D, cells[partition[i]], p)) continue;
         if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
@@ -1015,11 +1052,13 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
   S.polygons.vertices.resize(X.pts.size());
   for (size_t i = 0; i < X.pts.size(); ++i)
     S.polygons.vertices[i] =
-        Vec3(CGAL::to_double(X.pts[i].x()) + 0.0, CGAL::to_double(X.pts[i].y()) + 0.0, CGAL::to_double(X.pts[i].z()) + 0.0);
+        Vec3(CGAL::to_double(X.pts[i].x()) + 0.0, CGAL::to_double(X.pts[i].y()) + 0.0,
+             CGAL::to_double(X.pts[i].z()) + 0.0);
   S.triangles.vertices = S.polygons.vertices;
   for (const Group& G : X.groups) {
     S.merged_regions += G.regions;
-    for (size_t i = 0; i + 2 < G.tris.size(); i += 3) S.triangles.triangles.push_back({G.tris[i], G.tris[i + 1], G.tris[i + 2]});
+    for (size_t i = 0; i + 2 < G.tris.size(); i += 3)
+      S.triangles.triangles.push_back({G.tris[i], G.tris[i + 1], G.tris[i + 2]});
     for (const auto& f : G.faces) S.polygons.faces.push_back(f);
   }
   return S;

@@ -31,10 +31,10 @@ using Point3 = K::Point_3;
 using Plane3 = K::Plane_3;
 
 struct Vertex {
-  Point3 p;                                      ///< lazy intersection of the 3 defining planes
-  std::array<int, 3> def{-1, -1, -1};            ///< the defining planes
+  Point3 p;                            ///< lazy intersection of the 3 defining planes
+  std::array<int, 3> def{-1, -1, -1};  ///< the defining planes
   Vec3 approx = Vec3::Zero();
-  std::vector<int> planes;                       ///< table planes the vertex lies on (exactly)
+  std::vector<int> planes;                         ///< table planes the vertex lies on (exactly)
   std::vector<std::pair<int, signed char>> signs;  ///< cached non-zero signs
 };
 
@@ -66,7 +66,8 @@ struct CutKey {
 };
 struct CutKeyHash {
   size_t operator()(const CutKey& k) const {
-    uint64_t h = (uint64_t(uint32_t(k.a)) * 0x9E3779B97F4A7C15ULL) ^ (uint64_t(uint32_t(k.b)) * 0xC2B2AE3D27D4EB4FULL) ^
+    uint64_t h = (uint64_t(uint32_t(k.a)) * 0x9E3779B97F4A7C15ULL) ^
+                 (uint64_t(uint32_t(k.b)) * 0xC2B2AE3D27D4EB4FULL) ^
                  (uint64_t(uint32_t(k.p)) * 0x165667B19E3779F9ULL);
     return size_t(h ^ (h >> 29));
   }
@@ -75,14 +76,14 @@ struct CutKeyHash {
 /// All state of a Bsp (Bsp::Impl derives from it; helpers take it by reference).
 struct BspData {
   Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
-  std::vector<Plane3> planes;               ///< exact table
-  std::vector<std::array<double, 4>> dplanes;     ///< their (unit) double coefficients
-  int n_split_planes = 6;                         ///< planes() = dplanes[0, n_split_planes)
+  std::vector<Plane3> planes;                  ///< exact table
+  std::vector<std::array<double, 4>> dplanes;  ///< their (unit) double coefficients
+  int n_split_planes = 6;                      ///< planes() = dplanes[0, n_split_planes)
   std::vector<Vertex> verts;
   std::unordered_map<CutKey, int, CutKeyHash> cut_memo;     ///< (edge endpoints, plane) -> vertex
   std::unordered_map<CutKey, int, CutKeyHash> triple_memo;  ///< sorted plane triple -> vertex
   std::vector<BspNode> nodes;
-  std::vector<Cell> cells;                        ///< one polyhedron per node
+  std::vector<Cell> cells;  ///< one polyhedron per node
   bool cap_hit = false;
 
   // --- construction helpers (bsp.cpp) ---
@@ -110,12 +111,11 @@ struct BspData {
   int classify_cell(const Cell& c, int P);
   void fill_node_geometry(BspNode& n, const Cell& c) const;
   std::vector<int> cell_vertex_ids(const Cell& c) const;
-
 };
 
 /// Surface extraction (bsp_extract.cpp).
-BspSurface extract_surface(const BspData& D, const std::vector<int>& partition, std::vector<char> inside,
-                           ExtractCache* cache);
+BspSurface extract_surface(const BspData& D, const std::vector<int>& partition,
+                           std::vector<char> inside, ExtractCache* cache);
 
 }  // namespace citylod::lod::detail::bspi
 

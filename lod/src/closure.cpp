@@ -61,8 +61,8 @@ std::vector<Vec2> alpha_outline(const std::vector<Vec2>& xy, double alpha) {
   for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
     vpos[v->info()] = Vec2(v->point().x(), v->point().y());
   auto interior = [&](Dt::Face_handle f) {
-    return !dt.is_infinite(f) &&
-           CGAL::squared_radius(f->vertex(0)->point(), f->vertex(1)->point(), f->vertex(2)->point()) <= a2;
+    return !dt.is_infinite(f) && CGAL::squared_radius(f->vertex(0)->point(), f->vertex(1)->point(),
+                                                      f->vertex(2)->point()) <= a2;
   };
   // Boundary half-edges of the interior region, interior on the left.
   std::multimap<int, int> next;  // from -> to
@@ -93,18 +93,25 @@ std::vector<Vec2> alpha_outline(const std::vector<Vec2>& xy, double alpha) {
     std::vector<Vec2> poly;
     for (int v : loop) poly.push_back(vpos[v]);
     const double a = signed_area(poly);
-    if (a > best_area) { best_area = a; best = std::move(poly); }
+    if (a > best_area) {
+      best_area = a;
+      best = std::move(poly);
+    }
   }
   return best;
 }
 
-void dp_rec(const std::vector<Vec2>& p, std::size_t i, std::size_t j, double tol, std::vector<char>& keep) {
+void dp_rec(const std::vector<Vec2>& p, std::size_t i, std::size_t j, double tol,
+            std::vector<char>& keep) {
   if (j <= i + 1) return;
   double dmax = -1;
   std::size_t k = i;
   for (std::size_t m = i + 1; m < j; ++m) {
     const double d = seg_dist(p[m], p[i], p[j]);
-    if (d > dmax) { dmax = d; k = m; }
+    if (d > dmax) {
+      dmax = d;
+      k = m;
+    }
   }
   if (dmax > tol) {
     keep[k] = 1;
@@ -122,7 +129,10 @@ std::vector<Vec2> simplify_closed(std::vector<Vec2> poly, double tol, double ang
   double dmax = -1;
   for (std::size_t i = 1; i < n; ++i) {
     const double d = (poly[i] - poly[0]).squaredNorm();
-    if (d > dmax) { dmax = d; far = i; }
+    if (d > dmax) {
+      dmax = d;
+      far = i;
+    }
   }
   std::vector<Vec2> ext(poly);
   ext.push_back(poly[0]);
@@ -161,7 +171,8 @@ bool point_in_poly(const Vec2& p, const std::vector<Vec2>& poly) {
   for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
     const Vec2& a = poly[i];
     const Vec2& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
+    if ((a.y() > p.y()) != (b.y() > p.y()) &&
+        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
       in = !in;
   }
   return in;
@@ -210,7 +221,8 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     prim_area += pr.alpha_area;
     if (std::abs(pr.normal.z()) < 0.3) vertical_area += pr.alpha_area;
   }
-  const bool walls_unscanned = wall_w / total_w < p.wall_fraction_min || vertical_area < 0.1 * prim_area;
+  const bool walls_unscanned =
+      wall_w / total_w < p.wall_fraction_min || vertical_area < 0.1 * prim_area;
   const bool walls_missing = walls_unscanned || (p.footprint_walls && in.footprint.size() >= 3);
   // An open bottom (facade scans, meshes standing on a terrain sheet) lets the
   // ray labelling leak as much as missing walls do: close it with a base plane
@@ -232,8 +244,8 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
   const double edge_tol = 0.25;  // m: the crop edge is the bounding box
   auto reaches_edge = [&](const Primitive& pr) {
     for (const auto& h : pr.hull)
-      if (h.x() < xy_lo.x() + edge_tol || h.x() > xy_hi.x() - edge_tol || h.y() < xy_lo.y() + edge_tol ||
-          h.y() > xy_hi.y() - edge_tol)
+      if (h.x() < xy_lo.x() + edge_tol || h.x() > xy_hi.x() - edge_tol ||
+          h.y() < xy_lo.y() + edge_tol || h.y() > xy_hi.y() - edge_tol)
         return true;
     return false;
   };
@@ -264,11 +276,13 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     std::vector<Vec2> xy;
     for (std::size_t i = 0; i < s.points.size(); ++i) {
       const Vec3& q = s.points[i];
-      if (on_low_up[i] || tn.dot(q) + terrain->d < 1.0) continue;  // terrain, or within 1 m above it
+      if (on_low_up[i] || tn.dot(q) + terrain->d < 1.0)
+        continue;  // terrain, or within 1 m above it
       xy.emplace_back(q.x(), q.y());
     }
     if (xy.size() >= 3) building_outline = alpha_outline(xy, p.outline_alpha);
-    if (building_outline.size() >= 3) building_outline = simplify_closed(building_outline, 0.4, 10.0);
+    if (building_outline.size() >= 3)
+      building_outline = simplify_closed(building_outline, 0.4, 10.0);
     // Terrain lies around the building: most of its samples outside the
     // building's outline. A building's own floor with upward (mis-estimated)
     // normals reaches the scene's edge too, but lies under the building.
@@ -278,7 +292,8 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
       for (int i : pr.inliers) {
         ++total;
         outside += building_outline.size() < 3 ||
-                   !point_in_poly(Vec2(s.points[size_t(i)].x(), s.points[size_t(i)].y()), building_outline);
+                   !point_in_poly(Vec2(s.points[size_t(i)].x(), s.points[size_t(i)].y()),
+                                  building_outline);
       }
     }
     on_terrain = 2 * outside > total;
@@ -336,7 +351,8 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     std::vector<P2> pts, hull;
     for (const auto& q : outline) pts.emplace_back(q.x(), q.y());
     CGAL::convex_hull_2(pts.begin(), pts.end(), std::back_inserter(hull));
-    for (auto it = hull.rbegin(); it != hull.rend(); ++it) g.hull.emplace_back(it->x(), it->y(), gz);
+    for (auto it = hull.rbegin(); it != hull.rend(); ++it)
+      g.hull.emplace_back(it->x(), it->y(), gz);
     double ha = 0;
     for (std::size_t i = 0; i < hull.size(); ++i) {
       const P2& a = hull[i];
@@ -345,8 +361,10 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     }
     g.hull_area = 0.5 * ha;
     for (const auto& t : triangulate(outline)) {
-      g.alpha_tris.push_back({Vec3(t[0].x(), t[0].y(), gz), Vec3(t[2].x(), t[2].y(), gz), Vec3(t[1].x(), t[1].y(), gz)});
-      g.alpha_area += 0.5 * std::abs((t[1] - t[0]).x() * (t[2] - t[0]).y() - (t[2] - t[0]).x() * (t[1] - t[0]).y());
+      g.alpha_tris.push_back({Vec3(t[0].x(), t[0].y(), gz), Vec3(t[2].x(), t[2].y(), gz),
+                              Vec3(t[1].x(), t[1].y(), gz)});
+      g.alpha_area += 0.5 * std::abs((t[1] - t[0]).x() * (t[2] - t[0]).y() -
+                                     (t[2] - t[0]).x() * (t[1] - t[0]).y());
     }
     Vec2 c = Vec2::Zero();
     for (const auto& q : outline) c += q;
@@ -373,7 +391,8 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     double top = -std::numeric_limits<double>::infinity();
     for (std::size_t k = 0; k < s.points.size(); ++k) {
       const Vec3& q = s.points[k];
-      if ((!plinth || on_low_up[k]) && seg_dist(Vec2(q.x(), q.y()), a, b) <= 1.0) top = std::max(top, q.z());
+      if ((!plinth || on_low_up[k]) && seg_dist(Vec2(q.x(), q.y()), a, b) <= 1.0)
+        top = std::max(top, q.z());
     }
     if (!std::isfinite(top)) top = plinth ? zmin : zmax;
     top = std::max(top, gz + (plinth ? p.plinth_depth : 1.0));
@@ -382,9 +401,10 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     w.normal = Vec3(e.y() / len, -e.x() / len, 0.0);
     w.d = -(w.normal.x() * a.x() + w.normal.y() * a.y());
     w.u = Vec3::UnitZ().cross(w.normal).normalized();  // = edge direction
-    w.v = w.normal.cross(w.u);                          // = +z
+    w.v = w.normal.cross(w.u);                         // = +z
     // CCW about the outward normal: a, b at the bottom, then b, a at the top.
-    const Vec3 A0(a.x(), a.y(), gz), B0(b.x(), b.y(), gz), A1(a.x(), a.y(), top), B1(b.x(), b.y(), top);
+    const Vec3 A0(a.x(), a.y(), gz), B0(b.x(), b.y(), gz), A1(a.x(), a.y(), top),
+        B1(b.x(), b.y(), top);
     w.hull = {A0, B0, B1, A1};
     w.alpha_tris = {{A0, B0, B1}, {A0, B1, A1}};
     w.hull_area = w.alpha_area = len * (top - gz);
@@ -412,7 +432,9 @@ int infer_step_walls(const Samples& s, const HeightField& hf, const AirbornePara
   std::vector<Primitive> walls;
   for (const auto& pr : prims) {
     if (pr.inferred || pr.normal.z() < 0.3 || pr.inliers.size() < 20) continue;
-    auto plane_z = [&](const Vec2& q) { return -(pr.normal.x() * q.x() + pr.normal.y() * q.y() + pr.d) / pr.normal.z(); };
+    auto plane_z = [&](const Vec2& q) {
+      return -(pr.normal.x() * q.x() + pr.normal.y() * q.y() + pr.d) / pr.normal.z();
+    };
     std::vector<Vec2> xy;
     xy.reserve(pr.inliers.size());
     for (int i : pr.inliers) xy.emplace_back(s.points[size_t(i)].x(), s.points[size_t(i)].y());
@@ -467,7 +489,8 @@ int infer_step_walls(const Samples& s, const HeightField& hf, const AirbornePara
       w.d = -(w.normal.x() * a.x() + w.normal.y() * a.y());
       w.u = Vec3::UnitZ().cross(w.normal).normalized();
       w.v = w.normal.cross(w.u);
-      const Vec3 A0(a.x(), a.y(), gz), B0(b.x(), b.y(), gz), A1(a.x(), a.y(), top), B1(b.x(), b.y(), top);
+      const Vec3 A0(a.x(), a.y(), gz), B0(b.x(), b.y(), gz), A1(a.x(), a.y(), top),
+          B1(b.x(), b.y(), top);
       w.hull = {A0, B0, B1, A1};
       w.alpha_tris = {{A0, B0, B1}, {A0, B1, A1}};
       w.hull_area = w.alpha_area = (b - a).norm() * (top - gz);

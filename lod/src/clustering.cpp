@@ -26,7 +26,10 @@ std::vector<int> mean_shift_1d(const std::vector<double>& values, double bandwid
     double x = values[i];
     for (int it = 0; it < 300; ++it) {
       const double m = window_mean(x);
-      if (std::abs(m - x) < 1e-9 * std::max(1.0, std::abs(x))) { x = m; break; }
+      if (std::abs(m - x) < 1e-9 * std::max(1.0, std::abs(x))) {
+        x = m;
+        break;
+      }
       x = m;
     }
     mode[i] = x;
@@ -34,7 +37,8 @@ std::vector<int> mean_shift_1d(const std::vector<double>& values, double bandwid
   // Merge modes closer than the bandwidth (as scikit-learn does), in increasing order.
   std::vector<size_t> order(n);
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return mode[a] < mode[b]; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return mode[a] < mode[b]; });
   int current = -1;
   double anchor = 0.0;
   for (size_t idx : order) {

@@ -7,7 +7,8 @@
 
 namespace citylod::lod {
 
-ModelEvaluation evaluate_model(const TriangleMesh& model, const BuildingInput& reference, int samples) {
+ModelEvaluation evaluate_model(const TriangleMesh& model, const BuildingInput& reference,
+                               int samples) {
   if (reference.points.empty()) throw LodError("eval", "empty reference");
   ModelEvaluation ev;
   ev.check = check_mesh(model);
@@ -27,7 +28,8 @@ ModelEvaluation evaluate_model(const TriangleMesh& model, const BuildingInput& r
   }
   ev.diagonal = (hi - lo).norm();
   const detail::Fidelity f =
-      detail::FidelityMeter(reference, s, std::max(1e-9, ev.diagonal), std::max(1, samples)).measure(model);
+      detail::FidelityMeter(reference, s, std::max(1e-9, ev.diagonal), std::max(1, samples))
+          .measure(model);
   ev.e1 = f.e1;
   ev.e2 = f.e2;
   ev.hausdorff = f.hausdorff;

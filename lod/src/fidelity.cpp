@@ -24,7 +24,9 @@ using TriVec = std::vector<Tri>;
 using Prim = CGAL::AABB_triangle_primitive<K, TriVec::const_iterator>;
 using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Prim>>;
 
-inline P3 toP(const Vec3& v) { return P3(v.x(), v.y(), v.z()); }
+inline P3 toP(const Vec3& v) {
+  return P3(v.x(), v.y(), v.z());
+}
 
 TriVec triangles_of(const std::vector<Vec3>& v, const std::vector<std::array<int, 3>>& t) {
   TriVec out;
@@ -59,7 +61,10 @@ std::vector<P3> sample_triangles(const TriVec& tris, int n) {
     std::size_t i = std::lower_bound(cum.begin(), cum.end(), t) - cum.begin();
     if (i >= tris.size()) i = tris.size() - 1;
     double r1 = std::fmod(0.5 + a1 * (k + 1), 1.0), r2 = std::fmod(0.5 + a2 * (k + 1), 1.0);
-    if (r1 + r2 > 1) { r1 = 1 - r1; r2 = 1 - r2; }
+    if (r1 + r2 > 1) {
+      r1 = 1 - r1;
+      r2 = 1 - r2;
+    }
     const Tri& T = tris[i];
     out.push_back(T[0] + r1 * (T[1] - T[0]) + r2 * (T[2] - T[0]));
   }
@@ -75,11 +80,11 @@ struct FidelityMeter::Impl {
   double scale = 100.0;
   int samples = 20000;
   bool mesh = false;
-  TriVec itris;                    // input triangles (mesh input)
-  std::unique_ptr<Tree> itree;     // AABB on them
-  std::vector<P3> ipoints;         // input points (cloud input)
+  TriVec itris;                 // input triangles (mesh input)
+  std::unique_ptr<Tree> itree;  // AABB on them
+  std::vector<P3> ipoints;      // input points (cloud input)
   std::unique_ptr<Search::Tree> kd;
-  std::vector<P3> e2_points;       // input samples used for e2
+  std::vector<P3> e2_points;  // input samples used for e2
   std::vector<double> e2_weights;
 };
 
@@ -93,12 +98,15 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
   // least 1000): a city's small buildings have a few hundred points, and more
   // samples change e1 by less than its sampling noise at a cost that dominated
   // their LOD time.
-  if (!I.mesh) I.samples = std::min(I.samples, std::max(1000, int(std::min<std::size_t>(s.points.size(), 1u << 28)) * 2));
+  if (!I.mesh)
+    I.samples = std::min(I.samples,
+                         std::max(1000, int(std::min<std::size_t>(s.points.size(), 1u << 28)) * 2));
   if (I.mesh) I.itris = triangles_of(in.points, in.triangles);
   if (!I.itris.empty()) {
     I.itree = std::make_unique<Tree>(I.itris.begin(), I.itris.end());
     I.itree->accelerate_distance_queries();
-    (void)I.itree->squared_distance(P3(0, 0, 0));  // forces the lazy builds: later queries are read-only
+    (void)I.itree->squared_distance(
+        P3(0, 0, 0));  // forces the lazy builds: later queries are read-only
   } else {
     I.ipoints.reserve(s.points.size());
     for (const auto& q : s.points) I.ipoints.push_back(toP(q));
@@ -110,7 +118,8 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
   // follow the input's order (scan lines, region order) and read ~5 % low on
   // cgal_building.
   const std::size_t n = s.points.size();
-  const std::size_t stride = std::max<std::size_t>(1, (n + std::size_t(I.samples) - 1) / std::size_t(I.samples));
+  const std::size_t stride =
+      std::max<std::size_t>(1, (n + std::size_t(I.samples) - 1) / std::size_t(I.samples));
   Rng rng(0);
   for (std::size_t b = 0; b < n; b += stride) {
     const std::size_t i = b + std::size_t(rng.next_u64() % std::min(stride, n - b));
@@ -159,8 +168,8 @@ Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
   return f;
 }
 
-Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s, double diag,
-                          int model_samples) {
+Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s,
+                          double diag, int model_samples) {
   return FidelityMeter(in, s, diag, model_samples).measure(model);
 }
 

@@ -151,8 +151,8 @@ std::vector<int> match_planes(const Bsp& bsp, const std::vector<Primitive>& prim
 }
 
 IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
-                       const std::vector<int>& primitive_plane, const std::vector<char>& leaf_inside,
-                       const IoViewParams& p) {
+                       const std::vector<int>& primitive_plane,
+                       const std::vector<char>& leaf_inside, const IoViewParams& p) {
   IoView v;
   v.leaves = bsp.leaves();
   v.leaf_inside = leaf_inside;
@@ -180,7 +180,8 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
     double best = -1.0;
     for (int pi : cand) {
       const double c = cover(pi).coverage(f.polygon);
-      if (c > best || (c == best && prims[size_t(pi)].alpha_area > prims[size_t(owner[k])].alpha_area)) {
+      if (c > best ||
+          (c == best && prims[size_t(pi)].alpha_area > prims[size_t(owner[k])].alpha_area)) {
         best = c;
         owner[k] = pi;
       }
@@ -216,8 +217,14 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
   double best_in = -1, best_out = -1;
   for (size_t r = 0; r < v.regions.size(); ++r) {
     const auto& reg = v.regions[r];
-    if (reg.inside && reg.volume > best_in) { best_in = reg.volume; v.core_in = int(r); }
-    if (!reg.inside && reg.volume > best_out) { best_out = reg.volume; v.core_out = int(r); }
+    if (reg.inside && reg.volume > best_in) {
+      best_in = reg.volume;
+      v.core_in = int(r);
+    }
+    if (!reg.inside && reg.volume > best_out) {
+      best_out = reg.volume;
+      v.core_out = int(r);
+    }
   }
   for (size_t r = 0; r < v.regions.size(); ++r) {
     auto& reg = v.regions[r];
@@ -260,14 +267,20 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
     double host_area = 0.0;
     for (const auto& [pi, area] : contact[r]) {
       if (v.principal[size_t(pi)]) {
-        if (area > host_area) { host_area = area; s.host = pi; }
+        if (area > host_area) {
+          host_area = area;
+          s.host = pi;
+        }
       }
     }
     s.projected_area = host_area > 0 ? host_area : std::cbrt(reg.volume * reg.volume);
     bool first = true;
     for (int leaf : reg.leaves)
       for (const auto& x : bsp.cell_vertices(leaf)) {
-        if (first) { s.lo = s.hi = x; first = false; }
+        if (first) {
+          s.lo = s.hi = x;
+          first = false;
+        }
         s.lo = s.lo.cwiseMin(x);
         s.hi = s.hi.cwiseMax(x);
       }
@@ -366,8 +379,10 @@ int regularize_secondary(std::vector<Primitive>& prims, Grouping& grouping, cons
       } else if (std::abs(c) < sin_perp) {
         n = (n - c * nh).normalized();
         if (host_vertical) {
-          if (std::abs(n.z()) > cos_par) n = Vec3(0, 0, n.z() > 0 ? 1 : -1);
-          else if (std::abs(n.z()) < sin_perp) n = Vec3(n.x(), n.y(), 0).normalized();
+          if (std::abs(n.z()) > cos_par)
+            n = Vec3(0, 0, n.z() > 0 ? 1 : -1);
+          else if (std::abs(n.z()) < sin_perp)
+            n = Vec3(n.x(), n.y(), 0).normalized();
         }
       } else {
         continue;
@@ -408,19 +423,25 @@ int regularize_secondary(std::vector<Primitive>& prims, Grouping& grouping, cons
       double amin = 1e300, amax = -1e300, bmin = 1e300, bmax = -1e300, cmin = 1e300, cmax = -1e300;
       for (int leaf : view.regions[size_t(st.region)].leaves)
         for (const auto& x : bsp.cell_vertices(leaf)) {
-          amin = std::min(amin, x.dot(ax)); amax = std::max(amax, x.dot(ax));
-          bmin = std::min(bmin, x.dot(bz)); bmax = std::max(bmax, x.dot(bz));
-          cmin = std::min(cmin, x.dot(cy)); cmax = std::max(cmax, x.dot(cy));
+          amin = std::min(amin, x.dot(ax));
+          amax = std::max(amax, x.dot(ax));
+          bmin = std::min(bmin, x.dot(bz));
+          bmax = std::max(bmax, x.dot(bz));
+          cmin = std::min(cmin, x.dot(cy));
+          cmax = std::max(cmax, x.dot(cy));
         }
       amax = std::min(amax, a_wall);
       if (amax - amin < 0.05 || bmax - bmin < 0.05 || cmax - cmin < 0.05) continue;
       auto P = [&](double aa, double bb, double cc) { return Vec3(aa * ax + bb * bz + cc * cy); };
       const double da = amax - amin, db = bmax - bmin, dc = cmax - cmin;
       std::vector<Primitive> faces;
-      faces.push_back(make_rectangle_primitive(ax, P(amin, bmin, cmin), dc * cy, db * bz));   // back
-      faces.push_back(make_rectangle_primitive(cy, P(amin, bmin, cmin), da * ax, db * bz));   // side c_min
-      faces.push_back(make_rectangle_primitive(-cy, P(amin, bmin, cmax), da * ax, db * bz));  // side c_max
-      faces.push_back(make_rectangle_primitive(bz, P(amin, bmin, cmin), da * ax, dc * cy));   // bottom
+      faces.push_back(make_rectangle_primitive(ax, P(amin, bmin, cmin), dc * cy, db * bz));  // back
+      faces.push_back(
+          make_rectangle_primitive(cy, P(amin, bmin, cmin), da * ax, db * bz));  // side c_min
+      faces.push_back(
+          make_rectangle_primitive(-cy, P(amin, bmin, cmax), da * ax, db * bz));  // side c_max
+      faces.push_back(
+          make_rectangle_primitive(bz, P(amin, bmin, cmin), da * ax, dc * cy));  // bottom
       faces.push_back(make_rectangle_primitive(-bz, P(amin, bmax, cmin), da * ax, dc * cy));  // top
       for (auto& f : faces) {
         added.push_back(int(prims.size()));

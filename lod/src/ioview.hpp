@@ -24,20 +24,20 @@ struct Region {
 struct Structure {
   int region = -1;
   bool addon = false;
-  double volume = 0.0;          ///< m^3
-  int host = -1;                ///< principal primitive it is attached to (-1: none)
-  double projected_area = 0.0;  ///< m^2, contact area on the host primitive
-  std::vector<int> primitives;  ///< secondary primitives bounding it
+  double volume = 0.0;                        ///< m^3
+  int host = -1;                              ///< principal primitive it is attached to (-1: none)
+  double projected_area = 0.0;                ///< m^2, contact area on the host primitive
+  std::vector<int> primitives;                ///< secondary primitives bounding it
   Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();  ///< bbox of its cells
 };
 
 struct IoView {
-  std::vector<int> leaves;            ///< IO-View partition (BSP leaves)
-  std::vector<char> leaf_inside;      ///< per entry of `leaves`
-  std::vector<int> leaf_region;       ///< per entry of `leaves`
+  std::vector<int> leaves;        ///< IO-View partition (BSP leaves)
+  std::vector<char> leaf_inside;  ///< per entry of `leaves`
+  std::vector<int> leaf_region;   ///< per entry of `leaves`
   std::vector<Region> regions;
   int core_in = -1, core_out = -1;
-  std::vector<char> principal;        ///< per primitive
+  std::vector<char> principal;  ///< per primitive
   std::vector<Structure> structures;
   std::vector<int> primitive_structure;  ///< per primitive, -1 when none
 };
@@ -46,21 +46,21 @@ struct IoView {
 /// IO-View partition. `primitive_plane[i]` is the index of primitive i's plane
 /// in bsp.planes().
 IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
-                       const std::vector<int>& primitive_plane, const std::vector<char>& leaf_inside,
-                       const IoViewParams& p);
+                       const std::vector<int>& primitive_plane,
+                       const std::vector<char>& leaf_inside, const IoViewParams& p);
 
 /// Grouping of structures: clusters (stage 1, per host) and level sets (stage 2).
 struct Grouping {
   struct Cluster {
     int host = -1;
     std::vector<int> structures;
-    std::vector<int> primitives;   ///< sorted by area, descending
+    std::vector<int> primitives;  ///< sorted by area, descending
     double mean_volume = 0.0;
-    int level = 0;                 ///< 1..N_l
+    int level = 0;  ///< 1..N_l
     int cutouts = 0;
   };
-  std::vector<Cluster> clusters;   ///< sorted: by level, then mean volume descending
-  int num_level_sets = 0;          ///< N_l
+  std::vector<Cluster> clusters;  ///< sorted: by level, then mean volume descending
+  int num_level_sets = 0;         ///< N_l
 };
 Grouping group_structures(const IoView& view, const std::vector<Primitive>& prims,
                           const ClusterParams& p);

@@ -125,7 +125,8 @@ std::vector<std::vector<char>> RayLabeller::label(const std::vector<std::vector<
       }
     }
     for (int k = 0; k < L; ++k)
-      out[static_cast<size_t>(c)][static_cast<size_t>(k)] = (2 * votes_in[static_cast<size_t>(k)] > nrays) ? 1 : 0;
+      out[static_cast<size_t>(c)][static_cast<size_t>(k)] =
+          (2 * votes_in[static_cast<size_t>(k)] > nrays) ? 1 : 0;
   }
   return out;
 }
@@ -139,7 +140,9 @@ std::pair<int, int> RayLabeller::half_space_votes(const Vec3& origin, const Vec3
     if (!(u.dot(side) > 0)) continue;
     ++cast;
     const Ray ray(o, K::Vector_3(u.x(), u.y(), u.z()));
-    const auto skip = [&](TriIter it) { return I.level[static_cast<size_t>(it - I.tris.cbegin())] > 0; };
+    const auto skip = [&](TriIter it) {
+      return I.level[static_cast<size_t>(it - I.tris.cbegin())] > 0;
+    };
     const auto hit = I.tree.first_intersection(ray, skip);
     if (!hit || !boost::get<Point>(&hit->first)) continue;
     if (I.normals[static_cast<size_t>(hit->second - I.tris.cbegin())].dot(u) > 0.0) ++in;

@@ -36,8 +36,8 @@ class RayLabeller {
   /// The same with several ray origins per cell (the rays are spread over
   /// them in turn): thin cells that reach far out of the building are judged
   /// by where their volume is, not by one centre point.
-  std::vector<std::vector<char>> label(const std::vector<std::vector<Vec3>>& origins, int num_levels,
-                                       int threads) const;
+  std::vector<std::vector<char>> label(const std::vector<std::vector<Vec3>>& origins,
+                                       int num_levels, int threads) const;
 
   /// Rays of level 0 from `origin` into the half-space `side` points to
   /// (u.side > 0 only): {rays voting in, rays cast}. Tells which side of a

@@ -81,8 +81,10 @@ struct SceneBox {
   Vec3 cut_lo, cut_hi;  ///< the data box cuts
 };
 constexpr double kDataBoxMargin = 0.25;  ///< m; the pad is >= 0.5 m, so the cuts stay inside it
-constexpr double kMinShellFraction = 0.01;  ///< shells under 1 % of the largest one's volume are slivers
-constexpr double kMinCavityVolume = 1e-6;   ///< m^3; cavities are kept (the input shows them) unless of no volume
+constexpr double kMinShellFraction =
+    0.01;  ///< shells under 1 % of the largest one's volume are slivers
+constexpr double kMinCavityVolume =
+    1e-6;  ///< m^3; cavities are kept (the input shows them) unless of no volume
 
 /// Bounding box of the samples and primitive shapes, enlarged by `enlarge` of
 /// its diagonal (at least 0.5 m) per side.
@@ -113,8 +115,8 @@ void clear_pad_leaves(const Bsp& bsp, const SceneBox& box, std::vector<std::vect
 
 /// Polygons of a BSP: the six data-box cuts (kBoxCut), then the hulls of the
 /// primitives in `order`.
-std::vector<BspPolygon> hull_polygons(const std::vector<Primitive>& prims, const std::vector<int>& order,
-                                      const SceneBox& box) {
+std::vector<BspPolygon> hull_polygons(const std::vector<Primitive>& prims,
+                                      const std::vector<int>& order, const SceneBox& box) {
   std::vector<BspPolygon> polys;
   polys.reserve(order.size() + 6);
   for (int axis = 0; axis < 3; ++axis)
@@ -138,7 +140,8 @@ std::vector<BspPolygon> hull_polygons(const std::vector<Primitive>& prims, const
   return polys;
 }
 
-LevelTriangles alpha_triangles(const std::vector<Primitive>& prims, const std::vector<int>& level_of) {
+LevelTriangles alpha_triangles(const std::vector<Primitive>& prims,
+                               const std::vector<int>& level_of) {
   LevelTriangles t;
   for (size_t i = 0; i < prims.size(); ++i) {
     if (level_of[i] < 0) continue;
@@ -161,7 +164,8 @@ std::vector<std::vector<Vec3>> leaf_ray_origins(const Bsp& bsp, int max_origins)
     const size_t extra = size_t(std::max(0, max_origins - 1));
     if (extra > 0) {
       const size_t step = std::max<size_t>(1, (verts.size() + extra - 1) / extra);
-      for (size_t i = 0; i < verts.size() && o.size() <= extra; i += step) o.push_back(c + 0.5 * (verts[i] - c));
+      for (size_t i = 0; i < verts.size() && o.size() <= extra; i += step)
+        o.push_back(c + 0.5 * (verts[i] - c));
     }
     out.push_back(std::move(o));
   }
@@ -179,7 +183,8 @@ PlaneReport report_plane(const Primitive& p, const Samples& s, int level, int cl
   r.inferred = p.inferred;
   for (int i : p.inliers) r.inlier_points.push_back(s.points[size_t(i)]);
   if (p.inliers.empty())
-    for (const auto& t : p.alpha_tris) r.inlier_points.insert(r.inlier_points.end(), t.begin(), t.end());
+    for (const auto& t : p.alpha_tris)
+      r.inlier_points.insert(r.inlier_points.end(), t.begin(), t.end());
   return r;
 }
 
@@ -256,7 +261,9 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   progress(0.0, "planes");
   const bool airborne = airborne_input(in, samples, P);
   PlaneParams plane_params = P.planes;
-  if (airborne) plane_params.min_region_size = std::min(plane_params.min_region_size, P.airborne.min_region_size);
+  if (airborne)
+    plane_params.min_region_size =
+        std::min(plane_params.min_region_size, P.airborne.min_region_size);
   std::vector<Primitive> prims = detect_planes(in, samples, plane_params);
   st.planes_detected = int(prims.size());
   if (prims.empty()) throw LodError("planes", "no plane found");
@@ -267,12 +274,15 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     st.walls_inferred = c.what == Closure::Walls || c.what == Closure::FootprintWalls;
     const std::string n = std::to_string(c.added);
     if (c.what == Closure::Base) st.notes.push_back("open bottom: a base plane was inferred");
-    if (c.what == Closure::Walls) st.notes.push_back("walls missing: " + n + " closure planes inferred (ground + walls)");
+    if (c.what == Closure::Walls)
+      st.notes.push_back("walls missing: " + n + " closure planes inferred (ground + walls)");
     if (c.what == Closure::FootprintWalls)
-      st.notes.push_back("walls along the footprint: " + n + " closure planes inferred (ground + walls; scanned walls kept)");
+      st.notes.push_back("walls along the footprint: " + n +
+                         " closure planes inferred (ground + walls; scanned walls kept)");
     if (c.what == Closure::Plinth)
-      st.notes.push_back("terrain sheet kept as a plinth: " + n +
-                         " closure planes inferred (base + walls; closure.terrain=cut models the building alone)");
+      st.notes.push_back(
+          "terrain sheet kept as a plinth: " + n +
+          " closure planes inferred (base + walls; closure.terrain=cut models the building alone)");
   }
   // (ours) Airborne LiDAR is 2.5D: a roof height field labels the cells, and
   // walls are inferred where the roof steps down.
@@ -282,12 +292,13 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     if (c.outline.size() < 3) throw LodError("airborne", "no outline to model the building on");
     heights.emplace(samples, c.outline, c.ground_z, P.airborne);
     const int steps = infer_step_walls(samples, *heights, P.airborne, prims);
-    st.notes.push_back("airborne LiDAR: cells labelled by the roof height field; " + std::to_string(steps) +
-                       " step walls inferred");
+    st.notes.push_back("airborne LiDAR: cells labelled by the roof height field; " +
+                       std::to_string(steps) + " step walls inferred");
   }
-  prims.erase(std::remove_if(prims.begin(), prims.end(),
-                             [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),
-              prims.end());
+  prims.erase(
+      std::remove_if(prims.begin(), prims.end(),
+                     [](const Primitive& p) { return p.hull.size() < 3 || p.alpha_tris.empty(); }),
+      prims.end());
   // (ours) Planes whose input normals point into the building are turned round
   // (the ray labelling needs it; the height field does not).
   if (!heights) {
@@ -295,9 +306,11 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     op.threads = P.threads;
     st.planes_turned = orient_primitives(prims, samples, op);
     if (st.planes_turned > 0)
-      st.notes.push_back(std::to_string(st.planes_turned) + " planes turned round (normals pointed inside)");
+      st.notes.push_back(std::to_string(st.planes_turned) +
+                         " planes turned round (normals pointed inside)");
   }
-  if (prims.size() < 4) throw LodError("planes", "fewer than 4 usable planes (" + std::to_string(prims.size()) + ")");
+  if (prims.size() < 4)
+    throw LodError("planes", "fewer than 4 usable planes (" + std::to_string(prims.size()) + ")");
   budget.check("planes");
 
   // 2. IO-View: BSP by the hulls, largest first; ray labels; regions.
@@ -320,7 +333,8 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
       io_leaf_labels.push_back({l});
   } else {
     const RayLabeller io_labeller(alpha_triangles(prims, all_level0), P.labels.rays_per_cell);
-    io_leaf_labels = io_labeller.label(leaf_ray_origins(io_bsp, P.labels.origins_per_cell), 1, P.threads);
+    io_leaf_labels =
+        io_labeller.label(leaf_ray_origins(io_bsp, P.labels.origins_per_cell), 1, P.threads);
   }
   clear_pad_leaves(io_bsp, box, io_leaf_labels);
   for (const auto& l : io_leaf_labels) io_labels.push_back(l[0]);
@@ -329,7 +343,8 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   if (view.core_in < 0) throw LodError("io-view", "no cell labelled inside");
   for (char p : view.principal) st.principal += p ? 1 : 0;
   if (st.principal < 4) throw LodError("io-view", "fewer than 4 principal primitives");
-  for (const auto& s : view.structures) (s.addon ? st.add_ons : st.cut_outs) += s.primitives.empty() ? 0 : 1;
+  for (const auto& s : view.structures)
+    (s.addon ? st.add_ons : st.cut_outs) += s.primitives.empty() ? 0 : 1;
 
   // 3. Two-stage clustering, adaptive regularization, scale-sorted S.
   Grouping grouping = group_structures(view, prims, P.cluster);
@@ -338,8 +353,11 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
     for (size_t i = 0; i < prims.size(); ++i)
       if (view.principal[i] && !prims[i].inferred) principal.push_back(int(i));
     regularize_principal(prims, principal, samples, P.regularization, P.alpha);
-    const int templates = regularize_secondary(prims, grouping, view, io_bsp, samples, P.regularization, P.alpha);
-    if (templates > 0) st.notes.push_back(std::to_string(templates) + " window cut-outs replaced by cuboid templates");
+    const int templates =
+        regularize_secondary(prims, grouping, view, io_bsp, samples, P.regularization, P.alpha);
+    if (templates > 0)
+      st.notes.push_back(std::to_string(templates) +
+                         " window cut-outs replaced by cuboid templates");
   }
   view.principal.resize(prims.size(), 0);  // template primitives are secondary
   const SortedPrimitives sorted = sort_primitives(prims, view, grouping);
@@ -363,7 +381,8 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
       leaf_labels.emplace_back(size_t(sorted.num_levels), l);
   } else {
     const RayLabeller labeller(alpha_triangles(prims, sorted.level_of), P.labels.rays_per_cell);
-    leaf_labels = labeller.label(leaf_ray_origins(bsp, P.labels.origins_per_cell), sorted.num_levels, P.threads);
+    leaf_labels = labeller.label(leaf_ray_origins(bsp, P.labels.origins_per_cell),
+                                 sorted.num_levels, P.threads);
   }
   clear_pad_leaves(bsp, box, leaf_labels);
   const LodTree tree = build_tree(bsp, sorted, grouping, leaf_labels, P.tree);
@@ -407,12 +426,13 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
       continue;
     }
     if (shells > 1)
-      st.notes.push_back("model " + std::to_string(R.models.size()) + ": " + std::to_string(shells) +
-                         " solids (a multi-solid)");
+      st.notes.push_back("model " + std::to_string(R.models.size()) + ": " +
+                         std::to_string(shells) + " solids (a multi-solid)");
     m.volume = mesh_volume(m.mesh);
     if (surf.labels_flipped > 0)
       st.notes.push_back("model " + std::to_string(R.models.size()) + ": " +
-                         std::to_string(surf.labels_flipped) + " cells relabelled to remove non-manifold edges");
+                         std::to_string(surf.labels_flipped) +
+                         " cells relabelled to remove non-manifold edges");
     R.models.push_back(std::move(m));
   }
   // (ours) The LoD1.2 block first: the outline at the height that fits the
@@ -420,7 +440,8 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   if (heights && P.airborne.block) {
     try {
       R.models.insert(R.models.begin(), block_model(samples, *heights));
-      st.notes.push_back("model 0 is the outline extruded to its best-fitting height (LoD1.2 block)");
+      st.notes.push_back(
+          "model 0 is the outline extruded to its best-fitting height (LoD1.2 block)");
     } catch (const LodError& e) {
       st.notes.push_back(std::string("no LoD1.2 block: ") + e.what());
     }
@@ -477,11 +498,12 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   progress(0.0, "samples");
   // A city chunk of airborne LiDAR (a point cloud with walls along its
   // footprint) needs no normal propagation: its roofs face up.
-  const bool city_lidar = params.airborne.mode != "off" && !in.is_mesh() && params.closure.footprint_walls &&
-                          in.footprint.size() >= 3;
+  const bool city_lidar = params.airborne.mode != "off" && !in.is_mesh() &&
+                          params.closure.footprint_walls && in.footprint.size() >= 3;
   const Samples samples = make_samples(in, params.normals, !city_lidar);
   R.stats.normals_estimated = samples.normals_estimated;
-  if (samples.normals_estimated) R.stats.notes.push_back("normals estimated and oriented (input had none)");
+  if (samples.normals_estimated)
+    R.stats.notes.push_back("normals estimated and oriented (input had none)");
   Vec3 lo = samples.points.front(), hi = lo;
   for (const auto& p : samples.points) {
     lo = lo.cwiseMin(p);

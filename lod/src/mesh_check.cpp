@@ -24,7 +24,8 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using P3 = K::Point_3;
 
 std::uint64_t key(int a, int b) {
-  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
+         static_cast<std::uint32_t>(b);
 }
 
 bool degenerate_tri(const TriangleMesh& m, const std::array<int, 3>& t) {
@@ -37,11 +38,16 @@ bool degenerate_tri(const TriangleMesh& m, const std::array<int, 3>& t) {
 
 /// Do two triangles of the soup intersect other than along what they share?
 /// Mirrors the case analysis of PMP::self_intersections (shared edge / vertex).
-bool tri_pair_intersect(const std::vector<P3>& pts, const std::array<int, 3>& t1, const std::array<int, 3>& t2) {
+bool tri_pair_intersect(const std::vector<P3>& pts, const std::array<int, 3>& t1,
+                        const std::array<int, 3>& t2) {
   int shared = 0, i1[3], i2[3];
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
-      if (t1[i] == t2[j]) { i1[shared] = i; i2[shared] = j; ++shared; }
+      if (t1[i] == t2[j]) {
+        i1[shared] = i;
+        i2[shared] = j;
+        ++shared;
+      }
   const K::Triangle_3 T1(pts[t1[0]], pts[t1[1]], pts[t1[2]]);
   const K::Triangle_3 T2(pts[t2[0]], pts[t2[1]], pts[t2[2]]);
   if (shared == 0) return CGAL::do_intersect(T1, T2);
@@ -63,8 +69,10 @@ bool tri_pair_intersect(const std::vector<P3>& pts, const std::array<int, 3>& t1
   if (CGAL::do_intersect(e1, T2) || CGAL::do_intersect(e2, T1)) return true;
   // Coplanar overlap around the shared vertex (both triangles on the same side).
   const P3& v = pts[t1[a]];
-  if (CGAL::orientation(pts[t1[0]], pts[t1[1]], pts[t1[2]], pts[t2[(b + 1) % 3]]) == CGAL::COPLANAR &&
-      CGAL::orientation(pts[t1[0]], pts[t1[1]], pts[t1[2]], pts[t2[(b + 2) % 3]]) == CGAL::COPLANAR) {
+  if (CGAL::orientation(pts[t1[0]], pts[t1[1]], pts[t1[2]], pts[t2[(b + 1) % 3]]) ==
+          CGAL::COPLANAR &&
+      CGAL::orientation(pts[t1[0]], pts[t1[1]], pts[t1[2]], pts[t2[(b + 2) % 3]]) ==
+          CGAL::COPLANAR) {
     // Sample a point slightly inside T2 near v and test containment in T1 (coplanar case).
     const K::Vector_3 d = ((pts[t2[(b + 1) % 3]] - v) + (pts[t2[(b + 2) % 3]] - v)) * 1e-6;
     if (T1.has_on(v + d)) return true;
@@ -176,7 +184,11 @@ void count_fans_and_shells(const TriangleMesh& mesh, MeshCheck& r) {
 MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
   MeshCheck r;
   // Undirected edge -> (count, directed balance per direction).
-  struct E { int count = 0; int ab = 0; int ba = 0; };
+  struct E {
+    int count = 0;
+    int ab = 0;
+    int ba = 0;
+  };
   std::unordered_map<std::uint64_t, E> edges;
   edges.reserve(mesh.triangles.size() * 2);
   const int nv = static_cast<int>(mesh.vertices.size());
@@ -184,7 +196,10 @@ MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
   for (const auto& t : mesh.triangles) {
     for (int i = 0; i < 3; ++i) {
       int a = t[i], b = t[(i + 1) % 3];
-      if (a < 0 || b < 0 || a >= nv || b >= nv || a == b) { bad_index = true; continue; }
+      if (a < 0 || b < 0 || a >= nv || b >= nv || a == b) {
+        bad_index = true;
+        continue;
+      }
       const bool fwd = a < b;
       E& e = edges[fwd ? key(a, b) : key(b, a)];
       ++e.count;
@@ -198,7 +213,8 @@ MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
     if (e.count > 2) ++r.nonmanifold_edges;
     if (!(e.ab == 1 && e.ba == 1)) oriented = false;
   }
-  r.closed = !bad_index && !mesh.triangles.empty() && r.boundary_edges == 0 && r.nonmanifold_edges == 0;
+  r.closed =
+      !bad_index && !mesh.triangles.empty() && r.boundary_edges == 0 && r.nonmanifold_edges == 0;
   if (!bad_index) count_fans_and_shells(mesh, r);
   r.edge_manifold = !bad_index && r.nonmanifold_edges == 0;
   r.oriented = oriented && !mesh.triangles.empty();
@@ -212,16 +228,23 @@ MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
   bool degenerate = bad_index;
   for (const auto& t : mesh.triangles) {
     if (t[0] < 0 || t[1] < 0 || t[2] < 0 || t[0] >= nv || t[1] >= nv || t[2] >= nv) continue;
-    if (degenerate_tri(mesh, t)) { degenerate = true; continue; }
+    if (degenerate_tri(mesh, t)) {
+      degenerate = true;
+      continue;
+    }
     tris.push_back(t);
   }
   // Degenerate triangles count as a defect of the surface ("self-intersecting").
-  if (degenerate) { r.self_intersecting = true; return r; }
+  if (degenerate) {
+    r.self_intersecting = true;
+    return r;
+  }
 
   // Valid polygon mesh -> PMP::does_self_intersect on a Surface_mesh; else our soup check.
   std::vector<std::vector<std::size_t>> polys;
   polys.reserve(tris.size());
-  for (const auto& t : tris) polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
+  for (const auto& t : tris)
+    polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
   namespace PMP = CGAL::Polygon_mesh_processing;
   if (r.edge_manifold && r.oriented && PMP::is_polygon_soup_a_polygon_mesh(polys)) {
     CGAL::Surface_mesh<P3> sm;
@@ -237,7 +260,8 @@ double mesh_volume(const TriangleMesh& mesh) {
   double v = 0.0;
   const int nv = static_cast<int>(mesh.vertices.size());
   if (nv == 0) return 0.0;
-  const Vec3 o = mesh.vertices[0];  // relative coordinates: exact for closed meshes, better conditioned
+  const Vec3 o =
+      mesh.vertices[0];  // relative coordinates: exact for closed meshes, better conditioned
   for (const auto& t : mesh.triangles) {
     if (t[0] < 0 || t[1] < 0 || t[2] < 0 || t[0] >= nv || t[1] >= nv || t[2] >= nv) continue;
     const Vec3 a = mesh.vertices[t[0]] - o;

@@ -1,6 +1,6 @@
 // LodParams: validation, set-by-name, listing; to_string(ModelKind).
-#include "citylod/lod/lod.hpp"
 #include "citylod/lod/params.hpp"
+#include "citylod/lod/lod.hpp"
 
 #include <cmath>
 #include <functional>
@@ -11,9 +11,12 @@ namespace citylod::lod {
 
 const char* to_string(ModelKind k) {
   switch (k) {
-    case ModelKind::Anchor: return "anchor";
-    case ModelKind::Interpolation: return "interpolation";
-    case ModelKind::Fallback: return "fallback";
+    case ModelKind::Anchor:
+      return "anchor";
+    case ModelKind::Interpolation:
+      return "interpolation";
+    case ModelKind::Fallback:
+      return "fallback";
   }
   return "unknown";
 }
@@ -26,9 +29,15 @@ std::string fmt(double v) {
   o << v;
   return o.str();
 }
-std::string fmt(int v) { return std::to_string(v); }
-std::string fmt(bool v) { return v ? "true" : "false"; }
-const std::string& fmt(const std::string& v) { return v; }
+std::string fmt(int v) {
+  return std::to_string(v);
+}
+std::string fmt(bool v) {
+  return v ? "true" : "false";
+}
+const std::string& fmt(const std::string& v) {
+  return v;
+}
 
 [[noreturn]] void bad(const std::string& name, const std::string& why) {
   throw std::invalid_argument("parameter " + name + ": " + why);
@@ -59,12 +68,17 @@ void parse(const std::string& name, const std::string& s, int& out) {
   }
 }
 void parse(const std::string& name, const std::string& s, bool& out) {
-  if (s == "1" || s == "true" || s == "on" || s == "yes") out = true;
-  else if (s == "0" || s == "false" || s == "off" || s == "no") out = false;
-  else bad(name, "not a boolean: '" + s + "'");
+  if (s == "1" || s == "true" || s == "on" || s == "yes")
+    out = true;
+  else if (s == "0" || s == "false" || s == "off" || s == "no")
+    out = false;
+  else
+    bad(name, "not a boolean: '" + s + "'");
 }
 
-void parse(const std::string&, const std::string& s, std::string& out) { out = s; }
+void parse(const std::string&, const std::string& s, std::string& out) {
+  out = s;
+}
 
 /// Visits every parameter (fixed order) with its dotted name and a reference.
 template <class P, class F>
@@ -129,8 +143,8 @@ void check(bool ok, const char* name, const std::string& why) {
 }  // namespace
 
 void LodParams::validate() const {
-  check(labels.origins_per_cell >= 1 && labels.origins_per_cell <= labels.rays_per_cell, "labels.origins_per_cell",
-        "must be in [1, labels.rays_per_cell]");
+  check(labels.origins_per_cell >= 1 && labels.origins_per_cell <= labels.rays_per_cell,
+        "labels.origins_per_cell", "must be in [1, labels.rays_per_cell]");
   auto pos = [](double v) { return std::isfinite(v) && v > 0; };
   auto ratio = [](double v) { return std::isfinite(v) && v > 0 && v <= 1; };
   auto angle = [](double v) { return std::isfinite(v) && v > 0 && v <= 90; };
@@ -150,23 +164,30 @@ void LodParams::validate() const {
         "ioview.min_principal_area", "must be >= 0");
   check(pos(cluster.area_bandwidth), "cluster.area_bandwidth", "must be > 0");
   check(pos(cluster.volume_bandwidth), "cluster.volume_bandwidth", "must be > 0");
-  check(angle(regularization.principal_angle_deg), "regularization.principal_angle_deg", "must be in (0, 90]");
+  check(angle(regularization.principal_angle_deg), "regularization.principal_angle_deg",
+        "must be in (0, 90]");
   check(std::isfinite(regularization.principal_distance) && regularization.principal_distance >= 0,
         "regularization.principal_distance", "must be >= 0");
-  check(angle(regularization.secondary_angle_deg), "regularization.secondary_angle_deg", "must be in (0, 90]");
+  check(angle(regularization.secondary_angle_deg), "regularization.secondary_angle_deg",
+        "must be in (0, 90]");
   check(std::isfinite(regularization.secondary_distance) && regularization.secondary_distance >= 0,
         "regularization.secondary_distance", "must be >= 0");
-  check(angle(regularization.vertical_host_deg), "regularization.vertical_host_deg", "must be in (0, 90]");
-  check(regularization.min_cutouts_for_templates >= 1, "regularization.min_cutouts_for_templates", "must be >= 1");
+  check(angle(regularization.vertical_host_deg), "regularization.vertical_host_deg",
+        "must be in (0, 90]");
+  check(regularization.min_cutouts_for_templates >= 1, "regularization.min_cutouts_for_templates",
+        "must be >= 1");
   check(tree.merge_k >= 1, "tree.merge_k", "must be >= 1");
   check(ratio(tree.label_volume_ratio), "tree.label_volume_ratio", "must be in (0, 1]");
   check(ratio(tree.interpolation_ratio), "tree.interpolation_ratio", "must be in (0, 1]");
-  check(std::isfinite(tree.interpolation_floor) && tree.interpolation_floor >= 0 && tree.interpolation_floor < 1,
+  check(std::isfinite(tree.interpolation_floor) && tree.interpolation_floor >= 0 &&
+            tree.interpolation_floor < 1,
         "tree.interpolation_floor", "must be in [0, 1)");
-  check(std::isfinite(budget.time_budget_s) && budget.time_budget_s >= 0, "budget.time_budget_s", "must be >= 0");
+  check(std::isfinite(budget.time_budget_s) && budget.time_budget_s >= 0, "budget.time_budget_s",
+        "must be >= 0");
   check(ratio(closure.wall_fraction_min), "closure.wall_fraction_min", "must be in (0, 1]");
   check(pos(closure.outline_alpha), "closure.outline_alpha", "must be > 0");
-  check(closure.terrain == "plinth" || closure.terrain == "cut", "closure.terrain", "must be 'plinth' or 'cut'");
+  check(closure.terrain == "plinth" || closure.terrain == "cut", "closure.terrain",
+        "must be 'plinth' or 'cut'");
   check(pos(closure.plinth_depth), "closure.plinth_depth", "must be > 0");
   check(airborne.mode == "auto" || airborne.mode == "on" || airborne.mode == "off", "airborne.mode",
         "must be 'auto', 'on' or 'off'");

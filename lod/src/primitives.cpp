@@ -4,7 +4,6 @@
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
 #include <CGAL/Delaunay_triangulation_2.h>
-#include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
@@ -13,6 +12,7 @@
 #include <CGAL/Shape_detection/Region_growing/Region_growing_on_polygon_mesh.h>
 #include <CGAL/Shape_regularization/regularize_planes.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/convex_hull_2.h>
 #include <CGAL/mst_orient_normals.h>
 #include <CGAL/pca_estimate_normals.h>
@@ -36,16 +36,26 @@ using P3 = K::Point_3;
 using V3 = K::Vector_3;
 using P2 = K::Point_2;
 
-inline P3 toP(const Vec3& v) { return P3(v.x(), v.y(), v.z()); }
-inline Vec3 toE(const P3& p) { return Vec3(p.x(), p.y(), p.z()); }
-inline Vec3 toE(const V3& p) { return Vec3(p.x(), p.y(), p.z()); }
+inline P3 toP(const Vec3& v) {
+  return P3(v.x(), v.y(), v.z());
+}
+inline Vec3 toE(const P3& p) {
+  return Vec3(p.x(), p.y(), p.z());
+}
+inline Vec3 toE(const V3& p) {
+  return Vec3(p.x(), p.y(), p.z());
+}
 
-bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+bool finite(const Vec3& v) {
+  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
+}
 
 /// Orthonormal in-plane frame with u x v = n (u horizontal for non-horizontal planes).
 void plane_frame(const Vec3& n, Vec3& u, Vec3& v) {
-  if (std::abs(n.z()) < 0.9) u = Vec3::UnitZ().cross(n).normalized();
-  else u = n.cross(Vec3::UnitX()).cross(n).normalized();  // X projected on the plane
+  if (std::abs(n.z()) < 0.9)
+    u = Vec3::UnitZ().cross(n).normalized();
+  else
+    u = n.cross(Vec3::UnitX()).cross(n).normalized();  // X projected on the plane
   v = n.cross(u);
 }
 
@@ -99,7 +109,8 @@ std::vector<std::vector<std::size_t>> regions_on_points(const Samples& s, const 
   using Sorting = SD::Point_set::Least_squares_plane_fit_sorting<K, PwnVec, NQ, PMap>;
   using RG = SD::Region_growing<PwnVec, NQ, RT, Sorting::Seed_map>;
   NQ nq(pts, static_cast<std::size_t>(std::max(3, p.k_neighbors)));
-  RT rt(pts, p.epsilon, std::min(90.0, p.max_angle_deg), static_cast<std::size_t>(std::max(3, p.min_region_size)));
+  RT rt(pts, p.epsilon, std::min(90.0, p.max_angle_deg),
+        static_cast<std::size_t>(std::max(3, p.min_region_size)));
   Sorting sorting(pts, nq);
   sorting.sort();
   RG rg(pts, nq, rt, sorting.seed_map());
@@ -134,7 +145,8 @@ class Mesh_region {
 
 /// Region growing over the faces of the input mesh. Returns regions as lists of
 /// input triangle indices; false when the soup cannot be made a polygon mesh.
-bool regions_on_mesh(const BuildingInput& in, const PlaneParams& p, std::vector<std::vector<int>>& out) {
+bool regions_on_mesh(const BuildingInput& in, const PlaneParams& p,
+                     std::vector<std::vector<int>>& out) {
   namespace PMP = CGAL::Polygon_mesh_processing;
   std::vector<P3> pts;
   pts.reserve(in.points.size());
@@ -199,13 +211,18 @@ Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_or
   Samples s;
   if (in.is_mesh()) {
     const int nv = static_cast<int>(in.points.size());
-    struct T { int idx; Vec3 a, b, c, n; double area; };
+    struct T {
+      int idx;
+      Vec3 a, b, c, n;
+      double area;
+    };
     std::vector<T> tris;
     tris.reserve(in.triangles.size());
     double total = 0;
     for (std::size_t t = 0; t < in.triangles.size(); ++t) {
       const auto& tr = in.triangles[t];
-      if (tr[0] < 0 || tr[1] < 0 || tr[2] < 0 || tr[0] >= nv || tr[1] >= nv || tr[2] >= nv) continue;
+      if (tr[0] < 0 || tr[1] < 0 || tr[2] < 0 || tr[0] >= nv || tr[1] >= nv || tr[2] >= nv)
+        continue;
       const Vec3 &a = in.points[tr[0]], &b = in.points[tr[1]], &c = in.points[tr[2]];
       if (!finite(a) || !finite(b) || !finite(c)) continue;
       const Vec3 cr = (b - a).cross(c - a);
@@ -217,8 +234,10 @@ Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_or
     // Target density >= 1 sample / 0.25 m^2, total capped at ~200k.
     const std::size_t cap = 200000;
     double per_m2 = 4.0;
-    if (tris.size() >= cap) per_m2 = 0.0;
-    else if (total * per_m2 + tris.size() > cap) per_m2 = (cap - tris.size()) / total;
+    if (tris.size() >= cap)
+      per_m2 = 0.0;
+    else if (total * per_m2 + tris.size() > cap)
+      per_m2 = (cap - tris.size()) / total;
     Rng rng(0x5EED5EEDULL);
     for (const auto& t : tris) {
       int extra = static_cast<int>(std::floor(t.area * per_m2));
@@ -229,7 +248,10 @@ Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_or
       s.face_of.push_back(t.idx);
       for (int k = 0; k < extra; ++k) {
         double r1 = rng.next(), r2 = rng.next();
-        if (r1 + r2 > 1) { r1 = 1 - r1; r2 = 1 - r2; }
+        if (r1 + r2 > 1) {
+          r1 = 1 - r1;
+          r2 = 1 - r2;
+        }
         s.points.push_back(t.a + r1 * (t.b - t.a) + r2 * (t.c - t.a));
         s.normals.push_back(t.n);
         s.weights.push_back(w);
@@ -262,12 +284,14 @@ Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_or
     return s;
   }
   s.normals_estimated = true;
-  const unsigned k = static_cast<unsigned>(std::max(3, std::min<int>(p.k_neighbors, int(s.points.size()) - 1)));
+  const unsigned k =
+      static_cast<unsigned>(std::max(3, std::min<int>(p.k_neighbors, int(s.points.size()) - 1)));
   // PCA over all points (neighbourhoods need every point), then keep the given normals.
   using Item = std::tuple<P3, V3, int>;
   std::vector<Item> items;
   items.reserve(s.points.size());
-  for (std::size_t i = 0; i < s.points.size(); ++i) items.emplace_back(toP(s.points[i]), V3(0, 0, 0), int(i));
+  for (std::size_t i = 0; i < s.points.size(); ++i)
+    items.emplace_back(toP(s.points[i]), V3(0, 0, 0), int(i));
   using IPMap = CGAL::Nth_of_tuple_property_map<0, Item>;
   using INMap = CGAL::Nth_of_tuple_property_map<1, Item>;
   CGAL::pca_estimate_normals<CGAL::Sequential_tag>(
@@ -296,8 +320,10 @@ Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_or
   for (std::size_t i = 0; i < est.size(); ++i) {
     const Vec3& n = est[i];
     const Vec3 r = s.points[i] - c;
-    if (std::abs(n.z()) < 0.5) vote += (n.x() * r.x() + n.y() * r.y() > 0) ? 1 : -1;
-    else vote += n.z() > 0 ? 1 : -1;
+    if (std::abs(n.z()) < 0.5)
+      vote += (n.x() * r.x() + n.y() * r.y() > 0) ? 1 : -1;
+    else
+      vote += n.z() > 0 ? 1 : -1;
   }
   const bool flip_all = vote < 0;
   for (int i : need) {
@@ -369,7 +395,8 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
   // radius <= a^2. Computed directly on the triangulation: Alpha_shape_2 first
   // builds the whole alpha spectrum, ~10x slower (3 s for 96k points).
   using DtFb = CGAL::Triangulation_face_base_with_info_2<char, K>;
-  using Dt = CGAL::Delaunay_triangulation_2<K, CGAL::Triangulation_data_structure_2<CGAL::Triangulation_vertex_base_2<K>, DtFb>>;
+  using Dt = CGAL::Delaunay_triangulation_2<
+      K, CGAL::Triangulation_data_structure_2<CGAL::Triangulation_vertex_base_2<K>, DtFb>>;
   Dt dt(pts2.begin(), pts2.end());
   const double a2 = p.alpha * p.alpha;
   if (dt.dimension() == 2) {
@@ -379,7 +406,8 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
       const P2& b = f->vertex(1)->point();
       const P2& d = f->vertex(2)->point();
       if (CGAL::squared_radius(a, b, d) > a2) continue;
-      const double ar = 0.5 * ((b.x() - a.x()) * (d.y() - a.y()) - (d.x() - a.x()) * (b.y() - a.y()));
+      const double ar =
+          0.5 * ((b.x() - a.x()) * (d.y() - a.y()) - (d.x() - a.x()) * (b.y() - a.y()));
       if (!(ar > 0)) continue;  // Delaunay faces are CCW; skip flat ones
       f->info() = 1;
       prim.alpha_area += ar;
@@ -387,7 +415,8 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
     // The same region with far fewer triangles (the ray labelling casts
     // hundreds of thousands of rays at them): a constrained triangulation of
     // the shape's boundary edges, faces kept at odd nesting levels.
-    using Fb = CGAL::Constrained_triangulation_face_base_2<K, CGAL::Triangulation_face_base_with_info_2<int, K>>;
+    using Fb = CGAL::Constrained_triangulation_face_base_2<
+        K, CGAL::Triangulation_face_base_with_info_2<int, K>>;
     using Tds = CGAL::Triangulation_data_structure_2<CGAL::Triangulation_vertex_base_2<K>, Fb>;
     using Cdt = CGAL::Constrained_Delaunay_triangulation_2<K, Tds, CGAL::Exact_predicates_tag>;
     Cdt cdt;
@@ -410,8 +439,10 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
         for (int i = 0; i < 3; ++i) {
           const auto g = f->neighbor(i);
           if (g->info() != -1) continue;
-          if (cdt.is_constrained(Cdt::Edge(f, i))) border.emplace_back(f, i);
-          else stack.push_back(g);
+          if (cdt.is_constrained(Cdt::Edge(f, i)))
+            border.emplace_back(f, i);
+          else
+            stack.push_back(g);
         }
       }
     };
@@ -437,7 +468,8 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
 
 // ---------------------------------------------------------------- detection
 
-std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s, const PlaneParams& p) {
+std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
+                                     const PlaneParams& p) {
   std::vector<Primitive> prims;
   if (s.points.size() < 3) return prims;
   std::vector<std::vector<int>> regions;  // sample indices
@@ -447,7 +479,8 @@ std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s, 
     if (regions_on_mesh(in, p, face_regions)) {
       std::vector<std::vector<int>> samples_of(in.triangles.size());
       for (std::size_t i = 0; i < s.face_of.size(); ++i)
-        if (s.face_of[i] >= 0 && s.face_of[i] < int(in.triangles.size())) samples_of[s.face_of[i]].push_back(int(i));
+        if (s.face_of[i] >= 0 && s.face_of[i] < int(in.triangles.size()))
+          samples_of[s.face_of[i]].push_back(int(i));
       for (const auto& fr : face_regions) {
         std::vector<int> r;
         for (int t : fr) r.insert(r.end(), samples_of[t].begin(), samples_of[t].end());
@@ -466,10 +499,11 @@ std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s, 
     }
   }
   // Largest first (inlier count; mesh: sample count ~ area), ties by smallest index.
-  std::sort(regions.begin(), regions.end(), [](const std::vector<int>& a, const std::vector<int>& b) {
-    if (a.size() != b.size()) return a.size() > b.size();
-    return a.front() < b.front();
-  });
+  std::sort(regions.begin(), regions.end(),
+            [](const std::vector<int>& a, const std::vector<int>& b) {
+              if (a.size() != b.size()) return a.size() > b.size();
+              return a.front() < b.front();
+            });
   if (p.max_planes > 0 && regions.size() > std::size_t(p.max_planes)) regions.resize(p.max_planes);
   // Shapes with the default alpha radius (the paper's 7 m); a caller with another
   // alpha recomputes them with compute_shape.
@@ -487,8 +521,8 @@ std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s, 
 
 // ---------------------------------------------------------------- regularization
 
-void regularize_principal(std::vector<Primitive>& prims, const std::vector<int>& which, const Samples& s,
-                          const RegularizationParams& p, const AlphaParams& a) {
+void regularize_principal(std::vector<Primitive>& prims, const std::vector<int>& which,
+                          const Samples& s, const RegularizationParams& p, const AlphaParams& a) {
   std::vector<int> sel;
   for (int w : which)
     if (w >= 0 && w < int(prims.size())) sel.push_back(w);
@@ -503,10 +537,19 @@ void regularize_principal(std::vector<Primitive>& prims, const std::vector<int>&
     const Primitive& pr = prims[sel[j]];
     planes.emplace_back(pr.normal.x(), pr.normal.y(), pr.normal.z(), pr.d);
     if (!pr.inliers.empty()) {
-      for (int i : pr.inliers) { pts.push_back(toP(s.points[i])); plane_of.push_back(int(j)); }
+      for (int i : pr.inliers) {
+        pts.push_back(toP(s.points[i]));
+        plane_of.push_back(int(j));
+      }
     } else {
-      for (const auto& h : pr.hull) { pts.push_back(toP(h)); plane_of.push_back(int(j)); }
-      if (pr.hull.empty()) { pts.push_back(toP(pr.centroid)); plane_of.push_back(int(j)); }
+      for (const auto& h : pr.hull) {
+        pts.push_back(toP(h));
+        plane_of.push_back(int(j));
+      }
+      if (pr.hull.empty()) {
+        pts.push_back(toP(pr.centroid));
+        plane_of.push_back(int(j));
+      }
     }
   }
   const std::vector<Vec3> old_n = [&] {
@@ -531,7 +574,10 @@ void regularize_principal(std::vector<Primitive>& prims, const std::vector<int>&
     if (!(len > 1e-12) || !std::isfinite(d)) continue;
     n /= len;
     d /= len;
-    if (n.dot(old_n[j]) < 0) { n = -n; d = -d; }
+    if (n.dot(old_n[j]) < 0) {
+      n = -n;
+      d = -d;
+    }
     pr.normal = n;
     pr.d = d;
     if (!pr.inliers.empty()) {

@@ -18,25 +18,25 @@ namespace citylod::lod::detail {
 /// gives the source triangle (or -1).
 struct Samples {
   std::vector<Vec3> points;
-  std::vector<Vec3> normals;     ///< unit, pointing out of the building
-  std::vector<double> weights;   ///< area represented by each sample (m^2); 1 for point clouds
-  std::vector<int> face_of;      ///< mesh input: triangle index of each sample
+  std::vector<Vec3> normals;    ///< unit, pointing out of the building
+  std::vector<double> weights;  ///< area represented by each sample (m^2); 1 for point clouds
+  std::vector<int> face_of;     ///< mesh input: triangle index of each sample
   bool normals_estimated = false;
 };
 
 /// A planar primitive with its alpha-shape and convex hull.
 struct Primitive {
-  Vec3 normal = Vec3::UnitZ();   ///< unit, oriented like its inliers' normals (outward)
-  double d = 0.0;                ///< plane: normal.dot(x) + d = 0
-  std::vector<int> inliers;      ///< indices into Samples
+  Vec3 normal = Vec3::UnitZ();  ///< unit, oriented like its inliers' normals (outward)
+  double d = 0.0;               ///< plane: normal.dot(x) + d = 0
+  std::vector<int> inliers;     ///< indices into Samples
   Vec3 centroid = Vec3::Zero();
   Vec3 u = Vec3::UnitX(), v = Vec3::UnitY();  ///< orthonormal in-plane axes, u x v = normal
-  std::vector<Vec3> hull;        ///< convex hull of the projected inliers, CCW about normal
+  std::vector<Vec3> hull;  ///< convex hull of the projected inliers, CCW about normal
   std::vector<std::array<Vec3, 3>> alpha_tris;  ///< alpha-shape as triangles on the plane
   double hull_area = 0.0;
   double alpha_area = 0.0;
-  bool inferred = false;         ///< closure plane (ground / outline wall), not detected
-  bool from_template = false;    ///< cuboid template face
+  bool inferred = false;       ///< closure plane (ground / outline wall), not detected
+  bool from_template = false;  ///< cuboid template face
 };
 
 /// Deterministic pseudo-random numbers (splitmix64): the same sequence on
@@ -61,7 +61,8 @@ Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_or
 
 /// Region growing (CGAL Shape_detection): on the points of a cloud, on the
 /// faces of a mesh. Deterministic. Largest planes first; at most p.max_planes.
-std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s, const PlaneParams& p);
+std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
+                                     const PlaneParams& p);
 
 /// (Re)computes centroid, u/v, hull and alpha-shape of a primitive from its
 /// inliers projected on its current plane.
@@ -76,7 +77,7 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p);
 /// or is cut off.
 struct Closure {
   enum What { None, Base, Walls, FootprintWalls, Plinth };
-  int added = 0;      ///< primitives added
+  int added = 0;  ///< primitives added
   What what = None;
   std::vector<Vec2> outline;  ///< the outline the walls stand on (CCW), when walls were inferred
   double ground_z = 0;        ///< the ground plane's height
@@ -104,7 +105,9 @@ void regularize_principal(std::vector<Primitive>& prims, const std::vector<int>&
 /// e1 (model -> input) and e2 (input -> model) RMSE in % of `diag`, and the
 /// symmetric Hausdorff estimate in metres. The input surface is the mesh when
 /// `in` is a mesh, else the points.
-struct Fidelity { double e1 = 0, e2 = 0, hausdorff = 0; };
+struct Fidelity {
+  double e1 = 0, e2 = 0, hausdorff = 0;
+};
 Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s,
                           double diag, int model_samples);
 

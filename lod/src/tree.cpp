@@ -26,7 +26,8 @@ LodTree build_tree(const Bsp& bsp, const SortedPrimitives& sorted, const Groupin
       stack.pop_back();
       const auto& node = bn[size_t(n)];
       if (node.is_leaf()) {
-        for (size_t k = 0; k < L; ++k) t.vin[size_t(n)][k] = t.label[size_t(n)][k] ? node.volume : 0.0;
+        for (size_t k = 0; k < L; ++k)
+          t.vin[size_t(n)][k] = t.label[size_t(n)][k] ? node.volume : 0.0;
         continue;
       }
       if (!done) {
@@ -36,7 +37,8 @@ LodTree build_tree(const Bsp& bsp, const SortedPrimitives& sorted, const Groupin
         stack.push_back({node.children[0], false});
       } else {
         for (size_t k = 0; k < L; ++k)
-          t.vin[size_t(n)][k] = t.vin[size_t(node.children[0])][k] + t.vin[size_t(node.children[1])][k];
+          t.vin[size_t(n)][k] =
+              t.vin[size_t(node.children[0])][k] + t.vin[size_t(node.children[1])][k];
       }
     }
   }
@@ -45,7 +47,8 @@ LodTree build_tree(const Bsp& bsp, const SortedPrimitives& sorted, const Groupin
   std::vector<char> merge_cluster(grouping.clusters.size(), 0);
   for (size_t c = 0; c < grouping.clusters.size(); ++c) {
     const auto& cl = grouping.clusters[c];
-    const double per_structure = double(cl.primitives.size()) / double(std::max<size_t>(1, cl.structures.size()));
+    const double per_structure =
+        double(cl.primitives.size()) / double(std::max<size_t>(1, cl.structures.size()));
     merge_cluster[c] = per_structure < double(p.merge_k) ? 1 : 0;
   }
   auto cluster_of_node = [&](int n) {
@@ -83,8 +86,10 @@ LodTree build_tree(const Bsp& bsp, const SortedPrimitives& sorted, const Groupin
       ++cuts;
       for (int ci = 1; ci >= 0; --ci) {
         const int c = bn[size_t(m)].children[size_t(ci)];
-        if (merge && !bn[size_t(c)].is_leaf() && cluster_of_node(c) == cl) frontier.push_back(c);
-        else boundary.push_back(c);
+        if (merge && !bn[size_t(c)].is_leaf() && cluster_of_node(c) == cl)
+          frontier.push_back(c);
+        else
+          boundary.push_back(c);
       }
     }
     // boundary was collected in a stack-dependent order; sort by BSP id for determinism
@@ -163,7 +168,8 @@ std::vector<Candidate> traverse(const LodTree& tree, const Bsp& bsp, const TreeP
     if (last.partition.size() != Q.size()) return false;
     size_t i = 0;
     for (int n : Q) {
-      if (last.partition[i] != tree.nodes[size_t(n)].bsp || last.inside[i] != (st.x(n) ? 1 : 0)) return false;
+      if (last.partition[i] != tree.nodes[size_t(n)].bsp || last.inside[i] != (st.x(n) ? 1 : 0))
+        return false;
       ++i;
     }
     return true;
@@ -178,7 +184,8 @@ std::vector<Candidate> traverse(const LodTree& tree, const Bsp& bsp, const TreeP
       if (!same_as_last()) {
         extract(ModelKind::Anchor);
       } else if (out.back().kind == ModelKind::Interpolation) {
-        out.back().kind = ModelKind::Anchor;  // the last interpolation already is this level's anchor
+        out.back().kind =
+            ModelKind::Anchor;  // the last interpolation already is this level's anchor
         out.back().level = st.level;
         out.back().diff_sum = 0.0;
       }  // else: this level set changes nothing; the previous anchor stands for it

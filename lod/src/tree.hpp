@@ -14,18 +14,18 @@
 namespace citylod::lod::detail {
 
 struct LodNode {
-  int bsp = -1;                  ///< BSP node this LOD-node starts at (its polyhedron)
-  int level = 0;                 ///< level set of the primitives splitting it (num_levels for leaves)
-  int cuts = 0;                  ///< BSP splits merged into this node
-  std::vector<int> children;     ///< LOD-node ids
+  int bsp = -1;               ///< BSP node this LOD-node starts at (its polyhedron)
+  int level = 0;              ///< level set of the primitives splitting it (num_levels for leaves)
+  int cuts = 0;               ///< BSP splits merged into this node
+  std::vector<int> children;  ///< LOD-node ids
   bool is_leaf() const { return children.empty(); }
 };
 
 struct LodTree {
-  std::vector<LodNode> nodes;                ///< nodes[0] is the root
-  int num_levels = 1;                        ///< N_l + 1
-  std::vector<std::vector<double>> vin;      ///< [bsp node][level]: in-volume of its leaves (m^3)
-  std::vector<std::vector<char>> label;      ///< [bsp node][level]: leaf labels (leaves only)
+  std::vector<LodNode> nodes;            ///< nodes[0] is the root
+  int num_levels = 1;                    ///< N_l + 1
+  std::vector<std::vector<double>> vin;  ///< [bsp node][level]: in-volume of its leaves (m^3)
+  std::vector<std::vector<char>> label;  ///< [bsp node][level]: leaf labels (leaves only)
   int bsp_internal_nodes = 0;
 };
 
@@ -42,8 +42,8 @@ struct Candidate {
   int step = 0;
   int cuts = 0;
   double diff_sum = 0.0;
-  std::vector<int> partition;    ///< BSP node ids
-  std::vector<char> inside;      ///< label per partition entry
+  std::vector<int> partition;  ///< BSP node ids
+  std::vector<char> inside;    ///< label per partition entry
 };
 
 /// Algorithm 1: priority-queue traversal by diff-value. Throws LodError

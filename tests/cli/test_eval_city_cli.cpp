@@ -296,8 +296,8 @@ TEST(EvalCityCli, TilesetExactAnswersWithAndWithoutReferences) {
   char row[128];
   // the text table's row: the self-intersecting mesh (two overlapping boxes)
   // is also not one solid; the other two are valid solids
-  std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d %7d %9d %6d\n", 1, 1, 3, 48, 3, 3,
-                1, 0, 1, 2);
+  std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d %7d %9d %6d\n", 1, 1, 3, 48, 3, 3, 1,
+                0, 1, 2);
   EXPECT_NE(r0.out.find(row), std::string::npos) << r0.out;
 
   // With references: positions back in each chunk frame (tile transform ->

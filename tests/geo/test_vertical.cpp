@@ -30,8 +30,7 @@ TEST(Vertical, RdNewImpliesNapByDefault) {
       << c.assumption;
   if (c.effective == HeightMode::Egm96) {
     // Debian's proj-data has no NSGI grids: the sentence names them
-    EXPECT_NE(c.assumption.find("EGM96 (nl_nsgi_nlgeo2018.tif"), std::string::npos)
-        << c.assumption;
+    EXPECT_NE(c.assumption.find("EGM96 (nl_nsgi_nlgeo2018.tif"), std::string::npos) << c.assumption;
     EXPECT_NE(c.assumption.find("not installed)"), std::string::npos) << c.assumption;
     EXPECT_FALSE(c.missing_grids.empty());
   }

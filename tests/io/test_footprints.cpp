@@ -27,8 +27,8 @@ std::string convert(const std::string& src, const std::string& driver, const std
                     const std::string& extra = "") {
   const std::string out = tmp_path(name);
   std::filesystem::remove_all(out);
-  const std::string cmd = "ogr2ogr -f \"" + driver + "\" " + extra + " '" + out + "' '" + src +
-                          "' >/dev/null 2>&1";
+  const std::string cmd =
+      "ogr2ogr -f \"" + driver + "\" " + extra + " '" + out + "' '" + src + "' >/dev/null 2>&1";
   if (std::system(cmd.c_str()) != 0) return "";
   return out;
 }
@@ -317,8 +317,9 @@ TEST(Footprints, PostgisSameAsGeoPackage) {
   if (!pg || !*pg) GTEST_SKIP() << "CITYLOD_TEST_PG not set (no PostGIS server to test against)";
   CITYLOD_REQUIRE_SHARED(shared("delft/bgt_pand.gpkg"));
   if (!have_ogr2ogr()) GTEST_SKIP() << "ogr2ogr (gdal-bin) not installed";
-  const std::string cmd = std::string("ogr2ogr -overwrite -nlt PROMOTE_TO_MULTI -nln citylod_test_bgt "
-                                      "-f PostgreSQL '") +
+  const std::string cmd = std::string(
+                              "ogr2ogr -overwrite -nlt PROMOTE_TO_MULTI -nln citylod_test_bgt "
+                              "-f PostgreSQL '") +
                           pg + "' '" + shared("delft/bgt_pand.gpkg") + "' >/dev/null 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << "ogr2ogr into " << pg << " failed";
   FootprintReadOptions o;

@@ -59,7 +59,7 @@ struct MeshReport {
   bool oriented = true;     // every directed edge used once
   bool degenerate = false;  // repeated index in a triangle
   int edges = 0;
-  int pinched = 0;         // vertices whose triangles form more than one fan through edges at the vertex
+  int pinched = 0;  // vertices whose triangles form more than one fan through edges at the vertex
 };
 
 MeshReport check_mesh(const TriangleMesh& m) {
@@ -85,14 +85,18 @@ MeshReport check_mesh(const TriangleMesh& m) {
   for (const auto& [v, ts] : around) {
     std::vector<size_t> parent(ts.size());
     for (size_t i = 0; i < ts.size(); ++i) parent[i] = i;
-    std::function<size_t(size_t)> find = [&](size_t x) { return parent[x] == x ? x : parent[x] = find(parent[x]); };
+    std::function<size_t(size_t)> find = [&](size_t x) {
+      return parent[x] == x ? x : parent[x] = find(parent[x]);
+    };
     std::map<int, size_t> by_other;
     for (size_t i = 0; i < ts.size(); ++i)
       for (int w : m.triangles[ts[i]]) {
         if (w == v) continue;
         auto it = by_other.find(w);
-        if (it == by_other.end()) by_other[w] = i;
-        else parent[find(i)] = find(it->second);
+        if (it == by_other.end())
+          by_other[w] = i;
+        else
+          parent[find(i)] = find(it->second);
       }
     size_t fans = 0;
     for (size_t i = 0; i < ts.size(); ++i) fans += find(i) == i;
@@ -668,11 +672,12 @@ TEST(Bsp, BuildingLikeStress) {
         }
         const BspSurface surf = bsp.extract(leaves, in);
         const MeshReport r = check_mesh(surf.triangles);
-        ASSERT_TRUE(r.closed && r.oriented && !r.degenerate) << "seed " << seed << " kind " << kind << " lab " << lab;
-        ASSERT_TRUE(polygon_mesh_closed(surf.polygons)) << "seed " << seed << " kind " << kind << " lab " << lab;
-        // No pinched vertex (two in-cones meeting at a point) survives the repair.
-        EXPECT_EQ(r.pinched, 0)
+        ASSERT_TRUE(r.closed && r.oriented && !r.degenerate)
             << "seed " << seed << " kind " << kind << " lab " << lab;
+        ASSERT_TRUE(polygon_mesh_closed(surf.polygons))
+            << "seed " << seed << " kind " << kind << " lab " << lab;
+        // No pinched vertex (two in-cones meeting at a point) survives the repair.
+        EXPECT_EQ(r.pinched, 0) << "seed " << seed << " kind " << kind << " lab " << lab;
         const double vin = sum_inside_volume(bsp, leaves, surf.inside);
         ASSERT_NEAR(mesh_volume(surf.triangles), vin, 1e-6 * std::max(1.0, vin)) << "seed " << seed;
         ++configs;

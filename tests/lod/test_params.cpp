@@ -91,12 +91,14 @@ TEST(LodParams, ItemsRoundTrip) {
   LodParams p;
   const auto items = p.items();
   std::set<std::string> names;
-  for (const auto& kv : items) EXPECT_TRUE(names.insert(kv.first).second) << "duplicate " << kv.first;
-  for (const char* n : {"planes.epsilon", "alpha.alpha", "tree.merge_k", "tree.interpolation_ratio",
-                        "labels.rays_per_cell", "regularization.enabled", "threads", "closure.outline_alpha",
-                        "metrics.samples", "bsp.max_cells", "budget.time_budget_s", "normals.k_neighbors",
-                        "bsp.baseline", "tree.interpolation_floor", "airborne.mode", "airborne.step_min",
-                        "airborne.block"})
+  for (const auto& kv : items)
+    EXPECT_TRUE(names.insert(kv.first).second) << "duplicate " << kv.first;
+  for (const char* n :
+       {"planes.epsilon", "alpha.alpha", "tree.merge_k", "tree.interpolation_ratio",
+        "labels.rays_per_cell", "regularization.enabled", "threads", "closure.outline_alpha",
+        "metrics.samples", "bsp.max_cells", "budget.time_budget_s", "normals.k_neighbors",
+        "bsp.baseline", "tree.interpolation_floor", "airborne.mode", "airborne.step_min",
+        "airborne.block"})
     EXPECT_TRUE(names.count(n)) << n;
   EXPECT_EQ(items.size(), 51u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.

@@ -56,9 +56,9 @@ struct VerticalChoice {
   /// The height treatment that will actually run (after fallbacks): FromCrs (PROJ's
   /// vertical path), Egm96, or Ellipsoidal.
   HeightMode effective = HeightMode::Ellipsoidal;
-  std::string datum;       ///< "NAP", "NAP height", "EGM96"; "" when heights are ellipsoidal
-  int vertical_epsg = 0;   ///< vertical CRS code when known (5709), else 0
-  bool implied = false;    ///< the datum comes from implied_vertical_table()
+  std::string datum;      ///< "NAP", "NAP height", "EGM96"; "" when heights are ellipsoidal
+  int vertical_epsg = 0;  ///< vertical CRS code when known (5709), else 0
+  bool implied = false;   ///< the datum comes from implied_vertical_table()
   /// One sentence for the run summary and run_report.json, e.g. "heights NAP (implied by
   /// EPSG:28992) -> ellipsoidal via EGM96 (nl_nsgi_nlgeo2018.tif not installed)".
   std::string assumption;

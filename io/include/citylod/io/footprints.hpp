@@ -39,9 +39,9 @@ struct FootprintFeature {
 };
 
 struct FootprintLayer {
-  std::string source;      ///< the source as given (a "PG:" password is masked)
-  std::string layer;       ///< layer (table) name read
-  std::string driver;      ///< GDAL driver, e.g. "GPKG", "ESRI Shapefile"
+  std::string source;  ///< the source as given (a "PG:" password is masked)
+  std::string layer;   ///< layer (table) name read
+  std::string driver;  ///< GDAL driver, e.g. "GPKG", "ESRI Shapefile"
   /// "EPSG:28992" when the layer's CRS has an EPSG code, else its WKT; ""
   /// when the source has no CRS. After reprojection: the target CRS.
   std::string crs;

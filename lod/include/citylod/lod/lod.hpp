@@ -28,9 +28,9 @@ const char* to_string(ModelKind k);
 /// One candidate LOD model of the set M.
 struct LodModel {
   ModelKind kind = ModelKind::Anchor;
-  int level = 0;            ///< level set index k (anchor: finished level; interpolation: level in progress)
-  int step = 0;             ///< number of coarser models in M before this one
-  int cuts = 0;             ///< BSP-node splits needed to reach this model
+  int level = 0;  ///< level set index k (anchor: finished level; interpolation: level in progress)
+  int step = 0;   ///< number of coarser models in M before this one
+  int cuts = 0;   ///< BSP-node splits needed to reach this model
   double diff_sum = 0.0;    ///< m^3, summed diff-value of the queue when extracted
   PolygonMesh polygons;     ///< merged coplanar polygons (outward CCW)
   TriangleMesh mesh;        ///< the same surface triangulated
@@ -43,44 +43,44 @@ struct LodModel {
 /// A planar primitive as reported (for --dump-planes and reports).
 struct PlaneReport {
   Vec3 normal;
-  double d = 0.0;                 ///< n.x + d = 0
-  int level = -1;                 ///< 0 = principal (S0), k = level set S_k, -1 = unused
+  double d = 0.0;  ///< n.x + d = 0
+  int level = -1;  ///< 0 = principal (S0), k = level set S_k, -1 = unused
   int cluster = -1;
-  double area = 0.0;              ///< m^2 alpha-shape area
+  double area = 0.0;  ///< m^2 alpha-shape area
   std::vector<Vec3> inlier_points;
-  bool from_template = false;     ///< cuboid template face
-  bool inferred = false;          ///< closure plane (ground or outline wall)
+  bool from_template = false;  ///< cuboid template face
+  bool inferred = false;       ///< closure plane (ground or outline wall)
 };
 
 struct LodStats {
   int input_points = 0, input_faces = 0;
   bool normals_estimated = false;
   bool walls_inferred = false;
-  int planes_detected = 0;        ///< P
-  int planes_turned = 0;          ///< planes turned round by the orientation check
-  int planes_sorted = 0;          ///< S (after regularization/templates)
+  int planes_detected = 0;  ///< P
+  int planes_turned = 0;    ///< planes turned round by the orientation check
+  int planes_sorted = 0;    ///< S (after regularization/templates)
   int principal = 0;
   int add_ons = 0, cut_outs = 0;  ///< secondary structures
   int clusters = 0;
-  int level_sets = 0;             ///< N_l
+  int level_sets = 0;  ///< N_l
   int ioview_cells = 0;
-  int bsp_nodes = 0;              ///< nodes of the LOD-Tree's BSP
+  int bsp_nodes = 0;  ///< nodes of the LOD-Tree's BSP
   int lod_nodes = 0;
   int lod_tree_cuts_to_finest = 0;
-  int baseline_bsp_nodes = 0;     ///< plain BSP-Tree (area order, binary)
+  int baseline_bsp_nodes = 0;  ///< plain BSP-Tree (area order, binary)
   int baseline_cuts_to_finest = 0;
   double bbox_diagonal = 0.0;
-  double t_ioview = 0.0;          ///< T1 s (incl. plane detection)
-  double t_tree = 0.0;            ///< T2 s
-  double t_traversal = 0.0;       ///< T3 s (incl. mesh extraction)
+  double t_ioview = 0.0;     ///< T1 s (incl. plane detection)
+  double t_tree = 0.0;       ///< T2 s
+  double t_traversal = 0.0;  ///< T3 s (incl. mesh extraction)
   double t_metrics = 0.0;
-  std::vector<std::string> notes; ///< caps hit, fallbacks, estimations
+  std::vector<std::string> notes;  ///< caps hit, fallbacks, estimations
 };
 
 struct LodResult {
-  std::string status = "ok";      ///< "ok" or "fallback"
-  std::string reason;             ///< why a fallback was used
-  std::vector<LodModel> models;   ///< candidate set M, coarse to fine
+  std::string status = "ok";     ///< "ok" or "fallback"
+  std::string reason;            ///< why a fallback was used
+  std::vector<LodModel> models;  ///< candidate set M, coarse to fine
   std::vector<PlaneReport> planes;
   LodStats stats;
 };
@@ -98,10 +98,11 @@ LodResult fallback_result(const BuildingInput& input, const std::string& reason)
 
 /// Mesh validity, checked by exact edge incidence on vertex indices.
 struct MeshCheck {
-  bool closed = false;           ///< every edge has exactly two incident faces (as a set with orientation pairs)
-  bool edge_manifold = false;    ///< no edge with more than two faces
-  bool oriented = false;         ///< each edge appears once in each direction
-  bool self_intersecting = true; ///< any two non-adjacent triangles intersect
+  bool closed =
+      false;  ///< every edge has exactly two incident faces (as a set with orientation pairs)
+  bool edge_manifold = false;     ///< no edge with more than two faces
+  bool oriented = false;          ///< each edge appears once in each direction
+  bool self_intersecting = true;  ///< any two non-adjacent triangles intersect
   int boundary_edges = 0, nonmanifold_edges = 0;
   /// Vertices whose incident triangles form more than one fan through shared
   /// edges (two solids touching at a point, or a cone pinched to one vertex).
@@ -131,6 +132,7 @@ struct ModelEvaluation {
   std::size_t triangles = 0;
   double volume = 0, e1 = 0, e2 = 0, hausdorff = 0, diagonal = 0;
 };
-ModelEvaluation evaluate_model(const TriangleMesh& model, const BuildingInput& reference, int samples = 20000);
+ModelEvaluation evaluate_model(const TriangleMesh& model, const BuildingInput& reference,
+                               int samples = 20000);
 
 }  // namespace citylod::lod

@@ -9,33 +9,33 @@ namespace citylod::lod {
 
 /// Normal estimation when the input has none (points) — PCA over k neighbours.
 struct NormalParams {
-  int k_neighbors = 12;          ///< neighbours for PCA normals
+  int k_neighbors = 12;  ///< neighbours for PCA normals
 };
 
 /// Plane detection by region growing (paper: eps 0.15 m, theta 40 deg, sigma 15).
 struct PlaneParams {
-  double epsilon = 0.15;         ///< m, max point-to-plane distance
-  double max_angle_deg = 40.0;   ///< deg, max normal deviation from the plane
-  int min_region_size = 15;      ///< points (or faces) per plane
-  int k_neighbors = 12;          ///< neighbourhood for point clouds
-  int max_planes = 400;          ///< cap: the largest planes are kept, the rest dropped (recorded)
+  double epsilon = 0.15;        ///< m, max point-to-plane distance
+  double max_angle_deg = 40.0;  ///< deg, max normal deviation from the plane
+  int min_region_size = 15;     ///< points (or faces) per plane
+  int k_neighbors = 12;         ///< neighbourhood for point clouds
+  int max_planes = 400;         ///< cap: the largest planes are kept, the rest dropped (recorded)
 };
 
 /// Alpha-shapes of the planar primitives (paper: alpha = 7 m).
 struct AlphaParams {
-  double alpha = 7.0;            ///< m, alpha radius (CGAL's squared alpha = alpha^2)
+  double alpha = 7.0;  ///< m, alpha radius (CGAL's squared alpha = alpha^2)
 };
 
 /// BSP of the enlarged bounding box (Appendix B).
 struct BspParams {
-  double bbox_enlarge = 0.05;    ///< fraction of the bbox diagonal added on every side
-  int max_cells = 60000;         ///< cap on leaf cells per BSP (fallback when hit)
-  bool baseline = false;         ///< also build the plain BSP-Tree (area order, binary) for comparison
+  double bbox_enlarge = 0.05;  ///< fraction of the bbox diagonal added on every side
+  int max_cells = 60000;       ///< cap on leaf cells per BSP (fallback when hit)
+  bool baseline = false;  ///< also build the plain BSP-Tree (area order, binary) for comparison
 };
 
 /// In/out labelling by ray casting (Appendix C).
 struct LabelParams {
-  int rays_per_cell = 100;       ///< rays per polyhedron, from its centre
+  int rays_per_cell = 100;  ///< rays per polyhedron, from its centre
   /// (ours) ray origins per cell: 1 = the paper's centre only; more spreads the
   /// rays over the centre and points halfway to the cell's vertices.
   int origins_per_cell = 1;
@@ -43,32 +43,34 @@ struct LabelParams {
 
 /// IO-View analysis (Section 4.1).
 struct IoViewParams {
-  double separation_coverage = 0.5;  ///< fraction of a shared face covered by an alpha-shape to separate cells
-  double min_principal_area = 0.5;   ///< m^2 of V_in/V_out interface for a primitive to be principal
+  double separation_coverage =
+      0.5;  ///< fraction of a shared face covered by an alpha-shape to separate cells
+  double min_principal_area = 0.5;  ///< m^2 of V_in/V_out interface for a primitive to be principal
 };
 
 /// Two-stage mean-shift clustering (Section 4.1).
 struct ClusterParams {
-  double area_bandwidth = 2.0;   ///< m^2, stage 1: projected area on the host primitive
-  double volume_bandwidth = 4.0; ///< m^3, stage 2: mean volume per cluster -> level sets
+  double area_bandwidth = 2.0;    ///< m^2, stage 1: projected area on the host primitive
+  double volume_bandwidth = 4.0;  ///< m^3, stage 2: mean volume per cluster -> level sets
 };
 
 /// Adaptive regularization (Section 4.1).
 struct RegularizationParams {
   bool enabled = true;
-  double principal_angle_deg = 5.0;    ///< parallelism/orthogonality tolerance, principal
-  double principal_distance = 0.01;    ///< m, coplanarity tolerance, principal
-  double secondary_angle_deg = 15.0;   ///< relative to the host primitive
-  double secondary_distance = 0.01;    ///< m
-  double vertical_host_deg = 5.0;      ///< host counts as a wall within this angle of vertical
-  int min_cutouts_for_templates = 4;   ///< "more than three" cut-outs -> cuboid templates
+  double principal_angle_deg = 5.0;   ///< parallelism/orthogonality tolerance, principal
+  double principal_distance = 0.01;   ///< m, coplanarity tolerance, principal
+  double secondary_angle_deg = 15.0;  ///< relative to the host primitive
+  double secondary_distance = 0.01;   ///< m
+  double vertical_host_deg = 5.0;     ///< host counts as a wall within this angle of vertical
+  int min_cutouts_for_templates = 4;  ///< "more than three" cut-outs -> cuboid templates
 };
 
 /// LOD-Tree construction and traversal (Section 4.2).
 struct TreeParams {
-  int merge_k = 10;                    ///< K: clusters with < K primitives per structure -> one multi-branch LOD-node
-  double label_volume_ratio = 0.65;    ///< node labelled in when >= 65 % of its leaf volume is in
-  double interpolation_ratio = 0.80;   ///< new interpolation model when the diff sum < 80 % of the last model's
+  int merge_k = 10;  ///< K: clusters with < K primitives per structure -> one multi-branch LOD-node
+  double label_volume_ratio = 0.65;  ///< node labelled in when >= 65 % of its leaf volume is in
+  double interpolation_ratio =
+      0.80;  ///< new interpolation model when the diff sum < 80 % of the last model's
   /// (ours) no interpolation model once the diff sum is below this fraction of
   /// the level's initial diff sum: the remaining changes are too small to see,
   /// and without it the 80 % rule yields one model per 20 % of an ever smaller tail.
@@ -77,14 +79,15 @@ struct TreeParams {
 
 /// Work bounds per building; hitting one gives a recorded fallback.
 struct BudgetParams {
-  double time_budget_s = 120.0;        ///< wall-clock seconds per building (0 = none)
+  double time_budget_s = 120.0;  ///< wall-clock seconds per building (0 = none)
 };
 
 /// Closure of airborne LiDAR buildings that have roofs but few walls.
 struct ClosureParams {
-  bool enabled = true;                 ///< add ground + outline walls when walls are missing
-  double wall_fraction_min = 0.05;     ///< if vertical-normal samples are below this fraction, walls are inferred
-  double outline_alpha = 1.5;          ///< m, 2D alpha radius of the outline of the points
+  bool enabled = true;  ///< add ground + outline walls when walls are missing
+  double wall_fraction_min =
+      0.05;  ///< if vertical-normal samples are below this fraction, walls are inferred
+  double outline_alpha = 1.5;  ///< m, 2D alpha radius of the outline of the points
   /// What becomes of a terrain sheet around the building (photogrammetry
   /// meshes cut out of a city model): "plinth" keeps it as the top of a solid
   /// under the whole scene (what the paper's BSP labelling of such an input
@@ -97,7 +100,7 @@ struct ClosureParams {
   /// cells see the sky sideways and are lost). City runs set this; a single
   /// building's scan without a footprint is unaffected.
   bool footprint_walls = false;
-  double plinth_depth = 0.5;           ///< m, plinth bottom below the lowest sample
+  double plinth_depth = 0.5;  ///< m, plinth bottom below the lowest sample
 };
 
 /// (ours) Airborne LiDAR (a point cloud whose walls the closure inferred) is
@@ -105,19 +108,19 @@ struct ClosureParams {
 /// rays, vertical walls are inferred where the roof steps down, and the chain
 /// starts with the outline extruded to its best-fitting height (LoD1.2 block).
 struct AirborneParams {
-  std::string mode = "auto";   ///< auto (point clouds with inferred walls) | on | off
-  double cell = 0.5;           ///< m, height-field cell size
-  double fill_radius = 1.5;    ///< m, gaps in the height field filled from neighbours up to this far
-  double step_min = 1.0;       ///< m, roof drop across a roof plane's edge that makes a step wall
-  double step_probe = 0.75;    ///< m, how far beyond the edge the lower roof is probed
-  double step_alpha = 1.0;     ///< m, 2D alpha radius of a roof plane's outline
+  std::string mode = "auto";  ///< auto (point clouds with inferred walls) | on | off
+  double cell = 0.5;          ///< m, height-field cell size
+  double fill_radius = 1.5;   ///< m, gaps in the height field filled from neighbours up to this far
+  double step_min = 1.0;      ///< m, roof drop across a roof plane's edge that makes a step wall
+  double step_probe = 0.75;   ///< m, how far beyond the edge the lower roof is probed
+  double step_alpha = 1.0;    ///< m, 2D alpha radius of a roof plane's outline
   double step_min_edge = 1.0;  ///< m, shortest edge that gets a step wall
   int origins_per_cell = 9;    ///< height-test points per cell (centre + halfway to vertices)
   /// Smallest plane (points) on airborne input: the paper's 15 suit dense
   /// MVS; at AHN3's ~10 points/m^2 they lose roof parts under 1.5 m^2
   /// (Delft tile: finest RMSE median 0.193 m with 15, 0.136 m with 8).
   int min_region_size = 8;
-  bool block = true;           ///< the LoD1.2 block as the coarsest model
+  bool block = true;  ///< the LoD1.2 block as the coarsest model
 };
 
 /// (ours) Consistent orientation of the detected planes before IO-View: a
@@ -125,16 +128,17 @@ struct AirborneParams {
 /// (input normals pointing into the building) is turned round.
 struct OrientParams {
   bool enabled = true;
-  int points_per_plane = 4;            ///< inlier positions probed per plane
-  int rays = 100;                      ///< ray directions (half of them per side)
-  double offset = 0.1;                 ///< m, probe distance in front of / behind the plane
-  double margin = 0.2;                 ///< front in-fraction must exceed the back's by this much
-  int threads = 1;                     ///< set from LodParams::threads
+  int points_per_plane = 4;  ///< inlier positions probed per plane
+  int rays = 100;            ///< ray directions (half of them per side)
+  double offset = 0.1;       ///< m, probe distance in front of / behind the plane
+  double margin = 0.2;       ///< front in-fraction must exceed the back's by this much
+  int threads = 1;           ///< set from LodParams::threads
 };
 
 /// Evaluation (e1/e2 RMSE).
 struct MetricParams {
-  int samples = 5000;                  ///< samples on each model for e1 (point clouds: at most 2 per input point, at least 1000); at most this many input samples for e2
+  int samples = 5000;  ///< samples on each model for e1 (point clouds: at most 2 per input point,
+                       ///< at least 1000); at most this many input samples for e2
 };
 
 struct LodParams {
@@ -152,7 +156,7 @@ struct LodParams {
   AirborneParams airborne;
   OrientParams orient;
   MetricParams metrics;
-  int threads = 1;                     ///< OpenMP threads inside one building (results do not depend on it)
+  int threads = 1;  ///< OpenMP threads inside one building (results do not depend on it)
 
   /// Throws std::invalid_argument naming the offending parameter.
   void validate() const;

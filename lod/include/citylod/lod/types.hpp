@@ -20,12 +20,12 @@ using Vec2 = Eigen::Vector2d;
 /// mesh vertices, triangles index them).
 struct BuildingInput {
   std::vector<Vec3> points;
-  std::vector<Vec3> normals;                   ///< empty, or one per point
-  std::vector<std::array<int, 3>> triangles;   ///< empty for point clouds
-  std::vector<Vec2> footprint;                 ///< optional outline (xy, CCW) of the building
-  double ground_z = 0.0;                       ///< ground height (used with footprint / LiDAR closure)
+  std::vector<Vec3> normals;                  ///< empty, or one per point
+  std::vector<std::array<int, 3>> triangles;  ///< empty for point clouds
+  std::vector<Vec2> footprint;                ///< optional outline (xy, CCW) of the building
+  double ground_z = 0.0;  ///< ground height (used with footprint / LiDAR closure)
   bool has_ground_z = false;
-  std::string name;                            ///< for messages only
+  std::string name;  ///< for messages only
 
   bool is_mesh() const { return !triangles.empty(); }
 };

@@ -90,7 +90,7 @@ struct WorkSummary {
   std::size_t pinched = 0;        ///< models with a pinched vertex
   std::size_t not_one_shell = 0;  ///< models with other than one outer shell
   std::size_t valid = 0;          ///< valid solids (lod::MeshCheck::valid)
-  Stat finest_e1, finest_e2;  ///< of each building's finest model
+  Stat finest_e1, finest_e2;      ///< of each building's finest model
   std::vector<std::pair<std::string, std::string>> fallbacks, without_lod;  ///< id, reason
 };
 WorkSummary summarize(const WorkEval& w);
