@@ -23,6 +23,7 @@
 #include "citylod/io/reader.hpp"
 #include "citylod/io/types.hpp"
 #include "citylod/lod/lod.hpp"
+#include "citylod/lod/polygon2d.hpp"
 #include "citylod/tiler/workdir.hpp"
 
 #include <nlohmann/json.hpp>
@@ -71,25 +72,6 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-double seg_dist(const lod::Vec2& p, const lod::Vec2& a, const lod::Vec2& b) {
-  const lod::Vec2 ab = b - a;
-  const double l2 = ab.squaredNorm();
-  const double t = l2 > 0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
-  return (p - (a + t * ab)).norm();
-}
-
-bool inside(const lod::Vec2& p, const std::vector<lod::Vec2>& poly) {
-  bool in = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const auto& a = poly[i];
-    const auto& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
-      in = !in;
-  }
-  return in;
-}
-
 /// Vertical RMSE of the roof points (more than 1 m inside the outline) to the
 /// model: the model surface nearest in z on the vertical through the point; a
 /// point over no model surface counts with its height above the model's base.
@@ -115,11 +97,8 @@ double roof_rmse(const lod::TriangleMesh& m, const std::vector<lod::Vec3>& pts,
   std::size_t n = 0;
   for (const auto& p : pts) {
     const lod::Vec2 q(p.x(), p.y());
-    if (outline.size() < 3 || !inside(q, outline)) continue;
-    double d_edge = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < outline.size(); ++i)
-      d_edge = std::min(d_edge, seg_dist(q, outline[i], outline[(i + 1) % outline.size()]));
-    if (d_edge <= 1.0) continue;
+    if (outline.size() < 3 || !poly2::point_in_ring(outline, q)) continue;
+    if (poly2::distance_to_ring(outline, q) <= 1.0) continue;
     double best = std::numeric_limits<double>::infinity();
     for (const auto& t : tris) {
       if (q.x() < t.x0 || q.x() > t.x1 || q.y() < t.y0 || q.y() > t.y1) continue;

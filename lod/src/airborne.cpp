@@ -2,6 +2,8 @@
 // LoD1.2 block. See airborne.hpp.
 #include "airborne.hpp"
 
+#include "citylod/lod/polygon2d.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -9,34 +11,8 @@
 namespace citylod::lod::detail {
 namespace {
 
-double seg_dist(const Vec2& p, const Vec2& a, const Vec2& b) {
-  const Vec2 ab = b - a;
-  const double l2 = ab.squaredNorm();
-  const double t = l2 > 0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
-  return (p - (a + t * ab)).norm();
-}
-
 double cross2(const Vec2& o, const Vec2& a, const Vec2& b) {
-  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-}
-
-bool point_in_polygon(const Vec2& p, const std::vector<Vec2>& poly) {
-  bool in = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Vec2& a = poly[i];
-    const Vec2& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
-      in = !in;
-  }
-  return in;
-}
-
-double distance_to_boundary(const Vec2& p, const std::vector<Vec2>& poly) {
-  double d = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < poly.size(); ++i)
-    d = std::min(d, seg_dist(p, poly[i], poly[(i + 1) % poly.size()]));
-  return d;
+  return poly2::cross(o, a, b);
 }
 
 /// The ring without repeated and collinear vertices, CCW.
@@ -171,7 +147,7 @@ double HeightField::at(const Vec2& p) const {
 }
 
 bool HeightField::inside(const Vec2& p) const {
-  return outline_.size() >= 3 && point_in_polygon(p, outline_);
+  return outline_.size() >= 3 && poly2::point_in_ring(outline_, p);
 }
 
 std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
@@ -200,8 +176,8 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
   d_edge.reserve(s.points.size());
   for (const auto& q : s.points) {
     const Vec2 xy(q.x(), q.y());
-    d_edge.push_back(distance_to_boundary(xy, ring));
-    inside.push_back(point_in_polygon(xy, ring));
+    d_edge.push_back(poly2::distance_to_ring(ring, xy));
+    inside.push_back(poly2::point_in_ring(ring, xy));
     if (q.z() > g + 0.5) roof_z.push_back(q.z());
   }
   if (roof_z.empty()) throw LodError("block", "no point above the ground");
