@@ -15,7 +15,7 @@ build_pkgs=(
   libgtest-dev libgmock-dev libmeshoptimizer-dev libomp-dev
   libgdal-dev
 )
-test_pkgs=(chromium gdal-bin gnuplot-nox slurm-wlm munge postgresql-15-postgis-3)
+test_pkgs=(clang-format chromium gdal-bin gnuplot-nox slurm-wlm munge postgresql-15-postgis-3)
 # Node.js/npm: use the machine's own if present (Debian's npm conflicts with a
 # nodejs installed from elsewhere); otherwise Debian's.
 if ! command -v npm >/dev/null 2>&1; then test_pkgs+=(nodejs npm); fi
