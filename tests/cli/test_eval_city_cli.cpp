@@ -487,6 +487,10 @@ TEST(EvalCityCli, DelftTileFootprintWallsCloseEveryBuilding) {
   EXPECT_EQ(with["buildings"], 9);
   EXPECT_TRUE(with["fallbacks"].empty()) << with["fallbacks"].dump();
   EXPECT_LT(with["finest_e2_percent"]["max"].get<double>(), 3.5);
+  // Every model of every building a valid solid (exact incidence).
+  EXPECT_EQ(with["valid"], with["models"]);
+  EXPECT_EQ(with["pinched"], 0);
+  EXPECT_EQ(with["not_one_shell"], 0);
   const nlohmann::json without = summary("off", " --set closure.footprint_walls=false");
   EXPECT_EQ(without["fallbacks"].size(), 1u);
   EXPECT_GT(without["finest_e2_percent"]["max"].get<double>(), 5.0);
