@@ -2,6 +2,8 @@
 // LoD1.2 block. See airborne.hpp.
 #include "airborne.hpp"
 
+#include "fallback.hpp"
+
 #include "citylod/lod/polygon2d.hpp"
 
 #include <algorithm>
@@ -210,19 +212,8 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
   m.kind = ModelKind::Anchor;
   m.level = 0;
   const int n = int(ring.size());
-  auto& V = m.polygons.vertices;
-  for (const auto& q : ring) V.emplace_back(q.x(), q.y(), g);
-  for (const auto& q : ring) V.emplace_back(q.x(), q.y(), h);
-  std::vector<int> bottom, top;
-  for (int i = n - 1; i >= 0; --i) bottom.push_back(i);  // CW from above = outward (down)
-  for (int i = 0; i < n; ++i) top.push_back(n + i);
-  m.polygons.faces.push_back(bottom);
-  m.polygons.faces.push_back(top);
-  for (int i = 0; i < n; ++i) {
-    const int j = (i + 1) % n;
-    m.polygons.faces.push_back({i, j, n + j, n + i});
-  }
-  m.mesh.vertices = V;
+  m.polygons = prism_polygons(ring, g, h);
+  m.mesh.vertices = m.polygons.vertices;
   for (const auto& t : top_tris) {
     m.mesh.triangles.push_back({n + t[0], n + t[1], n + t[2]});
     m.mesh.triangles.push_back({t[0], t[2], t[1]});

@@ -35,24 +35,29 @@ LodModel extruded_outline(const BuildingInput& in) {
 
   LodModel m;
   m.kind = ModelKind::Fallback;
-  const int n = int(hull.size());
-  auto& V = m.polygons.vertices;
-  for (const auto& q : hull) V.emplace_back(q.x(), q.y(), zmin);
-  for (const auto& q : hull) V.emplace_back(q.x(), q.y(), ztop);
-  std::vector<int> bottom, top;
-  for (int i = n - 1; i >= 0; --i) bottom.push_back(i);  // CW from above = outward (down)
-  for (int i = 0; i < n; ++i) top.push_back(n + i);
-  m.polygons.faces.push_back(bottom);
-  m.polygons.faces.push_back(top);
-  for (int i = 0; i < n; ++i) {
-    const int j = (i + 1) % n;
-    m.polygons.faces.push_back({i, j, n + j, n + i});
-  }
-  m.mesh.vertices = V;
+  m.polygons = prism_polygons(hull, zmin, ztop);
+  m.mesh.vertices = m.polygons.vertices;
   for (const auto& f : m.polygons.faces)
     for (size_t k = 1; k + 1 < f.size(); ++k) m.mesh.triangles.push_back({f[0], f[k], f[k + 1]});
   m.volume = area / 2 * (ztop - zmin);
   return m;
+}
+
+PolygonMesh prism_polygons(const std::vector<Vec2>& ring, double z0, double z1) {
+  PolygonMesh pm;
+  const int n = int(ring.size());
+  for (const auto& q : ring) pm.vertices.emplace_back(q.x(), q.y(), z0);
+  for (const auto& q : ring) pm.vertices.emplace_back(q.x(), q.y(), z1);
+  std::vector<int> bottom, top;
+  for (int i = n - 1; i >= 0; --i) bottom.push_back(i);  // CW from above = outward (down)
+  for (int i = 0; i < n; ++i) top.push_back(n + i);
+  pm.faces.push_back(bottom);
+  pm.faces.push_back(top);
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    pm.faces.push_back({i, j, n + j, n + i});
+  }
+  return pm;
 }
 
 }  // namespace citylod::lod::detail

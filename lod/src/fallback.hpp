@@ -11,4 +11,8 @@ namespace citylod::lod::detail {
 /// edge-manifold. Throws LodError when the points span no area.
 LodModel extruded_outline(const BuildingInput& in);
 
+/// The polygons of the prism over a CCW ring from z0 to z1: vertices ring at
+/// z0 then ring at z1; faces bottom (CW from above), top, one quad per edge.
+PolygonMesh prism_polygons(const std::vector<Vec2>& ring, double z0, double z1);
+
 }  // namespace citylod::lod::detail
