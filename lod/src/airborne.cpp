@@ -6,6 +6,8 @@
 
 #include "citylod/lod/polygon2d.hpp"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -150,6 +152,71 @@ double HeightField::at(const Vec2& p) const {
 
 bool HeightField::inside(const Vec2& p) const {
   return outline_.size() >= 3 && poly2::point_in_ring(outline_, p);
+}
+
+int refit_roof_planes(const Samples& s, const std::vector<Vec2>& outline, const AirborneParams& p,
+                      const AlphaParams& alpha, std::vector<Primitive>& prims) {
+  if (!p.roof_refit || outline.size() < 3) return 0;
+  int refitted = 0;
+  for (auto& pr : prims) {
+    if (pr.inferred || pr.normal.z() < 0.3 || pr.inliers.size() < 4) continue;
+    const std::size_t n = pr.inliers.size();
+    std::vector<double> w_edge(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const Vec3& q = s.points[size_t(pr.inliers[k])];
+      const double d = poly2::distance_to_ring(outline, Vec2(q.x(), q.y()));
+      w_edge[k] = p.roof_edge_margin > 0 ? std::clamp(d / p.roof_edge_margin, 0.05, 1.0) : 1.0;
+    }
+    Vec3 normal = pr.normal;
+    double off = pr.d;
+    std::vector<double> w(n), r(n);
+    bool ok = true;
+    for (int it = 0; it < 4 && ok; ++it) {
+      for (std::size_t k = 0; k < n; ++k)
+        r[k] = std::abs(normal.dot(s.points[size_t(pr.inliers[k])]) + off);
+      std::vector<double> sorted = r;
+      std::nth_element(sorted.begin(), sorted.begin() + long(n / 2), sorted.end());
+      const double scale = std::max(0.01, 1.4826 * sorted[n / 2]);
+      const double c = 4.685 * scale;
+      double wsum = 0;
+      Vec3 ctr = Vec3::Zero();
+      for (std::size_t k = 0; k < n; ++k) {
+        const double t = r[k] / c;
+        w[k] = t < 1 ? w_edge[k] * (1 - t * t) * (1 - t * t) : 0.0;
+        wsum += w[k];
+        ctr += w[k] * s.points[size_t(pr.inliers[k])];
+      }
+      if (!(wsum > 1e-9)) {
+        ok = false;
+        break;
+      }
+      ctr /= wsum;
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      for (std::size_t k = 0; k < n; ++k) {
+        const Vec3 d = s.points[size_t(pr.inliers[k])] - ctr;
+        cov += w[k] * d * d.transpose();
+      }
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+      if (!(es.eigenvalues()(1) > 1e-12)) {
+        ok = false;
+        break;
+      }
+      Vec3 nn = es.eigenvectors().col(0).normalized();
+      if (nn.dot(pr.normal) < 0) nn = -nn;
+      if (nn.dot(pr.normal) < std::cos(10.0 * M_PI / 180.0)) {
+        ok = false;  // a robust fit this far off is not the same plane
+        break;
+      }
+      normal = nn;
+      off = -nn.dot(ctr);
+    }
+    if (!ok) continue;
+    pr.normal = normal;
+    pr.d = off;
+    compute_shape(pr, s, alpha);
+    ++refitted;
+  }
+  return refitted;
 }
 
 std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,

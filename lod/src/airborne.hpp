@@ -44,6 +44,13 @@ class HeightField {
   std::vector<float> z_;  ///< NaN = no data
 };
 
+/// Robust refit of the roof planes (detected, normal.z > 0.3) of airborne
+/// input: Tukey-weighted least squares, edge points (within
+/// `p.roof_edge_margin` of `outline`) weighted down; shapes recomputed with
+/// `alpha`. Returns the number of planes refitted.
+int refit_roof_planes(const Samples& s, const std::vector<Vec2>& outline, const AirborneParams& p,
+                      const AlphaParams& alpha, std::vector<Primitive>& prims);
+
 /// In/out per leaf from its ray origins: in when more than half of them lie
 /// inside the outline, above the ground and under the roof height.
 /// Returns one label per leaf (the same at every level).

@@ -291,8 +291,10 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   if (P.airborne.mode == "on" || (airborne && walls_inferred)) {
     if (c.outline.size() < 3) throw LodError("airborne", "no outline to model the building on");
     heights.emplace(samples, c.outline, c.ground_z, P.airborne);
+    const int refitted = refit_roof_planes(samples, c.outline, P.airborne, P.alpha, prims);
     const int steps = infer_step_walls(samples, *heights, P.airborne, prims);
     st.notes.push_back("airborne LiDAR: cells labelled by the roof height field; " +
+                       std::to_string(refitted) + " roof planes refitted robustly; " +
                        std::to_string(steps) + " step walls inferred");
   }
   prims.erase(

@@ -127,6 +127,8 @@ void visit(P& p, F&& f) {
   f("airborne.origins_per_cell", p.airborne.origins_per_cell);
   f("airborne.block", p.airborne.block);
   f("airborne.min_region_size", p.airborne.min_region_size);
+  f("airborne.roof_refit", p.airborne.roof_refit);
+  f("airborne.roof_edge_margin", p.airborne.roof_edge_margin);
   f("orient.enabled", p.orient.enabled);
   f("orient.points_per_plane", p.orient.points_per_plane);
   f("orient.rays", p.orient.rays);
@@ -199,6 +201,7 @@ void LodParams::validate() const {
   check(pos(airborne.step_min_edge), "airborne.step_min_edge", "must be > 0");
   check(airborne.origins_per_cell >= 1, "airborne.origins_per_cell", "must be >= 1");
   check(airborne.min_region_size >= 3, "airborne.min_region_size", "must be >= 3");
+  check(airborne.roof_edge_margin >= 0, "airborne.roof_edge_margin", "must be >= 0");
   check(orient.points_per_plane >= 1, "orient.points_per_plane", "must be >= 1");
   check(orient.rays >= 2, "orient.rays", "must be >= 2");
   check(pos(orient.offset), "orient.offset", "must be > 0");

@@ -3,10 +3,14 @@
 #include "support/lod_models.hpp"
 #include "support/synthetic.hpp"
 
+#include "airborne.hpp"
 #include "citylod/lod/lod.hpp"
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
 #include <string>
 
 using namespace citylod;
@@ -122,4 +126,53 @@ TEST(Airborne, ModeOffKeepsThePapersLabelling) {
   ASSERT_EQ(r.status, "ok") << r.reason;
   EXPECT_FALSE(has_note(r, "airborne LiDAR"));
   EXPECT_TRUE(r.stats.walls_inferred);
+}
+
+// Roof planes are refitted robustly: the edge returns of airborne LiDAR
+// (gutters, wall tops) lie under the roof plane and pull a least-squares fit
+// of all inliers down and off its slope.
+TEST(Airborne, RoofPlaneRefitIgnoresGutterReturns) {
+  detail::Samples s;
+  const std::vector<Vec2> outline = {Vec2(0, 0), Vec2(10, 0), Vec2(10, 8), Vec2(0, 8)};
+  // Roof z = 5 + 0.5 x on a 0.25 m grid; the returns within 0.5 m of the
+  // outline 0.12 m lower (gutter), plus two returns 0.14 m under the roof.
+  detail::Primitive pr;
+  for (int i = 0; i <= 40; ++i)
+    for (int j = 0; j <= 32; ++j) {
+      const double x = 0.25 * i, y = 0.25 * j;
+      const bool edge = x < 0.5 || x > 9.5 || y < 0.5 || y > 7.5;
+      s.points.emplace_back(x, y, 5.0 + 0.5 * x - (edge ? 0.12 : 0.0));
+      s.normals.push_back(Vec3(-0.5, 0, 1).normalized());
+      pr.inliers.push_back(int(s.points.size()) - 1);
+    }
+  s.points.emplace_back(4.0, 4.0, 7.0 - 0.14);
+  s.normals.push_back(Vec3::UnitZ());
+  pr.inliers.push_back(int(s.points.size()) - 1);
+  // The plain least-squares plane of all inliers.
+  Vec3 c = Vec3::Zero();
+  for (int i : pr.inliers) c += s.points[size_t(i)];
+  c /= double(pr.inliers.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (int i : pr.inliers) cov += (s.points[size_t(i)] - c) * (s.points[size_t(i)] - c).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  pr.normal = es.eigenvectors().col(0);
+  if (pr.normal.z() < 0) pr.normal = -pr.normal;
+  pr.d = -pr.normal.dot(c);
+  pr.centroid = c;
+  auto z_at = [](const detail::Primitive& p, double x, double y) {
+    return -(p.normal.x() * x + p.normal.y() * y + p.d) / p.normal.z();
+  };
+  // Least squares is off by more than 2 cm in the middle of the roof.
+  EXPECT_GT(std::abs(z_at(pr, 5, 4) - 7.5), 0.02);
+  std::vector<detail::Primitive> prims{pr};
+  AirborneParams ap;
+  EXPECT_EQ(detail::refit_roof_planes(s, outline, ap, AlphaParams{}, prims), 1);
+  EXPECT_NEAR(z_at(prims[0], 5, 4), 7.5, 0.005);
+  EXPECT_NEAR(z_at(prims[0], 2, 2), 6.0, 0.005);
+  EXPECT_FALSE(prims[0].alpha_tris.empty());
+  // Switched off, nothing changes.
+  ap.roof_refit = false;
+  std::vector<detail::Primitive> same{pr};
+  EXPECT_EQ(detail::refit_roof_planes(s, outline, ap, AlphaParams{}, same), 0);
+  EXPECT_EQ(same[0].d, pr.d);
 }

@@ -121,6 +121,12 @@ struct AirborneParams {
   /// (Delft tile: finest RMSE median 0.193 m with 15, 0.136 m with 8).
   int min_region_size = 8;
   bool block = true;  ///< the LoD1.2 block as the coarsest model
+  /// Roof planes refitted robustly before the BSP: Tukey-weighted least
+  /// squares (scale 1.4826 MAD), points within `roof_edge_margin` of the
+  /// outline weighted down linearly (gutters, wall tops and eaves mixed into
+  /// the edge returns pull a plane fitted to all its points off the roof).
+  bool roof_refit = true;
+  double roof_edge_margin = 1.5;  ///< m
 };
 
 /// (ours) Consistent orientation of the detected planes before IO-View: a
