@@ -29,7 +29,7 @@ namespace citylod::tiler {
 namespace fs = std::filesystem;
 
 namespace {
-constexpr const char* kEngineVersion = "citylod-lod-6";
+constexpr const char* kEngineVersion = "citylod-lod-7";
 }  // namespace
 
 // ------------------------------------------------------------ parameters
