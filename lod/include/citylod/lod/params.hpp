@@ -144,7 +144,7 @@ struct OrientParams {
 /// Evaluation (e1/e2 RMSE).
 struct MetricParams {
   int samples = 5000;  ///< samples on each model for e1 (point clouds: at most 2 per input point,
-                       ///< at least 1000); at most this many input samples for e2
+                       ///< at least 250); at most this many input samples for e2
 };
 
 struct LodParams {
