@@ -7,11 +7,14 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Orthogonal_k_neighbor_search.h>
 #include <CGAL/Search_traits_3.h>
+#include <CGAL/squared_distance_3.h>
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <optional>
 
 namespace citylod::lod::detail {
 
@@ -131,6 +134,8 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
 
 FidelityMeter::~FidelityMeter() = default;
 
+constexpr std::size_t kBruteForceTriangles = 128;
+
 Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
   const auto& I = *impl_;
   Fidelity f;
@@ -154,12 +159,23 @@ Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
     max1 = std::max(max1, d2);
   }
   f.e1 = std::sqrt(sum1 / double(msamples.size())) * I.scale;
-  // e2: input -> model.
-  Tree mtree(mtris.begin(), mtris.end());
-  mtree.accelerate_distance_queries();
+  // e2: input -> model. Small models (most of a city's candidates) are
+  // searched triangle by triangle: building an AABB tree costs more there.
+  std::optional<Tree> mtree;
+  if (mtris.size() > kBruteForceTriangles) {
+    mtree.emplace(mtris.begin(), mtris.end());
+    mtree->accelerate_distance_queries();
+  }
+  auto model_d2 = [&](const P3& q) {
+    if (mtree) return CGAL::to_double(mtree->squared_distance(q));
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& t : mtris)
+      best = std::min(best, CGAL::to_double(CGAL::squared_distance(q, t)));
+    return best;
+  };
   double sum2 = 0, wsum = 0, max2 = 0;
   for (std::size_t i = 0; i < I.e2_points.size(); ++i) {
-    const double d2 = CGAL::to_double(mtree.squared_distance(I.e2_points[i]));
+    const double d2 = model_d2(I.e2_points[i]);
     sum2 += I.e2_weights[i] * d2;
     wsum += I.e2_weights[i];
     max2 = std::max(max2, d2);
