@@ -250,6 +250,25 @@ bool airborne_input(const BuildingInput& in, const Samples& s, const LodParams& 
   return total > 0 && wall / total < P.closure.wall_fraction_min;
 }
 
+/// (ours) Airborne LiDAR: the roof planes (normal.z >= 0.3) and inferred
+/// walls that IO-View leaves out of S (the paper's noise: secondary
+/// primitives bounding no structure) become one more level set, the last.
+/// On dense MVS input such planes are noise; on airborne LiDAR a small roof
+/// plane is roof detail (a ridge piece, a cross gable, a dormer cheek), and
+/// the height field labels its cells whatever the plane. Returns the number
+/// of primitives added.
+int append_detail_level(const std::vector<Primitive>& prims, SortedPrimitives& sorted) {
+  int added = 0;
+  for (size_t i = 0; i < prims.size(); ++i)
+    if (sorted.level_of[i] < 0 && (prims[i].inferred || prims[i].normal.z() >= 0.3)) {
+      sorted.order.push_back(int(i));
+      sorted.level_of[i] = sorted.num_levels;
+      ++added;
+    }
+  if (added > 0) ++sorted.num_levels;
+  return added;
+}
+
 /// The whole method; throws on any failure (caught by build_lod_tree).
 void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P,
                 const Progress& progress, const Budget& budget, LodResult& R) {
@@ -362,7 +381,14 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
                          " window cut-outs replaced by cuboid templates");
   }
   view.principal.resize(prims.size(), 0);  // template primitives are secondary
-  const SortedPrimitives sorted = sort_primitives(prims, view, grouping);
+  SortedPrimitives sorted = sort_primitives(prims, view, grouping);
+  if (heights && P.airborne.detail_level) {
+    const int added = append_detail_level(prims, sorted);
+    if (added > 0)
+      st.notes.push_back("airborne LiDAR: " + std::to_string(added) +
+                         " roof planes and walls outside every IO-View structure form the last "
+                         "level set");
+  }
   st.clusters = int(grouping.clusters.size());
   st.level_sets = sorted.num_levels - 1;
   st.planes_sorted = int(sorted.order.size());

@@ -129,6 +129,7 @@ void visit(P& p, F&& f) {
   f("airborne.min_region_size", p.airborne.min_region_size);
   f("airborne.roof_refit", p.airborne.roof_refit);
   f("airborne.roof_edge_margin", p.airborne.roof_edge_margin);
+  f("airborne.detail_level", p.airborne.detail_level);
   f("orient.enabled", p.orient.enabled);
   f("orient.points_per_plane", p.orient.points_per_plane);
   f("orient.rays", p.orient.rays);

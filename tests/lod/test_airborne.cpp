@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 using namespace citylod;
@@ -175,4 +176,39 @@ TEST(Airborne, RoofPlaneRefitIgnoresGutterReturns) {
   std::vector<detail::Primitive> same{pr};
   EXPECT_EQ(detail::refit_roof_planes(s, outline, ap, AlphaParams{}, same), 0);
   EXPECT_EQ(same[0].d, pr.d);
+}
+
+// Roof planes that IO-View leaves out of S (small secondary planes bounding
+// no structure: the paper's noise) are roof detail on airborne LiDAR: they
+// form the last level set, so the finest model uses every roof plane.
+TEST(Airborne, EveryRoofPlaneReachesTheFinestLevel) {
+  test::SynthOptions o;
+  o.spacing = 0.3;
+  o.noise_sigma = 0.02;
+  std::vector<test::Face> f;
+  test::add_box(f, Vec3(0, 0, 0), Vec3(12, 10, 8), 1 | 2 | 4 | 8 | 16);
+  test::add_box(f, Vec3(12, 0, 0), Vec3(20, 10, 4), 1 | 2 | 4 | 8 | 16);
+  test::add_box(f, Vec3(3, 3, 8), Vec3(4.5, 4.5, 9), 1 | 2 | 4 | 8 | 16);  // a chimney
+  test::SynthBuilding b = test::finish(std::move(f), 1282.25, 2, o, false);
+  b.input.footprint = {Vec2(0, 0), Vec2(20, 0), Vec2(20, 10), Vec2(0, 10)};
+  b.input.ground_z = 0.0;
+  b.input.has_ground_z = true;
+  auto unsorted_roof_planes = [](const LodResult& r) {
+    int n = 0;
+    for (const auto& pl : r.planes) n += pl.level < 0 && !pl.inferred && pl.normal.z() >= 0.3;
+    return n;
+  };
+  LodParams off = city_params();
+  off.airborne.detail_level = false;
+  const LodResult q = build_lod_tree(b.input, off);
+  ASSERT_EQ(q.status, "ok") << q.reason;
+  const LodResult r = build_lod_tree(b.input, city_params());
+  ASSERT_EQ(r.status, "ok") << r.reason;
+  EXPECT_EQ(unsorted_roof_planes(r), 0);
+  for (const auto& m : r.models) test::expect_closed_solid(m);
+  if (unsorted_roof_planes(q) > 0) {
+    EXPECT_TRUE(has_note(r, "form the last level set"));
+    EXPECT_EQ(r.stats.level_sets, q.stats.level_sets + 1);
+  }
+  std::printf("roof planes outside S without the detail level: %d\n", unsorted_roof_planes(q));
 }

@@ -127,6 +127,11 @@ struct AirborneParams {
   /// the edge returns pull a plane fitted to all its points off the roof).
   bool roof_refit = true;
   double roof_edge_margin = 1.5;  ///< m
+  /// Roof planes and inferred walls outside every IO-View structure form the
+  /// last level set (the paper drops them as noise; on airborne LiDAR they are
+  /// roof detail. Delft tile: the 7689-point building's finest RMSE 0.286 ->
+  /// 0.178 m).
+  bool detail_level = true;
 };
 
 /// (ours) Consistent orientation of the detected planes before IO-View: a
