@@ -190,8 +190,11 @@ std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann:
         ++s.boolean;
       else if (v->is_number_integer()) {
         ++s.integer;
-        const double d = v->get<double>();
-        s.big = s.big || std::abs(d) > 9007199254740992.0;
+        const std::int64_t lim = std::int64_t(1) << 53;
+        if (v->is_number_unsigned())
+          s.big = s.big || v->get<std::uint64_t>() > std::uint64_t(lim);
+        else
+          s.big = s.big || v->get<std::int64_t>() > lim || v->get<std::int64_t>() < -lim;
       } else if (v->is_number())
         ++s.real;
       else

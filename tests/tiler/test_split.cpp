@@ -616,6 +616,33 @@ TEST(SplitRealData, DelftFootprintSourcesGiveTheSameChunks) {
   EXPECT_TRUE(c0.attributes.at("identificatiebagpnd").is_number_integer());
 }
 
+// Heights: EPSG:28992 implies NAP (orthometric); --vertical ellipsoidal keeps z as is.
+// The two scene origins differ by the geoid height at Delft (about 43.5 m).
+TEST(SplitRealData, DelftHeightsFollowTheCrsUnlessToldOtherwise) {
+  if (!have("delft/ahn3_cropped_2.las")) GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("delft_vertical");
+  SplitOptions o;
+  o.inputs = {kData + "/delft/ahn3_cropped_2.las"};
+  o.crs = "EPSG:28992";
+  o.work_dir = (dir / "auto").string();
+  const SplitReport a = tiler::split_scene(o);
+  EXPECT_NE(a.vertical.find("NAP"), std::string::npos) << a.vertical;
+  EXPECT_EQ(tiler::read_manifest(o.work_dir).scene.vertical, a.vertical);
+  o.vertical = "ellipsoidal";
+  o.work_dir = (dir / "ellipsoidal").string();
+  const SplitReport e = tiler::split_scene(o);
+  EXPECT_NE(e.vertical.find("ellipsoidal"), std::string::npos) << e.vertical;
+  std::printf("[delft vertical] origin h %.3f m (auto: %s) vs %.3f m (ellipsoidal)\n", a.origin_h,
+              a.vertical.c_str(), e.origin_h);
+  EXPECT_GT(a.origin_h - e.origin_h, 42.5);
+  EXPECT_LT(a.origin_h - e.origin_h, 44.5);
+  o.vertical = "sideways";
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+  o.vertical = "ellipsoidal";
+  o.geoid = "egm96";
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+}
+
 TEST(SplitRealData, AutzenFeetAreConverted) {
   if (!have("las/autzen_trim.las")) GTEST_SKIP() << "shared data not found: " << kData;
   const fs::path dir = tmp_dir("autzen");
