@@ -15,6 +15,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -107,19 +108,21 @@ void SplitOptions::validate() const {
 std::string SplitOptions::canonical() const {
   std::ostringstream o;
   o.precision(17);
+  // a "PG:" connection string's password stays out of the manifest
+  static const std::regex pw(R"((password\s*=\s*)('[^']*'|\S+))", std::regex::icase);
   o << "v=2;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
-    << ";footprints=" << footprints << ";footprint_buffer=" << footprint_buffer
-    << ";memory_limit=" << memory_limit << ";cell=" << cell_size << ";halo=" << halo
-    << ";max_halo=" << max_halo << ";ignore_classes=" << ignore_classes
-    << ";min_footprint_points=" << min_footprint_points << ";dtm_res=" << seg.dtm_resolution
-    << ";dtm_window=" << seg.dtm_window << ";ground_tol=" << seg.ground_tolerance
-    << ";min_height=" << seg.min_height << ";tol=" << seg.cluster_tolerance
-    << ";min_pts=" << seg.min_cluster_points << ";min_area=" << seg.min_area
-    << ";min_bh=" << seg.min_building_height << ";k=" << seg.feature_neighbours
-    << ";max_scatter=" << seg.max_scatter << ";max_veg=" << seg.max_vegetation_ratio
-    << ";min_planar=" << seg.min_planar_fraction << ";min_width=" << seg.min_width
-    << ";low=" << seg.low_height << "," << seg.low_max_vegetation_ratio << ","
-    << seg.low_min_planar_fraction;
+    << ";footprints=" << std::regex_replace(footprints, pw, "$1***")
+    << ";footprint_buffer=" << footprint_buffer << ";memory_limit=" << memory_limit
+    << ";cell=" << cell_size << ";halo=" << halo << ";max_halo=" << max_halo
+    << ";ignore_classes=" << ignore_classes << ";min_footprint_points=" << min_footprint_points
+    << ";dtm_res=" << seg.dtm_resolution << ";dtm_window=" << seg.dtm_window
+    << ";ground_tol=" << seg.ground_tolerance << ";min_height=" << seg.min_height
+    << ";tol=" << seg.cluster_tolerance << ";min_pts=" << seg.min_cluster_points
+    << ";min_area=" << seg.min_area << ";min_bh=" << seg.min_building_height
+    << ";k=" << seg.feature_neighbours << ";max_scatter=" << seg.max_scatter
+    << ";max_veg=" << seg.max_vegetation_ratio << ";min_planar=" << seg.min_planar_fraction
+    << ";min_width=" << seg.min_width << ";low=" << seg.low_height << ","
+    << seg.low_max_vegetation_ratio << "," << seg.low_min_planar_fraction;
   // v=2: heights follow the CRS by default (RD New -> NAP); v=1 work directories split again
   o << ";vertical=" << (vertical.empty() ? "auto" : vertical)
     << ";footprints_layer=" << footprints_layer << ";footprints_id=" << footprints_id
@@ -384,6 +387,7 @@ class Splitter {
   void georeference();
   void choose_cell_size();
   void pass2_spill(Spiller& spill);
+  void read_footprints();
   void load_footprints();
   void pass3_cells(const Spiller& spill);
   void process_cell_clusters(const Spiller& spill, const CellKey& key, bool unmatched);
@@ -422,6 +426,7 @@ class Splitter {
   std::vector<std::vector<std::int32_t>> tri_label_;   // mesh triangle -> chunk
   std::vector<std::vector<std::uint32_t>> tri_votes_;  // samples behind that choice
 
+  FootprintSet fp_set_;         // as read (source CRS), until load_footprints()
   std::vector<Footprint> fps_;  // ENU, those meeting the data bbox
   std::vector<char> fp_inside_;
   std::map<CellKey, std::vector<std::size_t>> fp_owned_;
@@ -745,16 +750,27 @@ void Splitter::pass2_spill(Spiller& spill) {
 }
 
 // ---------------------------------------------------------------------- footprints
-void Splitter::load_footprints() {
+// Read before the points (a bad source, layer or id fails fast); placed in load_footprints().
+void Splitter::read_footprints() {
   FootprintSourceOptions fo;
   fo.layer = opt_.footprints_layer;
   fo.id_attribute = opt_.footprints_id;
-  FootprintSet set = read_footprint_source(opt_.footprints, fo);
-  const std::string& src = opt_.footprints;
+  fp_set_ = read_footprint_source(opt_.footprints, fo);
+}
+
+void Splitter::load_footprints() {
+  FootprintSet set = std::move(fp_set_);
+  const std::string src = set.source;  // as given, a "PG:" password masked
   rep_.footprints_total = set.footprints.size();
   rep_.footprints_repaired = set.repaired;
   rep_.footprints_skipped = set.skipped;
-  for (const auto& p : set.problems) rep_.notes.push_back("footprints: " + p);
+  constexpr std::size_t kMaxProblemNotes = 20;  // the rest counted: notes stay readable
+  for (std::size_t i = 0; i < set.problems.size() && i < kMaxProblemNotes; ++i)
+    rep_.notes.push_back("footprints: " + set.problems[i]);
+  if (set.problems.size() > kMaxProblemNotes)
+    rep_.notes.push_back("footprints: " + std::to_string(set.problems.size() - kMaxProblemNotes) +
+                         " more features skipped or repaired (" + std::to_string(set.repaired) +
+                         " repaired, " + std::to_string(set.skipped) + " skipped in all)");
   if (set.footprints.empty())
     throw IoError(src, set.source_features == 0
                            ? "no footprints (layer '" + set.layer + "' is empty)"
@@ -1319,6 +1335,7 @@ SplitReport Splitter::run() {
     }
   }
 
+  if (!opt_.footprints.empty()) read_footprints();
   pass1_headers();
   georeference();
   choose_cell_size();
