@@ -363,6 +363,22 @@ TEST_F(SplitSynthetic, FootprintsMissingTheDataAreAnError) {
     EXPECT_NE(w.find("meets the data"), std::string::npos) << w;
   }
   EXPECT_FALSE(fs::exists(dir / "work" / "manifest.json"));
+  // over the data, but only on empty ground: every footprint skipped, no chunk
+  {
+    std::ofstream f(fp, std::ios::trunc);
+    f << R"({"type":"FeatureCollection","features":[
+      {"type":"Feature","properties":{"id":"E"},"geometry":{"type":"Polygon","coordinates":[
+        [[170,10],[190,10],[190,20],[170,20],[170,10]]]}}]})";
+  }
+  try {
+    tiler::split_scene(o);
+    FAIL() << "no error";
+  } catch (const io::IoError& e) {
+    const std::string w = e.what();
+    EXPECT_NE(w.find(fp), std::string::npos) << w;
+    EXPECT_NE(w.find("holds building points"), std::string::npos) << w;
+  }
+  EXPECT_FALSE(fs::exists(dir / "work" / "manifest.json"));
 }
 
 TEST_F(SplitSynthetic, MeshScenesSplitTriangles) {

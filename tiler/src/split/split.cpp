@@ -427,6 +427,7 @@ class Splitter {
   std::vector<std::vector<std::uint32_t>> tri_votes_;  // samples behind that choice
 
   FootprintSet fp_set_;         // as read (source CRS), until load_footprints()
+  std::string fp_source_;       // for messages
   std::vector<Footprint> fps_;  // ENU, those meeting the data bbox
   std::vector<char> fp_inside_;
   std::map<CellKey, std::vector<std::size_t>> fp_owned_;
@@ -761,6 +762,7 @@ void Splitter::read_footprints() {
 void Splitter::load_footprints() {
   FootprintSet set = std::move(fp_set_);
   const std::string src = set.source;  // as given, a "PG:" password masked
+  fp_source_ = src;
   rep_.footprints_total = set.footprints.size();
   rep_.footprints_repaired = set.repaired;
   rep_.footprints_skipped = set.skipped;
@@ -1354,6 +1356,10 @@ SplitReport Splitter::run() {
   pass3_cells(spill);
   staging_->drop_spill();
   if (!meshes_.empty()) write_mesh_chunks();
+  if (!opt_.footprints.empty() && rep_.chunks == 0)
+    throw IoError(fp_source_, "none of its " + std::to_string(rep_.footprints_in_scene) +
+                                  " footprints over the data holds building points (all "
+                                  "skipped): wrong CRS, or footprints of another area?");
   stages_.report(0.97, 1.0, 0.5, "manifest");
 
   Manifest m;
