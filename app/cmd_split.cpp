@@ -19,9 +19,11 @@ int cmd_split(ArgParser& args) {
           "Georeferencing:\n"
           "--crs, else the CRS inside the LAS file, or --origin for data already in a local metric "
           "frame.\n"
-          "Buildings come from --footprints (GeoJSON polygons) or from clustering the points above "
-          "the\n"
-          "ground (LAS class 6 when present; trees rejected by class or by PCA features).\n"
+          "Buildings come from --footprints (any OGR source: GeoPackage, SQLite, Shapefile, "
+          "GeoJSON,\n"
+          "FlatGeobuf, PG:...) or from clustering the points above the ground (LAS class 6 when\n"
+          "present; trees rejected by class or by PCA features). Heights follow the CRS\n"
+          "(--vertical auto: RD New -> NAP); the tileset carries ellipsoidal heights.\n"
           "Re-running with the same inputs and options does nothing.")
       .option("out", 'o', "WORK", "work directory (created)");
   declare_split_options(args);
@@ -56,6 +58,15 @@ int cmd_split(ArgParser& args) {
         r.footprints_total, r.footprints_in_scene, r.footprints_with_chunk,
         r.footprints_inside_with_chunk, r.footprints_inside);
     log_info(line);
+    if (r.footprints_repaired || r.footprints_skipped)
+      log_info("footprints: " + std::to_string(r.footprints_repaired) + " repaired, " +
+               std::to_string(r.footprints_skipped) + " skipped (see the notes)");
+    if (r.unmatched_points >= 0)
+      log_info("unmatched: " + std::to_string(r.unmatched_points) + " of " +
+               std::to_string(r.building_points) + " building points outside every footprint" +
+               (o.unmatched == SplitOptions::Unmatched::segment
+                    ? " -> " + std::to_string(r.unmatched_chunks) + " buildings without footprint"
+                    : std::string(" (dropped; --unmatched segment models them)")));
   } else {
     std::string rej;
     for (const auto& [why, n] : r.rejected_by)
@@ -63,6 +74,7 @@ int cmd_split(ArgParser& args) {
     log_info("clusters rejected: " + std::to_string(r.clusters_rejected) +
              (rej.empty() ? "" : " (" + rej + ")"));
   }
+  if (!r.vertical.empty()) log_info(r.vertical);
   std::snprintf(line, sizeof line, "origin lon %.8f lat %.8f h %.3f; manifest %s/manifest.json",
                 r.origin_lon, r.origin_lat, r.origin_h, o.work_dir.c_str());
   log_info(line);

@@ -49,6 +49,15 @@ int cmd_tile(ArgParser& args) {
       "; lod " + std::to_string(rep.lod.computed) + " computed, " + std::to_string(rep.lod.reused) +
       " reused");
   for (const auto& p : r.problems) log_info("  " + p);
+  if (!rep.split.vertical.empty()) log_info("tile: " + rep.split.vertical);
+  if (rep.split.unmatched_points >= 0)
+    log_info("tile: " + std::to_string(rep.split.unmatched_points) + " of " +
+             std::to_string(rep.split.building_points) +
+             " building points outside every footprint" +
+             (o.split.unmatched == SplitOptions::Unmatched::segment
+                  ? ": " + std::to_string(rep.split.unmatched_chunks) +
+                        " buildings without footprint made of them"
+                  : std::string(" (dropped; --unmatched segment models them)")));
   log_info("tile: time split " + strf("%.1f", rep.split.seconds) + " s, lod " +
            strf("%.1f", rep.lod.seconds) + " s, assemble " + strf("%.1f", rep.assemble.seconds) +
            " s, total " + strf("%.1f", rep.seconds_total) + " s; peak memory " +

@@ -24,8 +24,21 @@ void declare_split_options(ArgParser& args) {
       .option("origin", 0, "LAT,LON,H",
               "data in local ENU metres at this origin (degrees, ellipsoidal m)")
       .option("geoid", 0, "MODEL", "input heights are orthometric on MODEL (egm96)")
-      .option("footprints", 0, "FILE",
-              "building footprints (GeoJSON Polygon/MultiPolygon with an id property)")
+      .option("vertical", 0, "MODE",
+              "input heights: auto (from the CRS; RD New -> NAP), ellipsoidal or orthometric",
+              "auto")
+      .option("footprints", 0, "SOURCE",
+              "building footprints: any OGR source (GeoPackage, SQLite, Shapefile, GeoJSON, "
+              "FlatGeobuf, PG:...), reprojected to the scene CRS")
+      .option("footprints-layer", 0, "NAME",
+              "layer (table) of --footprints (default: the only one)")
+      .option("footprints-id", 0, "ATTRIBUTE",
+              "attribute holding the building id (default: id, ID, identificatie, gml_id, fid, "
+              "else the feature id)")
+      .option("unmatched", 0, "drop|segment",
+              "building points outside every footprint: dropped (counted) or clustered into "
+              "buildings without footprint",
+              "drop")
       .option("footprint-buffer", 0, "M", "points this close outside a footprint belong to it",
               num(d.footprint_buffer))
       .option("memory-limit", 'm', "SIZE", "memory budget, e.g. 512M, 2G", "2G")
@@ -50,7 +63,15 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
   o.crs = args.get("crs");
   o.origin = args.get("origin");
   o.geoid = args.get("geoid");
+  o.vertical = args.get("vertical");
   o.footprints = args.get("footprints");
+  o.footprints_layer = args.get("footprints-layer");
+  o.footprints_id = args.get("footprints-id");
+  const std::string um = args.get("unmatched");
+  if (um == "segment")
+    o.unmatched = SplitOptions::Unmatched::segment;
+  else if (um != "drop")
+    throw UsageError("--unmatched: expected drop or segment, got '" + um + "'");
   o.footprint_buffer = args.get_double("footprint-buffer");
   o.cell_size = args.get_double("cell-size");
   o.halo = args.get_double("halo");

@@ -83,8 +83,14 @@ DatasetPtr open_source(const std::string& source, const std::string& shown) {
   if (is_pg(path) && path.find("connect_timeout") == std::string::npos)
     path += " connect_timeout=10";
   QuietGdal quiet;
-  GDALDataset* ds = static_cast<GDALDataset*>(
-      GDALOpenEx(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr, nullptr, nullptr));
+  // GeoJSON turns date-like strings into OGR dates ("2014-07-09" -> "2014/07/09"): keep
+  // them as written, so that a GeoJSON and the GeoPackage it came from agree.
+  const char* geojson_options[] = {"DATE_AS_STRING=YES", nullptr};
+  GDALDriverH drv = GDALIdentifyDriverEx(path.c_str(), GDAL_OF_VECTOR, nullptr, nullptr);
+  const bool geojson = drv && std::string(GDALGetDriverShortName(drv)) == "GeoJSON";
+  GDALDataset* ds =
+      static_cast<GDALDataset*>(GDALOpenEx(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
+                                           geojson ? geojson_options : nullptr, nullptr));
   if (!ds) {
     std::string why = quiet.take_last();
     // libpq's messages span lines; keep the report on one line

@@ -6,8 +6,10 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
@@ -164,6 +166,63 @@ const char* to_string(LodKind k) {
       return "fallback";
   }
   return "?";
+}
+
+std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann::json*>& objects) {
+  struct Seen {
+    std::size_t null = 0, boolean = 0, integer = 0, real = 0, other = 0;
+    bool big = false;  // an integer beyond 2^53 (not exact as a double)
+  };
+  std::map<std::string, Seen> seen;
+  for (const nlohmann::json* o : objects)
+    if (o && o->is_object())
+      for (const auto& [k, v] : o->items()) seen[k];
+  for (auto& [name, s] : seen)
+    for (const nlohmann::json* o : objects) {
+      const nlohmann::json* v = nullptr;
+      if (o && o->is_object()) {
+        const auto it = o->find(name);
+        if (it != o->end()) v = &*it;
+      }
+      if (!v || v->is_null())
+        ++s.null;
+      else if (v->is_boolean())
+        ++s.boolean;
+      else if (v->is_number_integer()) {
+        ++s.integer;
+        const std::int64_t lim = std::int64_t(1) << 53;
+        if (v->is_number_unsigned())
+          s.big = s.big || v->get<std::uint64_t>() > std::uint64_t(lim);
+        else
+          s.big = s.big || v->get<std::int64_t>() > lim || v->get<std::int64_t>() < -lim;
+      } else if (v->is_number())
+        ++s.real;
+      else
+        ++s.other;
+    }
+  std::vector<GlbAttribute> out;
+  std::set<std::string> ids;
+  for (const auto& [name, s] : seen) {
+    GlbAttribute a;
+    a.name = name;
+    const std::size_t numbers = s.integer + s.real;
+    if (s.other == 0 && s.boolean == 0 && numbers > 0) {
+      if (s.real == 0 && s.null == 0)
+        a.type = GlbAttribute::Type::int64;
+      else
+        a.type = s.big ? GlbAttribute::Type::string : GlbAttribute::Type::float64;
+    } else if (s.other == 0 && numbers == 0 && s.boolean > 0 && s.null == 0) {
+      a.type = GlbAttribute::Type::boolean;
+    }
+    a.no_data = s.null > 0;
+    std::string id = "fp_";
+    for (char c : name) id += (std::isalnum(static_cast<unsigned char>(c)) || c == '_') ? c : '_';
+    std::string unique = id;
+    for (int k = 2; !ids.insert(unique).second; ++k) unique = id + "_" + std::to_string(k);
+    a.property = unique;
+    out.push_back(std::move(a));
+  }
+  return out;
 }
 
 SurfaceClass classify_normal(const Vec3d& n) {
@@ -460,6 +519,69 @@ std::string GlbBuilder::glb() const {
   column("height", height.data(), n * 4);
   column("footprint_area", area.data(), n * 4);
   column("geometric_error", error.data(), n * 4);
+  // The source attributes (GlbOptions::attributes), typed.
+  Value::Object attr_props;
+  for (const GlbAttribute& a : im.opt.attributes) {
+    auto value_of = [&](const GlbFeature& f) -> const nlohmann::json* {
+      if (!f.attributes.is_object()) return nullptr;
+      const auto it = f.attributes.find(a.name);
+      return it == f.attributes.end() || it->is_null() ? nullptr : &*it;
+    };
+    Value::Object def{{"name", str(a.name.c_str())}, {"description", str("footprint attribute")}};
+    switch (a.type) {
+      case GlbAttribute::Type::int64: {
+        std::vector<std::int64_t> v;
+        for (const auto& f : im.features) {
+          const nlohmann::json* j = value_of(f);
+          v.push_back(j && j->is_number_integer() ? j->get<std::int64_t>() : 0);
+        }
+        column(a.property.c_str(), v.data(), n * 8);
+        def["type"] = str("SCALAR");
+        def["componentType"] = str("INT64");
+        break;
+      }
+      case GlbAttribute::Type::float64: {
+        const double none = std::numeric_limits<double>::lowest();
+        std::vector<double> v;
+        for (const auto& f : im.features) {
+          const nlohmann::json* j = value_of(f);
+          v.push_back(j && j->is_number() ? j->get<double>() : none);
+        }
+        column(a.property.c_str(), v.data(), n * 8);
+        def["type"] = str("SCALAR");
+        def["componentType"] = str("FLOAT64");
+        if (a.no_data) def["noData"] = Value(none);
+        break;
+      }
+      case GlbAttribute::Type::boolean: {
+        std::vector<std::uint8_t> bits((n + 7) / 8, 0);
+        for (std::size_t i = 0; i < n; ++i) {
+          const nlohmann::json* j = value_of(im.features[i]);
+          if (j && j->is_boolean() && j->get<bool>()) bits[i / 8] |= std::uint8_t(1u << (i % 8));
+        }
+        column(a.property.c_str(), bits.data(), bits.size());
+        def["type"] = str("BOOLEAN");
+        break;
+      }
+      case GlbAttribute::Type::string: {
+        std::string chars;
+        std::vector<std::uint32_t> offs{0};
+        for (const auto& f : im.features) {
+          const nlohmann::json* j = value_of(f);
+          if (j) chars += j->is_string() ? j->get<std::string>() : j->dump();
+          offs.push_back(std::uint32_t(chars.size()));
+        }
+        if (chars.empty()) chars.push_back('\0');  // a bufferView needs byteLength >= 1
+        props[a.property] = obj({{"values", Value(w.view(chars.data(), chars.size(), 0))},
+                                 {"stringOffsets", Value(w.view(offs.data(), offs.size() * 4, 0))},
+                                 {"stringOffsetType", str("UINT32")}});
+        def["type"] = str("STRING");
+        if (a.no_data) def["noData"] = str("");
+        break;
+      }
+    }
+    attr_props[a.property] = obj(std::move(def));
+  }
 
   auto prop = [](const char* type, const char* component, const char* description) {
     Value::Object o{{"type", str(type)}, {"description", str(description)}};
@@ -482,6 +604,7 @@ std::string GlbBuilder::glb() const {
        prop("SCALAR", "FLOAT32", "footprint area of the building, square metres")},
       {"geometric_error", prop("SCALAR", "FLOAT32", "distance to the finest model, metres")},
   };
+  for (auto& [k, v] : attr_props) class_props[k] = std::move(v);
   Value::Array enum_values{obj({{"name", str("anchor")}, {"value", Value(0)}}),
                            obj({{"name", str("interpolation")}, {"value", Value(1)}}),
                            obj({{"name", str("fallback")}, {"value", Value(2)}})};

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -168,6 +169,45 @@ TEST(SplitCli, BadInputs) {
   for (const auto& e : fs::directory_iterator(work))
     EXPECT_TRUE(e.path().filename() == "manifest.json" || e.path().filename() == "chunks")
         << e.path();
+}
+
+// Footprints that cannot be used: one error line naming the footprint source.
+TEST(SplitCli, FootprintProblemsNameTheSource) {
+  const std::string las = kData + "/delft/ahn3_cropped_2.las";
+  const std::string gpkg = kData + "/delft/bgt_pand.gpkg";
+  if (!fs::exists(las) || !fs::exists(gpkg)) GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("split_cli_fp_errors");
+  // a layer that does not exist: the message lists the layers
+  CliRun r = run("split " + q(las) + " --crs EPSG:28992 --footprints " + q(gpkg) +
+                 " --footprints-layer nope -o " + q(dir / "w1"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.out.find(gpkg), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bgt"), std::string::npos) << r.out;
+  // an id attribute that does not exist
+  r = run("split " + q(las) + " --crs EPSG:28992 --footprints " + q(gpkg) +
+          " --footprints-id nope -o " + q(dir / "w2"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.out.find("gml_id"), std::string::npos) << r.out;
+  // the footprints in the wrong CRS: RD coordinates labelled UTM 31N meet no data
+  const std::string wrong = (dir / "wrong.gpkg").string();
+  if (std::system(("ogr2ogr -a_srs EPSG:32631 " + q(wrong) + " " + q(gpkg) + " > /dev/null 2>&1")
+                      .c_str()) == 0) {
+    r = run("split " + q(las) + " --crs EPSG:28992 --footprints " + q(wrong) + " -o " +
+            q(dir / "w3"));
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find(wrong), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("meets the data"), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(dir / "w3" / "manifest.json"));
+  }
+  // --footprints-id gml_id and the layer by name: the same chunk ids as the default
+  r = run("split " + q(las) + " --crs EPSG:28992 --footprints " + q(gpkg) +
+          " --footprints-layer bgt --footprints-id gml_id -o " + q(dir / "w4"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("outside every footprint"), std::string::npos) << r.out;
+  const tiler::Manifest m = tiler::read_manifest((dir / "w4").string());
+  ASSERT_FALSE(m.chunks.empty());
+  for (const auto& c : m.chunks)
+    EXPECT_EQ(c.id, "fp-" + c.attributes.at("gml_id").get<std::string>());
 }
 
 TEST(SplitCli, DelftWithFootprintsAndGeoid) {

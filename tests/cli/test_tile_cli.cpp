@@ -9,7 +9,9 @@
 #include "support/cli_run.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -203,6 +205,86 @@ TEST(TileCli, RebuildChangesOneBuildingAndReportsChangedFiles) {
   EXPECT_EQ(read_json(out / "work" / "overrides.json")["buildings"][id]["select"][0], step);
   const CliRun bad = run("rebuild " + q(out) + " --building " + id + " --select 999");
   EXPECT_EQ(bad.code, 1) << bad.out;
+}
+
+// Issue 18 item 4: heights right by default. The real Delft tile is NAP (EPSG:28992
+// implies it); with --crs EPSG:28992 and no height option the tileset carries
+// ellipsoidal heights: its ground (the bottom of the root box, i.e. the lowest model
+// base) lies 43-45 m above the WGS84 ellipsoid (NAP 0 m is about 43.5 m there).
+TEST(TileCli, DelftHeightsAreEllipsoidalAndAttributesTyped) {
+  const std::string data = CITYLOD_SHARED_DATA;
+  const std::string las = data + "/delft/ahn3_cropped_2.las";
+  const std::string gpkg = data + "/delft/bgt_pand.gpkg";
+  if (!fs::exists(las) || !fs::exists(gpkg)) GTEST_SKIP() << "shared data not found: " << data;
+  const fs::path d = tmp_dir("tile_delft_heights");
+  const CliRun r = run("tile " + q(las) + " --crs EPSG:28992 --footprints " + q(gpkg) +
+                       " --threads 2 --out " + q(d / "out"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("NAP"), std::string::npos) << r.out;  // the assumption, in the summary
+  const nlohmann::json t = read_json(d / "out" / "tileset" / "tileset.json");
+  const auto& root = t.at("root");
+  const std::vector<double> m = root.at("transform").get<std::vector<double>>();
+  const std::vector<double> b = root.at("boundingVolume").at("box").get<std::vector<double>>();
+  ASSERT_EQ(m.size(), 16u);
+  // lowest point of the root box (ENU at the root transform; z axis = b[9..11])
+  const double zhalf = std::abs(b[11]);
+  const double lx = b[0], ly = b[1], lz = b[2] - zhalf;
+  const double X = m[0] * lx + m[4] * ly + m[8] * lz + m[12];
+  const double Y = m[1] * lx + m[5] * ly + m[9] * lz + m[13];
+  const double Z = m[2] * lx + m[6] * ly + m[10] * lz + m[14];
+  // ECEF -> WGS84 ellipsoidal height
+  const double a = 6378137.0, f = 1 / 298.257223563, e2 = f * (2 - f);
+  const double p = std::hypot(X, Y);
+  double lat = std::atan2(Z, p * (1 - e2)), h = 0;
+  for (int i = 0; i < 10; ++i) {
+    const double N = a / std::sqrt(1 - e2 * std::sin(lat) * std::sin(lat));
+    h = p / std::cos(lat) - N;
+    lat = std::atan2(Z, p * (1 - e2 * N / (N + h)));
+  }
+  std::printf("[delft heights] ground (root box bottom) at %.2f m above the WGS84 ellipsoid\n", h);
+  EXPECT_GE(h, 43.0);
+  EXPECT_LE(h, 45.0);
+  const nlohmann::json rep = read_json(d / "out" / "run_report.json");
+  const std::string vertical = rep.at("stages").at("split").at("vertical").get<std::string>();
+  EXPECT_NE(vertical.find("NAP"), std::string::npos) << vertical;
+  EXPECT_GT(rep.at("stages").at("split").at("unmatched_points").get<long long>(), 0);
+
+  // The footprint attributes in every tile glb: typed properties of the building
+  // class, and each feature's fp_gml_id is the gml_id of its building id.
+  std::size_t glbs = 0, features = 0;
+  for (const auto& e : fs::directory_iterator(d / "out" / "tileset" / "tiles")) {
+    const std::string bytes = slurp(e.path());
+    ASSERT_GT(bytes.size(), 28u);
+    std::uint32_t jlen = 0;
+    std::memcpy(&jlen, bytes.data() + 12, 4);
+    const nlohmann::json g = nlohmann::json::parse(bytes.substr(20, jlen));
+    const std::size_t bin = 20 + jlen + 8;
+    const auto& meta = g.at("extensions").at("EXT_structural_metadata");
+    const auto& cls = meta.at("schema").at("classes").at("building").at("properties");
+    EXPECT_EQ(cls.at("fp_gml_id").at("type"), "STRING");
+    EXPECT_EQ(cls.at("fp_identificatiebagpnd").at("componentType"), "INT64");
+    EXPECT_EQ(cls.at("fp_inonderzoek").at("type"), "BOOLEAN");
+    const auto& table = meta.at("propertyTables").at(0);
+    const std::size_t n = table.at("count").get<std::size_t>();
+    auto strings = [&](const std::string& prop) {
+      const auto& col = table.at("properties").at(prop);
+      const auto& vv = g.at("bufferViews").at(col.at("values").get<int>());
+      const auto& ov = g.at("bufferViews").at(col.at("stringOffsets").get<int>());
+      std::vector<std::string> out;
+      for (std::size_t i = 0; i < n; ++i) {
+        std::uint32_t o[2];
+        std::memcpy(o, bytes.data() + bin + ov.value("byteOffset", 0) + 4 * i, 8);
+        out.push_back(bytes.substr(bin + vv.value("byteOffset", 0) + o[0], o[1] - o[0]));
+      }
+      return out;
+    };
+    const auto ids = strings("building_id"), gml = strings("fp_gml_id");
+    for (std::size_t i = 0; i < n; ++i) EXPECT_EQ(ids[i], "fp-" + gml[i]);
+    ++glbs;
+    features += n;
+  }
+  EXPECT_GT(glbs, 0u);
+  EXPECT_GT(features, 20u);
 }
 
 TEST(TileCli, BadInputIsOneErrorLine) {

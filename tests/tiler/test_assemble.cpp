@@ -7,9 +7,11 @@
 
 #include <chrono>
 #include <cstdio>
+#include <map>
 
 #include "citylod/geo/georef.hpp"
 #include "citylod/io/error.hpp"
+#include "citylod/io/gltf.hpp"
 #include "citylod/tiler/assemble.hpp"
 #include "tiler/test_work_support.hpp"
 
@@ -111,6 +113,49 @@ TEST(AssembleMetrics, ErrorsStrictlyDecreaseEvenWhenDistancesDoNot) {
 }
 
 // ------------------------------------------------------------ whole stage
+
+// Footprint attributes become typed glb properties: one schema over all buildings.
+TEST(AssembleAttributes, SchemaTypesAreExactAndDeterministic) {
+  const nlohmann::json a = {{"n", 5},          {"big", 9007199254740993LL},
+                            {"r", 1.5},        {"b", true},
+                            {"s", "x"},        {"mixed", 1},
+                            {"gap", 7},        {"bgap", false},
+                            {"nul", nullptr},  {"bad name!", "v"},
+                            {"bad_name_", "w"}};
+  const nlohmann::json b = {{"n", -2},  {"big", 1},       {"r", 2},         {"b", false},
+                            {"s", "y"}, {"mixed", "one"}, {"nul", nullptr}, {"bad name!", "u"}};
+  const auto schema = io::glb_attribute_schema({&a, &b});
+  std::map<std::string, io::GlbAttribute> by;
+  for (const auto& s : schema) by[s.name] = s;
+  using T = io::GlbAttribute::Type;
+  EXPECT_EQ(by.at("n").type, T::int64);
+  EXPECT_FALSE(by.at("n").no_data);
+  EXPECT_EQ(by.at("big").type, T::int64);  // no gap: exact as INT64
+  EXPECT_EQ(by.at("r").type, T::float64);  // 1.5 and 2
+  EXPECT_EQ(by.at("b").type, T::boolean);
+  EXPECT_EQ(by.at("s").type, T::string);
+  EXPECT_EQ(by.at("mixed").type, T::string);
+  EXPECT_EQ(by.at("gap").type, T::float64);  // missing in b: FLOAT64 with noData
+  EXPECT_TRUE(by.at("gap").no_data);
+  EXPECT_EQ(by.at("bgap").type, T::string);  // BOOLEAN has no noData
+  EXPECT_EQ(by.at("nul").type, T::string);
+  EXPECT_EQ(by.at("n").property, "fp_n");
+  // property ids are [A-Za-z0-9_] and unique: "bad name!" and "bad_name_" collide
+  EXPECT_EQ(by.at("bad name!").property, "fp_bad_name_");
+  EXPECT_EQ(by.at("bad_name_").property, "fp_bad_name__2");
+  // sorted by name, the same for the same objects in any order
+  for (std::size_t i = 1; i < schema.size(); ++i) EXPECT_LT(schema[i - 1].name, schema[i].name);
+  const auto again = io::glb_attribute_schema({&b, &a});
+  ASSERT_EQ(again.size(), schema.size());
+  for (std::size_t i = 0; i < schema.size(); ++i) {
+    EXPECT_EQ(again[i].property, schema[i].property);
+    EXPECT_EQ(again[i].type, schema[i].type);
+  }
+  // with a gap, an integer beyond 2^53 is not exact as FLOAT64: STRING
+  const nlohmann::json c = {{"id", 9007199254740993LL}};
+  const nlohmann::json d = nlohmann::json::object();
+  EXPECT_EQ(io::glb_attribute_schema({&c, &d}).at(0).type, T::string);
+}
 
 TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   const std::string work = tmp_dir("city50");

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -61,11 +63,11 @@ SplitOptions local_options(const std::string& input, const fs::path& work) {
 
 // ------------------------------------------------------------------ footprints
 TEST(SplitFootprints, ReadsFixture) {
-  int skipped = -1;
-  auto set = tiler::read_footprints_geojson(kFixtures + "/delft_bgt_pand.geojson", &skipped);
+  auto set = tiler::read_footprint_source(kFixtures + "/delft_bgt_pand.geojson");
   EXPECT_EQ(set.crs, "EPSG:28992");
   EXPECT_EQ(set.footprints.size(), 160u);
-  EXPECT_EQ(skipped, 0);
+  EXPECT_EQ(set.skipped, 0u);
+  EXPECT_EQ(set.driver, "GeoJSON");
   std::set<std::string> ids;
   for (const auto& f : set.footprints) {
     ids.insert(f.id);
@@ -88,10 +90,11 @@ TEST(SplitFootprints, PolygonWithHoleAndMultiPolygon) {
     {"type":"Feature","id":"m","properties":{},"geometry":{"type":"MultiPolygon","coordinates":[
       [[[20,0],[22,0],[22,2],[20,2],[20,0]]], [[[30,0],[31,0],[31,1],[30,0]]]]}},
     {"type":"Feature","properties":{"id":"pt"},"geometry":{"type":"Point","coordinates":[1,2]}}]})";
-  int skipped = 0;
-  auto set = tiler::read_footprints_geojson(path, &skipped);
+  auto set = tiler::read_footprint_source(path);
   ASSERT_EQ(set.footprints.size(), 2u);
-  EXPECT_EQ(skipped, 1);
+  EXPECT_EQ(set.skipped, 1u);  // the point, reported
+  ASSERT_EQ(set.problems.size(), 1u);
+  EXPECT_NE(set.problems[0].find("not a polygon"), std::string::npos) << set.problems[0];
   const auto& a = set.footprints[0];
   EXPECT_EQ(a.id, "7");
   EXPECT_NEAR(a.area(), 96.0, 1e-9);
@@ -110,12 +113,12 @@ TEST(SplitFootprints, MalformedFilesThrowWithThePath) {
   const std::string p1 = (dir / "a.geojson").string();
   std::ofstream(p1) << "{\"type\": \"FeatureCollection\", \"features\": [";
   try {
-    tiler::read_footprints_geojson(p1);
+    tiler::read_footprint_source(p1);
     FAIL();
   } catch (const io::IoError& e) {
     EXPECT_NE(std::string(e.what()).find(p1), std::string::npos);
   }
-  EXPECT_THROW(tiler::read_footprints_geojson((dir / "missing.geojson").string()), io::IoError);
+  EXPECT_THROW(tiler::read_footprint_source((dir / "missing.geojson").string()), io::IoError);
 }
 
 TEST(SplitGeometry, ConvexHull) {
@@ -254,6 +257,128 @@ TEST_F(SplitSynthetic, FootprintsAssignPointsAndReportEveryFootprint) {
   }
   EXPECT_EQ(by_id["fp-E"].status, tiler::Status::skipped);
   EXPECT_FALSE(by_id["fp-E"].reason.empty());
+}
+
+// Issue 18 item 5: building points outside every footprint are counted, and
+// --unmatched segment clusters them into buildings without footprint.
+TEST_F(SplitSynthetic, UnmatchedBuildingPointsAreCountedOrSegmented) {
+  const fs::path dir = tmp_dir("synth_unmatched");
+  const std::string in = write_points(dir, true);
+  const std::string fp = (dir / "fp.geojson").string();
+  test::SynthCity only_ab = city;
+  only_ab.boxes.pop_back();  // no footprint for C
+  std::ofstream(fp) << test::city_footprints_geojson(only_ab);
+  SplitOptions o = local_options(in, dir / "drop");
+  o.footprints = fp;
+  const SplitReport r = tiler::split_scene(o);
+  std::size_t class6 = 0;
+  for (auto n : box_points) class6 += n;
+  EXPECT_EQ(r.building_points, std::int64_t(class6));
+  EXPECT_EQ(r.unmatched_points, std::int64_t(box_points[2]));  // exactly box C's points
+  EXPECT_EQ(r.unmatched_chunks, 0u);
+  EXPECT_EQ(tiler::read_manifest(o.work_dir).scene.unmatched_points, r.unmatched_points);
+
+  o.work_dir = (dir / "segment").string();
+  o.unmatched = SplitOptions::Unmatched::segment;
+  const SplitReport s = tiler::split_scene(o);
+  EXPECT_EQ(s.unmatched_points, r.unmatched_points);
+  EXPECT_EQ(s.unmatched_chunks, 1u);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
+  std::size_t fp_chunks = 0, cluster_chunks = 0;
+  for (const auto& c : m.chunks) {
+    if (c.source == "cluster (no footprint)") {
+      ++cluster_chunks;
+      EXPECT_EQ(box_of(city, c), 2) << c.id;
+      EXPECT_EQ(c.points, box_points[2]);
+      EXPECT_EQ(c.id.rfind("b-", 0), 0u);
+    } else {
+      fp_chunks += c.id.rfind("fp-", 0) == 0;
+    }
+  }
+  EXPECT_EQ(cluster_chunks, 1u);
+  EXPECT_EQ(fp_chunks, 2u);
+}
+
+// Issue 13: a self-intersecting (bowtie) footprint's centroid used to land far
+// away and split visited ~10^9 grid cells. It is repaired (GEOS MakeValid), and
+// the work is bounded even when it is not.
+TEST_F(SplitSynthetic, BowtieFootprintIsRepairedAndDoesNotHang) {
+  const fs::path dir = tmp_dir("synth_bowtie");
+  const std::string in = write_points(dir, true);
+  const std::string fp = (dir / "fp.geojson").string();
+  // A's outline as an asymmetric bowtie (its lobes nearly cancel: net area 7.5 of 300 m2)
+  std::ofstream(fp) << R"({"type":"FeatureCollection","features":[
+    {"type":"Feature","properties":{"id":"A"},"geometry":{"type":"Polygon","coordinates":[
+      [[10,10],[30,25],[30,10],[10,25.5],[10,10]]]}},
+    {"type":"Feature","properties":{"id":"B"},"geometry":{"type":"Polygon","coordinates":[
+      [[40,50],[60,50],[60,70],[40,70],[40,50]]]}}]})";
+  SplitOptions o = local_options(in, dir / "work");
+  o.footprints = fp;
+  const auto t0 = std::chrono::steady_clock::now();
+  const SplitReport r = tiler::split_scene(o);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_LT(secs, 30.0);
+  EXPECT_EQ(r.footprints_repaired, 1u);
+  bool noted = false;
+  for (const auto& n : r.notes) noted |= n.find("repaired") != std::string::npos;
+  EXPECT_TRUE(noted);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
+  std::map<std::string, tiler::ChunkRecord> by_id;
+  for (const auto& c : m.chunks) by_id[c.id] = c;
+  ASSERT_TRUE(by_id.count("fp-A"));
+  EXPECT_EQ(by_id["fp-A"].status, tiler::Status::pending);
+  EXPECT_GT(by_id["fp-A"].points, 100u);
+  EXPECT_EQ(box_of(city, by_id["fp-A"]), 0);
+
+  // Unrepaired, its centroid stays inside its bounding box.
+  tiler::Footprint bow;
+  tiler::Polygon2 lobes;
+  lobes.rings.push_back({{10, 10}, {30, 25}, {30, 10}, {10, 25.5}});
+  bow.polygons.push_back(lobes);
+  bow.update_bbox();
+  const auto c = bow.centroid();
+  EXPECT_GE(c[0], 10.0);
+  EXPECT_LE(c[0], 30.0);
+  EXPECT_GE(c[1], 10.0);
+  EXPECT_LE(c[1], 25.5);
+}
+
+// Footprints that meet none of the data (wrong CRS, wrong area): an error naming
+// the footprint source, not an empty work directory.
+TEST_F(SplitSynthetic, FootprintsMissingTheDataAreAnError) {
+  const fs::path dir = tmp_dir("synth_fp_far");
+  const std::string in = write_points(dir, true);
+  const std::string fp = (dir / "far.geojson").string();
+  test::SynthCity far = city;
+  for (auto& b : far.boxes) b.x0 += 5000, b.x1 += 5000;
+  std::ofstream(fp) << test::city_footprints_geojson(far);
+  SplitOptions o = local_options(in, dir / "work");
+  o.footprints = fp;
+  try {
+    tiler::split_scene(o);
+    FAIL() << "no error";
+  } catch (const io::IoError& e) {
+    const std::string w = e.what();
+    EXPECT_NE(w.find(fp), std::string::npos) << w;
+    EXPECT_NE(w.find("meets the data"), std::string::npos) << w;
+  }
+  EXPECT_FALSE(fs::exists(dir / "work" / "manifest.json"));
+  // over the data, but only on empty ground: every footprint skipped, no chunk
+  {
+    std::ofstream f(fp, std::ios::trunc);
+    f << R"({"type":"FeatureCollection","features":[
+      {"type":"Feature","properties":{"id":"E"},"geometry":{"type":"Polygon","coordinates":[
+        [[170,10],[190,10],[190,20],[170,20],[170,10]]]}}]})";
+  }
+  try {
+    tiler::split_scene(o);
+    FAIL() << "no error";
+  } catch (const io::IoError& e) {
+    const std::string w = e.what();
+    EXPECT_NE(w.find(fp), std::string::npos) << w;
+    EXPECT_NE(w.find("holds building points"), std::string::npos) << w;
+  }
+  EXPECT_FALSE(fs::exists(dir / "work" / "manifest.json"));
 }
 
 TEST_F(SplitSynthetic, MeshScenesSplitTriangles) {
@@ -448,6 +573,90 @@ TEST(SplitRealData, DelftWithAndWithoutFootprints) {
     EXPECT_LE(double(not_building), 0.05 * double(m.chunks.size()) + 0.5);
     EXPECT_GE(double(covered), 0.9 * double(inside));
   }
+}
+
+// Issue 18: footprints from any OGR source. bgt_pand.sqlite, bgt_pand.gpkg and the
+// GeoJSON of the same footprints (ogr2ogr, into a temp dir) give the same chunks:
+// the same records (ids from gml_id, attributes included) and the same chunk bytes.
+TEST(SplitRealData, DelftFootprintSourcesGiveTheSameChunks) {
+  if (!have("delft/ahn3_cropped_2.las") || !have("delft/bgt_pand.gpkg") ||
+      !have("delft/bgt_pand.sqlite"))
+    GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("delft_sources");
+  const std::string geojson = (dir / "bgt_pand.geojson").string();
+  const std::string cmd =
+      "ogr2ogr -f GeoJSON '" + geojson + "' '" + kData + "/delft/bgt_pand.gpkg' > /dev/null 2>&1";
+  if (std::system(cmd.c_str()) != 0) GTEST_SKIP() << "ogr2ogr (gdal-bin) not available";
+  std::vector<tiler::Manifest> ms;
+  std::vector<SplitReport> rs;
+  const std::vector<std::string> sources = {kData + "/delft/bgt_pand.sqlite",
+                                            kData + "/delft/bgt_pand.gpkg", geojson};
+  for (std::size_t i = 0; i < sources.size(); ++i) {
+    SplitOptions o;
+    o.inputs = {kData + "/delft/ahn3_cropped_2.las"};
+    o.crs = "EPSG:28992";
+    o.work_dir = (dir / ("w" + std::to_string(i))).string();
+    o.footprints = sources[i];
+    rs.push_back(tiler::split_scene(o));
+    ms.push_back(tiler::read_manifest(o.work_dir));
+  }
+  std::printf(
+      "[delft sources] %zu chunks, %zu footprints in scene; %lld of %lld class-6 points "
+      "outside every footprint\n",
+      rs[0].chunks, rs[0].footprints_in_scene, (long long)rs[0].unmatched_points,
+      (long long)rs[0].building_points);
+  EXPECT_EQ(rs[0].footprints_total, 160u);
+  ASSERT_GT(rs[0].chunks, 20u);
+  for (std::size_t i = 1; i < ms.size(); ++i) {
+    EXPECT_EQ(rs[i].unmatched_points, rs[0].unmatched_points) << sources[i];
+    EXPECT_EQ(ms[i].scene.origin_h, ms[0].scene.origin_h);
+    ASSERT_EQ(ms[i].chunks.size(), ms[0].chunks.size()) << sources[i];
+    for (std::size_t k = 0; k < ms[0].chunks.size(); ++k) {
+      const auto& a = ms[0].chunks[k];
+      const auto& b = ms[i].chunks[k];
+      EXPECT_EQ(a.id, b.id);
+      EXPECT_EQ(a.source, b.source);
+      EXPECT_EQ(a.status, b.status) << a.id;
+      EXPECT_EQ(a.points, b.points) << a.id;
+      EXPECT_EQ(a.origin, b.origin) << a.id;
+      EXPECT_EQ(a.bbox_min, b.bbox_min) << a.id;
+      EXPECT_EQ(a.outline, b.outline) << a.id;
+      EXPECT_EQ(a.content_hash, b.content_hash) << a.id;
+      EXPECT_EQ(a.attributes, b.attributes) << a.id;
+    }
+  }
+  // ids are BGT gml_ids (as roofer's); the attributes typed
+  const auto& c0 = ms[0].chunks.front();
+  EXPECT_EQ(c0.id.rfind("fp-", 0), 0u);
+  EXPECT_EQ(c0.id.substr(3), c0.attributes.at("gml_id").get<std::string>());
+  EXPECT_TRUE(c0.attributes.at("identificatiebagpnd").is_number_integer());
+}
+
+// Heights: EPSG:28992 implies NAP (orthometric); --vertical ellipsoidal keeps z as is.
+// The two scene origins differ by the geoid height at Delft (about 43.5 m).
+TEST(SplitRealData, DelftHeightsFollowTheCrsUnlessToldOtherwise) {
+  if (!have("delft/ahn3_cropped_2.las")) GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("delft_vertical");
+  SplitOptions o;
+  o.inputs = {kData + "/delft/ahn3_cropped_2.las"};
+  o.crs = "EPSG:28992";
+  o.work_dir = (dir / "auto").string();
+  const SplitReport a = tiler::split_scene(o);
+  EXPECT_NE(a.vertical.find("NAP"), std::string::npos) << a.vertical;
+  EXPECT_EQ(tiler::read_manifest(o.work_dir).scene.vertical, a.vertical);
+  o.vertical = "ellipsoidal";
+  o.work_dir = (dir / "ellipsoidal").string();
+  const SplitReport e = tiler::split_scene(o);
+  EXPECT_NE(e.vertical.find("ellipsoidal"), std::string::npos) << e.vertical;
+  std::printf("[delft vertical] origin h %.3f m (auto: %s) vs %.3f m (ellipsoidal)\n", a.origin_h,
+              a.vertical.c_str(), e.origin_h);
+  EXPECT_GT(a.origin_h - e.origin_h, 42.5);
+  EXPECT_LT(a.origin_h - e.origin_h, 44.5);
+  o.vertical = "sideways";
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+  o.vertical = "ellipsoidal";
+  o.geoid = "egm96";
+  EXPECT_THROW(o.validate(), std::invalid_argument);
 }
 
 TEST(SplitRealData, AutzenFeetAreConverted) {

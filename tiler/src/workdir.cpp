@@ -103,6 +103,7 @@ json to_json(const ChunkRecord& c) {
   o["status"] = to_string(c.status);
   if (!c.reason.empty()) o["reason"] = c.reason;
   o["content_hash"] = c.content_hash;
+  if (!c.attributes.empty()) o["attributes"] = c.attributes;
   return o;
 }
 
@@ -120,6 +121,7 @@ ChunkRecord chunk_from_json(const json& o) {
   c.status = status_from_string(o.value("status", "pending"));
   c.reason = o.value("reason", "");
   c.content_hash = o.value("content_hash", "");
+  if (o.contains("attributes") && o.at("attributes").is_object()) c.attributes = o.at("attributes");
   return c;
 }
 
@@ -309,6 +311,9 @@ Manifest read_manifest(const std::string& work_dir) {
     m.scene.inputs = s.value("inputs", std::vector<std::string>{});
     m.scene.options = s.value("options", "");
     m.scene.notes = s.value("notes", std::vector<std::string>{});
+    m.scene.vertical = s.value("vertical", "");
+    m.scene.building_points = s.value("building_points", std::int64_t(-1));
+    m.scene.unmatched_points = s.value("unmatched_points", std::int64_t(-1));
     for (const auto& c : j.at("chunks")) m.chunks.push_back(chunk_from_json(c));
   } catch (const io::IoError&) {
     throw;
@@ -338,6 +343,11 @@ void write_manifest(const std::string& work_dir, const Manifest& m) {
                 {"inputs", m.scene.inputs},
                 {"options", m.scene.options},
                 {"notes", m.scene.notes}};
+  if (!m.scene.vertical.empty()) j["scene"]["vertical"] = m.scene.vertical;
+  if (m.scene.building_points >= 0) {
+    j["scene"]["building_points"] = m.scene.building_points;
+    j["scene"]["unmatched_points"] = m.scene.unmatched_points;
+  }
   std::vector<ChunkRecord> sorted = m.chunks;
   std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
   json chunks = json::array();

@@ -73,6 +73,7 @@ struct Building {
   std::size_t models_read = 0;
   BBox3 bbox;               // all kept models
   double error_none_m = 0;  // error of showing nothing: > error of the coarsest model
+  nlohmann::json attributes = nlohmann::json::object();  // its footprint's (manifest)
 };
 
 std::string safe_stem(const std::string& id) {
@@ -108,6 +109,7 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
   b.id = rec.id;
   b.file_stem = safe_stem(rec.id);
   b.origin = rec.origin;
+  b.attributes = rec.attributes;
   const std::string dir = lod_dir(work, rec.id);
   const std::string report_path = lod_report_path(work, rec.id);
   if (!fs::exists(report_path))
@@ -352,6 +354,7 @@ io::GlbFeature feature_of(const Building& b, std::size_t m) {
   f.height_m = km.height_m;
   f.footprint_area_m2 = b.footprint_area_m2;
   f.error_m = km.error_m;
+  f.attributes = b.attributes;
   return f;
 }
 
@@ -480,6 +483,11 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   if (params.building_models) fs::create_directories(stage / "buildings");
   io::GlbOptions gopt;
   gopt.quantize = params.quantize;
+  {  // footprint attributes: one typed schema for every glb of the tileset
+    std::vector<const nlohmann::json*> attrs;
+    for (const auto& b : buildings) attrs.push_back(&b.attributes);
+    gopt.attributes = io::glb_attribute_schema(attrs);
+  }
 
   std::vector<std::size_t> glb_size(tiles.size(), 0);
   std::vector<std::string> write_errors(tiles.size());
@@ -572,6 +580,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
     if (params.building_models) e["glb"] = "buildings/" + b.file_stem + ".glb";
     e["centre"] = b.centre;
     e["footprint_area"] = b.footprint_area_m2;
+    if (!b.attributes.empty()) e["attributes"] = b.attributes;
     nlohmann::ordered_json ms = nlohmann::ordered_json::array();
     for (std::size_t m = 0; m < b.models.size(); ++m) {
       const KeptModel& km = b.models[m];

@@ -221,7 +221,8 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   for (const auto& n : sr.notes) log_info("note: " + n);
   log_info("split: " + (sr.up_to_date ? std::string("up to date, ") : std::string()) +
            std::to_string(sr.chunks) + " chunks in " + fixed1(t_split) + " s");
-  report.split = {t_split, sr.up_to_date, sr.chunks, sr.points, sr.crs};
+  report.split = {t_split,     sr.up_to_date,      sr.chunks,           sr.points,          sr.crs,
+                  sr.vertical, sr.building_points, sr.unmatched_points, sr.unmatched_chunks};
 
   // ---- lod, in a supervised child
   const Overrides overrides = read_overrides(work);

@@ -1,18 +1,14 @@
-// GeoJSON footprint reader and 2D polygon helpers.
+// Footprints from OGR sources (through io::read_footprints) and 2D polygon helpers.
 #include "citylod/tiler/footprints.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <limits>
-#include <nlohmann/json.hpp>
 
-#include "citylod/io/error.hpp"
+#include "citylod/io/footprints.hpp"
 #include "citylod/lod/polygon2d.hpp"
 
 namespace citylod::tiler {
-
-using nlohmann::json;
 
 // ------------------------------------------------------------------ 2D geometry
 // (citylod/lod/polygon2d.hpp)
@@ -122,152 +118,73 @@ Vec2 Footprint::centroid() const {
       sa += c;
     }
   }
-  if (std::abs(sa) < 1e-12) return {0.5 * (bbox[0] + bbox[2]), 0.5 * (bbox[1] + bbox[3])};
-  return {sx / (3 * sa), sy / (3 * sa)};
+  // A bowtie's lobes cancel (issue 13: its "centroid" landed km away): the bbox centre.
+  const Vec2 mid{0.5 * (bbox[0] + bbox[2]), 0.5 * (bbox[1] + bbox[3])};
+  const double box_area = (bbox[2] - bbox[0]) * (bbox[3] - bbox[1]);
+  if (!(std::abs(sa) > 1e-9 * std::max(box_area, 1e-300))) return mid;
+  const Vec2 c{sx / (3 * sa), sy / (3 * sa)};
+  if (!(c[0] >= bbox[0] && c[0] <= bbox[2] && c[1] >= bbox[1] && c[1] <= bbox[3])) return mid;
+  return c;
 }
 
-// ------------------------------------------------------------------ GeoJSON
+// ------------------------------------------------------------------ OGR sources
 namespace {
 
-Ring parse_ring(const std::string& path, const json& j) {
-  if (!j.is_array())
-    throw io::IoError(path, "malformed GeoJSON: a ring is not an array of positions");
-  Ring r;
-  r.reserve(j.size());
-  for (const auto& pos : j) {
-    if (!pos.is_array() || pos.size() < 2 || !pos[0].is_number() || !pos[1].is_number())
-      throw io::IoError(path, "malformed GeoJSON: a position is not [x, y]");
-    const Vec2 v{pos[0].get<double>(), pos[1].get<double>()};
-    if (!std::isfinite(v[0]) || !std::isfinite(v[1]))
-      throw io::IoError(path, "malformed GeoJSON: non-finite coordinate");
-    r.push_back(v);
-  }
-  while (r.size() > 1 && r.front() == r.back()) r.pop_back();
-  return r;
-}
-
-Polygon2 parse_polygon(const std::string& path, const json& coords) {
-  if (!coords.is_array())
-    throw io::IoError(path, "malformed GeoJSON: Polygon coordinates are not an array");
-  Polygon2 p;
-  for (const auto& ring : coords) {
-    Ring r = parse_ring(path, ring);
-    if (r.size() >= 3)
-      p.rings.push_back(std::move(r));
-    else if (p.rings.empty())
-      return {};  // degenerate exterior: drop the polygon
-  }
-  normalise(p);
-  return p;
-}
-
-std::string crs_from_member(const json& root) {
-  if (!root.contains("crs") || !root["crs"].is_object()) return {};
-  const json& c = root["crs"];
-  if (!c.contains("properties") || !c["properties"].contains("name")) return {};
-  std::string name = c["properties"]["name"].get<std::string>();
-  // urn:ogc:def:crs:EPSG::28992 -> EPSG:28992; urn:ogc:def:crs:OGC:1.3:CRS84 -> OGC:CRS84
-  const std::string urn = "urn:ogc:def:crs:";
-  if (name.rfind(urn, 0) == 0) {
-    std::string rest = name.substr(urn.size());  // "EPSG::28992" or "OGC:1.3:CRS84"
-    const auto first = rest.find(':');
-    const auto last = rest.rfind(':');
-    if (first != std::string::npos) return rest.substr(0, first) + ":" + rest.substr(last + 1);
-  }
-  return name;
-}
-
-std::string id_of(const json& feature, std::size_t index) {
-  auto str = [](const json& v) -> std::string {
-    if (v.is_string()) return v.get<std::string>();
-    if (v.is_number_integer()) return std::to_string(v.get<long long>());
-    if (v.is_number_unsigned()) return std::to_string(v.get<unsigned long long>());
-    if (v.is_number()) return v.dump();
-    return {};
-  };
-  if (feature.contains("properties") && feature["properties"].is_object()) {
-    const json& p = feature["properties"];
-    for (const char* key : {"id", "ID", "identificatie", "fid"})
-      if (p.contains(key)) {
-        std::string s = str(p[key]);
-        if (!s.empty()) return s;
-      }
-  }
-  if (feature.contains("id")) {
-    std::string s = str(feature["id"]);
+/// The id a feature gets without --footprints-id (the keys the GeoJSON reader
+/// used, then BGT's gml_id).
+std::string default_id(const nlohmann::json& attrs, const std::string& fid) {
+  for (const char* key : {"id", "ID", "identificatie", "gml_id", "fid"}) {
+    const auto it = attrs.find(key);
+    if (it == attrs.end() || it->is_null()) continue;
+    std::string s;
+    if (it->is_string())
+      s = it->get<std::string>();
+    else if (it->is_number_integer())
+      s = std::to_string(it->get<long long>());
+    else if (it->is_number_unsigned())
+      s = std::to_string(it->get<unsigned long long>());
+    else if (it->is_number())
+      s = it->dump();
     if (!s.empty()) return s;
   }
-  return std::to_string(index + 1);
+  return fid;
 }
 
 }  // namespace
 
-FootprintSet read_footprints_geojson(const std::string& path, int* skipped) {
-  std::ifstream in(path);
-  if (!in) throw io::IoError(path, "cannot open footprint file");
-  json root;
-  try {
-    in >> root;
-  } catch (const std::exception& e) {
-    throw io::IoError(path, std::string("not valid JSON: ") + e.what());
-  }
-  if (!root.is_object() || !root.contains("type"))
-    throw io::IoError(path, "not a GeoJSON object (no \"type\")");
+FootprintSet read_footprint_source(const std::string& source,
+                                   const FootprintSourceOptions& options) {
+  io::FootprintReadOptions ro;
+  ro.layer = options.layer;
+  ro.id_attribute = options.id_attribute;
+  ro.repair = options.repair;
+  io::FootprintLayer layer = io::read_footprints(source, ro);
   FootprintSet set;
-  set.crs = crs_from_member(root);
-
-  std::vector<json> features;
-  const std::string type = root["type"].is_string() ? root["type"].get<std::string>() : "";
-  if (type == "FeatureCollection") {
-    if (!root.contains("features") || !root["features"].is_array())
-      throw io::IoError(path, "GeoJSON FeatureCollection without a \"features\" array");
-    for (const auto& f : root["features"]) features.push_back(f);
-  } else if (type == "Feature") {
-    features.push_back(root);
-  } else if (type == "Polygon" || type == "MultiPolygon") {
-    features.push_back(json{{"type", "Feature"}, {"geometry", root}});
-  } else {
-    throw io::IoError(path,
-                      "unsupported GeoJSON type '" + type + "' (expected a FeatureCollection)");
-  }
-
-  int n_skipped = 0;
-  for (std::size_t i = 0; i < features.size(); ++i) {
-    const json& f = features[i];
-    if (!f.is_object() || !f.contains("geometry") || !f["geometry"].is_object()) {
-      ++n_skipped;
-      continue;
-    }
-    const json& g = f["geometry"];
-    const std::string gt = g.value("type", "");
-    if (!g.contains("coordinates")) {
-      ++n_skipped;
+  set.source = layer.source;
+  set.layer = layer.layer;
+  set.driver = layer.driver;
+  set.crs = layer.crs;
+  set.problems = std::move(layer.problems);
+  set.source_features = layer.source_features;
+  set.skipped = layer.skipped;
+  set.repaired = layer.repaired;
+  // io gives one feature per polygon part, parts of a source feature in a row.
+  for (auto& f : layer.features) {
+    Polygon2 p;
+    p.rings = std::move(f.rings);
+    normalise(p);
+    if (f.part > 0 && !set.footprints.empty()) {
+      set.footprints.back().polygons.push_back(std::move(p));
       continue;
     }
     Footprint fp;
-    fp.id = id_of(f, i);
-    if (gt == "Polygon") {
-      Polygon2 p = parse_polygon(path, g["coordinates"]);
-      if (!p.rings.empty()) fp.polygons.push_back(std::move(p));
-    } else if (gt == "MultiPolygon") {
-      if (!g["coordinates"].is_array())
-        throw io::IoError(path, "malformed GeoJSON: MultiPolygon coordinates are not an array");
-      for (const auto& pc : g["coordinates"]) {
-        Polygon2 p = parse_polygon(path, pc);
-        if (!p.rings.empty()) fp.polygons.push_back(std::move(p));
-      }
-    } else {
-      ++n_skipped;
-      continue;
-    }
-    if (fp.polygons.empty()) {
-      ++n_skipped;
-      continue;
-    }
-    fp.update_bbox();
+    fp.id = options.id_attribute.empty() ? default_id(f.attributes, f.source_id) : f.source_id;
+    fp.attributes = std::move(f.attributes);
+    fp.repaired = f.repaired;
+    fp.polygons.push_back(std::move(p));
     set.footprints.push_back(std::move(fp));
   }
-  if (skipped) *skipped = n_skipped;
+  for (auto& fp : set.footprints) fp.update_bbox();
   return set;
 }
 

@@ -15,6 +15,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -23,6 +24,7 @@
 
 #include "citylod/geo/georef.hpp"
 #include "citylod/geo/units.hpp"
+#include "citylod/geo/vertical.hpp"
 #include "citylod/io/error.hpp"
 #include "citylod/io/hash.hpp"
 #include "citylod/io/reader.hpp"
@@ -79,6 +81,18 @@ void SplitOptions::validate() const {
   if (!geoid.empty() && !origin.empty())
     throw std::invalid_argument(
         "--geoid needs a CRS; with --origin heights are relative to the given ellipsoidal H");
+  if (!vertical.empty() && vertical != "auto" && vertical != "ellipsoidal" &&
+      vertical != "orthometric")
+    throw std::invalid_argument("--vertical: expected auto, ellipsoidal or orthometric, got '" +
+                                vertical + "'");
+  if (!vertical.empty() && vertical != "auto" && !origin.empty())
+    throw std::invalid_argument(
+        "--vertical needs a CRS; with --origin heights are relative to the given ellipsoidal H");
+  if (!geoid.empty() && vertical == "ellipsoidal")
+    throw std::invalid_argument(
+        "--geoid egm96 (orthometric heights) contradicts --vertical ellipsoidal");
+  if (footprints.empty() && (!footprints_layer.empty() || !footprints_id.empty()))
+    throw std::invalid_argument("--footprints-layer / --footprints-id need --footprints");
   positive(cell_size, "--cell-size");
   positive(halo, "--halo");
   positive(seg.cluster_tolerance, "--cluster-tolerance");
@@ -94,19 +108,25 @@ void SplitOptions::validate() const {
 std::string SplitOptions::canonical() const {
   std::ostringstream o;
   o.precision(17);
-  o << "v=1;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
-    << ";footprints=" << footprints << ";footprint_buffer=" << footprint_buffer
-    << ";memory_limit=" << memory_limit << ";cell=" << cell_size << ";halo=" << halo
-    << ";max_halo=" << max_halo << ";ignore_classes=" << ignore_classes
-    << ";min_footprint_points=" << min_footprint_points << ";dtm_res=" << seg.dtm_resolution
-    << ";dtm_window=" << seg.dtm_window << ";ground_tol=" << seg.ground_tolerance
-    << ";min_height=" << seg.min_height << ";tol=" << seg.cluster_tolerance
-    << ";min_pts=" << seg.min_cluster_points << ";min_area=" << seg.min_area
-    << ";min_bh=" << seg.min_building_height << ";k=" << seg.feature_neighbours
-    << ";max_scatter=" << seg.max_scatter << ";max_veg=" << seg.max_vegetation_ratio
-    << ";min_planar=" << seg.min_planar_fraction << ";min_width=" << seg.min_width
-    << ";low=" << seg.low_height << "," << seg.low_max_vegetation_ratio << ","
-    << seg.low_min_planar_fraction;
+  // a "PG:" connection string's password stays out of the manifest
+  static const std::regex pw(R"((password\s*=\s*)('[^']*'|\S+))", std::regex::icase);
+  o << "v=2;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
+    << ";footprints=" << std::regex_replace(footprints, pw, "$1***")
+    << ";footprint_buffer=" << footprint_buffer << ";memory_limit=" << memory_limit
+    << ";cell=" << cell_size << ";halo=" << halo << ";max_halo=" << max_halo
+    << ";ignore_classes=" << ignore_classes << ";min_footprint_points=" << min_footprint_points
+    << ";dtm_res=" << seg.dtm_resolution << ";dtm_window=" << seg.dtm_window
+    << ";ground_tol=" << seg.ground_tolerance << ";min_height=" << seg.min_height
+    << ";tol=" << seg.cluster_tolerance << ";min_pts=" << seg.min_cluster_points
+    << ";min_area=" << seg.min_area << ";min_bh=" << seg.min_building_height
+    << ";k=" << seg.feature_neighbours << ";max_scatter=" << seg.max_scatter
+    << ";max_veg=" << seg.max_vegetation_ratio << ";min_planar=" << seg.min_planar_fraction
+    << ";min_width=" << seg.min_width << ";low=" << seg.low_height << ","
+    << seg.low_max_vegetation_ratio << "," << seg.low_min_planar_fraction;
+  // v=2: heights follow the CRS by default (RD New -> NAP); v=1 work directories split again
+  o << ";vertical=" << (vertical.empty() ? "auto" : vertical)
+    << ";footprints_layer=" << footprints_layer << ";footprints_id=" << footprints_id
+    << ";unmatched=" << (unmatched == Unmatched::segment ? "segment" : "drop");
   return o.str();
 }
 
@@ -367,9 +387,13 @@ class Splitter {
   void georeference();
   void choose_cell_size();
   void pass2_spill(Spiller& spill);
+  void read_footprints();
   void load_footprints();
   void pass3_cells(const Spiller& spill);
-  void process_cell_clusters(const Spiller& spill, const CellKey& key);
+  void process_cell_clusters(const Spiller& spill, const CellKey& key, bool unmatched);
+  void count_unmatched(const Spiller& spill);
+  void drop_footprint_points(RegionPoints& pts) const;
+  std::size_t footprint_of(const Vec2& q) const;
   void process_cell_footprints(const Spiller& spill, const CellKey& key,
                                const std::vector<std::size_t>& owned);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
@@ -402,6 +426,8 @@ class Splitter {
   std::vector<std::vector<std::int32_t>> tri_label_;   // mesh triangle -> chunk
   std::vector<std::vector<std::uint32_t>> tri_votes_;  // samples behind that choice
 
+  FootprintSet fp_set_;         // as read (source CRS), until load_footprints()
+  std::string fp_source_;       // for messages
   std::vector<Footprint> fps_;  // ENU, those meeting the data bbox
   std::vector<char> fp_inside_;
   std::map<CellKey, std::vector<std::size_t>> fp_owned_;
@@ -484,9 +510,20 @@ void Splitter::georeference() {
     }
     crs_.emplace(geo::Crs::parse(crs_spec_));
     crs_->require_projected("to split a scene");
-    geo::TransformOptions to;
-    if (opt_.geoid == "egm96") to.height = geo::HeightMode::Egm96;
-    georef_.emplace(geo::Georef::from_crs_bbox(*crs_, to_eigen(bbox_crs_), to));
+    if (opt_.geoid == "egm96") {  // the explicit model wins over the CRS's (implied) datum
+      geo::TransformOptions to;
+      to.height = geo::HeightMode::Egm96;
+      georef_.emplace(geo::Georef::from_crs_bbox(*crs_, to_eigen(bbox_crs_), to));
+      rep_.vertical = "heights orthometric (--geoid egm96) -> ellipsoidal via EGM96";
+    } else {
+      const geo::VerticalMode mode =
+          opt_.vertical.empty() ? geo::VerticalMode::Auto : geo::parse_vertical_mode(opt_.vertical);
+      const geo::VerticalChoice vc = geo::choose_vertical(*crs_, mode);
+      georef_.emplace(geo::Georef::from_crs_bbox(vc.crs, to_eigen(bbox_crs_), vc.options));
+      rep_.vertical = vc.assumption;
+      for (const auto& w : vc.warnings) rep_.notes.push_back(w);
+    }
+    rep_.notes.push_back(rep_.vertical);
     rep_.crs = crs_->label();
     const auto& hu = crs_->horizontal_unit();
     if (std::abs(hu.to_si - 1.0) > 1e-12)
@@ -496,13 +533,9 @@ void Splitter::georeference() {
     if (std::abs(vu.to_si - 1.0) > 1e-12)
       rep_.notes.push_back("heights in " + vu.name + " (" + fmt("%.10g", vu.to_si) +
                            " m) converted to metres");
-    if (opt_.geoid == "egm96")
-      rep_.notes.push_back("heights orthometric -> ellipsoidal via EGM96");
-    else if (!crs_->has_vertical_datum())
-      rep_.notes.push_back(
-          "heights taken as ellipsoidal (no vertical datum; use --geoid egm96 for orthometric "
-          "heights)");
-    for (const auto& w : georef_->warnings()) rep_.notes.push_back(w);
+    for (const auto& w : georef_->warnings())
+      if (std::find(rep_.notes.begin(), rep_.notes.end(), w) == rep_.notes.end())
+        rep_.notes.push_back(w);
     for (const auto& w : geo::check_units(*crs_, to_eigen(bbox_crs_)).warnings)
       rep_.notes.push_back(w);
   } catch (const geo::GeoError& e) {
@@ -718,20 +751,60 @@ void Splitter::pass2_spill(Spiller& spill) {
 }
 
 // ---------------------------------------------------------------------- footprints
+// Read before the points (a bad source, layer or id fails fast); placed in load_footprints().
+void Splitter::read_footprints() {
+  FootprintSourceOptions fo;
+  fo.layer = opt_.footprints_layer;
+  fo.id_attribute = opt_.footprints_id;
+  fp_set_ = read_footprint_source(opt_.footprints, fo);
+}
+
 void Splitter::load_footprints() {
-  int skipped = 0;
-  FootprintSet set = read_footprints_geojson(opt_.footprints, &skipped);
+  FootprintSet set = std::move(fp_set_);
+  const std::string src = set.source;  // as given, a "PG:" password masked
+  fp_source_ = src;
   rep_.footprints_total = set.footprints.size();
-  if (skipped)
-    rep_.notes.push_back(std::to_string(skipped) +
-                         " footprint features without polygon geometry ignored");
-  // To ENU: through the scene georef when the file has no CRS or the scene's; else via WGS84.
+  rep_.footprints_repaired = set.repaired;
+  rep_.footprints_skipped = set.skipped;
+  constexpr std::size_t kMaxProblemNotes = 20;  // the rest counted: notes stay readable
+  for (std::size_t i = 0; i < set.problems.size() && i < kMaxProblemNotes; ++i)
+    rep_.notes.push_back("footprints: " + set.problems[i]);
+  if (set.problems.size() > kMaxProblemNotes)
+    rep_.notes.push_back("footprints: " + std::to_string(set.problems.size() - kMaxProblemNotes) +
+                         " more features skipped or repaired (" + std::to_string(set.repaired) +
+                         " repaired, " + std::to_string(set.skipped) + " skipped in all)");
+  if (set.footprints.empty())
+    throw IoError(src, set.source_features == 0
+                           ? "no footprints (layer '" + set.layer + "' is empty)"
+                           : "none of its " + std::to_string(set.source_features) +
+                                 " features is a usable polygon (see the notes above)");
+  // The source's extent, in its own units (for messages and the lon/lat test).
+  double ext[4] = {1e300, 1e300, -1e300, -1e300};
+  for (const auto& f : set.footprints) {
+    ext[0] = std::min(ext[0], f.bbox[0]);
+    ext[1] = std::min(ext[1], f.bbox[1]);
+    ext[2] = std::max(ext[2], f.bbox[2]);
+    ext[3] = std::max(ext[3], f.bbox[3]);
+  }
+  // To ENU: through the scene georef when the source has no CRS or the scene's; else
+  // via WGS84. GeoJSON without a "crs" member is WGS84 for OGR (RFC 7946); legacy
+  // files hold projected coordinates anyway: out of lon/lat range -> the scene's CRS.
   std::unique_ptr<geo::Transformer> other;
   try {
     if (!set.crs.empty() && crs_) {
       geo::Crs fcrs = geo::Crs::parse(set.crs);
       const bool same = fcrs.epsg() && crs_->epsg() && *fcrs.epsg() == *crs_->epsg();
-      if (!same) other = std::make_unique<geo::Transformer>(fcrs);
+      const bool not_lonlat =
+          !fcrs.is_projected() && (std::abs(ext[0]) > 360 || std::abs(ext[2]) > 360 ||
+                                   std::abs(ext[1]) > 90 || std::abs(ext[3]) > 90);
+      if (not_lonlat)
+        rep_.notes.push_back("footprints: " + src + " says " + set.crs +
+                             " but its coordinates are not longitudes/latitudes; taken in " +
+                             crs_->label());
+      else if (!same)
+        other = std::make_unique<geo::Transformer>(fcrs);
+    } else if (set.crs.empty() && crs_) {
+      rep_.notes.push_back("footprints: " + src + " has no CRS; taken in " + crs_->label());
     }
     const double z0 = georef_->origin_crs()[2];
     for (auto& f : set.footprints) {
@@ -746,13 +819,15 @@ void Splitter::load_footprints() {
             } else {
               e = georef_->to_local(Eigen::Vector3d(v[0], v[1], z0));
             }
+            if (!std::isfinite(e[0]) || !std::isfinite(e[1]))
+              throw IoError(src, "footprint '" + f.id + "' cannot be transformed to the scene CRS");
             v = {e[0], e[1]};
           }
       for (auto& poly : f.polygons) normalise(poly);
       f.update_bbox();
     }
   } catch (const geo::GeoError& e) {
-    throw IoError(opt_.footprints, e.what());
+    throw IoError(src, e.what());
   }
   const double buf = opt_.footprint_buffer;
   std::set<std::string> seen;
@@ -761,24 +836,63 @@ void Splitter::load_footprints() {
         f.bbox[3] + buf < bbox_enu_.min[1] || f.bbox[1] - buf > bbox_enu_.max[1])
       continue;
     if (!seen.insert(f.id).second)
-      throw IoError(opt_.footprints, "duplicate footprint id '" + f.id + "'");
+      throw IoError(
+          src, "duplicate footprint id '" + f.id + "'" +
+                   (opt_.footprints_id.empty() ? " (choose another with --footprints-id)" : ""));
     const bool inside = f.bbox[0] >= bbox_enu_.min[0] && f.bbox[2] <= bbox_enu_.max[0] &&
                         f.bbox[1] >= bbox_enu_.min[1] && f.bbox[3] <= bbox_enu_.max[1];
     fp_inside_.push_back(inside);
     fps_.push_back(std::move(f));
   }
+  if (fps_.empty()) {
+    char b[512];
+    std::snprintf(b, sizeof b,
+                  "none of its %zu footprints meets the data (footprints span %.3f %.3f .. %.3f "
+                  "%.3f in %s; the points %.3f %.3f .. %.3f %.3f in %s): wrong CRS or wrong area?",
+                  set.footprints.size(), ext[0], ext[1], ext[2], ext[3],
+                  set.crs.empty() ? "no CRS" : set.crs.substr(0, 40).c_str(), bbox_crs_.min[0],
+                  bbox_crs_.min[1], bbox_crs_.max[0], bbox_crs_.max[1],
+                  crs_ ? crs_->label().c_str() : "the local frame");
+    throw IoError(src, b);
+  }
   rep_.footprints_in_scene = fps_.size();
   for (char c : fp_inside_) rep_.footprints_inside += c ? 1 : 0;
+  // Bucket ranges stay within the data box: a huge footprint costs no more than the scene.
+  const auto bucket = [&](double v) { return int(std::floor(v / fp_bucket_)); };
+  const int bx_lo = bucket(bbox_enu_.min[0] - buf), bx_hi = bucket(bbox_enu_.max[0] + buf);
+  const int by_lo = bucket(bbox_enu_.min[1] - buf), by_hi = bucket(bbox_enu_.max[1] + buf);
   for (std::size_t i = 0; i < fps_.size(); ++i) {
     const Vec2 c = fps_[i].centroid();
     fp_owned_[{int(std::floor(c[0] / cell_)), int(std::floor(c[1] / cell_))}].push_back(i);
     const auto& b = fps_[i].bbox;
-    for (int bx = int(std::floor((b[0] - buf) / fp_bucket_));
-         bx <= int(std::floor((b[2] + buf) / fp_bucket_)); ++bx)
-      for (int by = int(std::floor((b[1] - buf) / fp_bucket_));
-           by <= int(std::floor((b[3] + buf) / fp_bucket_)); ++by)
+    for (int bx = std::max(bx_lo, bucket(b[0] - buf)); bx <= std::min(bx_hi, bucket(b[2] + buf));
+         ++bx)
+      for (int by = std::max(by_lo, bucket(b[1] - buf)); by <= std::min(by_hi, bucket(b[3] + buf));
+           ++by)
         fp_index_[{bx, by}].push_back(i);
   }
+}
+
+/// The footprint a point belongs to: the one containing it, else the nearest within
+/// the buffer (ties to the first); SIZE_MAX when none.
+std::size_t Splitter::footprint_of(const Vec2& q) const {
+  auto it =
+      fp_index_.find({int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))});
+  if (it == fp_index_.end()) return SIZE_MAX;
+  const double buf = opt_.footprint_buffer;
+  std::size_t best = SIZE_MAX;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (std::size_t i : it->second) {  // increasing index: ties go to the first footprint
+    const auto& b = fps_[i].bbox;
+    if (q[0] < b[0] - buf || q[0] > b[2] + buf || q[1] < b[1] - buf || q[1] > b[3] + buf) continue;
+    const double d = distance_to_footprint(fps_[i], q);
+    if (d < best_d) {
+      best = i;
+      best_d = d;
+      if (d == 0) break;
+    }
+  }
+  return best_d > buf ? SIZE_MAX : best;
 }
 
 // ---------------------------------------------------------------------- pass 3
@@ -789,18 +903,18 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
   const double c = spill.cell();
   const int i0 = int(std::floor(box[0] / c)), i1 = int(std::floor(box[2] / c));
   const int j0 = int(std::floor(box[1] / c)), j1 = int(std::floor(box[3] / c));
+  // The non-empty cells of the box, in (i, j) order; never more work than the spill
+  // has cells, however large the box (issue 13: a box of ~10^9 cells).
+  std::vector<CellKey> keys;
+  for (const auto& [k, n] : spill.counts())
+    if (k.first >= i0 && k.first <= i1 && k.second >= j0 && k.second <= j1) keys.push_back(k);
   std::uint64_t upper = 0;
-  for (int i = i0; i <= i1; ++i)
-    for (int j = j0; j <= j1; ++j) {
-      auto it = spill.counts().find({i, j});
-      if (it != spill.counts().end()) upper += it->second;
-    }
+  for (const auto& k : keys) upper += spill.counts().at(k);
   if (upper > max_points) return static_cast<std::size_t>(upper);  // caller decides
   std::vector<SpillRec> buf(8192);
-  for (int i = i0; i <= i1; ++i)
-    for (int j = j0; j <= j1; ++j) {
-      if (!spill.counts().count({i, j})) continue;
-      const fs::path p = spill.file({i, j});
+  for (const auto& cell : keys) {
+    {
+      const fs::path p = spill.file(cell);
       std::FILE* f = std::fopen(p.c_str(), "rb");
       if (!f)
         throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
@@ -820,6 +934,7 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
       std::fclose(f);
       if (err) throw IoError(p.string(), "cannot read spill file");
     }
+  }
   rep_.max_region_points = std::max(rep_.max_region_points, out.pos.size());
   return out.pos.size();
 }
@@ -881,7 +996,7 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
 
 // Clusters: owned by the cell holding their centroid; the halo doubles while an
 // owned building touches the edge of what was loaded (so it is never cut).
-void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
+void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, bool unmatched) {
   const double c = cell_;
   const double cx0 = key.first * c, cy0 = key.second * c, cx1 = cx0 + c, cy1 = cy0 + c;
   // Exact ownership: the cell holding the cluster's anchor point.
@@ -892,6 +1007,7 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
   for (;;) {
     const std::array<double, 4> box{cx0 - halo, cy0 - halo, cx1 + halo, cy1 + halo};
     const std::size_t n = load_region(spill, box, pts, region_budget_points_);
+    if (unmatched) drop_footprint_points(pts);
     if (n > region_budget_points_) {
       if (halo > opt_.halo) {  // keep the previous (smaller) result
         rep_.notes.push_back("cell " + std::to_string(key.first) + "," +
@@ -900,6 +1016,7 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
         const std::array<double, 4> prev{cx0 - halo / 2, cy0 - halo / 2, cx1 + halo / 2,
                                          cy1 + halo / 2};
         load_region(spill, prev, pts, ~std::size_t(0));
+        if (unmatched) drop_footprint_points(pts);
         seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, prev, true);
         break;
       }
@@ -959,7 +1076,9 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key) {
     char key_text[64];
     std::snprintf(key_text, sizeof key_text, "%.5f,%.5f", g[0], g[1]);
     const std::string id = "b-" + io::hash_hex(key_text, std::strlen(key_text)).substr(0, 12);
-    emit_chunk(pts, seg, cl.members, id, "cluster", cl.hull);
+    const std::size_t before = rep_.chunks;
+    emit_chunk(pts, seg, cl.members, id, unmatched ? "cluster (no footprint)" : "cluster", cl.hull);
+    if (unmatched) rep_.unmatched_chunks += rep_.chunks - before;
   }
 }
 
@@ -985,7 +1104,6 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   const CellSegmentation seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, false);
   std::map<std::size_t, std::vector<std::uint32_t>> members;
   const std::set<std::size_t> mine(owned.begin(), owned.end());
-  const double buf = opt_.footprint_buffer;
   const bool have_cls = mode_ != ClassMode::none;
   for (std::size_t k = 0; k < pts.pos.size(); ++k) {
     if (mode_ == ClassMode::buildings) {
@@ -995,24 +1113,7 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       if (have_cls && non_building_class(pts.cls[k])) continue;
       if (seg.foliage[k] && seg.hag[k] >= opt_.seg.min_height) continue;
     }
-    const Vec2 q{pts.pos[k][0], pts.pos[k][1]};
-    auto it =
-        fp_index_.find({int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))});
-    if (it == fp_index_.end()) continue;
-    std::size_t best = SIZE_MAX;
-    double best_d = std::numeric_limits<double>::infinity();
-    for (std::size_t i : it->second) {  // increasing index: ties go to the first footprint
-      const auto& b = fps_[i].bbox;
-      if (q[0] < b[0] - buf || q[0] > b[2] + buf || q[1] < b[1] - buf || q[1] > b[3] + buf)
-        continue;
-      const double d = distance_to_footprint(fps_[i], q);
-      if (d < best_d) {
-        best = i;
-        best_d = d;
-        if (d == 0) break;
-      }
-    }
-    if (best_d > buf) continue;
+    const std::size_t best = footprint_of({pts.pos[k][0], pts.pos[k][1]});
     if (best != SIZE_MAX && mine.count(best))
       members[best].push_back(static_cast<std::uint32_t>(k));
   }
@@ -1033,6 +1134,7 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       pc.rec.origin = {ce[0], ce[1], 0};
       pc.rec.bbox_min = {fps_[i].bbox[0], fps_[i].bbox[1], 0};
       pc.rec.bbox_max = {fps_[i].bbox[2], fps_[i].bbox[3], 0};
+      pc.rec.attributes = fps_[i].attributes;
       chunks_.push_back(std::move(pc));
       continue;
     }
@@ -1040,6 +1142,7 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
     if (fp_inside_[i]) ++rep_.footprints_inside_with_chunk;
     emit_chunk(pts, seg, it->second, "fp-" + sanitize_id(fps_[i].id), "footprint:" + fps_[i].id,
                fps_[i].main_ring());
+    chunks_.back().rec.attributes = fps_[i].attributes;
   }
 }
 
@@ -1051,13 +1154,80 @@ void Splitter::pass3_cells(const Spiller& spill) {
     for (const auto& [k, v] : fp_owned_) cells.push_back(k);
   }
   rep_.cells = spill.counts().size();
+  const bool segment =
+      !opt_.footprints.empty() && opt_.unmatched == SplitOptions::Unmatched::segment;
+  const double total = double(cells.size() + (segment ? spill.counts().size() : 0));
   for (std::size_t i = 0; i < cells.size(); ++i) {
     if (opt_.footprints.empty())
-      process_cell_clusters(spill, cells[i]);
+      process_cell_clusters(spill, cells[i], false);
     else
       process_cell_footprints(spill, cells[i], fp_owned_.at(cells[i]));
-    stages_.report(0.5, 0.97, double(i + 1) / double(cells.size()), "segment");
+    stages_.report(0.5, 0.97, double(i + 1) / total, "segment");
   }
+  if (opt_.footprints.empty()) return;
+  count_unmatched(spill);
+  if (!segment) return;
+  std::size_t i = cells.size();
+  for (const auto& [k, n] : spill.counts()) {
+    process_cell_clusters(spill, k, true);
+    stages_.report(0.5, 0.97, double(++i) / total, "segment unmatched");
+  }
+}
+
+// Building points (class 6) outside every footprint (+ buffer), each counted once:
+// the spill file of a cell holds exactly its points.
+void Splitter::count_unmatched(const Spiller& spill) {
+  if (mode_ != ClassMode::buildings) {
+    rep_.notes.push_back(
+        "no building class in the input: points outside the footprints are not counted");
+    return;
+  }
+  std::int64_t out = 0;
+  std::vector<SpillRec> buf(8192);
+  for (const auto& [k, n] : spill.counts()) {
+    const fs::path p = spill.file(k);
+    std::FILE* f = std::fopen(p.c_str(), "rb");
+    if (!f)
+      throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
+    std::size_t got;
+    while ((got = std::fread(buf.data(), sizeof(SpillRec), buf.size(), f)) > 0)
+      for (std::size_t j = 0; j < got; ++j)
+        if (buf[j].cls == 6 && footprint_of({buf[j].x, buf[j].y}) == SIZE_MAX) ++out;
+    const bool err = std::ferror(f);
+    std::fclose(f);
+    if (err) throw IoError(p.string(), "cannot read spill file");
+  }
+  rep_.building_points = std::int64_t(class_hist_[6]);
+  rep_.unmatched_points = out;
+  char b[256];
+  std::snprintf(b, sizeof b,
+                "%lld of %lld building (class 6) points lie outside every footprint (%.1f %%): %s",
+                static_cast<long long>(out), static_cast<long long>(class_hist_[6]),
+                class_hist_[6] ? 100.0 * double(out) / double(class_hist_[6]) : 0.0,
+                opt_.unmatched == SplitOptions::Unmatched::segment
+                    ? "clustered into buildings without footprint (--unmatched segment)"
+                    : "dropped (--unmatched drop)");
+  rep_.notes.push_back(b);
+}
+
+// --unmatched segment: the points of a region that belong to a footprint are taken
+// out before clustering (they are the footprints' buildings).
+void Splitter::drop_footprint_points(RegionPoints& pts) const {
+  std::size_t w = 0;
+  for (std::size_t k = 0; k < pts.pos.size(); ++k) {
+    if (footprint_of({pts.pos[k][0], pts.pos[k][1]}) != SIZE_MAX) continue;
+    pts.pos[w] = pts.pos[k];
+    if (!pts.nrm.empty()) pts.nrm[w] = pts.nrm[k];
+    if (!pts.rgb.empty()) pts.rgb[w] = pts.rgb[k];
+    if (!pts.cls.empty()) pts.cls[w] = pts.cls[k];
+    if (!pts.src.empty()) pts.src[w] = pts.src[k];
+    ++w;
+  }
+  pts.pos.resize(w);
+  if (!pts.nrm.empty()) pts.nrm.resize(w);
+  if (!pts.rgb.empty()) pts.rgb.resize(w);
+  if (!pts.cls.empty()) pts.cls.resize(w);
+  if (!pts.src.empty()) pts.src.resize(w);
 }
 
 // Mesh scenes: a triangle goes to the chunk holding most of its samples.
@@ -1132,8 +1302,16 @@ SplitReport Splitter::run() {
     abs_inputs.push_back(fs::absolute(p).lexically_normal().string());
     canonical += ";input=" + abs_inputs.back() + ":" + fingerprint(p);
   }
-  if (!opt_.footprints.empty()) canonical += ";footprints_file=" + fingerprint(opt_.footprints);
-  if (!opt_.force && fs::exists(manifest_path(opt_.work_dir))) {
+  // A database ("PG:...") or a directory cannot be fingerprinted: never up to date.
+  bool versioned = true;
+  if (!opt_.footprints.empty()) {
+    std::error_code ec;
+    if (fs::is_regular_file(opt_.footprints, ec))
+      canonical += ";footprints_file=" + fingerprint(opt_.footprints);
+    else
+      versioned = false;
+  }
+  if (versioned && !opt_.force && fs::exists(manifest_path(opt_.work_dir))) {
     try {
       const Manifest old = read_manifest(opt_.work_dir);
       bool ok = old.scene.inputs == abs_inputs && old.scene.options == canonical;
@@ -1147,6 +1325,11 @@ SplitReport Splitter::run() {
         rep_.origin_h = old.scene.origin_h;
         for (const auto& c : old.chunks) rep_.chunks += !c.skipped() ? 1 : 0;
         rep_.notes = old.scene.notes;
+        rep_.vertical = old.scene.vertical;
+        rep_.building_points = old.scene.building_points;
+        rep_.unmatched_points = old.scene.unmatched_points;
+        for (const auto& c : old.chunks)
+          rep_.unmatched_chunks += !c.skipped() && c.source == "cluster (no footprint)" ? 1 : 0;
         return rep_;
       }
     } catch (const IoError&) {
@@ -1154,6 +1337,7 @@ SplitReport Splitter::run() {
     }
   }
 
+  if (!opt_.footprints.empty()) read_footprints();
   pass1_headers();
   georeference();
   choose_cell_size();
@@ -1172,6 +1356,10 @@ SplitReport Splitter::run() {
   pass3_cells(spill);
   staging_->drop_spill();
   if (!meshes_.empty()) write_mesh_chunks();
+  if (!opt_.footprints.empty() && rep_.chunks == 0)
+    throw IoError(fp_source_, "none of its " + std::to_string(rep_.footprints_in_scene) +
+                                  " footprints over the data holds building points (all "
+                                  "skipped): wrong CRS, or footprints of another area?");
   stages_.report(0.97, 1.0, 0.5, "manifest");
 
   Manifest m;
@@ -1184,6 +1372,9 @@ SplitReport Splitter::run() {
   m.scene.inputs = abs_inputs;
   m.scene.options = canonical;
   m.scene.notes = rep_.notes;
+  m.scene.vertical = rep_.vertical;
+  m.scene.building_points = rep_.building_points;
+  m.scene.unmatched_points = rep_.unmatched_points;
   for (auto& c : chunks_) m.chunks.push_back(std::move(c.rec));
   staging_->commit(m);
   stages_.report(0.97, 1.0, 1.0, "done");

@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "citylod/io/types.hpp"
 
 namespace citylod::io {
@@ -41,7 +43,28 @@ struct GlbFeature {
   double height_m = 0;  ///< vertical extent of the model
   double footprint_area_m2 = 0;
   double error_m = 0;  ///< geometric error: distance to the building's finest model
+  /// Values of the GlbOptions::attributes by name (a JSON object; a missing key or
+  /// null is "no data"), e.g. the building's footprint attributes.
+  nlohmann::json attributes = nlohmann::json::object();
 };
+
+/// A source attribute written as a property of the "building" class (typed, the
+/// same for every glb of a tileset: glb_attribute_schema() over all buildings).
+struct GlbAttribute {
+  enum class Type : std::uint8_t { int64, float64, boolean, string };
+  std::string name;      ///< key in GlbFeature::attributes; the property's "name"
+  std::string property;  ///< property id: "fp_" + name made [A-Za-z0-9_], unique
+  Type type = Type::string;
+  /// Some value is missing/null: FLOAT64 declares noData = lowest double, STRING "".
+  bool no_data = false;
+};
+
+/// The attributes of many features as typed properties, sorted by name: all
+/// integers -> INT64 (FLOAT64 when some are missing and |v| <= 2^53, else
+/// STRING); numbers -> FLOAT64; all booleans, none missing -> BOOLEAN; anything
+/// else (strings, mixed types, booleans with gaps, all null) -> STRING (numbers and
+/// booleans as JSON text). Deterministic for the same set of objects.
+std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann::json*>& objects);
 
 struct GlbOptions {
   /// KHR_mesh_quantization: positions as normalized int16 (node scale restores
@@ -50,6 +73,8 @@ struct GlbOptions {
   /// positions (the model stays closed and edge-manifold as stored).
   bool quantize = false;
   std::string generator = "citylod";
+  /// Extra properties of the "building" class, from GlbFeature::attributes.
+  std::vector<GlbAttribute> attributes;
 };
 
 /// Surface class of a triangle, from its outward normal: roof (facing up, slope

@@ -1,13 +1,17 @@
-// Part of the split stage: building footprints (GeoJSON Polygon/MultiPolygon)
+// Part of the split stage: building footprints from any OGR source (read by
+// io::read_footprints: GeoPackage, SQLite, Shapefile, GeoJSON, FlatGeobuf, PG:...)
 // and their geometry (area, containment, distance, convex hull; the ring
 // primitives are citylod/lod/polygon2d.hpp, shared with the LOD engine). Coordinates are whatever
-// the caller puts in: the reader returns them in the file's CRS units; split.cpp converts them to
-// scene ENU metres.
+// the caller puts in: the reader returns them in the source's CRS units; split.cpp converts them
+// to scene ENU metres.
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 namespace citylod::tiler {
 
@@ -20,26 +24,45 @@ struct Polygon2 {
 };
 
 struct Footprint {
-  std::string id;                  ///< "id" property (or feature id, or 1-based feature index)
-  std::vector<Polygon2> polygons;  ///< one for Polygon, several for MultiPolygon
+  std::string id;                  ///< see read_footprint_source()
+  std::vector<Polygon2> polygons;  ///< one for Polygon, several for MultiPolygon (or a repair)
   std::array<double, 4> bbox{0, 0, 0, 0};  ///< xmin, ymin, xmax, ymax (update_bbox())
+  /// The source feature's attributes, typed ({"name": value}; keys sorted).
+  nlohmann::json attributes = nlohmann::json::object();
+  bool repaired = false;  ///< the source polygon was invalid and repaired (GEOS MakeValid)
 
   void update_bbox();
   /// Exterior ring of the largest polygon (for ChunkRecord::outline).
   const Ring& main_ring() const;
-  double area() const;    ///< sum of polygon areas (holes subtracted)
-  Vec2 centroid() const;  ///< area-weighted centroid of the exterior rings
+  double area() const;  ///< sum of polygon areas (holes subtracted)
+  /// Area-weighted centroid of the exterior rings; the bbox centre when that is
+  /// degenerate (zero net area) or falls outside the bbox.
+  Vec2 centroid() const;
 };
 
 struct FootprintSet {
-  std::string crs;  ///< "EPSG:nnnn" from the legacy GeoJSON "crs" member, "" if absent
+  std::string source;  ///< as given ("PG:" password masked)
+  std::string layer, driver;
+  /// "EPSG:nnnn" when the layer's CRS has an EPSG code, else its WKT; "" without CRS.
+  std::string crs;
   std::vector<Footprint> footprints;
+  std::vector<std::string> problems;  ///< one line per feature skipped or repaired
+  std::size_t source_features = 0, skipped = 0, repaired = 0;
 };
 
-/// Reads a GeoJSON FeatureCollection (or a single Feature / geometry) of
-/// Polygon/MultiPolygon features. Other geometry types are skipped (counted in
-/// `skipped`). Throws IoError("<path>: <reason>") for unreadable or malformed files.
-FootprintSet read_footprints_geojson(const std::string& path, int* skipped = nullptr);
+struct FootprintSourceOptions {
+  std::string layer;         ///< --footprints-layer ("" = the only layer)
+  std::string id_attribute;  ///< --footprints-id ("" = see read_footprint_source)
+  bool repair = true;        ///< invalid polygons repaired (GEOS), else reported and skipped
+};
+
+/// Reads the polygons of one layer of an OGR source through io::read_footprints:
+/// one Footprint per source feature (the parts of a MultiPolygon or of a repaired
+/// polygon regrouped). The id: the `id_attribute`'s value; without one, the first
+/// of the attributes "id", "ID", "identificatie", "gml_id", "fid" that is set, else
+/// the OGR feature id. Throws IoError naming the source.
+FootprintSet read_footprint_source(const std::string& source,
+                                   const FootprintSourceOptions& options = {});
 
 // ------------------------------------------------------------------ 2D geometry
 double signed_area(const Ring& r);                        ///< > 0 when CCW

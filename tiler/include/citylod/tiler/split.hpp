@@ -42,8 +42,18 @@ struct SplitOptions {
   std::string crs;                  ///< --crs; "" = the CRS inside the (LAS) file
   std::string origin;               ///< --origin "LAT,LON,H": data already in local ENU metres
   std::string geoid;                ///< "" or "egm96" (orthometric heights -> ellipsoidal)
-  std::string footprints;           ///< GeoJSON footprints ("" = cluster the points)
-  double footprint_buffer = 0.5;    ///< m, points this close outside a footprint belong to it
+  /// --vertical: "" or "auto" (from the CRS: geo::choose_vertical; RD New -> NAP),
+  /// "ellipsoidal", "orthometric". Tilesets always carry ellipsoidal heights.
+  std::string vertical;
+  /// Footprints: any OGR source (GeoPackage, SQLite, Shapefile, GeoJSON, FlatGeobuf,
+  /// "PG:..."); "" = cluster the points. Reprojected from the source's CRS to the scene's.
+  std::string footprints;
+  std::string footprints_layer;  ///< --footprints-layer ("" = the source's only layer)
+  std::string footprints_id;     ///< --footprints-id ATTRIBUTE ("" = id, gml_id, ..., FID)
+  /// --unmatched: building points outside every footprint are dropped (counted), or
+  /// clustered into buildings without footprint (the no-footprint segmentation).
+  enum class Unmatched { drop, segment } unmatched = Unmatched::drop;
+  double footprint_buffer = 0.5;  ///< m, points this close outside a footprint belong to it
   std::uint64_t memory_limit = 2ull << 30;  ///< bytes
   double cell_size = 100;                   ///< m (reduced automatically when the density needs it)
   double halo = 20;                         ///< m around each cell
@@ -80,7 +90,14 @@ struct SplitReport {
   std::size_t footprints_inside = 0;               ///< entirely inside the data bbox
   std::size_t footprints_with_chunk = 0;           ///< of those in the scene
   std::size_t footprints_inside_with_chunk = 0;
-  std::vector<std::string> notes;  ///< also in the manifest's scene notes
+  std::size_t footprints_repaired = 0;  ///< invalid polygons repaired (GEOS)
+  std::size_t footprints_skipped = 0;   ///< source features that gave no polygon
+  /// With footprints and a building class: class-6 points read, and those outside
+  /// every footprint (+ buffer); -1 when not counted.
+  std::int64_t building_points = -1, unmatched_points = -1;
+  std::size_t unmatched_chunks = 0;  ///< buildings without footprint (--unmatched segment)
+  std::string vertical;              ///< the height assumption (geo::VerticalChoice::assumption)
+  std::vector<std::string> notes;    ///< also in the manifest's scene notes
   /// One line per owned cluster: centroid, size, features, decision (for --log-level debug).
   std::vector<std::string> cluster_log;
   double seconds = 0;

@@ -65,6 +65,9 @@ struct SceneInfo {
   std::vector<std::string> inputs;            ///< input files
   std::string options;                        ///< split options as a canonical string
   std::vector<std::string> notes;             ///< e.g. "heights NAP -> ellipsoidal via EGM96"
+  std::string vertical;  ///< the height assumption of the split ("" when not recorded)
+  /// Building (class 6) points read, and those outside every footprint; -1 = not counted.
+  std::int64_t building_points = -1, unmatched_points = -1;
 };
 
 struct ChunkRecord {
@@ -80,6 +83,8 @@ struct ChunkRecord {
   Status status = Status::pending;             ///< split writes pending or skipped
   std::string reason;                          ///< why skipped
   std::string content_hash;                    ///< hash of the chunk file (hex)
+  /// The footprint's attributes from its source, typed, keys sorted ({} without footprint).
+  nlohmann::json attributes = nlohmann::json::object();
   bool skipped() const { return status == Status::skipped; }
 };
 
@@ -183,6 +188,11 @@ struct RunReport {
     std::size_t chunks = 0;
     std::uint64_t points = 0;
     std::string crs;
+    std::string vertical;  ///< the height assumption (printed in the run summary too)
+    /// Building (class 6) points, those outside every footprint (-1: not counted), and
+    /// the buildings without footprint made of them (--unmatched segment).
+    std::int64_t building_points = -1, unmatched_points = -1;
+    std::size_t unmatched_chunks = 0;
   } split;
   struct Lod {
     double seconds = 0;
@@ -213,7 +223,8 @@ struct RunReport {
 
 // JSON of the stage records: the field names are the keys; absent keys keep the defaults.
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Split, seconds, up_to_date, chunks,
-                                                points, crs)
+                                                points, crs, vertical, building_points,
+                                                unmatched_points, unmatched_chunks)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Lod, seconds, buildings, computed,
                                                 reused, restarts)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Assemble, seconds, buildings, tiles,
