@@ -9,13 +9,12 @@
 # bgt_pand.gpkg, EPSG:28992), 3 rounds, 2 threads, build-bench/ binaries,
 # output in bench-results/<date>/roofer/. Each round runs roofer
 # (../shared/tools/roofer/run-roofer.sh --lod12 --lod13 --lod22, id gml_id) and
-# `citylod tile` (footprints as GeoJSON converted once with ogr2ogr, id =
-# gml_id), and records both wall times. Then roofer_bench compares the last
+# `citylod tile` (the same GeoPackage, --footprints-id gml_id), and records both
+# wall times. Then roofer_bench compares the last
 # round's models building by building (RMSE of the points to the model, roof
 # height RMSE, triangles, validity, time per building) and prints the summary.
 # Prints roofer_bench's whole output, then one line per round with the wall
-# times. Needs gdal-bin (ogr2ogr) and roofer's runtime libraries (run-roofer.sh
-# installs those).
+# times. Needs roofer's runtime libraries (run-roofer.sh installs those).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 data="$(cd "$here/.." && pwd)/shared/data"
@@ -46,12 +45,7 @@ done
 for f in "$citylod" "$bench" "$roofer"; do
   [ -x "$f" ] || { echo "roofer-compare.sh: $f is missing or not executable" >&2; exit 1; }
 done
-command -v ogr2ogr >/dev/null || { echo "roofer-compare.sh: ogr2ogr missing (Debian gdal-bin)" >&2; exit 1; }
 mkdir -p "$out"
-geojson="$out/footprints.geojson"
-layer="$(ogrinfo -q "$gpkg" 2>/dev/null | sed -n 's/^1: \([^ ]*\).*/\1/p')"
-rm -f "$geojson"
-ogr2ogr -f GeoJSON "$geojson" "$gpkg" -dialect SQLite -sql "SELECT gml_id AS id, * FROM \"$layer\""
 
 secs() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", b - a }'; }
 times=()
@@ -61,7 +55,7 @@ for ((r = 1; r <= rounds; r++)); do
   "$roofer" --lod12 --lod13 --lod22 --srs "$crs" --id-attribute gml_id -j "$threads" "$las" "$gpkg" \
     "$out/roofer-out" >"$out/roofer.log" 2>&1
   t1=$(date +%s.%N)
-  "$citylod" tile "$las" --crs "$crs" --footprints "$geojson" --threads "$threads" --out "$out/citylod" \
+  "$citylod" tile "$las" --crs "$crs" --footprints "$gpkg" --footprints-id gml_id --threads "$threads" --out "$out/citylod" \
     >"$out/citylod.log" 2>&1
   t2=$(date +%s.%N)
   times+=("round $r: roofer $(secs "$t0" "$t1") s wall, citylod tile $(secs "$t1" "$t2") s wall")
