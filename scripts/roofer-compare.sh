@@ -14,7 +14,7 @@
 # round's models building by building (RMSE of the points to the model, roof
 # height RMSE, triangles, validity, time per building) and prints the summary.
 # Prints roofer_bench's whole output, then one line per round with the wall
-# times. Needs roofer's runtime libraries (run-roofer.sh installs those).
+# times (and each round's median LOD time per building). Needs roofer's runtime libraries (run-roofer.sh installs those).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 data="$(cd "$here/.." && pwd)/shared/data"
@@ -58,9 +58,11 @@ for ((r = 1; r <= rounds; r++)); do
   "$citylod" tile "$las" --crs "$crs" --footprints "$gpkg" --footprints-id gml_id --threads "$threads" --out "$out/citylod" \
     >"$out/citylod.log" 2>&1
   t2=$(date +%s.%N)
-  times+=("round $r: roofer $(secs "$t0" "$t1") s wall, citylod tile $(secs "$t1" "$t2") s wall")
+  # this round's per-building LOD times (the machines are noisy: one line per round)
+  jsonl="$(ls "$out"/roofer-out/*.city.jsonl | head -1)"
+  lodt="$("$bench" "$out/citylod/work" "$jsonl" | sed -n 's/^LOD time per building, median: //p')"
+  times+=("round $r: roofer $(secs "$t0" "$t1") s wall, citylod tile $(secs "$t1" "$t2") s wall; per building $lodt")
 done
-jsonl="$(ls "$out"/roofer-out/*.city.jsonl | head -1)"
 "$bench" "$out/citylod/work" "$jsonl" --csv "$out/per_building.csv"
 echo
 echo "same machine, alternating runs, $threads threads, $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg):"
