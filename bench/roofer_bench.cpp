@@ -12,7 +12,9 @@
 //   - roof: vertical RMSE of the points more than 1 m inside the footprint to
 //     the model's highest surface above or below them (m),
 //   - triangles, and validity: closed, oriented, no pinched vertex, one shell,
-//     no self-intersection (exact incidence, lod::check_mesh).
+//     no self-intersection (exact incidence, lod::check_mesh),
+//   - overfill: share of those roof points more than 1 m under the model's top
+//     surface (a lower roof part filled up; > 20 % counts the building).
 // For citylod: the finest model (last anchor), the coarsest (first model) and
 // at each roofer LoD's triangle count the best of our candidates with at most
 // that many triangles. Prints one row per building and a summary with medians
@@ -46,6 +48,7 @@ struct Measure {
   bool present = false;
   std::size_t triangles = 0;
   double rmse = NAN, roof = NAN;
+  double overfill = NAN;  ///< share of the roof points more than 1 m under the model's top
   bool valid = false;
   int pinched = 0, shells = 0;
 };
@@ -75,8 +78,12 @@ double median(std::vector<double> v) {
 /// Vertical RMSE of the roof points (more than 1 m inside the outline) to the
 /// model: the model surface nearest in z on the vertical through the point; a
 /// point over no model surface counts with its height above the model's base.
-double roof_rmse(const lod::TriangleMesh& m, const std::vector<lod::Vec3>& pts,
-                 const std::vector<lod::Vec2>& outline) {
+struct RoofFit {
+  double rmse = NAN;
+  double overfill = NAN;
+};
+RoofFit roof_rmse(const lod::TriangleMesh& m, const std::vector<lod::Vec3>& pts,
+                  const std::vector<lod::Vec2>& outline) {
   double zmin = std::numeric_limits<double>::infinity();
   for (const auto& v : m.vertices) zmin = std::min(zmin, v.z());
   // Non-vertical triangles with their xy boxes.
@@ -94,12 +101,13 @@ double roof_rmse(const lod::TriangleMesh& m, const std::vector<lod::Vec3>& pts,
                     std::min({a.y(), b.y(), c.y()}), std::max({a.y(), b.y(), c.y()})});
   }
   double sum = 0;
-  std::size_t n = 0;
+  std::size_t n = 0, over = 0;
   for (const auto& p : pts) {
     const lod::Vec2 q(p.x(), p.y());
     if (outline.size() < 3 || !poly2::point_in_ring(outline, q)) continue;
     if (poly2::distance_to_ring(outline, q) <= 1.0) continue;
     double best = std::numeric_limits<double>::infinity();
+    double top = -std::numeric_limits<double>::infinity();
     for (const auto& t : tris) {
       if (q.x() < t.x0 || q.x() > t.x1 || q.y() < t.y0 || q.y() > t.y1) continue;
       // Barycentric in xy.
@@ -114,13 +122,16 @@ double roof_rmse(const lod::TriangleMesh& m, const std::vector<lod::Vec3>& pts,
       if (l1 < eps || l2 < eps || l3 < eps) continue;
       const double z = l1 * t.a.z() + l2 * t.b.z() + l3 * t.c.z();
       if (z <= zmin + 1e-6) continue;  // the base
+      top = std::max(top, z);
       if (std::abs(p.z() - z) < std::abs(best)) best = p.z() - z;
     }
     if (!std::isfinite(best)) best = p.z() - zmin;
     sum += best * best;
+    over += top > p.z() + 1.0;
     ++n;
   }
-  return n ? std::sqrt(sum / double(n)) : NAN;
+  if (n == 0) return {};
+  return {std::sqrt(sum / double(n)), double(over) / double(n)};
 }
 
 Measure measure(const lod::TriangleMesh& m, const lod::BuildingInput& ref,
@@ -131,7 +142,9 @@ Measure measure(const lod::TriangleMesh& m, const lod::BuildingInput& ref,
   const lod::ModelEvaluation ev =
       lod::evaluate_model(m, ref, int(std::max<std::size_t>(20000, ref.points.size())));
   r.rmse = ev.e2 * ev.diagonal / 100.0;
-  r.roof = roof_rmse(m, ref.points, outline);
+  const RoofFit rf = roof_rmse(m, ref.points, outline);
+  r.roof = rf.rmse;
+  r.overfill = rf.overfill;
   r.valid = ev.check.valid();
   r.pinched = ev.check.pinched_vertices;
   r.shells = ev.check.shells;
@@ -415,6 +428,21 @@ int main(int argc, char** argv) {
           w += b.finest.roof < b.rf[2].roof;
         }
       std::printf("  %-52s %3d of %d\n", "finest vs roofer LoD2.2 (roof height RMSE)", w, n);
+    }
+    {
+      // Lower roof parts filled up: > 20 % of the roof points more than 1 m
+      // under the model's top surface.
+      int ours = 0, theirs = 0, n = 0;
+      for (const auto& b : rows)
+        if (b.finest.present && b.rf[2].present) {
+          ++n;
+          ours += b.finest.overfill > 0.2;
+          theirs += b.rf[2].overfill > 0.2;
+        }
+      std::printf(
+          "overfilled (> 20 %% of roof points > 1 m under the model): citylod finest %d, "
+          "roofer LoD2.2 %d of %d\n",
+          ours, theirs, n);
     }
     std::printf("LOD time per building, median: citylod %.1f ms, roofer %.1f ms\n",
                 median(col([](const Building& b) { return b.t_ours_ms; })),
