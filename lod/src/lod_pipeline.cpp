@@ -10,11 +10,16 @@
 #include "airborne.hpp"
 #include "bsp.hpp"
 #include "citylod/lod/lod.hpp"
+#include "closure.hpp"
 #include "fallback.hpp"
+#include "fidelity.hpp"
+#include "grouping.hpp"
 #include "ioview.hpp"
 #include "labelling.hpp"
 #include "orient.hpp"
-#include "primitives.hpp"
+#include "planes.hpp"
+#include "regularization.hpp"
+#include "samples.hpp"
 #include "tree.hpp"
 
 #include <algorithm>
