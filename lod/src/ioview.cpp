@@ -108,38 +108,15 @@ struct UnionFind {
   }
 };
 
-}  // namespace
-
-std::vector<int> match_planes(const Bsp& bsp, const std::vector<Primitive>& prims) {
-  const auto planes = bsp.planes();
-  std::vector<int> out(prims.size(), -1);
-  for (size_t i = 0; i < prims.size(); ++i) {
-    const Vec3 n = prims[i].normal;
-    double best = 1e-6;
-    for (size_t j = 0; j < planes.size(); ++j) {
-      const Vec3 m(planes[j][0], planes[j][1], planes[j][2]);
-      const double s = n.dot(m) >= 0 ? 1.0 : -1.0;
-      const double err = (n - s * m).norm() + std::abs(prims[i].d - s * planes[j][3]);
-      if (err < best) {
-        best = err;
-        out[i] = int(j);
-      }
-    }
-  }
-  return out;
-}
-
-IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
-                       const std::vector<int>& primitive_plane,
-                       const std::vector<char>& leaf_inside, const IoViewParams& p) {
-  IoView v;
-  v.leaves = bsp.leaves();
-  v.leaf_inside = leaf_inside;
-  const size_t n = v.leaves.size();
-  std::map<int, int> index_of;
-  for (size_t i = 0; i < n; ++i) index_of[v.leaves[i]] = int(i);
-  const auto& nodes = bsp.nodes();
-
+/// The primitive whose alpha-shape covers each interface best (-1: none on
+/// that plane), and that coverage.
+struct Owners {
+  std::vector<int> owner;
+  std::vector<double> cov;
+};
+Owners interface_owners(const Bsp& bsp, const std::vector<Primitive>& prims,
+                        const std::vector<int>& primitive_plane,
+                        const std::vector<BspInterface>& interfaces) {
   std::vector<std::vector<int>> plane_prims(bsp.planes().size());
   for (size_t i = 0; i < prims.size(); ++i)
     if (primitive_plane[i] >= 0) plane_prims[size_t(primitive_plane[i])].push_back(int(i));
@@ -148,11 +125,11 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
     if (!covers[size_t(i)]) covers[size_t(i)] = std::make_unique<AlphaCover>(prims[size_t(i)]);
     return *covers[size_t(i)];
   };
-
-  const auto interfaces = bsp.adjacency(v.leaves);
-  // For each interface: the primitive whose alpha-shape covers it best (-1: none on that plane).
-  std::vector<int> owner(interfaces.size(), -1);
-  std::vector<double> owner_cov(interfaces.size(), 0.0);
+  Owners o;
+  std::vector<int>& owner = o.owner;
+  std::vector<double>& owner_cov = o.cov;
+  owner.assign(interfaces.size(), -1);
+  owner_cov.assign(interfaces.size(), 0.0);
   for (size_t k = 0; k < interfaces.size(); ++k) {
     const auto& f = interfaces[k];
     const auto& cand = plane_prims[size_t(f.plane)];
@@ -167,8 +144,18 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
     }
     owner_cov[k] = std::max(0.0, best);
   }
+  return o;
+}
 
-  // Regions: merge adjacent same-label cells not separated by an alpha-shape.
+/// Regions: adjacent same-label cells not separated by an alpha-shape merged;
+/// the largest inside and outside regions are the cores, the others add-ons
+/// and cut-outs.
+void merge_regions(const Bsp& bsp, const std::vector<BspInterface>& interfaces, const Owners& o,
+                   const std::map<int, int>& index_of, const IoViewParams& p, IoView& v) {
+  const size_t n = v.leaves.size();
+  const auto& nodes = bsp.nodes();
+  const std::vector<int>& owner = o.owner;
+  const std::vector<double>& owner_cov = o.cov;
   UnionFind uf(n);
   for (size_t k = 0; k < interfaces.size(); ++k) {
     const auto& f = interfaces[k];
@@ -212,9 +199,16 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
                : reg.inside           ? RegionKind::AddOn
                                       : RegionKind::CutOut;
   }
+}
 
-  // Principal primitives: those separating the core interior from the core exterior.
-  std::vector<double> principal_area(prims.size(), 0.0);
+/// Principal primitives: those separating the core interior from the core
+/// exterior. Returns each region's contact area per primitive.
+std::vector<std::map<int, double>> find_principal(const std::vector<BspInterface>& interfaces,
+                                                  const std::vector<int>& owner,
+                                                  const std::map<int, int>& index_of,
+                                                  size_t num_prims, const IoViewParams& p,
+                                                  IoView& v) {
+  std::vector<double> principal_area(num_prims, 0.0);
   // contact[region] : primitive -> boundary area
   std::vector<std::map<int, double>> contact(v.regions.size());
   for (size_t k = 0; k < interfaces.size(); ++k) {
@@ -228,13 +222,19 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
     contact[size_t(ra)][owner[k]] += f.area;
     contact[size_t(rb)][owner[k]] += f.area;
   }
-  v.principal.assign(prims.size(), 0);
-  for (size_t i = 0; i < prims.size(); ++i)
+  v.principal.assign(num_prims, 0);
+  for (size_t i = 0; i < num_prims; ++i)
     v.principal[i] = principal_area[i] >= p.min_principal_area ? 1 : 0;
+  return contact;
+}
 
-  // Secondary structures: the other regions, with their bounding primitives.
-  v.primitive_structure.assign(prims.size(), -1);
-  std::vector<double> best_contact(prims.size(), 0.0);
+/// Secondary structures: the regions other than the cores, each with its host
+/// (the principal primitive of largest contact) and the secondary primitives
+/// that bound it the most.
+void find_structures(const Bsp& bsp, const std::vector<std::map<int, double>>& contact,
+                     size_t num_prims, IoView& v) {
+  v.primitive_structure.assign(num_prims, -1);
+  std::vector<double> best_contact(num_prims, 0.0);
   std::vector<int> structure_of_region(v.regions.size(), -1);
   for (size_t r = 0; r < v.regions.size(); ++r) {
     const auto& reg = v.regions[r];
@@ -278,9 +278,46 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
       }
     }
   }
-  for (size_t i = 0; i < prims.size(); ++i)
+  for (size_t i = 0; i < num_prims; ++i)
     if (v.primitive_structure[i] >= 0)
       v.structures[size_t(v.primitive_structure[i])].primitives.push_back(int(i));
+}
+
+}  // namespace
+
+std::vector<int> match_planes(const Bsp& bsp, const std::vector<Primitive>& prims) {
+  const auto planes = bsp.planes();
+  std::vector<int> out(prims.size(), -1);
+  for (size_t i = 0; i < prims.size(); ++i) {
+    const Vec3 n = prims[i].normal;
+    double best = 1e-6;
+    for (size_t j = 0; j < planes.size(); ++j) {
+      const Vec3 m(planes[j][0], planes[j][1], planes[j][2]);
+      const double s = n.dot(m) >= 0 ? 1.0 : -1.0;
+      const double err = (n - s * m).norm() + std::abs(prims[i].d - s * planes[j][3]);
+      if (err < best) {
+        best = err;
+        out[i] = int(j);
+      }
+    }
+  }
+  return out;
+}
+
+IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
+                       const std::vector<int>& primitive_plane,
+                       const std::vector<char>& leaf_inside, const IoViewParams& p) {
+  IoView v;
+  v.leaves = bsp.leaves();
+  v.leaf_inside = leaf_inside;
+  const size_t n = v.leaves.size();
+  std::map<int, int> index_of;
+  for (size_t i = 0; i < n; ++i) index_of[v.leaves[i]] = int(i);
+  const auto interfaces = bsp.adjacency(v.leaves);
+  const Owners o = interface_owners(bsp, prims, primitive_plane, interfaces);
+  merge_regions(bsp, interfaces, o, index_of, p, v);
+  const auto contact = find_principal(interfaces, o.owner, index_of, prims.size(), p, v);
+  find_structures(bsp, contact, prims.size(), v);
   return v;
 }
 

@@ -28,82 +28,67 @@ bool finite(const Vec3& v) {
 
 }  // namespace
 
-Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_orientation) {
+namespace {
+
+/// A mesh: one sample per face centroid plus area-proportional extra samples
+/// (deterministic), normals = face normals.
+Samples mesh_samples(const BuildingInput& in) {
   Samples s;
-  if (in.is_mesh()) {
-    const int nv = static_cast<int>(in.points.size());
-    struct T {
-      int idx;
-      Vec3 a, b, c, n;
-      double area;
-    };
-    std::vector<T> tris;
-    tris.reserve(in.triangles.size());
-    double total = 0;
-    for (std::size_t t = 0; t < in.triangles.size(); ++t) {
-      const auto& tr = in.triangles[t];
-      if (tr[0] < 0 || tr[1] < 0 || tr[2] < 0 || tr[0] >= nv || tr[1] >= nv || tr[2] >= nv)
-        continue;
-      const Vec3 &a = in.points[tr[0]], &b = in.points[tr[1]], &c = in.points[tr[2]];
-      if (!finite(a) || !finite(b) || !finite(c)) continue;
-      const Vec3 cr = (b - a).cross(c - a);
-      const double area = 0.5 * cr.norm();
-      if (!(area > 1e-12)) continue;
-      tris.push_back({static_cast<int>(t), a, b, c, cr / (2 * area), area});
-      total += area;
-    }
-    // Target density >= 1 sample / 0.25 m^2, total capped at ~200k.
-    const std::size_t cap = 200000;
-    double per_m2 = 4.0;
-    if (tris.size() >= cap)
-      per_m2 = 0.0;
-    else if (total * per_m2 + tris.size() > cap)
-      per_m2 = (cap - tris.size()) / total;
-    Rng rng(0x5EED5EEDULL);
-    for (const auto& t : tris) {
-      int extra = static_cast<int>(std::floor(t.area * per_m2));
-      const double w = t.area / (1 + extra);
-      s.points.push_back((t.a + t.b + t.c) / 3.0);
+  const int nv = static_cast<int>(in.points.size());
+  struct T {
+    int idx;
+    Vec3 a, b, c, n;
+    double area;
+  };
+  std::vector<T> tris;
+  tris.reserve(in.triangles.size());
+  double total = 0;
+  for (std::size_t t = 0; t < in.triangles.size(); ++t) {
+    const auto& tr = in.triangles[t];
+    if (tr[0] < 0 || tr[1] < 0 || tr[2] < 0 || tr[0] >= nv || tr[1] >= nv || tr[2] >= nv) continue;
+    const Vec3 &a = in.points[tr[0]], &b = in.points[tr[1]], &c = in.points[tr[2]];
+    if (!finite(a) || !finite(b) || !finite(c)) continue;
+    const Vec3 cr = (b - a).cross(c - a);
+    const double area = 0.5 * cr.norm();
+    if (!(area > 1e-12)) continue;
+    tris.push_back({static_cast<int>(t), a, b, c, cr / (2 * area), area});
+    total += area;
+  }
+  // Target density >= 1 sample / 0.25 m^2, total capped at ~200k.
+  const std::size_t cap = 200000;
+  double per_m2 = 4.0;
+  if (tris.size() >= cap)
+    per_m2 = 0.0;
+  else if (total * per_m2 + tris.size() > cap)
+    per_m2 = (cap - tris.size()) / total;
+  Rng rng(0x5EED5EEDULL);
+  for (const auto& t : tris) {
+    int extra = static_cast<int>(std::floor(t.area * per_m2));
+    const double w = t.area / (1 + extra);
+    s.points.push_back((t.a + t.b + t.c) / 3.0);
+    s.normals.push_back(t.n);
+    s.weights.push_back(w);
+    s.face_of.push_back(t.idx);
+    for (int k = 0; k < extra; ++k) {
+      double r1 = rng.next(), r2 = rng.next();
+      if (r1 + r2 > 1) {
+        r1 = 1 - r1;
+        r2 = 1 - r2;
+      }
+      s.points.push_back(t.a + r1 * (t.b - t.a) + r2 * (t.c - t.a));
       s.normals.push_back(t.n);
       s.weights.push_back(w);
       s.face_of.push_back(t.idx);
-      for (int k = 0; k < extra; ++k) {
-        double r1 = rng.next(), r2 = rng.next();
-        if (r1 + r2 > 1) {
-          r1 = 1 - r1;
-          r2 = 1 - r2;
-        }
-        s.points.push_back(t.a + r1 * (t.b - t.a) + r2 * (t.c - t.a));
-        s.normals.push_back(t.n);
-        s.weights.push_back(w);
-        s.face_of.push_back(t.idx);
-      }
     }
-    return s;
   }
+  return s;
+}
 
-  // Point cloud.
-  const bool has_n = in.normals.size() == in.points.size();
-  std::vector<int> need;  // points whose normal must be estimated
-  for (std::size_t i = 0; i < in.points.size(); ++i) {
-    if (!finite(in.points[i])) continue;
-    s.points.push_back(in.points[i]);
-    Vec3 n = has_n ? in.normals[i] : Vec3::Zero();
-    const double len = finite(n) ? n.norm() : 0.0;
-    if (len > 1e-12) {
-      s.normals.push_back(n / len);
-    } else {
-      s.normals.push_back(Vec3::Zero());
-      need.push_back(static_cast<int>(s.points.size() - 1));
-    }
-  }
-  s.weights.assign(s.points.size(), 1.0);
-  s.face_of.assign(s.points.size(), -1);
-  if (need.empty() || s.points.size() < 3) {
-    for (auto& n : s.normals)
-      if (n.squaredNorm() == 0) n = Vec3::UnitZ();
-    return s;
-  }
+/// Normals of the samples `need` estimated (PCA) and oriented: by the minimum
+/// spanning tree when `mst_orientation`, near-horizontal ones up, walls away
+/// from the vertical axis through the centroid.
+void estimate_normals(Samples& s, const std::vector<int>& need, const NormalParams& p,
+                      bool mst_orientation) {
   s.normals_estimated = true;
   const unsigned k =
       static_cast<unsigned>(std::max(3, std::min<int>(p.k_neighbors, int(s.points.size()) - 1)));
@@ -162,7 +147,41 @@ Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_or
     }
     s.normals[i] = n;
   }
+}
+
+/// A point cloud: its points, their normals estimated where missing.
+Samples cloud_samples(const BuildingInput& in, const NormalParams& p, bool mst_orientation) {
+  Samples s;
+  const bool has_n = in.normals.size() == in.points.size();
+  std::vector<int> need;  // points whose normal must be estimated
+  for (std::size_t i = 0; i < in.points.size(); ++i) {
+    if (!finite(in.points[i])) continue;
+    s.points.push_back(in.points[i]);
+    Vec3 n = has_n ? in.normals[i] : Vec3::Zero();
+    const double len = finite(n) ? n.norm() : 0.0;
+    if (len > 1e-12) {
+      s.normals.push_back(n / len);
+    } else {
+      s.normals.push_back(Vec3::Zero());
+      need.push_back(static_cast<int>(s.points.size() - 1));
+    }
+  }
+  s.weights.assign(s.points.size(), 1.0);
+  s.face_of.assign(s.points.size(), -1);
+  if (need.empty() || s.points.size() < 3) {
+    for (auto& n : s.normals)
+      if (n.squaredNorm() == 0) n = Vec3::UnitZ();
+    return s;
+  }
+  estimate_normals(s, need, p, mst_orientation);
   return s;
+}
+
+}  // namespace
+
+Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_orientation) {
+  if (in.is_mesh()) return mesh_samples(in);
+  return cloud_samples(in, p, mst_orientation);
 }
 
 }  // namespace citylod::lod::detail
