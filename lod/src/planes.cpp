@@ -188,59 +188,21 @@ void plane_frame(const Vec3& n, Vec3& u, Vec3& v) {
 
 // ---------------------------------------------------------------- shapes
 
-void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
-  prim.hull.clear();
-  prim.alpha_tris.clear();
-  prim.hull_area = prim.alpha_area = 0;
-  Vec3 n = prim.normal;
-  if (!(n.norm() > 1e-12)) n = Vec3::UnitZ();
-  n.normalize();
-  prim.normal = n;
-  plane_frame(n, prim.u, prim.v);
-  // Origin: the inliers' centroid projected on the plane.
-  Vec3 c = Vec3::Zero();
-  if (!prim.inliers.empty()) {
-    for (int i : prim.inliers) c += s.points[i];
-    c /= double(prim.inliers.size());
-  } else {
-    c = prim.centroid;
-  }
-  c -= (n.dot(c) + prim.d) * n;
-  prim.centroid = c;
-  if (prim.inliers.size() < 3) return;
+namespace {
 
-  std::vector<P2> pts2;
-  pts2.reserve(prim.inliers.size());
-  for (int i : prim.inliers) {
-    const Vec3 r = s.points[i] - c;
-    pts2.emplace_back(r.dot(prim.u), r.dot(prim.v));
-  }
+/// Alpha-shape: the Delaunay faces a REGULARIZED CGAL::Alpha_shape_2 classifies
+/// INTERIOR for squared alpha a^2, i.e. those whose circumcircle has a squared
+/// radius <= a^2. Computed directly on the triangulation: Alpha_shape_2 first
+/// builds the whole alpha spectrum, ~10x slower (3 s for 96k points).
+/// The triangles (lifted to 3D about the origin c) go to prim.alpha_tris,
+/// their area to prim.alpha_area.
+void alpha_shape(Primitive& prim, const std::vector<P2>& pts2, const Vec3& c, double alpha) {
   auto lift = [&](double x, double y) -> Vec3 { return c + x * prim.u + y * prim.v; };
-
-  std::vector<P2> hull2;
-  CGAL::convex_hull_2(pts2.begin(), pts2.end(), std::back_inserter(hull2));
-  if (hull2.size() >= 3) {
-    double a = 0;
-    for (std::size_t i = 0; i < hull2.size(); ++i) {
-      const P2& p0 = hull2[i];
-      const P2& p1 = hull2[(i + 1) % hull2.size()];
-      a += p0.x() * p1.y() - p1.x() * p0.y();
-    }
-    prim.hull_area = 0.5 * a;
-    for (const auto& q : hull2) prim.hull.push_back(lift(q.x(), q.y()));
-  } else {
-    return;  // collinear support: no area
-  }
-
-  // Alpha-shape: the Delaunay faces a REGULARIZED CGAL::Alpha_shape_2 classifies
-  // INTERIOR for squared alpha a^2, i.e. those whose circumcircle has a squared
-  // radius <= a^2. Computed directly on the triangulation: Alpha_shape_2 first
-  // builds the whole alpha spectrum, ~10x slower (3 s for 96k points).
   using DtFb = CGAL::Triangulation_face_base_with_info_2<char, K>;
   using Dt = CGAL::Delaunay_triangulation_2<
       K, CGAL::Triangulation_data_structure_2<CGAL::Triangulation_vertex_base_2<K>, DtFb>>;
   Dt dt(pts2.begin(), pts2.end());
-  const double a2 = p.alpha * p.alpha;
+  const double a2 = alpha * alpha;
   if (dt.dimension() == 2) {
     for (auto f = dt.all_faces_begin(); f != dt.all_faces_end(); ++f) f->info() = 0;
     for (auto f = dt.finite_faces_begin(); f != dt.finite_faces_end(); ++f) {
@@ -301,6 +263,55 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
       prim.alpha_tris.push_back({lift(a.x(), a.y()), lift(b.x(), b.y()), lift(d.x(), d.y())});
     }
   }
+}
+
+}  // namespace
+
+void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
+  prim.hull.clear();
+  prim.alpha_tris.clear();
+  prim.hull_area = prim.alpha_area = 0;
+  Vec3 n = prim.normal;
+  if (!(n.norm() > 1e-12)) n = Vec3::UnitZ();
+  n.normalize();
+  prim.normal = n;
+  plane_frame(n, prim.u, prim.v);
+  // Origin: the inliers' centroid projected on the plane.
+  Vec3 c = Vec3::Zero();
+  if (!prim.inliers.empty()) {
+    for (int i : prim.inliers) c += s.points[i];
+    c /= double(prim.inliers.size());
+  } else {
+    c = prim.centroid;
+  }
+  c -= (n.dot(c) + prim.d) * n;
+  prim.centroid = c;
+  if (prim.inliers.size() < 3) return;
+
+  std::vector<P2> pts2;
+  pts2.reserve(prim.inliers.size());
+  for (int i : prim.inliers) {
+    const Vec3 r = s.points[i] - c;
+    pts2.emplace_back(r.dot(prim.u), r.dot(prim.v));
+  }
+  auto lift = [&](double x, double y) -> Vec3 { return c + x * prim.u + y * prim.v; };
+
+  std::vector<P2> hull2;
+  CGAL::convex_hull_2(pts2.begin(), pts2.end(), std::back_inserter(hull2));
+  if (hull2.size() >= 3) {
+    double a = 0;
+    for (std::size_t i = 0; i < hull2.size(); ++i) {
+      const P2& p0 = hull2[i];
+      const P2& p1 = hull2[(i + 1) % hull2.size()];
+      a += p0.x() * p1.y() - p1.x() * p0.y();
+    }
+    prim.hull_area = 0.5 * a;
+    for (const auto& q : hull2) prim.hull.push_back(lift(q.x(), q.y()));
+  } else {
+    return;  // collinear support: no area
+  }
+
+  alpha_shape(prim, pts2, c, p.alpha);
   if (prim.alpha_tris.empty()) {
     for (std::size_t i = 1; i + 1 < prim.hull.size(); ++i)
       prim.alpha_tris.push_back({prim.hull[0], prim.hull[i], prim.hull[i + 1]});
