@@ -946,104 +946,94 @@ bool cell_contains(const BspData& I, const Cell& c, const Point3& p) {
   return true;
 }
 
-}  // namespace
+using Boxes = std::vector<std::pair<Vec3, Vec3>>;
 
-BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& partition,
-                                 std::vector<char> inside, ExtractCache* cache) {
+/// Bounding boxes (double) of the cells of `partition`.
+Boxes cell_boxes(const BspData& D, const std::vector<int>& partition) {
+  const auto& cells = D.cells;
+  const auto& verts = D.verts;
+  Boxes bbox(partition.size());
+  for (size_t i = 0; i < partition.size(); ++i) {
+    Vec3 lo3 = Vec3::Constant(1e300), hi3 = Vec3::Constant(-1e300);
+    for (int v : D.cell_vertex_ids(cells[partition[i]]))
+      lo3 = lo3.cwiseMin(verts[v].approx), hi3 = hi3.cwiseMax(verts[v].approx);
+    bbox[i] = {lo3, hi3};
+  }
+  return bbox;
+}
+
+/// True when box b lies more than tol outside [lo, hi] along some axis.
+bool box_apart(const std::pair<Vec3, Vec3>& b, const Vec3& lo, const Vec3& hi, double tol) {
+  return (b.first.array() > hi.array() + tol).any() || (b.second.array() < lo.array() - tol).any();
+}
+
+/// The out-cells turned in to remove the non-manifold edges `bad` (sorted,
+/// unique): per edge, the smallest out-cell whose closure holds its midpoint.
+std::vector<int> edge_flips(const BspData& D, const std::vector<int>& partition,
+                            const std::vector<char>& inside, const Extracted& X,
+                            const std::vector<std::pair<int, int>>& bad, const Boxes& bbox) {
   const auto& cells = D.cells;
   const auto& nodes = D.nodes;
-  const auto& verts = D.verts;
-  if (inside.size() != partition.size())
-    throw std::invalid_argument("Bsp::extract: labels / partition size mismatch");
-  for (int n : partition)
-    if (n < 0 || n >= int(cells.size())) throw std::out_of_range("Bsp::extract: node id");
-  BspSurface S;
-  Extracted X;
-  std::vector<std::pair<Vec3, Vec3>> bbox;  // lazily filled
-  const int max_rounds = 64;
-  std::vector<char> locked(partition.size(),
-                           0);  // flipped by the pinch repair once: not chosen again
-  S.edge_repaired.assign(partition.size(), 0);
-  for (int round = 0;; ++round) {
-    X = extract_once(D, collapse_inside(D, partition, inside), cache);
-    const auto bad = nonmanifold_edges(X);
-    // Pinched vertices are repaired in the first half of the rounds only, so
-    // the last rounds always end the edge repair (which never fails).
-    const auto pinched =
-        bad.empty() && round < max_rounds / 2 ? pinched_vertices(X) : std::vector<int>{};
-    if ((bad.empty() && pinched.empty()) || round >= max_rounds) break;
-    if (bbox.empty()) {
-      bbox.resize(partition.size());
-      for (size_t i = 0; i < partition.size(); ++i) {
-        Vec3 lo3 = Vec3::Constant(1e300), hi3 = Vec3::Constant(-1e300);
-        for (int v : D.cell_vertex_ids(cells[partition[i]]))
-          lo3 = lo3.cwiseMin(verts[v].approx), hi3 = hi3.cwiseMax(verts[v].approx);
-        bbox[i] = {lo3, hi3};
-      }
+  std::vector<int> flip;
+  for (const auto& [a, b] : bad) {
+    // out-cells around the edge: those whose closure contains its midpoint
+    // (an out-wedge may be cut into several cells along the edge; flipping
+    // one shortens the non-manifold part, the next round handles the rest)
+    const Point3 &pa = X.pts[a], &pb = X.pts[b];
+    const Point3 mid = CGAL::midpoint(pa, pb);
+    const Vec3 qa(CGAL::to_double(pa.x()), CGAL::to_double(pa.y()), CGAL::to_double(pa.z()));
+    const Vec3 qb(CGAL::to_double(pb.x()), CGAL::to_double(pb.y()), CGAL::to_double(pb.z()));
+    const Vec3 elo = qa.cwiseMin(qb), ehi = qa.cwiseMax(qb);
+    const double tol =
+        1e-6 * (1.0 + std::max(elo.cwiseAbs().maxCoeff(), ehi.cwiseAbs().maxCoeff()));
+    int best = -1;
+    for (size_t i = 0; i < partition.size(); ++i) {
+      if (inside[i]) continue;
+      if (box_apart(bbox[i], elo, ehi, tol)) continue;
+      const Cell& c = cells[partition[i]];
+      if (!cell_contains(D, c, mid)) continue;
+      if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
     }
-    std::vector<int> flip;
-    for (const auto& [a, b] : bad) {
-      // out-cells around the edge: those whose closure contains its midpoint
-      // (an out-wedge may be cut into several cells along the edge; flipping
-      // one shortens the non-manifold part, the next round handles the rest)
-      const Point3 &pa = X.pts[a], &pb = X.pts[b];
-      const Point3 mid = CGAL::midpoint(pa, pb);
-      const Vec3 qa(CGAL::to_double(pa.x()), CGAL::to_double(pa.y()), CGAL::to_double(pa.z()));
-      const Vec3 qb(CGAL::to_double(pb.x()), CGAL::to_double(pb.y()), CGAL::to_double(pb.z()));
-      const Vec3 elo = qa.cwiseMin(qb), ehi = qa.cwiseMax(qb);
-      const double tol =
-          1e-6 * (1.0 + std::max(elo.cwiseAbs().maxCoeff(), ehi.cwiseAbs().maxCoeff()));
-      int best = -1;
-      for (size_t i = 0; i < partition.size(); ++i) {
-        if (inside[i]) continue;
-        if ((bbox[i].first.array() > ehi.array() + tol).any() ||
-            (bbox[i].second.array() < elo.array() - tol).any())
-          continue;
-        const Cell& c = cells[partition[i]];
-        if (!cell_contains(D, c, mid)) continue;
-        if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
-      }
-      if (best >= 0) flip.push_back(best);
-    }
-    std::sort(flip.begin(), flip.end());
-    flip.erase(std::unique(flip.begin(), flip.end()), flip.end());
-    const size_t n_edge_flips = flip.size();
-    // (ours) A pinched vertex (two in-cones meeting at a point) is removed by
-    // the smallest change: the smallest cell whose closure holds the vertex,
-    // in or out, changes sides (joining the cones or cutting one back).
-    std::vector<int> flip_out;
-    for (int v : pinched) {
-      const Point3& p = X.pts[size_t(v)];
-      const Vec3 q(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
-      const double tol = 1e-6 * (1.0 + q.cwiseAbs().maxCoeff());
-      int best = -1;
-      for (size_t i = 0; i < partition.size(); ++i) {
-        if (locked[i]) continue;
-        if ((bbox[i].first.array() > q.array() + tol).any() ||
-            (bbox[i].second.array() < q.array() - tol).any())
-          continue;
-        if (!cell_contains(D, cells[partition[i]], p)) continue;
-        if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
-      }
-      if (best >= 0 && !std::binary_search(flip.begin(), flip.begin() + long(n_edge_flips), best))
-        (inside[size_t(best)] ? flip_out : flip).push_back(best);
-    }
-    std::sort(flip.begin() + long(n_edge_flips), flip.end());
-    flip.erase(std::unique(flip.begin() + long(n_edge_flips), flip.end()), flip.end());
-    std::sort(flip_out.begin(), flip_out.end());
-    flip_out.erase(std::unique(flip_out.begin(), flip_out.end()), flip_out.end());
-    if (flip.empty() && flip_out.empty()) break;
-    for (size_t k = 0; k < flip.size(); ++k) {
-      inside[size_t(flip[k])] = 1;
-      if (k >= n_edge_flips) locked[size_t(flip[k])] = 1;
-    }
-    for (size_t k = 0; k < n_edge_flips; ++k) S.edge_repaired[size_t(flip[k])] = 1;
-    for (int i : flip_out) inside[i] = 0, locked[size_t(i)] = 1;
-    S.labels_flipped += int(flip.size() + flip_out.size());
+    if (best >= 0) flip.push_back(best);
   }
+  std::sort(flip.begin(), flip.end());
+  flip.erase(std::unique(flip.begin(), flip.end()), flip.end());
+  return flip;
+}
 
-  S.inside = inside;
-  // --- convert once
+/// (ours) A pinched vertex (two in-cones meeting at a point) is removed by
+/// the smallest change: the smallest cell whose closure holds the vertex, in
+/// or out, changes sides (joining the cones or cutting one back). Out-cells to
+/// turn in are appended to `flip` after its first `n_edge_flips` entries (the
+/// edge repair's), in-cells to turn out go to `flip_out`; both sorted, unique.
+void pinch_flips(const BspData& D, const std::vector<int>& partition,
+                 const std::vector<char>& inside, const std::vector<char>& locked,
+                 const Extracted& X, const std::vector<int>& pinched, const Boxes& bbox,
+                 size_t n_edge_flips, std::vector<int>& flip, std::vector<int>& flip_out) {
+  const auto& cells = D.cells;
+  const auto& nodes = D.nodes;
+  for (int v : pinched) {
+    const Point3& p = X.pts[size_t(v)];
+    const Vec3 q(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
+    const double tol = 1e-6 * (1.0 + q.cwiseAbs().maxCoeff());
+    int best = -1;
+    for (size_t i = 0; i < partition.size(); ++i) {
+      if (locked[i]) continue;
+      if (box_apart(bbox[i], q, q, tol)) continue;
+      if (!cell_contains(D, cells[partition[i]], p)) continue;
+      if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
+    }
+    if (best >= 0 && !std::binary_search(flip.begin(), flip.begin() + long(n_edge_flips), best))
+      (inside[size_t(best)] ? flip_out : flip).push_back(best);
+  }
+  std::sort(flip.begin() + long(n_edge_flips), flip.end());
+  flip.erase(std::unique(flip.begin() + long(n_edge_flips), flip.end()), flip.end());
+  std::sort(flip_out.begin(), flip_out.end());
+  flip_out.erase(std::unique(flip_out.begin(), flip_out.end()), flip_out.end());
+}
+
+/// The extracted surface converted to double once: polygons and triangles.
+void convert(const Extracted& X, BspSurface& S) {
   S.polygons.vertices.resize(X.pts.size());
   for (size_t i = 0; i < X.pts.size(); ++i)
     S.polygons.vertices[i] =
@@ -1056,6 +1046,49 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
       S.triangles.triangles.push_back({G.tris[i], G.tris[i + 1], G.tris[i + 2]});
     for (const auto& f : G.faces) S.polygons.faces.push_back(f);
   }
+}
+
+}  // namespace
+
+BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& partition,
+                                 std::vector<char> inside, ExtractCache* cache) {
+  const auto& cells = D.cells;
+  if (inside.size() != partition.size())
+    throw std::invalid_argument("Bsp::extract: labels / partition size mismatch");
+  for (int n : partition)
+    if (n < 0 || n >= int(cells.size())) throw std::out_of_range("Bsp::extract: node id");
+  BspSurface S;
+  Extracted X;
+  Boxes bbox;  // lazily filled
+  const int max_rounds = 64;
+  std::vector<char> locked(partition.size(),
+                           0);  // flipped by the pinch repair once: not chosen again
+  S.edge_repaired.assign(partition.size(), 0);
+  for (int round = 0;; ++round) {
+    X = extract_once(D, collapse_inside(D, partition, inside), cache);
+    const auto bad = nonmanifold_edges(X);
+    // Pinched vertices are repaired in the first half of the rounds only, so
+    // the last rounds always end the edge repair (which never fails).
+    const auto pinched =
+        bad.empty() && round < max_rounds / 2 ? pinched_vertices(X) : std::vector<int>{};
+    if ((bad.empty() && pinched.empty()) || round >= max_rounds) break;
+    if (bbox.empty()) bbox = cell_boxes(D, partition);
+    std::vector<int> flip = edge_flips(D, partition, inside, X, bad, bbox);
+    const size_t n_edge_flips = flip.size();
+    std::vector<int> flip_out;
+    pinch_flips(D, partition, inside, locked, X, pinched, bbox, n_edge_flips, flip, flip_out);
+    if (flip.empty() && flip_out.empty()) break;
+    for (size_t k = 0; k < flip.size(); ++k) {
+      inside[size_t(flip[k])] = 1;
+      if (k >= n_edge_flips) locked[size_t(flip[k])] = 1;
+    }
+    for (size_t k = 0; k < n_edge_flips; ++k) S.edge_repaired[size_t(flip[k])] = 1;
+    for (int i : flip_out) inside[i] = 0, locked[size_t(i)] = 1;
+    S.labels_flipped += int(flip.size() + flip_out.size());
+  }
+
+  S.inside = inside;
+  convert(X, S);
   return S;
 }
 
