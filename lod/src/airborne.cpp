@@ -1,7 +1,8 @@
-// (ours) Airborne LiDAR as 2.5D: roof height field, labels by height, the
-// LoD1.2 block. See airborne.hpp.
+// (ours) Airborne LiDAR as 2.5D: roof height field, refitted roof planes, step
+// walls, labels by height, the LoD1.2 block. See airborne.hpp.
 #include "airborne.hpp"
 
+#include "closure.hpp"
 #include "fallback.hpp"
 
 #include "citylod/lod/polygon2d.hpp"
@@ -217,6 +218,92 @@ int refit_roof_planes(const Samples& s, const std::vector<Vec2>& outline, const 
     ++refitted;
   }
   return refitted;
+}
+
+int infer_step_walls(const Samples& s, const HeightField& hf, const AirborneParams& p,
+                     std::vector<Primitive>& prims) {
+  const auto& fp = hf.outline();
+  if (fp.size() < 3) return 0;
+  std::vector<double> fp_dirs;  // outline edge directions in [0, pi)
+  for (std::size_t i = 0; i < fp.size(); ++i) {
+    const Vec2 e = fp[(i + 1) % fp.size()] - fp[i];
+    if (e.norm() < 1.0) continue;
+    fp_dirs.push_back(std::fmod(std::atan2(e.y(), e.x()) + 2 * M_PI, M_PI));
+  }
+  const double snap = 15.0 * M_PI / 180.0;
+  const double gz = hf.ground();
+  std::vector<Primitive> walls;
+  for (const auto& pr : prims) {
+    if (pr.inferred || pr.normal.z() < 0.3 || pr.inliers.size() < 20) continue;
+    auto plane_z = [&](const Vec2& q) {
+      return -(pr.normal.x() * q.x() + pr.normal.y() * q.y() + pr.d) / pr.normal.z();
+    };
+    std::vector<Vec2> xy;
+    xy.reserve(pr.inliers.size());
+    for (int i : pr.inliers) xy.emplace_back(s.points[size_t(i)].x(), s.points[size_t(i)].y());
+    std::vector<Vec2> ol = alpha_outline(xy, p.step_alpha);
+    if (ol.size() < 3) continue;
+    ol = simplify_closed(ol, 0.3, 10.0);
+    for (std::size_t i = 0; i < ol.size(); ++i) {
+      Vec2 a = ol[i], b = ol[(i + 1) % ol.size()];
+      Vec2 e = b - a;
+      const double len = e.norm();
+      if (len < p.step_min_edge) continue;
+      const Vec2 out(e.y() / len, -e.x() / len);  // right of a CCW edge
+      const int k = std::max(2, int(std::ceil(len / 0.5)));
+      int valid = 0, steps = 0;
+      for (int j = 0; j < k; ++j) {
+        const Vec2 q = a + (j + 0.5) / k * e;
+        const Vec2 probe = q + p.step_probe * out;
+        if (!hf.inside(probe)) continue;
+        const double r = hf.at(probe);
+        if (std::isnan(r)) continue;
+        ++valid;
+        steps += plane_z(q) - r > p.step_min;
+      }
+      if (2 * valid < k || 10 * steps < 6 * valid) continue;
+      // Snap to the nearest outline direction (buildings are mostly rectilinear).
+      const double ang = std::fmod(std::atan2(e.y(), e.x()) + 2 * M_PI, M_PI);
+      double best = snap;
+      double to = ang;
+      for (double d : fp_dirs) {
+        double diff = std::abs(d - ang);
+        diff = std::min(diff, M_PI - diff);
+        if (diff < best) {
+          best = diff;
+          to = d;
+        }
+      }
+      Vec2 dir = e / len;
+      if (to != ang) {
+        Vec2 nd(std::cos(to), std::sin(to));
+        if (nd.dot(dir) < 0) nd = -nd;
+        dir = nd;
+      }
+      const Vec2 mid = 0.5 * (a + b);
+      const double half = 0.5 * len + 0.5;  // a little past the corners, to meet the next wall
+      a = mid - half * dir;
+      b = mid + half * dir;
+      const double top = std::max(plane_z(a), plane_z(b));
+      if (!(top > gz + 1.0)) continue;
+      Primitive w;
+      w.inferred = true;
+      w.normal = Vec3(dir.y(), -dir.x(), 0.0);
+      w.d = -(w.normal.x() * a.x() + w.normal.y() * a.y());
+      w.u = Vec3::UnitZ().cross(w.normal).normalized();
+      w.v = w.normal.cross(w.u);
+      const Vec3 A0(a.x(), a.y(), gz), B0(b.x(), b.y(), gz), A1(a.x(), a.y(), top),
+          B1(b.x(), b.y(), top);
+      w.hull = {A0, B0, B1, A1};
+      w.alpha_tris = {{A0, B0, B1}, {A0, B1, A1}};
+      w.hull_area = w.alpha_area = (b - a).norm() * (top - gz);
+      w.centroid = 0.25 * (A0 + B0 + A1 + B1);
+      walls.push_back(std::move(w));
+    }
+  }
+  const int n = int(walls.size());
+  for (auto& w : walls) prims.push_back(std::move(w));
+  return n;
 }
 
 std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,

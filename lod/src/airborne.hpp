@@ -5,7 +5,7 @@
 // under its roof surface and inside its outline:
 //   - HeightField: a robust roof height raster of the samples over the outline
 //     (median per cell, gaps filled from neighbours);
-//   - infer_step_walls (closure.cpp): vertical walls along the edges of roof
+//   - infer_step_walls: vertical walls along the edges of roof
 //     planes where the roof drops by more than a step (BSP/IO-View primitives,
 //     so a lower roof part bounds its own cells);
 //   - label_by_height: a cell is in when most of its ray origins lie inside the
@@ -14,7 +14,7 @@
 //     fits the points best), the coarsest model of the chain.
 #pragma once
 
-#include "primitives.hpp"
+#include "planes.hpp"
 
 #include <vector>
 
@@ -43,6 +43,16 @@ class HeightField {
   int nx_ = 0, ny_ = 0, with_data_ = 0;
   std::vector<float> z_;  ///< NaN = no data
 };
+
+/// (ours) Vertical walls where a roof steps down (airborne LiDAR has no wall
+/// points there): along each edge of a roof plane's simplified 2D alpha
+/// outline across which the height field `hf`, probed p.step_probe beyond the
+/// edge and inside the outline, lies more than p.step_min below the plane.
+/// Edge directions within 15 degrees of an outline edge's are snapped to it.
+/// Each wall reaches from the ground to the plane's top along the edge.
+/// Returns the number of walls added (inferred primitives).
+int infer_step_walls(const Samples& s, const HeightField& hf, const AirborneParams& p,
+                     std::vector<Primitive>& prims);
 
 /// Robust refit of the roof planes (detected, normal.z > 0.3) of airborne
 /// input: Tukey-weighted least squares, edge points (within

@@ -1,10 +1,9 @@
-// Exact adaptive BSP (Appendix B): construction, node geometry, adjacency.
-// Extraction of surfaces lives in bsp_extract.cpp. See bsp_impl.hpp for the
-// representation.
+// Exact adaptive BSP (Appendix B): construction and node geometry. The cells'
+// adjacency lives in bsp_adjacency.cpp, the extraction of surfaces in
+// bsp_extract.cpp. See bsp_impl.hpp for the representation.
 #include "bsp_impl.hpp"
 
 #include <CGAL/Exact_integer.h>
-#include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
 #include <gmpxx.h>
 
@@ -22,7 +21,6 @@ using namespace bspi;
 namespace {
 
 constexpr double kPlaneMergeTol = 1e-12;
-constexpr double kInterfaceMinArea = 1e-9;
 
 bool normalize_plane(std::array<double, 4>& c) {
   const double n = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
@@ -369,13 +367,10 @@ void BspData::fill_node_geometry(BspNode& n, const Cell& c) const {
 // ---------------------------------------------------------------------------
 // Construction
 
-Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves)
-    : impl_(std::make_unique<Impl>()) {
-  Impl& I = *impl_;
-  I.lo = lo;
-  I.hi = hi;
-  if (!(hi.x() > lo.x() && hi.y() > lo.y() && hi.z() > lo.z()))
-    throw std::invalid_argument("Bsp: empty box");
+namespace {
+
+/// The box planes and the root cell, the box.
+void init_box(BspData& I, const Vec3& lo, const Vec3& hi) {
   // box planes: 2k -> coordinate k = lo[k], 2k+1 -> coordinate k = hi[k]; normal +e_k
   for (int k = 0; k < 3; ++k)
     for (int h = 0; h < 2; ++h) {
@@ -429,12 +424,18 @@ Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered,
     I.nodes.push_back(rn);
     I.cells.push_back(std::move(root));
   }
+}
 
-  // --- planes of the input polygons: supports first (they are the split planes), then edges
-  struct Prep {
-    int support = -1;
-    std::vector<Vec3> loop;  // projected, CCW around the table support normal
-  };
+/// An input polygon on its table support plane.
+struct Prep {
+  int support = -1;
+  std::vector<Vec3> loop;  // projected, CCW around the table support normal
+};
+
+/// The planes of the input polygons: their supports (the split planes) go into
+/// the table first; each polygon projected on its plane, CCW around the table
+/// support's normal (support -1: degenerate, skipped).
+std::vector<Prep> prepare_polygons(BspData& I, const std::vector<BspPolygon>& ordered) {
   std::vector<Prep> prep(ordered.size());
   for (size_t i = 0; i < ordered.size(); ++i) {
     const BspPolygon& bp = ordered[i];
@@ -461,7 +462,13 @@ Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered,
     prep[i].loop = std::move(q);
   }
   I.n_split_planes = int(I.dplanes.size());
+  return prep;
+}
 
+/// Each polygon as a piece of the root cell: its support plane's section of
+/// the box clipped by the polygon's edge planes (added to the table).
+std::vector<Piece> root_pieces_of(BspData& I, const std::vector<BspPolygon>& ordered,
+                                  std::vector<Prep>& prep) {
   std::vector<Piece> root_pieces;
   for (size_t i = 0; i < ordered.size(); ++i) {
     Prep& pr = prep[i];
@@ -495,8 +502,12 @@ Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered,
     if (empty || piece.v.size() < 3) continue;
     root_pieces.push_back({std::move(piece), ordered[i].primitive});
   }
+  return root_pieces;
+}
 
-  // --- adaptive BSP, depth first (negative child first)
+/// Adaptive BSP, depth first (negative child first): a node is split by the
+/// first piece with positive area inside it; stops at `max_leaves` leaves.
+void split_adaptive(BspData& I, std::vector<Piece> root_pieces, int max_leaves) {
   struct Work {
     int node;
     std::vector<Piece> pieces;
@@ -550,6 +561,20 @@ Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered,
       break;
     }
   }
+}
+
+}  // namespace
+
+Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& I = *impl_;
+  I.lo = lo;
+  I.hi = hi;
+  if (!(hi.x() > lo.x() && hi.y() > lo.y() && hi.z() > lo.z()))
+    throw std::invalid_argument("Bsp: empty box");
+  init_box(I, lo, hi);
+  std::vector<Prep> prep = prepare_polygons(I, ordered);
+  split_adaptive(I, root_pieces_of(I, ordered, prep), max_leaves);
   I.cut_memo.clear();
   I.cut_memo.rehash(0);
   I.triple_memo.clear();
@@ -584,124 +609,6 @@ std::vector<Vec3> Bsp::cell_vertices(int node) const {
   std::vector<Vec3> out;
   for (int v : impl_->cell_vertex_ids(impl_->cells[node])) out.push_back(impl_->verts[v].approx);
   return out;
-}
-
-// ---------------------------------------------------------------------------
-// Adjacency
-
-namespace {
-
-using Poly2 = std::vector<Eigen::Vector2d>;
-
-double area2(const Poly2& p) {
-  double a = 0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    const auto& u = p[i];
-    const auto& w = p[(i + 1) % p.size()];
-    a += u.x() * w.y() - u.y() * w.x();
-  }
-  return 0.5 * a;
-}
-
-// Convex clipping (Sutherland-Hodgman); both CCW.
-Poly2 clip_convex(const Poly2& subject, const Poly2& clip) {
-  Poly2 out = subject;
-  for (size_t i = 0; i < clip.size() && !out.empty(); ++i) {
-    const auto& a = clip[i];
-    const auto& b = clip[(i + 1) % clip.size()];
-    const Eigen::Vector2d d = b - a;
-    auto side = [&](const Eigen::Vector2d& p) {
-      return d.x() * (p.y() - a.y()) - d.y() * (p.x() - a.x());
-    };
-    Poly2 in = std::move(out);
-    out.clear();
-    for (size_t j = 0; j < in.size(); ++j) {
-      const auto& p = in[j];
-      const auto& q = in[(j + 1) % in.size()];
-      const double sp = side(p), sq = side(q);
-      if (sp >= 0) out.push_back(p);
-      if ((sp > 0 && sq < 0) || (sp < 0 && sq > 0)) out.push_back(p + (q - p) * (sp / (sp - sq)));
-    }
-  }
-  return out;
-}
-
-}  // namespace
-
-std::vector<BspInterface> Bsp::adjacency(const std::vector<int>& partition) const {
-  const Impl& I = *impl_;
-  struct FRef {
-    int node, face;
-    bool pos;
-  };
-  std::map<int, std::vector<FRef>> byplane;
-  for (int nid : partition) {
-    if (nid < 0 || nid >= int(I.cells.size())) throw std::out_of_range("Bsp::adjacency: node id");
-    const Cell& c = I.cells[nid];
-    for (size_t f = 0; f < c.faces.size(); ++f) {
-      const int pl = c.faces[f].poly.plane;
-      if (pl < 6) continue;  // box boundary: no neighbour
-      byplane[pl].push_back({nid, int(f), c.faces[f].cell_pos});
-    }
-  }
-  std::vector<BspInterface> out;
-  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 2, int>;
-  for (const auto& [pl, refs] : byplane) {
-    const auto& c = I.dplanes[pl];
-    int k = 0;
-    for (int t = 1; t < 3; ++t)
-      if (std::abs(c[t]) > std::abs(c[k])) k = t;
-    const int u = (k + 1) % 3, w = (k + 2) % 3;
-    std::vector<Poly2> p2(refs.size());
-    std::vector<Box> ba, bb;
-    for (size_t r = 0; r < refs.size(); ++r) {
-      const auto& L = I.cells[refs[r].node].faces[refs[r].face].poly.v;
-      Poly2& P = p2[r];
-      for (int v : L) P.emplace_back(I.verts[v].approx[u], I.verts[v].approx[w]);
-      if (area2(P) < 0) std::reverse(P.begin(), P.end());
-      double lo2[2] = {1e300, 1e300}, hi2[2] = {-1e300, -1e300};
-      for (const auto& p : P)
-        for (int t = 0; t < 2; ++t)
-          lo2[t] = std::min(lo2[t], p[t]), hi2[t] = std::max(hi2[t], p[t]);
-      (refs[r].pos ? bb : ba).emplace_back(lo2, hi2, int(r));
-    }
-    if (ba.empty() || bb.empty()) continue;
-    std::vector<std::pair<int, int>> pairs;
-    CGAL::box_intersection_d(
-        ba.begin(), ba.end(), bb.begin(), bb.end(),
-        [&](const Box& x, const Box& y) { pairs.emplace_back(x.info(), y.info()); });
-    for (const auto& [ra, rb] : pairs) {
-      // ra: cell on the negative side (a); rb: cell on the positive side (b)
-      Poly2 inter = clip_convex(p2[ra], p2[rb]);
-      if (inter.size() < 3) continue;
-      const double area = std::abs(area2(inter)) / std::abs(c[k]);
-      if (!(area > kInterfaceMinArea)) continue;
-      BspInterface itf;
-      itf.a = refs[ra].node;
-      itf.b = refs[rb].node;
-      itf.plane = pl;
-      itf.area = area;
-      for (const auto& q : inter) {
-        Vec3 x;
-        x[u] = q.x();
-        x[w] = q.y();
-        x[k] = -(c[u] * q.x() + c[w] * q.y() + c[3]) / c[k];
-        itf.polygon.push_back(x);
-      }
-      // CCW around +normal
-      if (c[k] < 0) std::reverse(itf.polygon.begin(), itf.polygon.end());
-      out.push_back(std::move(itf));
-    }
-  }
-  std::sort(out.begin(), out.end(), [](const BspInterface& x, const BspInterface& y) {
-    return std::tie(x.a, x.b, x.plane) < std::tie(y.a, y.b, y.plane);
-  });
-  return out;
-}
-
-BspSurface Bsp::extract(const std::vector<int>& partition, std::vector<char> inside,
-                        ExtractCache* cache) const {
-  return extract_surface(*impl_, partition, std::move(inside), cache);
 }
 
 }  // namespace citylod::lod::detail

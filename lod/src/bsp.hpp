@@ -2,7 +2,8 @@
 // with exact predicates and constructions (EPECK) — Appendix B. The same class
 // serves the IO-View partition (area order) and the LOD-Tree's BSP (scale-sorted
 // order), and extracts watertight surfaces from any labelled partition made of
-// its nodes. Implemented in bsp.cpp (CGAL inside; nothing of CGAL leaks here).
+// its nodes. Implemented in bsp.cpp, bsp_adjacency.cpp and bsp_extract.cpp (CGAL
+// inside; nothing of CGAL leaks here).
 #pragma once
 
 #include "citylod/lod/types.hpp"

@@ -14,8 +14,9 @@
 // exact constrained Delaunay triangulation; each connected domain is one merged
 // region. Vertices are converted to double once. Non-manifold edges (and
 // then pinched vertices) are removed by relabelling the smallest adjacent
-// out-cell in and extracting again. Everything is exact (EPECK, lazy with shallow DAGs; the BSP
-// vertices enter as exact rationals computed with integer determinants).
+// out-cell in and extracting again. Everything is exact (EPECK, lazy with
+// shallow DAGs; the BSP vertices enter as exact rationals computed with integer
+// determinants).
 #include "bsp_impl.hpp"
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
@@ -25,11 +26,7 @@
 #include <CGAL/intersections.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <ctime>
 #include <deque>
 #include <map>
 #include <stdexcept>
@@ -81,22 +78,6 @@ using Fb = CGAL::Constrained_triangulation_face_base_2<K, Fbb>;
 using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
 using CDT = CGAL::Constrained_Delaunay_triangulation_2<
     K, Tds, CGAL::No_constraint_intersection_requiring_constructions_tag>;
-
-struct Prof {
-  const bool on = std::getenv("CITYLOD_BSP_PROF") != nullptr;
-  double t = now();
-  static double now() {
-    timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);  // CPU time: the machine may be loaded
-    return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-  }
-  void lap(const char* what) {
-    if (!on) return;
-    const double n = now();
-    std::fprintf(stderr, "  [bsp extract] %-14s %8.2f ms\n", what, 1e3 * (n - t));
-    t = n;
-  }
-};
 
 int dominant_axis(const std::array<double, 4>& c) {
   int k = 0;
@@ -242,8 +223,9 @@ struct Scratch {
   std::vector<int> li;
 };
 
-/// Boundary of R+ = A - B (out[0]) and R- = B - A (out[1]) along edge ei of face fi,
-/// as directed segments (region on the left in 2D) between local points.
+/// Boundary of R+ = A - B (out[0]) and R- = B - A (out[1]) along edge ei of
+/// face fi, as directed segments (region on the left in 2D) between local
+/// points.
 void edge_boundary(PlaneCtx& C, const std::vector<F2>& F, int fi, int ei,
                    const std::vector<int>& cand, LocalPts& L,
                    std::vector<std::pair<int, int>> out[2], Scratch& S) {
@@ -495,8 +477,8 @@ struct Extracted {
   std::vector<Group> groups;
 };
 
-/// The inside nodes, with every pair of inside siblings replaced by their parent
-/// (recursively): same solid, fewer and larger faces.
+/// The inside nodes, with every pair of inside siblings replaced by their
+/// parent (recursively): same solid, fewer and larger faces.
 std::vector<int> collapse_inside(const BspData& I, const std::vector<int>& partition,
                                  const std::vector<char>& inside) {
   std::vector<char> mark(I.nodes.size(), 0);
@@ -584,21 +566,26 @@ std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int 
   return out;
 }
 
-// One extraction pass: the boundary of the union of the cells `in_nodes`.
-Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, ExtractCache* cache) {
-  Extracted X;
-  Prof prof;
-  // exact coordinates of the BSP vertices used, computed once per pass
+/// Exact coordinates of the BSP vertices one extraction pass uses, computed
+/// once per pass, and their 2D projections per dropped axis.
+struct PassCoords {
+  const BspData& I;
   std::unordered_map<int, std::array<FT, 3>> exact;
-  auto coords = [&](int v) -> const std::array<FT, 3>& {
+  std::unordered_map<int, Point2> proj[3];
+  explicit PassCoords(const BspData& bsp) : I(bsp) {}
+  const std::array<FT, 3>& coords(int v) {
     auto it = exact.find(v);
     if (it != exact.end()) return it->second;
     std::array<FT, 3> c;
     I.exact_coords(v, c.data());
     return exact.emplace(v, std::move(c)).first->second;
-  };
-  std::unordered_map<int, Point2> proj[3];  // projected BSP vertices, per dropped axis
-  // --- faces per plane
+  }
+};
+
+/// Phase 1: the faces of the cells `in_nodes` per plane, projected to 2D
+/// (oriented so that their side's region lies on the left).
+std::map<int, std::vector<F2>> gather_faces(const BspData& I, const std::vector<int>& in_nodes,
+                                            PassCoords& pc) {
   std::map<int, std::vector<F2>> byplane;
   for (int node : in_nodes) {
     const Cell& c = I.cells[node];
@@ -620,10 +607,10 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
       g.p.reserve(g.vid.size());
       g.ap.reserve(g.vid.size());
       for (int v : g.vid) {
-        auto it = proj[k].find(v);
-        if (it == proj[k].end()) {
-          const auto& p = coords(v);
-          it = proj[k].emplace(v, Point2(p[u], p[w])).first;
+        auto it = pc.proj[k].find(v);
+        if (it == pc.proj[k].end()) {
+          const auto& p = pc.coords(v);
+          it = pc.proj[k].emplace(v, Point2(p[u], p[w])).first;
         }
         g.p.push_back(it->second);
         g.ap.emplace_back(I.verts[v].approx[u], I.verts[v].approx[w]);
@@ -631,16 +618,32 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
       byplane[pl].push_back(std::move(g));
     }
   }
-  if (prof.on) {
-    size_t nf = 0;
-    for (const auto& bp : byplane) nf += bp.second.size();
-    std::fprintf(
-        stderr,
-        "  [bsp extract] %zu inside nodes (collapsed), %zu faces on %zu planes, %zu vertices\n",
-        in_nodes.size(), nf, byplane.size(), exact.size());
-  }
-  prof.lap("gather");
+  return byplane;
+}
 
+/// The faces on one plane with the identical faces of both sides removed
+/// (they cancel).
+std::vector<F2> cancel_opposite_faces(std::vector<F2>& faces0) {
+  std::vector<F2> F;
+  std::map<std::vector<int>, std::vector<int>> bykey;
+  for (int i = 0; i < int(faces0.size()); ++i) {
+    std::vector<int> key = faces0[i].vid;
+    std::sort(key.begin(), key.end());
+    bykey[key].push_back(i);
+  }
+  std::vector<char> drop(faces0.size(), 0);
+  for (const auto& [key, ids] : bykey)
+    if (ids.size() == 2 && faces0[ids[0]].a != faces0[ids[1]].a) drop[ids[0]] = drop[ids[1]] = 1;
+  for (int i = 0; i < int(faces0.size()); ++i)
+    if (!drop[i]) F.push_back(std::move(faces0[i]));
+  return F;
+}
+
+/// Phase 2: per plane, the boundary loops of both sides' regions (from the
+/// cache when the plane's faces are unchanged), lifted to 3D and welded into
+/// X.pts; one Group per plane side.
+void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, ExtractCache* cache,
+                   PassCoords& pc, Extracted& X) {
   Welder<Point3, 3> weld;
   auto gid = [&](const Point3& p) {
     int id = weld.find(p, X.pts);
@@ -653,22 +656,7 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
 
   Scratch scratch;
   for (auto& [pl, faces0] : byplane) {
-    // identical faces from both sides cancel
-    std::vector<F2> F;
-    {
-      std::map<std::vector<int>, std::vector<int>> bykey;
-      for (int i = 0; i < int(faces0.size()); ++i) {
-        std::vector<int> key = faces0[i].vid;
-        std::sort(key.begin(), key.end());
-        bykey[key].push_back(i);
-      }
-      std::vector<char> drop(faces0.size(), 0);
-      for (const auto& [key, ids] : bykey)
-        if (ids.size() == 2 && faces0[ids[0]].a != faces0[ids[1]].a)
-          drop[ids[0]] = drop[ids[1]] = 1;
-      for (int i = 0; i < int(faces0.size()); ++i)
-        if (!drop[i]) F.push_back(std::move(faces0[i]));
-    }
+    std::vector<F2> F = cancel_opposite_faces(faces0);
     if (F.empty()) continue;
     // The faces on this plane as a key: unchanged faces give unchanged loops.
     std::vector<int> key;
@@ -704,7 +692,7 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
         for (const EvPt& ep : loop) {
           int id;
           if (ep.vid >= 0) {
-            const auto& c = coords(ep.vid);
+            const auto& c = pc.coords(ep.vid);
             id = gid(Point3(c[0], c[1], c[2]));
           } else {
             FT c[3];
@@ -719,167 +707,174 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
       X.groups.push_back(std::move(G));
     }
   }
-  prof.lap("regions");
+}
 
-  // --- T-junctions: insert every output vertex lying strictly inside an output edge
-  {
-    const size_t nv = X.pts.size();
-    std::vector<Vec3> ap(nv);
-    double scale = 1.0;
-    for (size_t i = 0; i < nv; ++i) {
-      ap[i] = Vec3(CGAL::to_double(X.pts[i].x()), CGAL::to_double(X.pts[i].y()),
-                   CGAL::to_double(X.pts[i].z()));
-      scale = std::max(scale, ap[i].cwiseAbs().maxCoeff());
-    }
-    const double tol = 1e-7 * scale;
-    struct ERef {
-      int r, l, i;
-    };
-    std::vector<ERef> erefs;
-    using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
-    std::vector<Box> eboxes, vboxes;
-    for (int r = 0; r < int(X.groups.size()); ++r)
-      for (int l = 0; l < int(X.groups[r].loops.size()); ++l) {
-        const auto& L = X.groups[r].loops[l];
-        for (int i = 0; i < int(L.size()); ++i) {
-          const Vec3& a = ap[L[i]];
-          const Vec3& b = ap[L[(i + 1) % L.size()]];
-          double lo3[3], hi3[3];
-          for (int t = 0; t < 3; ++t)
-            lo3[t] = std::min(a[t], b[t]) - tol, hi3[t] = std::max(a[t], b[t]) + tol;
-          eboxes.emplace_back(lo3, hi3, int(erefs.size()));
-          erefs.push_back({r, l, i});
-        }
-      }
-    for (size_t v = 0; v < nv; ++v) {
-      double lo3[3], hi3[3];
-      for (int t = 0; t < 3; ++t) lo3[t] = ap[v][t] - tol, hi3[t] = ap[v][t] + tol;
-      vboxes.emplace_back(lo3, hi3, int(v));
-    }
-    std::vector<std::pair<int, int>> cand;
-    CGAL::box_intersection_d(
-        eboxes.begin(), eboxes.end(), vboxes.begin(), vboxes.end(),
-        [&](const Box& e, const Box& v) { cand.emplace_back(e.info(), v.info()); });
-    std::sort(cand.begin(), cand.end());
-    std::map<std::pair<int, int>, std::map<int, std::vector<int>>>
-        inserts;  // (r,l) -> i -> vertices
-    for (const auto& [ei, v] : cand) {
-      const ERef& er = erefs[ei];
-      const auto& L = X.groups[er.r].loops[er.l];
-      const int a = L[er.i], b = L[(er.i + 1) % L.size()];
-      if (v == a || v == b) continue;
-      const Point3 &pa = X.pts[a], &pb = X.pts[b], &pv = X.pts[v];
-      if (CGAL::collinear(pa, pb, pv) &&
-          CGAL::collinear_are_strictly_ordered_along_line(pa, pv, pb))
-        inserts[{er.r, er.l}][er.i].push_back(v);
-    }
-    for (auto& [rl, byedge] : inserts) {
-      auto& L = X.groups[rl.first].loops[rl.second];
-      std::vector<int> NL;
-      NL.reserve(L.size() + byedge.size());
+/// Phase 3, T-junctions: inserts every output vertex lying strictly inside an
+/// output edge.
+void insert_tjunctions(Extracted& X) {
+  const size_t nv = X.pts.size();
+  std::vector<Vec3> ap(nv);
+  double scale = 1.0;
+  for (size_t i = 0; i < nv; ++i) {
+    ap[i] = Vec3(CGAL::to_double(X.pts[i].x()), CGAL::to_double(X.pts[i].y()),
+                 CGAL::to_double(X.pts[i].z()));
+    scale = std::max(scale, ap[i].cwiseAbs().maxCoeff());
+  }
+  const double tol = 1e-7 * scale;
+  struct ERef {
+    int r, l, i;
+  };
+  std::vector<ERef> erefs;
+  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
+  std::vector<Box> eboxes, vboxes;
+  for (int r = 0; r < int(X.groups.size()); ++r)
+    for (int l = 0; l < int(X.groups[r].loops.size()); ++l) {
+      const auto& L = X.groups[r].loops[l];
       for (int i = 0; i < int(L.size()); ++i) {
-        NL.push_back(L[i]);
-        auto it = byedge.find(i);
-        if (it == byedge.end()) continue;
-        auto& ins = it->second;
-        const Point3& pa = X.pts[L[i]];
-        std::sort(ins.begin(), ins.end(), [&](int x, int y) {
-          return CGAL::compare_distance_to_point(pa, X.pts[x], X.pts[y]) == CGAL::SMALLER;
-        });
-        for (int v : ins) NL.push_back(v);
+        const Vec3& a = ap[L[i]];
+        const Vec3& b = ap[L[(i + 1) % L.size()]];
+        double lo3[3], hi3[3];
+        for (int t = 0; t < 3; ++t)
+          lo3[t] = std::min(a[t], b[t]) - tol, hi3[t] = std::max(a[t], b[t]) + tol;
+        eboxes.emplace_back(lo3, hi3, int(erefs.size()));
+        erefs.push_back({r, l, i});
       }
-      L = std::move(NL);
     }
+  for (size_t v = 0; v < nv; ++v) {
+    double lo3[3], hi3[3];
+    for (int t = 0; t < 3; ++t) lo3[t] = ap[v][t] - tol, hi3[t] = ap[v][t] + tol;
+    vboxes.emplace_back(lo3, hi3, int(v));
   }
+  std::vector<std::pair<int, int>> cand;
+  CGAL::box_intersection_d(
+      eboxes.begin(), eboxes.end(), vboxes.begin(), vboxes.end(),
+      [&](const Box& e, const Box& v) { cand.emplace_back(e.info(), v.info()); });
+  std::sort(cand.begin(), cand.end());
+  std::map<std::pair<int, int>, std::map<int, std::vector<int>>> inserts;  // (r,l) -> i -> vertices
+  for (const auto& [ei, v] : cand) {
+    const ERef& er = erefs[ei];
+    const auto& L = X.groups[er.r].loops[er.l];
+    const int a = L[er.i], b = L[(er.i + 1) % L.size()];
+    if (v == a || v == b) continue;
+    const Point3 &pa = X.pts[a], &pb = X.pts[b], &pv = X.pts[v];
+    if (CGAL::collinear(pa, pb, pv) && CGAL::collinear_are_strictly_ordered_along_line(pa, pv, pb))
+      inserts[{er.r, er.l}][er.i].push_back(v);
+  }
+  for (auto& [rl, byedge] : inserts) {
+    auto& L = X.groups[rl.first].loops[rl.second];
+    std::vector<int> NL;
+    NL.reserve(L.size() + byedge.size());
+    for (int i = 0; i < int(L.size()); ++i) {
+      NL.push_back(L[i]);
+      auto it = byedge.find(i);
+      if (it == byedge.end()) continue;
+      auto& ins = it->second;
+      const Point3& pa = X.pts[L[i]];
+      std::sort(ins.begin(), ins.end(), [&](int x, int y) {
+        return CGAL::compare_distance_to_point(pa, X.pts[x], X.pts[y]) == CGAL::SMALLER;
+      });
+      for (int v : ins) NL.push_back(v);
+    }
+    L = std::move(NL);
+  }
+}
 
-  prof.lap("tjunctions");
-  // --- triangulate each plane side; each connected domain is one merged region
-  for (Group& G : X.groups) {
-    const int k = G.k, u = (k + 1) % 3, w = (k + 2) % 3;
-    const bool flip = G.side * I.dplanes[G.plane][k] < 0;  // CCW in 2D is CW seen from outside
-    CDT cdt;
-    std::unordered_map<uint64_t, int> edge_loop;
-    for (int l = 0; l < int(G.loops.size()); ++l) {
-      const auto& Lp = G.loops[l];
-      std::vector<CDT::Vertex_handle> vh;
-      vh.reserve(Lp.size());
-      for (int id : Lp) {
-        auto it = G.p2.find(id);
-        const Point2 q =
-            it != G.p2.end() ? it->second : Point2(X.pts[id].cartesian(u), X.pts[id].cartesian(w));
-        CDT::Vertex_handle h = cdt.insert(q);
-        h->info() = id;
-        vh.push_back(h);
-      }
-      for (size_t i = 0; i < vh.size(); ++i) {
-        const int a = Lp[i], b = Lp[(i + 1) % Lp.size()];
-        edge_loop[(uint64_t(uint32_t(a)) << 32) | uint32_t(b)] = l;
-        cdt.insert_constraint(vh[i], vh[(i + 1) % vh.size()]);
-      }
+/// Phase 4: triangulates one plane side; each connected domain is one merged
+/// region, output as its loop when that is a simple polygon, else as triangles.
+void triangulate_group(const BspData& I, const std::vector<Point3>& pts, Group& G) {
+  const int k = G.k, u = (k + 1) % 3, w = (k + 2) % 3;
+  const bool flip = G.side * I.dplanes[G.plane][k] < 0;  // CCW in 2D is CW seen from outside
+  CDT cdt;
+  std::unordered_map<uint64_t, int> edge_loop;
+  for (int l = 0; l < int(G.loops.size()); ++l) {
+    const auto& Lp = G.loops[l];
+    std::vector<CDT::Vertex_handle> vh;
+    vh.reserve(Lp.size());
+    for (int id : Lp) {
+      auto it = G.p2.find(id);
+      const Point2 q =
+          it != G.p2.end() ? it->second : Point2(pts[id].cartesian(u), pts[id].cartesian(w));
+      CDT::Vertex_handle h = cdt.insert(q);
+      h->info() = id;
+      vh.push_back(h);
     }
-    mark_domains(cdt);
-    int ndom = 0;
-    std::vector<std::vector<int>> dom_tris, dom_loops;
-    for (auto f0 = cdt.finite_faces_begin(); f0 != cdt.finite_faces_end(); ++f0) {
-      if (f0->info().nesting % 2 != 1 || f0->info().domain >= 0) continue;
-      const int dom = ndom++;
-      std::vector<int> dtris;
-      std::vector<int> dloops;
-      std::deque<CDT::Face_handle> queue{f0};
-      f0->info().domain = dom;
-      while (!queue.empty()) {
-        CDT::Face_handle fh = queue.front();
-        queue.pop_front();
-        for (int t = 0; t < 3; ++t) dtris.push_back(fh->vertex(t)->info());
-        for (int i = 0; i < 3; ++i) {
-          if (cdt.is_constrained(CDT::Edge(fh, i))) {
-            const int a = fh->vertex(CDT::ccw(i))->info(), b = fh->vertex(CDT::cw(i))->info();
-            auto it = edge_loop.find((uint64_t(uint32_t(a)) << 32) | uint32_t(b));
-            if (it == edge_loop.end())
-              throw std::logic_error("Bsp::extract: constraint not on a loop");
-            dloops.push_back(it->second);
-            continue;
-          }
-          CDT::Face_handle n = fh->neighbor(i);
-          if (cdt.is_infinite(n) || n->info().domain >= 0) continue;
-          n->info().domain = dom;
-          queue.push_back(n);
-        }
-      }
-      std::sort(dloops.begin(), dloops.end());
-      dloops.erase(std::unique(dloops.begin(), dloops.end()), dloops.end());
-      if (flip)
-        for (size_t i = 0; i < dtris.size(); i += 3) std::swap(dtris[i + 1], dtris[i + 2]);
-      dom_tris.push_back(std::move(dtris));
-      dom_loops.push_back(std::move(dloops));
+    for (size_t i = 0; i < vh.size(); ++i) {
+      const int a = Lp[i], b = Lp[(i + 1) % Lp.size()];
+      edge_loop[(uint64_t(uint32_t(a)) << 32) | uint32_t(b)] = l;
+      cdt.insert_constraint(vh[i], vh[(i + 1) % vh.size()]);
     }
-    // a loop touching itself at a vertex may bound several domains, or one
-    // domain through a pinch (a weakly simple polygon that triangulators of
-    // OBJ readers get wrong): then those domains are output as triangles, not
-    // as the loop
-    std::vector<int> loop_doms(G.loops.size(), 0);
-    for (const auto& dl : dom_loops)
-      for (int l : dl) ++loop_doms[l];
-    auto simple = [](std::vector<int> ids) {
-      std::sort(ids.begin(), ids.end());
-      return std::adjacent_find(ids.begin(), ids.end()) == ids.end();
-    };
-    for (int d = 0; d < ndom; ++d) {
-      const auto& dtris = dom_tris[d];
-      if (dom_loops[d].size() == 1 && loop_doms[dom_loops[d][0]] == 1 &&
-          simple(G.loops[dom_loops[d][0]])) {
-        std::vector<int> face = G.loops[dom_loops[d][0]];
-        if (flip) std::reverse(face.begin(), face.end());
-        G.faces.push_back(std::move(face));
-      } else {
-        for (size_t i = 0; i < dtris.size(); i += 3)
-          G.faces.push_back({dtris[i], dtris[i + 1], dtris[i + 2]});
-      }
-      G.tris.insert(G.tris.end(), dtris.begin(), dtris.end());
-    }
-    G.regions = ndom;
   }
-  prof.lap("triangulate");
+  mark_domains(cdt);
+  int ndom = 0;
+  std::vector<std::vector<int>> dom_tris, dom_loops;
+  for (auto f0 = cdt.finite_faces_begin(); f0 != cdt.finite_faces_end(); ++f0) {
+    if (f0->info().nesting % 2 != 1 || f0->info().domain >= 0) continue;
+    const int dom = ndom++;
+    std::vector<int> dtris;
+    std::vector<int> dloops;
+    std::deque<CDT::Face_handle> queue{f0};
+    f0->info().domain = dom;
+    while (!queue.empty()) {
+      CDT::Face_handle fh = queue.front();
+      queue.pop_front();
+      for (int t = 0; t < 3; ++t) dtris.push_back(fh->vertex(t)->info());
+      for (int i = 0; i < 3; ++i) {
+        if (cdt.is_constrained(CDT::Edge(fh, i))) {
+          const int a = fh->vertex(CDT::ccw(i))->info(), b = fh->vertex(CDT::cw(i))->info();
+          auto it = edge_loop.find((uint64_t(uint32_t(a)) << 32) | uint32_t(b));
+          if (it == edge_loop.end())
+            throw std::logic_error("Bsp::extract: constraint not on a loop");
+          dloops.push_back(it->second);
+          continue;
+        }
+        CDT::Face_handle n = fh->neighbor(i);
+        if (cdt.is_infinite(n) || n->info().domain >= 0) continue;
+        n->info().domain = dom;
+        queue.push_back(n);
+      }
+    }
+    std::sort(dloops.begin(), dloops.end());
+    dloops.erase(std::unique(dloops.begin(), dloops.end()), dloops.end());
+    if (flip)
+      for (size_t i = 0; i < dtris.size(); i += 3) std::swap(dtris[i + 1], dtris[i + 2]);
+    dom_tris.push_back(std::move(dtris));
+    dom_loops.push_back(std::move(dloops));
+  }
+  // a loop touching itself at a vertex may bound several domains, or one
+  // domain through a pinch (a weakly simple polygon that triangulators of
+  // OBJ readers get wrong): then those domains are output as triangles, not
+  // as the loop
+  std::vector<int> loop_doms(G.loops.size(), 0);
+  for (const auto& dl : dom_loops)
+    for (int l : dl) ++loop_doms[l];
+  auto simple = [](std::vector<int> ids) {
+    std::sort(ids.begin(), ids.end());
+    return std::adjacent_find(ids.begin(), ids.end()) == ids.end();
+  };
+  for (int d = 0; d < ndom; ++d) {
+    const auto& dtris = dom_tris[d];
+    if (dom_loops[d].size() == 1 && loop_doms[dom_loops[d][0]] == 1 &&
+        simple(G.loops[dom_loops[d][0]])) {
+      std::vector<int> face = G.loops[dom_loops[d][0]];
+      if (flip) std::reverse(face.begin(), face.end());
+      G.faces.push_back(std::move(face));
+    } else {
+      for (size_t i = 0; i < dtris.size(); i += 3)
+        G.faces.push_back({dtris[i], dtris[i + 1], dtris[i + 2]});
+    }
+    G.tris.insert(G.tris.end(), dtris.begin(), dtris.end());
+  }
+  G.regions = ndom;
+}
+
+// One extraction pass: the boundary of the union of the cells `in_nodes`.
+Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, ExtractCache* cache) {
+  Extracted X;
+  PassCoords pc(I);
+  std::map<int, std::vector<F2>> byplane = gather_faces(I, in_nodes, pc);
+  plane_regions(I, byplane, cache, pc, X);
+  insert_tjunctions(X);
+  for (Group& G : X.groups) triangulate_group(I, X.pts, G);
   return X;
 }
 
@@ -951,104 +946,94 @@ bool cell_contains(const BspData& I, const Cell& c, const Point3& p) {
   return true;
 }
 
-}  // namespace
+using Boxes = std::vector<std::pair<Vec3, Vec3>>;
 
-BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& partition,
-                                 std::vector<char> inside, ExtractCache* cache) {
+/// Bounding boxes (double) of the cells of `partition`.
+Boxes cell_boxes(const BspData& D, const std::vector<int>& partition) {
+  const auto& cells = D.cells;
+  const auto& verts = D.verts;
+  Boxes bbox(partition.size());
+  for (size_t i = 0; i < partition.size(); ++i) {
+    Vec3 lo3 = Vec3::Constant(1e300), hi3 = Vec3::Constant(-1e300);
+    for (int v : D.cell_vertex_ids(cells[partition[i]]))
+      lo3 = lo3.cwiseMin(verts[v].approx), hi3 = hi3.cwiseMax(verts[v].approx);
+    bbox[i] = {lo3, hi3};
+  }
+  return bbox;
+}
+
+/// True when box b lies more than tol outside [lo, hi] along some axis.
+bool box_apart(const std::pair<Vec3, Vec3>& b, const Vec3& lo, const Vec3& hi, double tol) {
+  return (b.first.array() > hi.array() + tol).any() || (b.second.array() < lo.array() - tol).any();
+}
+
+/// The out-cells turned in to remove the non-manifold edges `bad` (sorted,
+/// unique): per edge, the smallest out-cell whose closure holds its midpoint.
+std::vector<int> edge_flips(const BspData& D, const std::vector<int>& partition,
+                            const std::vector<char>& inside, const Extracted& X,
+                            const std::vector<std::pair<int, int>>& bad, const Boxes& bbox) {
   const auto& cells = D.cells;
   const auto& nodes = D.nodes;
-  const auto& verts = D.verts;
-  if (inside.size() != partition.size())
-    throw std::invalid_argument("Bsp::extract: labels / partition size mismatch");
-  for (int n : partition)
-    if (n < 0 || n >= int(cells.size())) throw std::out_of_range("Bsp::extract: node id");
-  BspSurface S;
-  Extracted X;
-  std::vector<std::pair<Vec3, Vec3>> bbox;  // lazily filled
-  const int max_rounds = 64;
-  std::vector<char> locked(partition.size(),
-                           0);  // flipped by the pinch repair once: not chosen again
-  S.edge_repaired.assign(partition.size(), 0);
-  for (int round = 0;; ++round) {
-    X = extract_once(D, collapse_inside(D, partition, inside), cache);
-    const auto bad = nonmanifold_edges(X);
-    // Pinched vertices are repaired in the first half of the rounds only, so
-    // the last rounds always end the edge repair (which never fails).
-    const auto pinched =
-        bad.empty() && round < max_rounds / 2 ? pinched_vertices(X) : std::vector<int>{};
-    if ((bad.empty() && pinched.empty()) || round >= max_rounds) break;
-    if (bbox.empty()) {
-      bbox.resize(partition.size());
-      for (size_t i = 0; i < partition.size(); ++i) {
-        Vec3 lo3 = Vec3::Constant(1e300), hi3 = Vec3::Constant(-1e300);
-        for (int v : D.cell_vertex_ids(cells[partition[i]]))
-          lo3 = lo3.cwiseMin(verts[v].approx), hi3 = hi3.cwiseMax(verts[v].approx);
-        bbox[i] = {lo3, hi3};
-      }
+  std::vector<int> flip;
+  for (const auto& [a, b] : bad) {
+    // out-cells around the edge: those whose closure contains its midpoint
+    // (an out-wedge may be cut into several cells along the edge; flipping
+    // one shortens the non-manifold part, the next round handles the rest)
+    const Point3 &pa = X.pts[a], &pb = X.pts[b];
+    const Point3 mid = CGAL::midpoint(pa, pb);
+    const Vec3 qa(CGAL::to_double(pa.x()), CGAL::to_double(pa.y()), CGAL::to_double(pa.z()));
+    const Vec3 qb(CGAL::to_double(pb.x()), CGAL::to_double(pb.y()), CGAL::to_double(pb.z()));
+    const Vec3 elo = qa.cwiseMin(qb), ehi = qa.cwiseMax(qb);
+    const double tol =
+        1e-6 * (1.0 + std::max(elo.cwiseAbs().maxCoeff(), ehi.cwiseAbs().maxCoeff()));
+    int best = -1;
+    for (size_t i = 0; i < partition.size(); ++i) {
+      if (inside[i]) continue;
+      if (box_apart(bbox[i], elo, ehi, tol)) continue;
+      const Cell& c = cells[partition[i]];
+      if (!cell_contains(D, c, mid)) continue;
+      if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
     }
-    std::vector<int> flip;
-    for (const auto& [a, b] : bad) {
-      // out-cells around the edge: those whose closure contains its midpoint (an
-      // out-wedge may be cut into several cells along the edge; flipping one
-      // shortens the non-manifold part, the next round handles the rest)
-      const Point3 &pa = X.pts[a], &pb = X.pts[b];
-      const Point3 mid = CGAL::midpoint(pa, pb);
-      const Vec3 qa(CGAL::to_double(pa.x()), CGAL::to_double(pa.y()), CGAL::to_double(pa.z()));
-      const Vec3 qb(CGAL::to_double(pb.x()), CGAL::to_double(pb.y()), CGAL::to_double(pb.z()));
-      const Vec3 elo = qa.cwiseMin(qb), ehi = qa.cwiseMax(qb);
-      const double tol =
-          1e-6 * (1.0 + std::max(elo.cwiseAbs().maxCoeff(), ehi.cwiseAbs().maxCoeff()));
-      int best = -1;
-      for (size_t i = 0; i < partition.size(); ++i) {
-        if (inside[i]) continue;
-        if ((bbox[i].first.array() > ehi.array() + tol).any() ||
-            (bbox[i].second.array() < elo.array() - tol).any())
-          continue;
-        const Cell& c = cells[partition[i]];
-        if (!cell_contains(D, c, mid)) continue;
-        if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
-      }
-      if (best >= 0) flip.push_back(best);
-    }
-    std::sort(flip.begin(), flip.end());
-    flip.erase(std::unique(flip.begin(), flip.end()), flip.end());
-    const size_t n_edge_flips = flip.size();
-    // (ours) A pinched vertex (two in-cones meeting at a point) is removed by
-    // the smallest change: the smallest cell whose closure holds the vertex,
-    // in or out, changes sides (joining the cones or cutting one back).
-    std::vector<int> flip_out;
-    for (int v : pinched) {
-      const Point3& p = X.pts[size_t(v)];
-      const Vec3 q(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
-      const double tol = 1e-6 * (1.0 + q.cwiseAbs().maxCoeff());
-      int best = -1;
-      for (size_t i = 0; i < partition.size(); ++i) {
-        if (locked[i]) continue;
-        if ((bbox[i].first.array() > q.array() + tol).any() ||
-            (bbox[i].second.array() < q.array() - tol).any())
-          continue;
-        if (!cell_contains(D, cells[partition[i]], p)) continue;
-        if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
-      }
-      if (best >= 0 && !std::binary_search(flip.begin(), flip.begin() + long(n_edge_flips), best))
-        (inside[size_t(best)] ? flip_out : flip).push_back(best);
-    }
-    std::sort(flip.begin() + long(n_edge_flips), flip.end());
-    flip.erase(std::unique(flip.begin() + long(n_edge_flips), flip.end()), flip.end());
-    std::sort(flip_out.begin(), flip_out.end());
-    flip_out.erase(std::unique(flip_out.begin(), flip_out.end()), flip_out.end());
-    if (flip.empty() && flip_out.empty()) break;
-    for (size_t k = 0; k < flip.size(); ++k) {
-      inside[size_t(flip[k])] = 1;
-      if (k >= n_edge_flips) locked[size_t(flip[k])] = 1;
-    }
-    for (size_t k = 0; k < n_edge_flips; ++k) S.edge_repaired[size_t(flip[k])] = 1;
-    for (int i : flip_out) inside[i] = 0, locked[size_t(i)] = 1;
-    S.labels_flipped += int(flip.size() + flip_out.size());
+    if (best >= 0) flip.push_back(best);
   }
+  std::sort(flip.begin(), flip.end());
+  flip.erase(std::unique(flip.begin(), flip.end()), flip.end());
+  return flip;
+}
 
-  S.inside = inside;
-  // --- convert once
+/// (ours) A pinched vertex (two in-cones meeting at a point) is removed by
+/// the smallest change: the smallest cell whose closure holds the vertex, in
+/// or out, changes sides (joining the cones or cutting one back). Out-cells to
+/// turn in are appended to `flip` after its first `n_edge_flips` entries (the
+/// edge repair's), in-cells to turn out go to `flip_out`; both sorted, unique.
+void pinch_flips(const BspData& D, const std::vector<int>& partition,
+                 const std::vector<char>& inside, const std::vector<char>& locked,
+                 const Extracted& X, const std::vector<int>& pinched, const Boxes& bbox,
+                 size_t n_edge_flips, std::vector<int>& flip, std::vector<int>& flip_out) {
+  const auto& cells = D.cells;
+  const auto& nodes = D.nodes;
+  for (int v : pinched) {
+    const Point3& p = X.pts[size_t(v)];
+    const Vec3 q(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
+    const double tol = 1e-6 * (1.0 + q.cwiseAbs().maxCoeff());
+    int best = -1;
+    for (size_t i = 0; i < partition.size(); ++i) {
+      if (locked[i]) continue;
+      if (box_apart(bbox[i], q, q, tol)) continue;
+      if (!cell_contains(D, cells[partition[i]], p)) continue;
+      if (best < 0 || nodes[partition[i]].volume < nodes[partition[best]].volume) best = int(i);
+    }
+    if (best >= 0 && !std::binary_search(flip.begin(), flip.begin() + long(n_edge_flips), best))
+      (inside[size_t(best)] ? flip_out : flip).push_back(best);
+  }
+  std::sort(flip.begin() + long(n_edge_flips), flip.end());
+  flip.erase(std::unique(flip.begin() + long(n_edge_flips), flip.end()), flip.end());
+  std::sort(flip_out.begin(), flip_out.end());
+  flip_out.erase(std::unique(flip_out.begin(), flip_out.end()), flip_out.end());
+}
+
+/// The extracted surface converted to double once: polygons and triangles.
+void convert(const Extracted& X, BspSurface& S) {
   S.polygons.vertices.resize(X.pts.size());
   for (size_t i = 0; i < X.pts.size(); ++i)
     S.polygons.vertices[i] =
@@ -1061,7 +1046,55 @@ BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& parti
       S.triangles.triangles.push_back({G.tris[i], G.tris[i + 1], G.tris[i + 2]});
     for (const auto& f : G.faces) S.polygons.faces.push_back(f);
   }
+}
+
+}  // namespace
+
+BspSurface bspi::extract_surface(const BspData& D, const std::vector<int>& partition,
+                                 std::vector<char> inside, ExtractCache* cache) {
+  const auto& cells = D.cells;
+  if (inside.size() != partition.size())
+    throw std::invalid_argument("Bsp::extract: labels / partition size mismatch");
+  for (int n : partition)
+    if (n < 0 || n >= int(cells.size())) throw std::out_of_range("Bsp::extract: node id");
+  BspSurface S;
+  Extracted X;
+  Boxes bbox;  // lazily filled
+  const int max_rounds = 64;
+  std::vector<char> locked(partition.size(),
+                           0);  // flipped by the pinch repair once: not chosen again
+  S.edge_repaired.assign(partition.size(), 0);
+  for (int round = 0;; ++round) {
+    X = extract_once(D, collapse_inside(D, partition, inside), cache);
+    const auto bad = nonmanifold_edges(X);
+    // Pinched vertices are repaired in the first half of the rounds only, so
+    // the last rounds always end the edge repair (which never fails).
+    const auto pinched =
+        bad.empty() && round < max_rounds / 2 ? pinched_vertices(X) : std::vector<int>{};
+    if ((bad.empty() && pinched.empty()) || round >= max_rounds) break;
+    if (bbox.empty()) bbox = cell_boxes(D, partition);
+    std::vector<int> flip = edge_flips(D, partition, inside, X, bad, bbox);
+    const size_t n_edge_flips = flip.size();
+    std::vector<int> flip_out;
+    pinch_flips(D, partition, inside, locked, X, pinched, bbox, n_edge_flips, flip, flip_out);
+    if (flip.empty() && flip_out.empty()) break;
+    for (size_t k = 0; k < flip.size(); ++k) {
+      inside[size_t(flip[k])] = 1;
+      if (k >= n_edge_flips) locked[size_t(flip[k])] = 1;
+    }
+    for (size_t k = 0; k < n_edge_flips; ++k) S.edge_repaired[size_t(flip[k])] = 1;
+    for (int i : flip_out) inside[i] = 0, locked[size_t(i)] = 1;
+    S.labels_flipped += int(flip.size() + flip_out.size());
+  }
+
+  S.inside = inside;
+  convert(X, S);
   return S;
+}
+
+BspSurface Bsp::extract(const std::vector<int>& partition, std::vector<char> inside,
+                        ExtractCache* cache) const {
+  return extract_surface(*impl_, partition, std::move(inside), cache);
 }
 
 }  // namespace citylod::lod::detail

@@ -1,5 +1,6 @@
 // Internal to bsp*.cpp: the exact (EPECK) representation behind detail::Bsp.
-// Only bsp.cpp and bsp_extract.cpp include this header (CGAL stays inside them).
+// Only bsp.cpp, bsp_adjacency.cpp and bsp_extract.cpp include this header (CGAL
+// stays inside them).
 //
 // Representation (Appendix B of the paper, DESIGN.md "Numeric robustness"):
 //  - a plane table of exact planes built from double coefficients (merged when

@@ -1,7 +1,7 @@
-// Closure of airborne LiDAR buildings: ground plane + vertical walls through the
-// (simplified) outline when the samples have (almost) no walls.
-#include "airborne.hpp"
-#include "primitives.hpp"
+// Closure of buildings whose walls or bottom were not scanned: ground/base
+// plane, vertical walls through the (simplified) outline, terrain kept as a
+// plinth or cut off; close_building runs the phases in order.
+#include "closure.hpp"
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
 #include <CGAL/Delaunay_triangulation_2.h>
@@ -40,6 +40,8 @@ double seg_dist(const Vec2& p, const Vec2& a, const Vec2& b) {
   t = std::clamp(t, 0.0, 1.0);
   return (p - (a + t * ab)).norm();
 }
+
+}  // namespace
 
 /// Largest outer boundary loop (CCW) of the 2D alpha-shape of the points.
 std::vector<Vec2> alpha_outline(const std::vector<Vec2>& xy, double alpha) {
@@ -101,6 +103,8 @@ std::vector<Vec2> alpha_outline(const std::vector<Vec2>& xy, double alpha) {
   return best;
 }
 
+namespace {
+
 void dp_rec(const std::vector<Vec2>& p, std::size_t i, std::size_t j, double tol,
             std::vector<char>& keep) {
   if (j <= i + 1) return;
@@ -119,6 +123,8 @@ void dp_rec(const std::vector<Vec2>& p, std::size_t i, std::size_t j, double tol
     dp_rec(p, k, j, tol, keep);
   }
 }
+
+}  // namespace
 
 /// Douglas-Peucker on a closed polygon, then merge of nearly collinear edges.
 std::vector<Vec2> simplify_closed(std::vector<Vec2> poly, double tol, double angle_deg) {
@@ -166,6 +172,8 @@ std::vector<Vec2> simplify_closed(std::vector<Vec2> poly, double tol, double ang
   return out;
 }
 
+namespace {
+
 bool point_in_poly(const Vec2& p, const std::vector<Vec2>& poly) {
   bool in = false;
   for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
@@ -197,12 +205,17 @@ std::vector<std::array<Vec2, 3>> triangulate(const std::vector<Vec2>& poly) {
   return out;
 }
 
-}  // namespace
-
-Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
-                       std::vector<Primitive>& prims) {
-  Closure res;
-  if (!p.enabled || s.points.size() < 3) return res;
+/// Phase 1: the samples' height range, and whether walls are missing: few
+/// samples face sideways, or those that do formed no wall planes (airborne
+/// LiDAR: noisy roof edges, a few facade hits). False when the samples carry
+/// no weight.
+struct Coverage {
+  double zmin = 0, zmax = 0;
+  bool walls_unscanned = false;
+  bool walls_missing = false;
+};
+bool find_missing_walls(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                        const std::vector<Primitive>& prims, Coverage& c) {
   double wall_w = 0, total_w = 0;
   double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
   for (std::size_t i = 0; i < s.points.size(); ++i) {
@@ -212,28 +225,40 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     zmin = std::min(zmin, s.points[i].z());
     zmax = std::max(zmax, s.points[i].z());
   }
-  if (total_w <= 0) return res;
-  // Walls are missing when few samples face sideways, or when those that do
-  // formed no wall planes (airborne LiDAR: noisy roof edges, a few facade hits).
+  c.zmin = zmin;
+  c.zmax = zmax;
+  if (total_w <= 0) return false;
   double vertical_area = 0, prim_area = 0;
   for (const auto& pr : prims) {
     if (pr.inferred) continue;
     prim_area += pr.alpha_area;
     if (std::abs(pr.normal.z()) < 0.3) vertical_area += pr.alpha_area;
   }
-  const bool walls_unscanned =
-      wall_w / total_w < p.wall_fraction_min || vertical_area < 0.1 * prim_area;
-  const bool walls_missing = walls_unscanned || (p.footprint_walls && in.footprint.size() >= 3);
-  // An open bottom (facade scans, meshes standing on a terrain sheet) lets the
-  // ray labelling leak as much as missing walls do: close it with a base plane
-  // unless a downward-facing horizontal primitive already lies at the bottom.
-  // A terrain sheet (a large upward-facing plane at the bottom, as in
-  // photogrammetry meshes cut out of a city model) is kept as a plinth or cut
-  // off (p.terrain). Terrain reaches the edge of the cut-out scene and lies
-  // mostly outside the building; interior floors seen through windows
-  // (terrestrial scans) stop at the walls, short of the scene's bounding box
-  // (eaves, cornices, scanned ground strips stick out further).
+  c.walls_unscanned = wall_w / total_w < p.wall_fraction_min || vertical_area < 0.1 * prim_area;
+  c.walls_missing = c.walls_unscanned || (p.footprint_walls && in.footprint.size() >= 3);
+  return true;
+}
+
+/// Phase 2: floor and terrain. An open bottom (facade scans, meshes standing
+/// on a terrain sheet) lets the ray labelling leak as much as missing walls
+/// do: close it with a base plane unless a downward-facing horizontal
+/// primitive already lies at the bottom. A terrain sheet (a large
+/// upward-facing plane at the bottom, as in photogrammetry meshes cut out of a
+/// city model) is kept as a plinth or cut off (p.terrain). Terrain reaches the
+/// edge of the cut-out scene and lies mostly outside the building; interior
+/// floors seen through windows (terrestrial scans) stop at the walls, short of
+/// the scene's bounding box (eaves, cornices, scanned ground strips stick out
+/// further).
+struct Terrain {
   bool has_floor = false, on_terrain = false;
+  const Primitive* plane = nullptr;    ///< the largest terrain plane
+  std::vector<Vec2> building_outline;  ///< over a terrain
+  std::vector<char> on_low_up;         ///< samples of upward planes low down (terrain pieces)
+};
+Terrain find_terrain(const Samples& s, const ClosureParams& p, const std::vector<Primitive>& prims,
+                     const Coverage& cov) {
+  const double zmin = cov.zmin, zmax = cov.zmax;
+  Terrain t;
   double xy_area = 0;
   Vec2 xy_lo(s.points[0].x(), s.points[0].y()), xy_hi = xy_lo;
   for (const auto& q : s.points) {
@@ -255,64 +280,57 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     return !pr.inferred && pr.normal.z() > 0.9 && pr.centroid.z() < zmin + 0.25 * (zmax - zmin);
   };
   double low_up_area = 0;
-  const Primitive* terrain = nullptr;  // the largest terrain plane
+  const Primitive*& terrain = t.plane;
   for (const auto& pr : prims) {
-    if (!pr.inferred && pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5) has_floor = true;
+    if (!pr.inferred && pr.normal.z() < -0.95 && pr.centroid.z() < zmin + 0.5) t.has_floor = true;
     if (!low_up(pr) || !reaches_edge(pr)) continue;
     low_up_area += pr.alpha_area;
     if (!terrain || pr.alpha_area > terrain->alpha_area) terrain = &pr;
   }
-  on_terrain = low_up_area > 0.08 * xy_area && !walls_missing;
+  t.on_terrain = low_up_area > 0.08 * xy_area && !cov.walls_missing;
+  if (!t.on_terrain) return t;
   // The building's outline over a terrain: samples clearly above the terrain
   // (walls, roofs), not those of upward planes low down (terrain pieces).
-  std::vector<Vec2> building_outline;
-  std::vector<char> on_low_up;  // samples of upward planes low down (terrain pieces)
-  if (on_terrain) {
-    on_low_up.assign(s.points.size(), 0);
-    for (const auto& pr : prims)
-      if (low_up(pr))
-        for (int i : pr.inliers) on_low_up[size_t(i)] = 1;
-    const Vec3& tn = terrain->normal;
-    std::vector<Vec2> xy;
-    for (std::size_t i = 0; i < s.points.size(); ++i) {
-      const Vec3& q = s.points[i];
-      if (on_low_up[i] || tn.dot(q) + terrain->d < 1.0)
-        continue;  // terrain, or within 1 m above it
-      xy.emplace_back(q.x(), q.y());
-    }
-    if (xy.size() >= 3) building_outline = alpha_outline(xy, p.outline_alpha);
-    if (building_outline.size() >= 3)
-      building_outline = simplify_closed(building_outline, 0.4, 10.0);
-    // Terrain lies around the building: most of its samples outside the
-    // building's outline. A building's own floor with upward (mis-estimated)
-    // normals reaches the scene's edge too, but lies under the building.
-    std::size_t outside = 0, total = 0;
-    for (const auto& pr : prims) {
-      if (!low_up(pr) || !reaches_edge(pr)) continue;
-      for (int i : pr.inliers) {
-        ++total;
-        outside += building_outline.size() < 3 ||
-                   !point_in_poly(Vec2(s.points[size_t(i)].x(), s.points[size_t(i)].y()),
-                                  building_outline);
-      }
-    }
-    on_terrain = 2 * outside > total;
+  std::vector<Vec2>& building_outline = t.building_outline;
+  std::vector<char>& on_low_up = t.on_low_up;
+  on_low_up.assign(s.points.size(), 0);
+  for (const auto& pr : prims)
+    if (low_up(pr))
+      for (int i : pr.inliers) on_low_up[size_t(i)] = 1;
+  const Vec3& tn = terrain->normal;
+  std::vector<Vec2> xy;
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    const Vec3& q = s.points[i];
+    if (on_low_up[i] || tn.dot(q) + terrain->d < 1.0) continue;  // terrain, or within 1 m above it
+    xy.emplace_back(q.x(), q.y());
   }
-  // A terrain sheet kept as a plinth: base plane under the whole scene and
-  // walls up to the terrain along the scene's outline. The terrain has a hole
-  // where the building stands; the ground floor's rays that escape through it
-  // meet the plinth's base from inside.
-  const bool plinth = on_terrain && p.terrain == "plinth";
-  if (!walls_missing && has_floor && !plinth) return res;
-  // Cut: on a terrain sheet the base goes under the building only, at the
-  // terrain's height (rays from the ground floor escaping through the hole in
-  // the terrain would turn the ground floor out).
-  if (!on_terrain || plinth) terrain = nullptr;
+  if (xy.size() >= 3) building_outline = alpha_outline(xy, p.outline_alpha);
+  if (building_outline.size() >= 3) building_outline = simplify_closed(building_outline, 0.4, 10.0);
+  // Terrain lies around the building: most of its samples outside the
+  // building's outline. A building's own floor with upward (mis-estimated)
+  // normals reaches the scene's edge too, but lies under the building.
+  std::size_t outside = 0, total = 0;
+  for (const auto& pr : prims) {
+    if (!low_up(pr) || !reaches_edge(pr)) continue;
+    for (int i : pr.inliers) {
+      ++total;
+      outside +=
+          building_outline.size() < 3 ||
+          !point_in_poly(Vec2(s.points[size_t(i)].x(), s.points[size_t(i)].y()), building_outline);
+    }
+  }
+  t.on_terrain = 2 * outside > total;
+  return t;
+}
 
-  // Outline (CCW in xy).
+/// Phase 3: the outline (CCW in xy) the ground and walls stand on: the
+/// building's outline over a terrain that is cut off, else the footprint when
+/// given (not for a plinth), else the simplified 2D alpha-shape of the samples.
+std::vector<Vec2> closure_outline(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                                  const Terrain& t, const Primitive* terrain, bool plinth) {
   std::vector<Vec2> outline;
   if (terrain) {
-    outline = building_outline;
+    outline = t.building_outline;
   } else if (in.footprint.size() >= 3 && !plinth) {
     outline = in.footprint;
     // Drop a closing duplicate vertex.
@@ -325,8 +343,14 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     outline = alpha_outline(xy, p.outline_alpha);
     if (outline.size() >= 3) outline = simplify_closed(outline, 0.4, 10.0);
   }
-  if (outline.size() < 3 || !(signed_area(outline) > 0)) return res;
+  return outline;
+}
 
+/// Phase 4: the ground's height: the input's ground height when given, else
+/// the lowest sample; a plinth's base p.plinth_depth below it; on a terrain
+/// that is cut off, the terrain plane's height under the outline's centroid.
+double ground_height(const BuildingInput& in, const ClosureParams& p, const Primitive* terrain,
+                     const std::vector<Vec2>& outline, bool plinth, double zmin) {
   double gz = in.has_ground_z && !plinth ? in.ground_z : zmin;
   if (plinth) gz = zmin - p.plinth_depth;
   if (terrain) {  // the terrain plane's height under the outline's centroid
@@ -336,52 +360,50 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     const Vec3& tn = terrain->normal;
     gz = -(tn.x() * c.x() + tn.y() * c.y() + terrain->d) / tn.z();
   }
-  int added = 0;
-  res.outline = outline;
-  res.ground_z = gz;
+  return gz;
+}
 
-  // Ground: normal -z (outward = down); CCW about -z = CW in xy.
-  {
-    Primitive g;
-    g.inferred = true;
-    g.normal = -Vec3::UnitZ();
-    g.d = gz;  // -z + gz = 0  <=> z = gz
-    g.u = Vec3::UnitX();
-    g.v = g.normal.cross(g.u);
-    std::vector<P2> pts, hull;
-    for (const auto& q : outline) pts.emplace_back(q.x(), q.y());
-    CGAL::convex_hull_2(pts.begin(), pts.end(), std::back_inserter(hull));
-    for (auto it = hull.rbegin(); it != hull.rend(); ++it)
-      g.hull.emplace_back(it->x(), it->y(), gz);
-    double ha = 0;
-    for (std::size_t i = 0; i < hull.size(); ++i) {
-      const P2& a = hull[i];
-      const P2& b = hull[(i + 1) % hull.size()];
-      ha += a.x() * b.y() - b.x() * a.y();
-    }
-    g.hull_area = 0.5 * ha;
-    for (const auto& t : triangulate(outline)) {
-      g.alpha_tris.push_back({Vec3(t[0].x(), t[0].y(), gz), Vec3(t[2].x(), t[2].y(), gz),
-                              Vec3(t[1].x(), t[1].y(), gz)});
-      g.alpha_area += 0.5 * std::abs((t[1] - t[0]).x() * (t[2] - t[0]).y() -
-                                     (t[2] - t[0]).x() * (t[1] - t[0]).y());
-    }
-    Vec2 c = Vec2::Zero();
-    for (const auto& q : outline) c += q;
-    c /= double(outline.size());
-    g.centroid = Vec3(c.x(), c.y(), gz);
-    prims.push_back(std::move(g));
-    ++added;
+/// Phase 5, the ground: normal -z (outward = down); CCW about -z = CW in xy.
+Primitive ground_plane(const std::vector<Vec2>& outline, double gz) {
+  Primitive g;
+  g.inferred = true;
+  g.normal = -Vec3::UnitZ();
+  g.d = gz;  // -z + gz = 0  <=> z = gz
+  g.u = Vec3::UnitX();
+  g.v = g.normal.cross(g.u);
+  std::vector<P2> pts, hull;
+  for (const auto& q : outline) pts.emplace_back(q.x(), q.y());
+  CGAL::convex_hull_2(pts.begin(), pts.end(), std::back_inserter(hull));
+  for (auto it = hull.rbegin(); it != hull.rend(); ++it) g.hull.emplace_back(it->x(), it->y(), gz);
+  double ha = 0;
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const P2& a = hull[i];
+    const P2& b = hull[(i + 1) % hull.size()];
+    ha += a.x() * b.y() - b.x() * a.y();
   }
-  res.added = added;
-  res.what = plinth ? Closure::Plinth : Closure::Base;
-  if (!walls_missing && !plinth) return res;  // walls were scanned: only the base was missing
+  g.hull_area = 0.5 * ha;
+  for (const auto& t : triangulate(outline)) {
+    g.alpha_tris.push_back(
+        {Vec3(t[0].x(), t[0].y(), gz), Vec3(t[2].x(), t[2].y(), gz), Vec3(t[1].x(), t[1].y(), gz)});
+    g.alpha_area += 0.5 * std::abs((t[1] - t[0]).x() * (t[2] - t[0]).y() -
+                                   (t[2] - t[0]).x() * (t[1] - t[0]).y());
+  }
+  Vec2 c = Vec2::Zero();
+  for (const auto& q : outline) c += q;
+  c /= double(outline.size());
+  g.centroid = Vec3(c.x(), c.y(), gz);
+  return g;
+}
 
-  // Plinth walls reach up to the terrain along the scene's edge (plinth implies
-  // on_terrain: on_low_up is set); building walls to the highest sample near
-  // the outline edge.
-
-  // Walls: one per outline edge, outward = right of the CCW edge direction.
+/// Phase 6, the walls: one per outline edge, outward = right of the CCW edge
+/// direction. Plinth walls reach up to the terrain along the scene's edge
+/// (plinth implies on_terrain: on_low_up is set); building walls to the
+/// highest sample near the outline edge. Returns the number of walls added.
+int add_outline_walls(const Samples& s, const ClosureParams& p, const std::vector<Vec2>& outline,
+                      double gz, const Coverage& cov, bool plinth,
+                      const std::vector<char>& on_low_up, std::vector<Primitive>& prims) {
+  const double zmin = cov.zmin, zmax = cov.zmax;
+  int added = 0;
   for (std::size_t i = 0; i < outline.size(); ++i) {
     const Vec2& a = outline[i];
     const Vec2& b = outline[(i + 1) % outline.size()];
@@ -412,95 +434,44 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
     prims.push_back(std::move(w));
     ++added;
   }
-  res.added = added;
-  if (!plinth) res.what = walls_unscanned ? Closure::Walls : Closure::FootprintWalls;
-  return res;
+  return added;
 }
 
-int infer_step_walls(const Samples& s, const HeightField& hf, const AirborneParams& p,
-                     std::vector<Primitive>& prims) {
-  const auto& fp = hf.outline();
-  if (fp.size() < 3) return 0;
-  std::vector<double> fp_dirs;  // outline edge directions in [0, pi)
-  for (std::size_t i = 0; i < fp.size(); ++i) {
-    const Vec2 e = fp[(i + 1) % fp.size()] - fp[i];
-    if (e.norm() < 1.0) continue;
-    fp_dirs.push_back(std::fmod(std::atan2(e.y(), e.x()) + 2 * M_PI, M_PI));
-  }
-  const double snap = 15.0 * M_PI / 180.0;
-  const double gz = hf.ground();
-  std::vector<Primitive> walls;
-  for (const auto& pr : prims) {
-    if (pr.inferred || pr.normal.z() < 0.3 || pr.inliers.size() < 20) continue;
-    auto plane_z = [&](const Vec2& q) {
-      return -(pr.normal.x() * q.x() + pr.normal.y() * q.y() + pr.d) / pr.normal.z();
-    };
-    std::vector<Vec2> xy;
-    xy.reserve(pr.inliers.size());
-    for (int i : pr.inliers) xy.emplace_back(s.points[size_t(i)].x(), s.points[size_t(i)].y());
-    std::vector<Vec2> ol = alpha_outline(xy, p.step_alpha);
-    if (ol.size() < 3) continue;
-    ol = simplify_closed(ol, 0.3, 10.0);
-    for (std::size_t i = 0; i < ol.size(); ++i) {
-      Vec2 a = ol[i], b = ol[(i + 1) % ol.size()];
-      Vec2 e = b - a;
-      const double len = e.norm();
-      if (len < p.step_min_edge) continue;
-      const Vec2 out(e.y() / len, -e.x() / len);  // right of a CCW edge
-      const int k = std::max(2, int(std::ceil(len / 0.5)));
-      int valid = 0, steps = 0;
-      for (int j = 0; j < k; ++j) {
-        const Vec2 q = a + (j + 0.5) / k * e;
-        const Vec2 probe = q + p.step_probe * out;
-        if (!hf.inside(probe)) continue;
-        const double r = hf.at(probe);
-        if (std::isnan(r)) continue;
-        ++valid;
-        steps += plane_z(q) - r > p.step_min;
-      }
-      if (2 * valid < k || 10 * steps < 6 * valid) continue;
-      // Snap to the nearest outline direction (buildings are mostly rectilinear).
-      const double ang = std::fmod(std::atan2(e.y(), e.x()) + 2 * M_PI, M_PI);
-      double best = snap;
-      double to = ang;
-      for (double d : fp_dirs) {
-        double diff = std::abs(d - ang);
-        diff = std::min(diff, M_PI - diff);
-        if (diff < best) {
-          best = diff;
-          to = d;
-        }
-      }
-      Vec2 dir = e / len;
-      if (to != ang) {
-        Vec2 nd(std::cos(to), std::sin(to));
-        if (nd.dot(dir) < 0) nd = -nd;
-        dir = nd;
-      }
-      const Vec2 mid = 0.5 * (a + b);
-      const double half = 0.5 * len + 0.5;  // a little past the corners, to meet the next wall
-      a = mid - half * dir;
-      b = mid + half * dir;
-      const double top = std::max(plane_z(a), plane_z(b));
-      if (!(top > gz + 1.0)) continue;
-      Primitive w;
-      w.inferred = true;
-      w.normal = Vec3(dir.y(), -dir.x(), 0.0);
-      w.d = -(w.normal.x() * a.x() + w.normal.y() * a.y());
-      w.u = Vec3::UnitZ().cross(w.normal).normalized();
-      w.v = w.normal.cross(w.u);
-      const Vec3 A0(a.x(), a.y(), gz), B0(b.x(), b.y(), gz), A1(a.x(), a.y(), top),
-          B1(b.x(), b.y(), top);
-      w.hull = {A0, B0, B1, A1};
-      w.alpha_tris = {{A0, B0, B1}, {A0, B1, A1}};
-      w.hull_area = w.alpha_area = (b - a).norm() * (top - gz);
-      w.centroid = 0.25 * (A0 + B0 + A1 + B1);
-      walls.push_back(std::move(w));
-    }
-  }
-  const int n = int(walls.size());
-  for (auto& w : walls) prims.push_back(std::move(w));
-  return n;
+}  // namespace
+
+Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                       std::vector<Primitive>& prims) {
+  Closure res;
+  if (!p.enabled || s.points.size() < 3) return res;
+  Coverage cov;
+  if (!find_missing_walls(in, s, p, prims, cov)) return res;
+  Terrain t = find_terrain(s, p, prims, cov);
+  // A terrain sheet kept as a plinth: base plane under the whole scene and
+  // walls up to the terrain along the scene's outline. The terrain has a hole
+  // where the building stands; the ground floor's rays that escape through it
+  // meet the plinth's base from inside.
+  const bool plinth = t.on_terrain && p.terrain == "plinth";
+  if (!cov.walls_missing && t.has_floor && !plinth) return res;
+  // Cut: on a terrain sheet the base goes under the building only, at the
+  // terrain's height (rays from the ground floor escaping through the hole in
+  // the terrain would turn the ground floor out).
+  const Primitive* terrain = t.plane;
+  if (!t.on_terrain || plinth) terrain = nullptr;
+
+  const std::vector<Vec2> outline = closure_outline(in, s, p, t, terrain, plinth);
+  if (outline.size() < 3 || !(signed_area(outline) > 0)) return res;
+  const double gz = ground_height(in, p, terrain, outline, plinth, cov.zmin);
+  res.outline = outline;
+  res.ground_z = gz;
+
+  prims.push_back(ground_plane(outline, gz));
+  res.added = 1;
+  res.what = plinth ? Closure::Plinth : Closure::Base;
+  if (!cov.walls_missing && !plinth) return res;  // walls were scanned: only the base was missing
+
+  res.added += add_outline_walls(s, p, outline, gz, cov, plinth, t.on_low_up, prims);
+  if (!plinth) res.what = cov.walls_unscanned ? Closure::Walls : Closure::FootprintWalls;
+  return res;
 }
 
 }  // namespace citylod::lod::detail

@@ -1,5 +1,5 @@
 // e1 / e2 RMSE and Hausdorff estimate between a model and the input surface.
-#include "primitives.hpp"
+#include "fidelity.hpp"
 
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>

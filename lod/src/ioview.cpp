@@ -1,8 +1,7 @@
-// IO-View analysis (paper Section 4.1): regions, principal/secondary
-// structures, two-stage clustering, adaptive regularization, sorting.
+// IO-View analysis (paper Section 4.1): regions of the labelled partition,
+// principal primitives and secondary structures; primitives matched to the
+// BSP's planes.
 #include "ioview.hpp"
-
-#include "clustering.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,8 +10,6 @@
 
 namespace citylod::lod::detail {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 /// Point-in-alpha-shape queries for one primitive, on a uniform 2D grid.
 class AlphaCover {
@@ -111,56 +108,15 @@ struct UnionFind {
   }
 };
 
-Primitive make_rectangle_primitive(const Vec3& normal, const Vec3& corner, const Vec3& e1,
-                                   const Vec3& e2) {
-  Primitive p;
-  p.normal = normal.normalized();
-  const Vec3 c0 = corner, c1 = corner + e1, c2 = corner + e1 + e2, c3 = corner + e2;
-  p.centroid = (c0 + c1 + c2 + c3) / 4.0;
-  p.d = -p.normal.dot(p.centroid);
-  p.u = e1.normalized();
-  p.v = p.normal.cross(p.u).normalized();
-  std::vector<Vec3> loop{c0, c1, c2, c3};
-  if ((c1 - c0).cross(c2 - c0).dot(p.normal) < 0) std::reverse(loop.begin(), loop.end());
-  p.hull = loop;
-  p.alpha_tris = {{loop[0], loop[1], loop[2]}, {loop[0], loop[2], loop[3]}};
-  p.hull_area = p.alpha_area = e1.norm() * e2.norm();
-  p.from_template = true;
-  return p;
-}
-
-}  // namespace
-
-std::vector<int> match_planes(const Bsp& bsp, const std::vector<Primitive>& prims) {
-  const auto planes = bsp.planes();
-  std::vector<int> out(prims.size(), -1);
-  for (size_t i = 0; i < prims.size(); ++i) {
-    const Vec3 n = prims[i].normal;
-    double best = 1e-6;
-    for (size_t j = 0; j < planes.size(); ++j) {
-      const Vec3 m(planes[j][0], planes[j][1], planes[j][2]);
-      const double s = n.dot(m) >= 0 ? 1.0 : -1.0;
-      const double err = (n - s * m).norm() + std::abs(prims[i].d - s * planes[j][3]);
-      if (err < best) {
-        best = err;
-        out[i] = int(j);
-      }
-    }
-  }
-  return out;
-}
-
-IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
-                       const std::vector<int>& primitive_plane,
-                       const std::vector<char>& leaf_inside, const IoViewParams& p) {
-  IoView v;
-  v.leaves = bsp.leaves();
-  v.leaf_inside = leaf_inside;
-  const size_t n = v.leaves.size();
-  std::map<int, int> index_of;
-  for (size_t i = 0; i < n; ++i) index_of[v.leaves[i]] = int(i);
-  const auto& nodes = bsp.nodes();
-
+/// The primitive whose alpha-shape covers each interface best (-1: none on
+/// that plane), and that coverage.
+struct Owners {
+  std::vector<int> owner;
+  std::vector<double> cov;
+};
+Owners interface_owners(const Bsp& bsp, const std::vector<Primitive>& prims,
+                        const std::vector<int>& primitive_plane,
+                        const std::vector<BspInterface>& interfaces) {
   std::vector<std::vector<int>> plane_prims(bsp.planes().size());
   for (size_t i = 0; i < prims.size(); ++i)
     if (primitive_plane[i] >= 0) plane_prims[size_t(primitive_plane[i])].push_back(int(i));
@@ -169,11 +125,11 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
     if (!covers[size_t(i)]) covers[size_t(i)] = std::make_unique<AlphaCover>(prims[size_t(i)]);
     return *covers[size_t(i)];
   };
-
-  const auto interfaces = bsp.adjacency(v.leaves);
-  // For each interface: the primitive whose alpha-shape covers it best (-1: none on that plane).
-  std::vector<int> owner(interfaces.size(), -1);
-  std::vector<double> owner_cov(interfaces.size(), 0.0);
+  Owners o;
+  std::vector<int>& owner = o.owner;
+  std::vector<double>& owner_cov = o.cov;
+  owner.assign(interfaces.size(), -1);
+  owner_cov.assign(interfaces.size(), 0.0);
   for (size_t k = 0; k < interfaces.size(); ++k) {
     const auto& f = interfaces[k];
     const auto& cand = plane_prims[size_t(f.plane)];
@@ -188,8 +144,18 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
     }
     owner_cov[k] = std::max(0.0, best);
   }
+  return o;
+}
 
-  // Regions: merge adjacent same-label cells not separated by an alpha-shape.
+/// Regions: adjacent same-label cells not separated by an alpha-shape merged;
+/// the largest inside and outside regions are the cores, the others add-ons
+/// and cut-outs.
+void merge_regions(const Bsp& bsp, const std::vector<BspInterface>& interfaces, const Owners& o,
+                   const std::map<int, int>& index_of, const IoViewParams& p, IoView& v) {
+  const size_t n = v.leaves.size();
+  const auto& nodes = bsp.nodes();
+  const std::vector<int>& owner = o.owner;
+  const std::vector<double>& owner_cov = o.cov;
   UnionFind uf(n);
   for (size_t k = 0; k < interfaces.size(); ++k) {
     const auto& f = interfaces[k];
@@ -233,9 +199,16 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
                : reg.inside           ? RegionKind::AddOn
                                       : RegionKind::CutOut;
   }
+}
 
-  // Principal primitives: those separating the core interior from the core exterior.
-  std::vector<double> principal_area(prims.size(), 0.0);
+/// Principal primitives: those separating the core interior from the core
+/// exterior. Returns each region's contact area per primitive.
+std::vector<std::map<int, double>> find_principal(const std::vector<BspInterface>& interfaces,
+                                                  const std::vector<int>& owner,
+                                                  const std::map<int, int>& index_of,
+                                                  size_t num_prims, const IoViewParams& p,
+                                                  IoView& v) {
+  std::vector<double> principal_area(num_prims, 0.0);
   // contact[region] : primitive -> boundary area
   std::vector<std::map<int, double>> contact(v.regions.size());
   for (size_t k = 0; k < interfaces.size(); ++k) {
@@ -249,13 +222,19 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
     contact[size_t(ra)][owner[k]] += f.area;
     contact[size_t(rb)][owner[k]] += f.area;
   }
-  v.principal.assign(prims.size(), 0);
-  for (size_t i = 0; i < prims.size(); ++i)
+  v.principal.assign(num_prims, 0);
+  for (size_t i = 0; i < num_prims; ++i)
     v.principal[i] = principal_area[i] >= p.min_principal_area ? 1 : 0;
+  return contact;
+}
 
-  // Secondary structures: the other regions, with their bounding primitives.
-  v.primitive_structure.assign(prims.size(), -1);
-  std::vector<double> best_contact(prims.size(), 0.0);
+/// Secondary structures: the regions other than the cores, each with its host
+/// (the principal primitive of largest contact) and the secondary primitives
+/// that bound it the most.
+void find_structures(const Bsp& bsp, const std::vector<std::map<int, double>>& contact,
+                     size_t num_prims, IoView& v) {
+  v.primitive_structure.assign(num_prims, -1);
+  std::vector<double> best_contact(num_prims, 0.0);
   std::vector<int> structure_of_region(v.regions.size(), -1);
   for (size_t r = 0; r < v.regions.size(); ++r) {
     const auto& reg = v.regions[r];
@@ -299,201 +278,47 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
       }
     }
   }
-  for (size_t i = 0; i < prims.size(); ++i)
+  for (size_t i = 0; i < num_prims; ++i)
     if (v.primitive_structure[i] >= 0)
       v.structures[size_t(v.primitive_structure[i])].primitives.push_back(int(i));
+}
+
+}  // namespace
+
+std::vector<int> match_planes(const Bsp& bsp, const std::vector<Primitive>& prims) {
+  const auto planes = bsp.planes();
+  std::vector<int> out(prims.size(), -1);
+  for (size_t i = 0; i < prims.size(); ++i) {
+    const Vec3 n = prims[i].normal;
+    double best = 1e-6;
+    for (size_t j = 0; j < planes.size(); ++j) {
+      const Vec3 m(planes[j][0], planes[j][1], planes[j][2]);
+      const double s = n.dot(m) >= 0 ? 1.0 : -1.0;
+      const double err = (n - s * m).norm() + std::abs(prims[i].d - s * planes[j][3]);
+      if (err < best) {
+        best = err;
+        out[i] = int(j);
+      }
+    }
+  }
+  return out;
+}
+
+IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
+                       const std::vector<int>& primitive_plane,
+                       const std::vector<char>& leaf_inside, const IoViewParams& p) {
+  IoView v;
+  v.leaves = bsp.leaves();
+  v.leaf_inside = leaf_inside;
+  const size_t n = v.leaves.size();
+  std::map<int, int> index_of;
+  for (size_t i = 0; i < n; ++i) index_of[v.leaves[i]] = int(i);
+  const auto interfaces = bsp.adjacency(v.leaves);
+  const Owners o = interface_owners(bsp, prims, primitive_plane, interfaces);
+  merge_regions(bsp, interfaces, o, index_of, p, v);
+  const auto contact = find_principal(interfaces, o.owner, index_of, prims.size(), p, v);
+  find_structures(bsp, contact, prims.size(), v);
   return v;
-}
-
-Grouping group_structures(const IoView& view, const std::vector<Primitive>& prims,
-                          const ClusterParams& p) {
-  Grouping g;
-  // Stage 1: per host primitive, mean shift on the projected areas.
-  std::map<int, std::vector<int>> by_host;
-  for (size_t s = 0; s < view.structures.size(); ++s)
-    if (!view.structures[s].primitives.empty()) by_host[view.structures[s].host].push_back(int(s));
-  for (const auto& [host, list] : by_host) {
-    std::vector<double> areas;
-    for (int s : list) areas.push_back(view.structures[size_t(s)].projected_area);
-    const auto lab = mean_shift_1d(areas, p.area_bandwidth);
-    const int nc = lab.empty() ? 0 : *std::max_element(lab.begin(), lab.end()) + 1;
-    std::vector<Grouping::Cluster> local(static_cast<size_t>(nc));
-    for (size_t i = 0; i < list.size(); ++i) {
-      auto& c = local[size_t(lab[i])];
-      c.host = host;
-      c.structures.push_back(list[i]);
-    }
-    for (auto& c : local) g.clusters.push_back(std::move(c));
-  }
-  // Stage 2: mean shift on the clusters' mean volumes -> level sets.
-  std::vector<double> vols;
-  for (auto& c : g.clusters) {
-    double sum = 0.0;
-    for (int s : c.structures) {
-      const auto& st = view.structures[size_t(s)];
-      sum += st.volume;
-      c.cutouts += st.addon ? 0 : 1;
-      for (int pi : st.primitives) c.primitives.push_back(pi);
-    }
-    c.mean_volume = sum / double(std::max<size_t>(1, c.structures.size()));
-    std::sort(c.primitives.begin(), c.primitives.end(), [&](int a, int b) {
-      const double aa = prims[size_t(a)].alpha_area, ab = prims[size_t(b)].alpha_area;
-      return aa != ab ? aa > ab : a < b;
-    });
-    vols.push_back(c.mean_volume);
-  }
-  const auto lab = mean_shift_1d(vols, p.volume_bandwidth);
-  const int nl = lab.empty() ? 0 : *std::max_element(lab.begin(), lab.end()) + 1;
-  // mean_shift numbers level sets by increasing mode: the largest volumes come first in S.
-  for (size_t i = 0; i < g.clusters.size(); ++i) g.clusters[i].level = nl - lab[i];
-  g.num_level_sets = nl;
-  std::stable_sort(g.clusters.begin(), g.clusters.end(),
-                   [](const Grouping::Cluster& a, const Grouping::Cluster& b) {
-                     if (a.level != b.level) return a.level < b.level;
-                     if (a.mean_volume != b.mean_volume) return a.mean_volume > b.mean_volume;
-                     return a.structures.front() < b.structures.front();
-                   });
-  return g;
-}
-
-int regularize_secondary(std::vector<Primitive>& prims, Grouping& grouping, const IoView& view,
-                         const Bsp& bsp, const Samples& samples, const RegularizationParams& p,
-                         const AlphaParams& a) {
-  if (!p.enabled) return 0;
-  const double cos_par = std::cos(p.secondary_angle_deg * kDeg);
-  const double sin_perp = std::sin(p.secondary_angle_deg * kDeg);
-  int templates = 0;
-  for (auto& cl : grouping.clusters) {
-    if (cl.host < 0) continue;
-    const Primitive host = prims[size_t(cl.host)];
-    const Vec3 nh = host.normal;
-    const bool host_vertical = std::abs(nh.z()) < std::sin(p.vertical_host_deg * kDeg);
-    // Orientation snapping relative to the host.
-    for (int qi : cl.primitives) {
-      Primitive& q = prims[size_t(qi)];
-      if (q.inliers.empty()) continue;
-      const double c = q.normal.dot(nh);
-      Vec3 n = q.normal;
-      if (std::abs(c) > cos_par) {
-        n = (c > 0 ? 1.0 : -1.0) * nh;
-      } else if (std::abs(c) < sin_perp) {
-        n = (n - c * nh).normalized();
-        if (host_vertical) {
-          if (std::abs(n.z()) > cos_par)
-            n = Vec3(0, 0, n.z() > 0 ? 1 : -1);
-          else if (std::abs(n.z()) < sin_perp)
-            n = Vec3(n.x(), n.y(), 0).normalized();
-        }
-      } else {
-        continue;
-      }
-      Vec3 centroid = Vec3::Zero();
-      for (int s : q.inliers) centroid += samples.points[size_t(s)];
-      centroid /= double(q.inliers.size());
-      q.normal = n;
-      q.d = -n.dot(centroid);
-      compute_shape(q, samples, a);
-    }
-    // Coplanarity within the cluster.
-    for (size_t i = 0; i < cl.primitives.size(); ++i)
-      for (size_t j = i + 1; j < cl.primitives.size(); ++j) {
-        Primitive& q1 = prims[size_t(cl.primitives[i])];
-        Primitive& q2 = prims[size_t(cl.primitives[j])];
-        if (q1.inliers.empty() || q2.inliers.empty()) continue;
-        if ((q1.normal - q2.normal).norm() > 1e-12) continue;
-        if (std::abs(q1.d - q2.d) < p.secondary_distance) {
-          const double w1 = double(q1.inliers.size()), w2 = double(q2.inliers.size());
-          const double d = (w1 * q1.d + w2 * q2.d) / (w1 + w2);
-          q1.d = q2.d = d;
-          compute_shape(q1, samples, a);
-          compute_shape(q2, samples, a);
-        }
-      }
-    // Cuboid templates for windows: > 3 cut-outs on a near-vertical host.
-    if (!host_vertical || cl.cutouts < p.min_cutouts_for_templates) continue;
-    const Vec3 ax = Vec3(nh.x(), nh.y(), 0).normalized();  // out of the wall
-    const Vec3 bz = Vec3::UnitZ();
-    const Vec3 cy = bz.cross(ax).normalized();  // along the wall
-    const double a_wall = -host.d / nh.dot(ax);
-    std::vector<int> replaced;
-    std::vector<int> added;
-    for (int si : cl.structures) {
-      const Structure& st = view.structures[size_t(si)];
-      if (st.addon) continue;
-      double amin = 1e300, amax = -1e300, bmin = 1e300, bmax = -1e300, cmin = 1e300, cmax = -1e300;
-      for (int leaf : view.regions[size_t(st.region)].leaves)
-        for (const auto& x : bsp.cell_vertices(leaf)) {
-          amin = std::min(amin, x.dot(ax));
-          amax = std::max(amax, x.dot(ax));
-          bmin = std::min(bmin, x.dot(bz));
-          bmax = std::max(bmax, x.dot(bz));
-          cmin = std::min(cmin, x.dot(cy));
-          cmax = std::max(cmax, x.dot(cy));
-        }
-      amax = std::min(amax, a_wall);
-      if (amax - amin < 0.05 || bmax - bmin < 0.05 || cmax - cmin < 0.05) continue;
-      auto P = [&](double aa, double bb, double cc) { return Vec3(aa * ax + bb * bz + cc * cy); };
-      const double da = amax - amin, db = bmax - bmin, dc = cmax - cmin;
-      std::vector<Primitive> faces;
-      faces.push_back(make_rectangle_primitive(ax, P(amin, bmin, cmin), dc * cy, db * bz));  // back
-      faces.push_back(
-          make_rectangle_primitive(cy, P(amin, bmin, cmin), da * ax, db * bz));  // side c_min
-      faces.push_back(
-          make_rectangle_primitive(-cy, P(amin, bmin, cmax), da * ax, db * bz));  // side c_max
-      faces.push_back(
-          make_rectangle_primitive(bz, P(amin, bmin, cmin), da * ax, dc * cy));  // bottom
-      faces.push_back(make_rectangle_primitive(-bz, P(amin, bmax, cmin), da * ax, dc * cy));  // top
-      for (auto& f : faces) {
-        added.push_back(int(prims.size()));
-        prims.push_back(std::move(f));
-      }
-      for (int pi : st.primitives) replaced.push_back(pi);
-      ++templates;
-    }
-    if (!added.empty()) {
-      std::vector<int> kept;
-      for (int pi : cl.primitives)
-        if (std::find(replaced.begin(), replaced.end(), pi) == replaced.end()) kept.push_back(pi);
-      kept.insert(kept.end(), added.begin(), added.end());
-      std::stable_sort(kept.begin(), kept.end(), [&](int x, int y) {
-        const double ax_ = prims[size_t(x)].alpha_area, ay_ = prims[size_t(y)].alpha_area;
-        return ax_ != ay_ ? ax_ > ay_ : x < y;
-      });
-      cl.primitives = kept;
-    }
-  }
-  return templates;
-}
-
-SortedPrimitives sort_primitives(const std::vector<Primitive>& prims, const IoView& view,
-                                 const Grouping& grouping) {
-  SortedPrimitives s;
-  s.level_of.assign(prims.size(), -1);
-  s.cluster_of.assign(prims.size(), -1);
-  std::vector<int> principal;
-  for (size_t i = 0; i < view.principal.size(); ++i)
-    if (view.principal[i]) principal.push_back(int(i));
-  std::stable_sort(principal.begin(), principal.end(), [&](int a, int b) {
-    const double aa = prims[size_t(a)].alpha_area, ab = prims[size_t(b)].alpha_area;
-    return aa != ab ? aa > ab : a < b;
-  });
-  for (int pi : principal) {
-    s.order.push_back(pi);
-    s.level_of[size_t(pi)] = 0;
-  }
-  int max_level = 0;
-  for (size_t c = 0; c < grouping.clusters.size(); ++c) {
-    const auto& cl = grouping.clusters[c];
-    for (int pi : cl.primitives) {
-      if (s.level_of[size_t(pi)] >= 0) continue;
-      s.order.push_back(pi);
-      s.level_of[size_t(pi)] = cl.level;
-      s.cluster_of[size_t(pi)] = int(c);
-      max_level = std::max(max_level, cl.level);
-    }
-  }
-  s.num_levels = max_level + 1;
-  return s;
 }
 
 }  // namespace citylod::lod::detail

@@ -10,11 +10,16 @@
 #include "airborne.hpp"
 #include "bsp.hpp"
 #include "citylod/lod/lod.hpp"
+#include "closure.hpp"
 #include "fallback.hpp"
+#include "fidelity.hpp"
+#include "grouping.hpp"
 #include "ioview.hpp"
 #include "labelling.hpp"
 #include "orient.hpp"
-#include "primitives.hpp"
+#include "planes.hpp"
+#include "regularization.hpp"
+#include "samples.hpp"
 #include "tree.hpp"
 
 #include <algorithm>
@@ -269,21 +274,27 @@ int append_detail_level(const std::vector<Primitive>& prims, SortedPrimitives& s
   return added;
 }
 
-/// The whole method; throws on any failure (caught by build_lod_tree).
-void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P,
-                const Progress& progress, const Budget& budget, LodResult& R) {
-  auto& st = R.stats;
-  const auto t1 = Clock::now();
+/// Step 1's result: the planar primitives and, for airborne LiDAR, the roof
+/// height field that labels the cells.
+struct Planes {
+  std::vector<Primitive> prims;
+  std::optional<HeightField> heights;
+};
 
-  // 1. Planar primitives (region growing on the oriented samples); airborne
-  // LiDAR is sparser than the paper's MVS input: smaller regions count.
-  progress(0.0, "planes");
+/// 1. Planar primitives (region growing on the oriented samples); airborne
+/// LiDAR is sparser than the paper's MVS input: smaller regions count.
+/// Closure planes for roof-only LiDAR, the airborne height field, refitted
+/// roofs and step walls; planes with inward normals turned round.
+Planes planar_primitives(const BuildingInput& in, const Samples& samples, const LodParams& P,
+                         LodStats& st) {
+  Planes out;
+  std::vector<Primitive>& prims = out.prims;
   const bool airborne = airborne_input(in, samples, P);
   PlaneParams plane_params = P.planes;
   if (airborne)
     plane_params.min_region_size =
         std::min(plane_params.min_region_size, P.airborne.min_region_size);
-  std::vector<Primitive> prims = detect_planes(in, samples, plane_params);
+  prims = detect_planes(in, samples, plane_params);
   st.planes_detected = int(prims.size());
   if (prims.empty()) throw LodError("planes", "no plane found");
   // Roof-only LiDAR: ground + walls through the outline so the building closes.
@@ -305,7 +316,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   }
   // (ours) Airborne LiDAR is 2.5D: a roof height field labels the cells, and
   // walls are inferred where the roof steps down.
-  std::optional<HeightField> heights;
+  std::optional<HeightField>& heights = out.heights;
   const bool walls_inferred = c.what == Closure::Walls || c.what == Closure::FootprintWalls;
   if (P.airborne.mode == "on" || (airborne && walls_inferred)) {
     if (c.outline.size() < 3) throw LodError("airborne", "no outline to model the building on");
@@ -332,17 +343,29 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   }
   if (prims.size() < 4)
     throw LodError("planes", "fewer than 4 usable planes (" + std::to_string(prims.size()) + ")");
-  budget.check("planes");
+  return out;
+}
 
-  // 2. IO-View: BSP by the hulls, largest first; ray labels; regions.
-  progress(0.1, "io-view");
+/// Step 2's result: the BSP's box, the IO-View BSP and its analysis.
+struct IoViewStep {
+  SceneBox box;
+  Bsp bsp;
+  IoView view;
+};
+
+/// 2. IO-View: BSP by the hulls, largest first; ray labels (or the height
+/// field's); regions, principal primitives, secondary structures.
+IoViewStep io_view_step(const Samples& samples, const Planes& planes, const LodParams& P,
+                        const Budget& budget, LodStats& st) {
+  const std::vector<Primitive>& prims = planes.prims;
+  const std::optional<HeightField>& heights = planes.heights;
   const SceneBox box = scene_box(samples, prims, P.bsp.bbox_enlarge);
   std::vector<int> by_area(prims.size());
   for (size_t i = 0; i < prims.size(); ++i) by_area[i] = int(i);
   std::stable_sort(by_area.begin(), by_area.end(), [&](int a, int b) {
     return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
   });
-  const Bsp io_bsp(box.lo, box.hi, hull_polygons(prims, by_area, box), P.bsp.max_cells);
+  Bsp io_bsp(box.lo, box.hi, hull_polygons(prims, by_area, box), P.bsp.max_cells);
   if (io_bsp.cap_hit()) st.notes.push_back("IO-View BSP hit the cell cap");
   st.ioview_cells = int(io_bsp.leaves().size());
   budget.check("io-view");
@@ -366,8 +389,22 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   if (st.principal < 4) throw LodError("io-view", "fewer than 4 principal primitives");
   for (const auto& s : view.structures)
     (s.addon ? st.add_ons : st.cut_outs) += s.primitives.empty() ? 0 : 1;
+  return {box, std::move(io_bsp), std::move(view)};
+}
 
-  // 3. Two-stage clustering, adaptive regularization, scale-sorted S.
+/// Step 3's result: the level sets and the scale-sorted order S.
+struct SortStep {
+  Grouping grouping;
+  SortedPrimitives sorted;
+};
+
+/// 3. Two-stage clustering, adaptive regularization, scale-sorted S (plus,
+/// for airborne LiDAR, the last level set of roof detail).
+SortStep sort_step(const Samples& samples, Planes& planes, IoViewStep& io, const LodParams& P,
+                   LodResult& R) {
+  auto& st = R.stats;
+  std::vector<Primitive>& prims = planes.prims;
+  IoView& view = io.view;
   Grouping grouping = group_structures(view, prims, P.cluster);
   if (P.regularization.enabled) {
     std::vector<int> principal;
@@ -375,14 +412,14 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
       if (view.principal[i] && !prims[i].inferred) principal.push_back(int(i));
     regularize_principal(prims, principal, samples, P.regularization, P.alpha);
     const int templates =
-        regularize_secondary(prims, grouping, view, io_bsp, samples, P.regularization, P.alpha);
+        regularize_secondary(prims, grouping, view, io.bsp, samples, P.regularization, P.alpha);
     if (templates > 0)
       st.notes.push_back(std::to_string(templates) +
                          " window cut-outs replaced by cuboid templates");
   }
   view.principal.resize(prims.size(), 0);  // template primitives are secondary
   SortedPrimitives sorted = sort_primitives(prims, view, grouping);
-  if (heights && P.airborne.detail_level) {
+  if (planes.heights && P.airborne.detail_level) {
     const int added = append_detail_level(prims, sorted);
     if (added > 0)
       st.notes.push_back("airborne LiDAR: " + std::to_string(added) +
@@ -394,13 +431,22 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   st.planes_sorted = int(sorted.order.size());
   for (size_t i = 0; i < prims.size(); ++i)
     R.planes.push_back(report_plane(prims[i], samples, sorted.level_of[i], sorted.cluster_of[i]));
-  st.t_ioview = seconds_since(t1);
-  budget.check("io-view");
+  return {std::move(grouping), std::move(sorted)};
+}
 
-  // 4. LOD-Tree: BSP in the order S, per-level leaf labels, LOD-nodes.
-  progress(0.4, "lod-tree");
-  const auto t2 = Clock::now();
-  const Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells);
+/// Step 4's result: the LOD-Tree's BSP and its LOD-nodes.
+struct TreeStep {
+  Bsp bsp;
+  LodTree tree;
+};
+
+/// 4. LOD-Tree: BSP in the order S, per-level leaf labels, LOD-nodes.
+TreeStep tree_step(const Planes& planes, const SceneBox& box, const SortStep& S, const LodParams& P,
+                   const Budget& budget, LodStats& st) {
+  const std::vector<Primitive>& prims = planes.prims;
+  const std::optional<HeightField>& heights = planes.heights;
+  const SortedPrimitives& sorted = S.sorted;
+  Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells);
   if (bsp.cap_hit()) st.notes.push_back("LOD-Tree BSP hit the cell cap");
   budget.check("lod-tree");
   std::vector<std::vector<char>> leaf_labels;
@@ -413,16 +459,20 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
                                  sorted.num_levels, P.threads);
   }
   clear_pad_leaves(bsp, box, leaf_labels);
-  const LodTree tree = build_tree(bsp, sorted, grouping, leaf_labels, P.tree);
+  LodTree tree = build_tree(bsp, sorted, S.grouping, leaf_labels, P.tree);
   st.bsp_nodes = int(bsp.nodes().size());
   st.lod_nodes = int(tree.nodes.size());
-  st.t_tree = seconds_since(t2);
-  budget.check("lod-tree");
+  return {std::move(bsp), std::move(tree)};
+}
 
-  // 5. Traversal (Algorithm 1) and a watertight mesh per candidate.
-  progress(0.6, "traversal");
-  const auto t3 = Clock::now();
-  const auto candidates = traverse(tree, bsp, P.tree, budget.deadline);
+/// 5. Traversal (Algorithm 1) and a watertight mesh per candidate; for
+/// airborne LiDAR the LoD1.2 block first.
+void models_step(const Samples& samples, const Planes& planes, const TreeStep& T,
+                 const LodParams& P, const Progress& progress, const Budget& budget, LodResult& R) {
+  auto& st = R.stats;
+  const std::optional<HeightField>& heights = planes.heights;
+  const Bsp& bsp = T.bsp;
+  const auto candidates = traverse(T.tree, bsp, P.tree, budget.deadline);
   // Cells relabelled in by the non-manifold repair of one candidate are
   // relabelled in the next ones too while they remain in the cut: consecutive
   // candidates share most of their cells, and each repair round is a full
@@ -481,20 +531,50 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   if (R.models.empty()) throw LodError("traversal", "no non-empty model");
   for (const auto& c : candidates)
     if (c.kind == ModelKind::Anchor) st.lod_tree_cuts_to_finest = c.cuts;
+}
+
+/// Plain BSP-Tree baseline: same primitives, area order, binary nodes.
+void baseline_step(const std::vector<Primitive>& prims, const SceneBox& box,
+                   const SortedPrimitives& sorted, const LodParams& P, LodStats& st) {
+  std::vector<int> order = sorted.order;
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
+  });
+  const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells);
+  st.baseline_bsp_nodes = int(base.nodes().size());
+  int internal = 0;
+  for (const auto& n : base.nodes()) internal += n.is_leaf() ? 0 : 1;
+  st.baseline_cuts_to_finest = internal;
+}
+
+/// The whole method; throws on any failure (caught by build_lod_tree).
+void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P,
+                const Progress& progress, const Budget& budget, LodResult& R) {
+  auto& st = R.stats;
+  const auto t1 = Clock::now();
+
+  progress(0.0, "planes");
+  Planes planes = planar_primitives(in, samples, P, st);
+  budget.check("planes");
+
+  progress(0.1, "io-view");
+  IoViewStep io = io_view_step(samples, planes, P, budget, st);
+  const SortStep S = sort_step(samples, planes, io, P, R);
+  st.t_ioview = seconds_since(t1);
+  budget.check("io-view");
+
+  progress(0.4, "lod-tree");
+  const auto t2 = Clock::now();
+  const TreeStep T = tree_step(planes, io.box, S, P, budget, st);
+  st.t_tree = seconds_since(t2);
+  budget.check("lod-tree");
+
+  progress(0.6, "traversal");
+  const auto t3 = Clock::now();
+  models_step(samples, planes, T, P, progress, budget, R);
   st.t_traversal = seconds_since(t3);
 
-  // Plain BSP-Tree baseline: same primitives, area order, binary nodes.
-  if (P.bsp.baseline) {
-    std::vector<int> order = sorted.order;
-    std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
-      return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
-    });
-    const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells);
-    st.baseline_bsp_nodes = int(base.nodes().size());
-    int internal = 0;
-    for (const auto& n : base.nodes()) internal += n.is_leaf() ? 0 : 1;
-    st.baseline_cuts_to_finest = internal;
-  }
+  if (P.bsp.baseline) baseline_step(planes.prims, io.box, S.sorted, P, st);
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 // Internal: consistent outward orientation of the detected planes (orient.cpp).
 #pragma once
 
-#include "primitives.hpp"
+#include "planes.hpp"
 
 namespace citylod::lod::detail {
 

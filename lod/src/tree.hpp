@@ -6,7 +6,7 @@
 
 #include "bsp.hpp"
 #include "citylod/lod/lod.hpp"
-#include "ioview.hpp"
+#include "grouping.hpp"
 
 #include <chrono>
 #include <vector>

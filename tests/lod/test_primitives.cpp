@@ -1,6 +1,10 @@
 // Primitive layer: samples, plane detection, alpha-shapes, closure,
 // regularization, fidelity, mesh checks; synthetic generators; real data.
-#include "primitives.hpp"
+#include "closure.hpp"
+#include "fidelity.hpp"
+#include "planes.hpp"
+#include "regularization.hpp"
+#include "samples.hpp"
 #include "support/ply_min.hpp"
 #include "support/synthetic.hpp"
 

@@ -1,21 +1,19 @@
-// Samples, plane detection (CGAL region growing), alpha-shapes / convex hulls,
-// regularization of the principal planes.
-#include "primitives.hpp"
+// Planar primitives: region growing (CGAL Shape_detection) on points or mesh
+// faces, least-squares plane fits, alpha-shapes and convex hulls.
+#include "planes.hpp"
+
+#include "epick.hpp"
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
 #include <CGAL/Delaunay_triangulation_2.h>
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Shape_detection/Region_growing/Region_growing.h>
 #include <CGAL/Shape_detection/Region_growing/Region_growing_on_point_set.h>
 #include <CGAL/Shape_detection/Region_growing/Region_growing_on_polygon_mesh.h>
-#include <CGAL/Shape_regularization/regularize_planes.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/convex_hull_2.h>
-#include <CGAL/mst_orient_normals.h>
-#include <CGAL/pca_estimate_normals.h>
 #include <CGAL/property_map.h>
 
 #include <Eigen/Eigenvalues>
@@ -31,33 +29,7 @@ namespace citylod::lod::detail {
 
 namespace {
 
-using K = CGAL::Exact_predicates_inexact_constructions_kernel;
-using P3 = K::Point_3;
-using V3 = K::Vector_3;
-using P2 = K::Point_2;
-
-inline P3 toP(const Vec3& v) {
-  return P3(v.x(), v.y(), v.z());
-}
-inline Vec3 toE(const P3& p) {
-  return Vec3(p.x(), p.y(), p.z());
-}
-inline Vec3 toE(const V3& p) {
-  return Vec3(p.x(), p.y(), p.z());
-}
-
-bool finite(const Vec3& v) {
-  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
-/// Orthonormal in-plane frame with u x v = n (u horizontal for non-horizontal planes).
-void plane_frame(const Vec3& n, Vec3& u, Vec3& v) {
-  if (std::abs(n.z()) < 0.9)
-    u = Vec3::UnitZ().cross(n).normalized();
-  else
-    u = n.cross(Vec3::UnitX()).cross(n).normalized();  // X projected on the plane
-  v = n.cross(u);
-}
+using namespace epick;
 
 /// Weighted least-squares plane of the inliers; normal oriented like their mean normal.
 void fit_plane(Primitive& prim, const Samples& s) {
@@ -205,200 +177,32 @@ bool regions_on_mesh(const BuildingInput& in, const PlaneParams& p,
 
 }  // namespace
 
-// ---------------------------------------------------------------- samples
-
-Samples make_samples(const BuildingInput& in, const NormalParams& p, bool mst_orientation) {
-  Samples s;
-  if (in.is_mesh()) {
-    const int nv = static_cast<int>(in.points.size());
-    struct T {
-      int idx;
-      Vec3 a, b, c, n;
-      double area;
-    };
-    std::vector<T> tris;
-    tris.reserve(in.triangles.size());
-    double total = 0;
-    for (std::size_t t = 0; t < in.triangles.size(); ++t) {
-      const auto& tr = in.triangles[t];
-      if (tr[0] < 0 || tr[1] < 0 || tr[2] < 0 || tr[0] >= nv || tr[1] >= nv || tr[2] >= nv)
-        continue;
-      const Vec3 &a = in.points[tr[0]], &b = in.points[tr[1]], &c = in.points[tr[2]];
-      if (!finite(a) || !finite(b) || !finite(c)) continue;
-      const Vec3 cr = (b - a).cross(c - a);
-      const double area = 0.5 * cr.norm();
-      if (!(area > 1e-12)) continue;
-      tris.push_back({static_cast<int>(t), a, b, c, cr / (2 * area), area});
-      total += area;
-    }
-    // Target density >= 1 sample / 0.25 m^2, total capped at ~200k.
-    const std::size_t cap = 200000;
-    double per_m2 = 4.0;
-    if (tris.size() >= cap)
-      per_m2 = 0.0;
-    else if (total * per_m2 + tris.size() > cap)
-      per_m2 = (cap - tris.size()) / total;
-    Rng rng(0x5EED5EEDULL);
-    for (const auto& t : tris) {
-      int extra = static_cast<int>(std::floor(t.area * per_m2));
-      const double w = t.area / (1 + extra);
-      s.points.push_back((t.a + t.b + t.c) / 3.0);
-      s.normals.push_back(t.n);
-      s.weights.push_back(w);
-      s.face_of.push_back(t.idx);
-      for (int k = 0; k < extra; ++k) {
-        double r1 = rng.next(), r2 = rng.next();
-        if (r1 + r2 > 1) {
-          r1 = 1 - r1;
-          r2 = 1 - r2;
-        }
-        s.points.push_back(t.a + r1 * (t.b - t.a) + r2 * (t.c - t.a));
-        s.normals.push_back(t.n);
-        s.weights.push_back(w);
-        s.face_of.push_back(t.idx);
-      }
-    }
-    return s;
-  }
-
-  // Point cloud.
-  const bool has_n = in.normals.size() == in.points.size();
-  std::vector<int> need;  // points whose normal must be estimated
-  for (std::size_t i = 0; i < in.points.size(); ++i) {
-    if (!finite(in.points[i])) continue;
-    s.points.push_back(in.points[i]);
-    Vec3 n = has_n ? in.normals[i] : Vec3::Zero();
-    const double len = finite(n) ? n.norm() : 0.0;
-    if (len > 1e-12) {
-      s.normals.push_back(n / len);
-    } else {
-      s.normals.push_back(Vec3::Zero());
-      need.push_back(static_cast<int>(s.points.size() - 1));
-    }
-  }
-  s.weights.assign(s.points.size(), 1.0);
-  s.face_of.assign(s.points.size(), -1);
-  if (need.empty() || s.points.size() < 3) {
-    for (auto& n : s.normals)
-      if (n.squaredNorm() == 0) n = Vec3::UnitZ();
-    return s;
-  }
-  s.normals_estimated = true;
-  const unsigned k =
-      static_cast<unsigned>(std::max(3, std::min<int>(p.k_neighbors, int(s.points.size()) - 1)));
-  // PCA over all points (neighbourhoods need every point), then keep the given normals.
-  using Item = std::tuple<P3, V3, int>;
-  std::vector<Item> items;
-  items.reserve(s.points.size());
-  for (std::size_t i = 0; i < s.points.size(); ++i)
-    items.emplace_back(toP(s.points[i]), V3(0, 0, 0), int(i));
-  using IPMap = CGAL::Nth_of_tuple_property_map<0, Item>;
-  using INMap = CGAL::Nth_of_tuple_property_map<1, Item>;
-  CGAL::pca_estimate_normals<CGAL::Sequential_tag>(
-      items, k, CGAL::parameters::point_map(IPMap()).normal_map(INMap()));
-  // Orientation. mst_orient_normals propagates from the highest point (oriented +z)
-  // over a Riemannian graph; it reorders the range, hence the index in the tuple.
-  // Without it (airborne city chunks: roofs face up, the few wall hits face
-  // away from the building's axis) the rules below orient every normal.
-  std::vector<char> oriented(s.points.size(), 0);
-  if (mst_orientation) {
-    auto first_unoriented = CGAL::mst_orient_normals(
-        items, k, CGAL::parameters::point_map(IPMap()).normal_map(INMap()));
-    for (auto it = items.begin(); it != first_unoriented; ++it) oriented[std::get<2>(*it)] = 1;
-  }
-  std::vector<Vec3> est(s.points.size());
-  for (const auto& it : items) {
-    Vec3 n = toE(std::get<1>(it));
-    const double len = n.norm();
-    est[std::get<2>(it)] = len > 1e-12 ? Vec3(n / len) : Vec3(Vec3::UnitZ());
-  }
-  // Whole-set flip when most normals point toward the vertical axis through the centroid.
-  Vec3 c = Vec3::Zero();
-  for (const auto& q : s.points) c += q;
-  c /= double(s.points.size());
-  double vote = 0;
-  for (std::size_t i = 0; i < est.size(); ++i) {
-    const Vec3& n = est[i];
-    const Vec3 r = s.points[i] - c;
-    if (std::abs(n.z()) < 0.5)
-      vote += (n.x() * r.x() + n.y() * r.y() > 0) ? 1 : -1;
-    else
-      vote += n.z() > 0 ? 1 : -1;
-  }
-  const bool flip_all = vote < 0;
-  for (int i : need) {
-    Vec3 n = flip_all ? Vec3(-est[i]) : est[i];
-    const Vec3 r = s.points[i] - c;
-    // Near-horizontal surfaces (|n.z| >= 0.5: roofs, floors seen from above) face
-    // up: scans of buildings see no undersides, and airborne roofs must point up.
-    // Walls keep the MST orientation; walls the MST did not reach face away from
-    // the vertical axis through the centroid. (On the real data this beats both
-    // MST alone and the axis rule alone: cgal_building 82 % / 87 % -> see tests.)
-    if (std::abs(n.z()) >= 0.5) {
-      if (n.z() < 0) n = -n;
-    } else if (!oriented[i] && n.x() * r.x() + n.y() * r.y() < 0) {
-      n = -n;
-    }
-    s.normals[i] = n;
-  }
-  return s;
+/// Orthonormal in-plane frame with u x v = n (u horizontal for non-horizontal planes).
+void plane_frame(const Vec3& n, Vec3& u, Vec3& v) {
+  if (std::abs(n.z()) < 0.9)
+    u = Vec3::UnitZ().cross(n).normalized();
+  else
+    u = n.cross(Vec3::UnitX()).cross(n).normalized();  // X projected on the plane
+  v = n.cross(u);
 }
 
 // ---------------------------------------------------------------- shapes
 
-void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
-  prim.hull.clear();
-  prim.alpha_tris.clear();
-  prim.hull_area = prim.alpha_area = 0;
-  Vec3 n = prim.normal;
-  if (!(n.norm() > 1e-12)) n = Vec3::UnitZ();
-  n.normalize();
-  prim.normal = n;
-  plane_frame(n, prim.u, prim.v);
-  // Origin: the inliers' centroid projected on the plane.
-  Vec3 c = Vec3::Zero();
-  if (!prim.inliers.empty()) {
-    for (int i : prim.inliers) c += s.points[i];
-    c /= double(prim.inliers.size());
-  } else {
-    c = prim.centroid;
-  }
-  c -= (n.dot(c) + prim.d) * n;
-  prim.centroid = c;
-  if (prim.inliers.size() < 3) return;
+namespace {
 
-  std::vector<P2> pts2;
-  pts2.reserve(prim.inliers.size());
-  for (int i : prim.inliers) {
-    const Vec3 r = s.points[i] - c;
-    pts2.emplace_back(r.dot(prim.u), r.dot(prim.v));
-  }
+/// Alpha-shape: the Delaunay faces a REGULARIZED CGAL::Alpha_shape_2 classifies
+/// INTERIOR for squared alpha a^2, i.e. those whose circumcircle has a squared
+/// radius <= a^2. Computed directly on the triangulation: Alpha_shape_2 first
+/// builds the whole alpha spectrum, ~10x slower (3 s for 96k points).
+/// The triangles (lifted to 3D about the origin c) go to prim.alpha_tris,
+/// their area to prim.alpha_area.
+void alpha_shape(Primitive& prim, const std::vector<P2>& pts2, const Vec3& c, double alpha) {
   auto lift = [&](double x, double y) -> Vec3 { return c + x * prim.u + y * prim.v; };
-
-  std::vector<P2> hull2;
-  CGAL::convex_hull_2(pts2.begin(), pts2.end(), std::back_inserter(hull2));
-  if (hull2.size() >= 3) {
-    double a = 0;
-    for (std::size_t i = 0; i < hull2.size(); ++i) {
-      const P2& p0 = hull2[i];
-      const P2& p1 = hull2[(i + 1) % hull2.size()];
-      a += p0.x() * p1.y() - p1.x() * p0.y();
-    }
-    prim.hull_area = 0.5 * a;
-    for (const auto& q : hull2) prim.hull.push_back(lift(q.x(), q.y()));
-  } else {
-    return;  // collinear support: no area
-  }
-
-  // Alpha-shape: the Delaunay faces a REGULARIZED CGAL::Alpha_shape_2 classifies
-  // INTERIOR for squared alpha a^2, i.e. those whose circumcircle has a squared
-  // radius <= a^2. Computed directly on the triangulation: Alpha_shape_2 first
-  // builds the whole alpha spectrum, ~10x slower (3 s for 96k points).
   using DtFb = CGAL::Triangulation_face_base_with_info_2<char, K>;
   using Dt = CGAL::Delaunay_triangulation_2<
       K, CGAL::Triangulation_data_structure_2<CGAL::Triangulation_vertex_base_2<K>, DtFb>>;
   Dt dt(pts2.begin(), pts2.end());
-  const double a2 = p.alpha * p.alpha;
+  const double a2 = alpha * alpha;
   if (dt.dimension() == 2) {
     for (auto f = dt.all_faces_begin(); f != dt.all_faces_end(); ++f) f->info() = 0;
     for (auto f = dt.finite_faces_begin(); f != dt.finite_faces_end(); ++f) {
@@ -459,6 +263,55 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
       prim.alpha_tris.push_back({lift(a.x(), a.y()), lift(b.x(), b.y()), lift(d.x(), d.y())});
     }
   }
+}
+
+}  // namespace
+
+void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
+  prim.hull.clear();
+  prim.alpha_tris.clear();
+  prim.hull_area = prim.alpha_area = 0;
+  Vec3 n = prim.normal;
+  if (!(n.norm() > 1e-12)) n = Vec3::UnitZ();
+  n.normalize();
+  prim.normal = n;
+  plane_frame(n, prim.u, prim.v);
+  // Origin: the inliers' centroid projected on the plane.
+  Vec3 c = Vec3::Zero();
+  if (!prim.inliers.empty()) {
+    for (int i : prim.inliers) c += s.points[i];
+    c /= double(prim.inliers.size());
+  } else {
+    c = prim.centroid;
+  }
+  c -= (n.dot(c) + prim.d) * n;
+  prim.centroid = c;
+  if (prim.inliers.size() < 3) return;
+
+  std::vector<P2> pts2;
+  pts2.reserve(prim.inliers.size());
+  for (int i : prim.inliers) {
+    const Vec3 r = s.points[i] - c;
+    pts2.emplace_back(r.dot(prim.u), r.dot(prim.v));
+  }
+  auto lift = [&](double x, double y) -> Vec3 { return c + x * prim.u + y * prim.v; };
+
+  std::vector<P2> hull2;
+  CGAL::convex_hull_2(pts2.begin(), pts2.end(), std::back_inserter(hull2));
+  if (hull2.size() >= 3) {
+    double a = 0;
+    for (std::size_t i = 0; i < hull2.size(); ++i) {
+      const P2& p0 = hull2[i];
+      const P2& p1 = hull2[(i + 1) % hull2.size()];
+      a += p0.x() * p1.y() - p1.x() * p0.y();
+    }
+    prim.hull_area = 0.5 * a;
+    for (const auto& q : hull2) prim.hull.push_back(lift(q.x(), q.y()));
+  } else {
+    return;  // collinear support: no area
+  }
+
+  alpha_shape(prim, pts2, c, p.alpha);
   if (prim.alpha_tris.empty()) {
     for (std::size_t i = 1; i + 1 < prim.hull.size(); ++i)
       prim.alpha_tris.push_back({prim.hull[0], prim.hull[i], prim.hull[i + 1]});
@@ -517,81 +370,6 @@ std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
     prims.push_back(std::move(prim));
   }
   return prims;
-}
-
-// ---------------------------------------------------------------- regularization
-
-void regularize_principal(std::vector<Primitive>& prims, const std::vector<int>& which,
-                          const Samples& s, const RegularizationParams& p, const AlphaParams& a) {
-  std::vector<int> sel;
-  for (int w : which)
-    if (w >= 0 && w < int(prims.size())) sel.push_back(w);
-  std::sort(sel.begin(), sel.end());
-  sel.erase(std::unique(sel.begin(), sel.end()), sel.end());
-  if (sel.size() < 2) return;
-  // Points of the selected planes; inferred planes (no inliers) contribute their hull vertices.
-  std::vector<P3> pts;
-  std::vector<int> plane_of;
-  std::vector<K::Plane_3> planes;
-  for (std::size_t j = 0; j < sel.size(); ++j) {
-    const Primitive& pr = prims[sel[j]];
-    planes.emplace_back(pr.normal.x(), pr.normal.y(), pr.normal.z(), pr.d);
-    if (!pr.inliers.empty()) {
-      for (int i : pr.inliers) {
-        pts.push_back(toP(s.points[i]));
-        plane_of.push_back(int(j));
-      }
-    } else {
-      for (const auto& h : pr.hull) {
-        pts.push_back(toP(h));
-        plane_of.push_back(int(j));
-      }
-      if (pr.hull.empty()) {
-        pts.push_back(toP(pr.centroid));
-        plane_of.push_back(int(j));
-      }
-    }
-  }
-  const std::vector<Vec3> old_n = [&] {
-    std::vector<Vec3> v;
-    for (int w : sel) v.push_back(prims[w].normal);
-    return v;
-  }();
-  CGAL::Shape_regularization::Planes::regularize_planes(
-      planes, pts,
-      CGAL::parameters::plane_index_map(CGAL::make_property_map(plane_of))
-          .maximum_angle(p.principal_angle_deg)
-          .maximum_offset(p.principal_distance)
-          .regularize_parallelism(true)
-          .regularize_orthogonality(true)
-          .regularize_coplanarity(true)
-          .regularize_axis_symmetry(false));
-  for (std::size_t j = 0; j < sel.size(); ++j) {
-    Primitive& pr = prims[sel[j]];
-    Vec3 n(planes[j].a(), planes[j].b(), planes[j].c());
-    double d = planes[j].d();
-    const double len = n.norm();
-    if (!(len > 1e-12) || !std::isfinite(d)) continue;
-    n /= len;
-    d /= len;
-    if (n.dot(old_n[j]) < 0) {
-      n = -n;
-      d = -d;
-    }
-    pr.normal = n;
-    pr.d = d;
-    if (!pr.inliers.empty()) {
-      compute_shape(pr, s, a);
-    } else {
-      // Inferred planes: project their outline onto the new plane.
-      auto proj = [&](const Vec3& q) -> Vec3 { return q - (n.dot(q) + d) * n; };
-      for (auto& h : pr.hull) h = proj(h);
-      for (auto& t : pr.alpha_tris)
-        for (auto& q : t) q = proj(q);
-      pr.centroid = proj(pr.centroid);
-      plane_frame(n, pr.u, pr.v);
-    }
-  }
 }
 
 }  // namespace citylod::lod::detail

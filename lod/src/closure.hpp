@@ -1,0 +1,36 @@
+// Internal: closure of buildings whose walls or bottom were not scanned
+// (ours): ground/base plane, outline walls, terrain kept as a plinth or cut
+// off; and the 2D outline tools the airborne step shares. Implemented in
+// closure.cpp (CGAL inside).
+#pragma once
+
+#include "planes.hpp"
+
+#include <vector>
+
+namespace citylod::lod::detail {
+
+/// Airborne LiDAR closure: when walls are missing (few near-horizontal
+/// normals), adds a ground plane and vertical walls through the outline (the
+/// footprint when given, else a 2D alpha-shape of the samples, simplified).
+/// With p.footprint_walls, walls go along a given footprint even when some
+/// walls were scanned. An open bottom gets a base plane; a terrain sheet
+/// (params.terrain) becomes a plinth (base + walls along the scene's outline)
+/// or is cut off.
+struct Closure {
+  enum What { None, Base, Walls, FootprintWalls, Plinth };
+  int added = 0;  ///< primitives added
+  What what = None;
+  std::vector<Vec2> outline;  ///< the outline the walls stand on (CCW), when walls were inferred
+  double ground_z = 0;        ///< the ground plane's height
+};
+Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                       std::vector<Primitive>& prims);
+
+/// Largest outer boundary loop (CCW) of the 2D alpha-shape of the points.
+std::vector<Vec2> alpha_outline(const std::vector<Vec2>& xy, double alpha);
+
+/// Douglas-Peucker on a closed polygon, then merge of nearly collinear edges.
+std::vector<Vec2> simplify_closed(std::vector<Vec2> poly, double tol, double angle_deg);
+
+}  // namespace citylod::lod::detail
