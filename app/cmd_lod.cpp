@@ -31,6 +31,11 @@ void print_summary(const tiler::BuildingLodResult& out, const std::string& dir) 
            " anchor" + (anchors == 1 ? "" : "s") + " = finished levels of detail, " +
            std::to_string(interps) + " interpolation" + (interps == 1 ? "" : "s") +
            " between them) written to " + dir);
+  if (s.planes_found > s.planes_detected)
+    log_warn("lod: planes.max_planes cap: " + std::to_string(s.planes_found) + " planes found, " +
+             std::to_string(s.planes_detected) + " kept (the smallest left out)");
+  if (s.bsp_cap_hit)
+    log_warn("lod: bsp.max_cells cap reached: the partition stopped part way (report.json notes)");
   log_info("lod: " + std::to_string(s.planes_detected) + " planes detected, " +
            std::to_string(s.planes_sorted) + " used in the tree, in " +
            std::to_string(s.level_sets) + " level" + (s.level_sets == 1 ? "" : "s") +

@@ -294,8 +294,13 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
   if (airborne)
     plane_params.min_region_size =
         std::min(plane_params.min_region_size, P.airborne.min_region_size);
-  prims = detect_planes(in, samples, plane_params);
+  prims = detect_planes(in, samples, plane_params, P.alpha, &st.planes_found);
   st.planes_detected = int(prims.size());
+  if (st.planes_found > st.planes_detected)  // a cap, recorded (counts.planes_found)
+    st.notes.push_back("planes.max_planes = " + std::to_string(P.planes.max_planes) +
+                       " reached: " + std::to_string(st.planes_found) + " planes found, the " +
+                       std::to_string(st.planes_found - st.planes_detected) +
+                       " smallest left out (raise planes.max_planes to keep them)");
   if (prims.empty()) throw LodError("planes", "no plane found");
   // Roof-only LiDAR: ground + walls through the outline so the building closes.
   Closure c;
@@ -366,7 +371,12 @@ IoViewStep io_view_step(const Samples& samples, const Planes& planes, const LodP
     return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
   });
   Bsp io_bsp(box.lo, box.hi, hull_polygons(prims, by_area, box), P.bsp.max_cells);
-  if (io_bsp.cap_hit()) st.notes.push_back("IO-View BSP hit the cell cap");
+  if (io_bsp.cap_hit()) {
+    st.bsp_cap_hit = true;
+    st.notes.push_back("bsp.max_cells = " + std::to_string(P.bsp.max_cells) +
+                       " reached in the IO-View BSP: the primitives after that point do not cut "
+                       "(raise bsp.max_cells to partition fully)");
+  }
   st.ioview_cells = int(io_bsp.leaves().size());
   budget.check("io-view");
   const std::vector<int> all_level0(prims.size(), 0);
@@ -447,7 +457,12 @@ TreeStep tree_step(const Planes& planes, const SceneBox& box, const SortStep& S,
   const std::optional<HeightField>& heights = planes.heights;
   const SortedPrimitives& sorted = S.sorted;
   Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells);
-  if (bsp.cap_hit()) st.notes.push_back("LOD-Tree BSP hit the cell cap");
+  if (bsp.cap_hit()) {
+    st.bsp_cap_hit = true;
+    st.notes.push_back("bsp.max_cells = " + std::to_string(P.bsp.max_cells) +
+                       " reached in the LOD-Tree BSP: the primitives after that point do not cut "
+                       "(raise bsp.max_cells to partition fully)");
+  }
   budget.check("lod-tree");
   std::vector<std::vector<char>> leaf_labels;
   if (heights) {  // the height field knows no levels: every level sees the same cells

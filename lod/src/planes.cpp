@@ -322,7 +322,7 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
 // ---------------------------------------------------------------- detection
 
 std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
-                                     const PlaneParams& p) {
+                                     const PlaneParams& p, const AlphaParams& alpha, int* found) {
   std::vector<Primitive> prims;
   if (s.points.size() < 3) return prims;
   std::vector<std::vector<int>> regions;  // sample indices
@@ -357,10 +357,9 @@ std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
               if (a.size() != b.size()) return a.size() > b.size();
               return a.front() < b.front();
             });
+  if (found) *found = int(regions.size());
   if (p.max_planes > 0 && regions.size() > std::size_t(p.max_planes)) regions.resize(p.max_planes);
-  // Shapes with the default alpha radius (the paper's 7 m); a caller with another
-  // alpha recomputes them with compute_shape.
-  const AlphaParams ap;
+  const AlphaParams& ap = alpha;
   prims.reserve(regions.size());
   for (auto& r : regions) {
     Primitive prim;

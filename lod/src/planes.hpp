@@ -29,9 +29,12 @@ struct Primitive {
 void plane_frame(const Vec3& n, Vec3& u, Vec3& v);
 
 /// Region growing (CGAL Shape_detection): on the points of a cloud, on the
-/// faces of a mesh. Deterministic. Largest planes first; at most p.max_planes.
+/// faces of a mesh. Deterministic. Largest planes first; at most p.max_planes
+/// (`*found`, when given, receives the number of regions found before the cap).
+/// Shapes (alpha-shapes, hulls) with `alpha`.
 std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
-                                     const PlaneParams& p);
+                                     const PlaneParams& p, const AlphaParams& alpha = {},
+                                     int* found = nullptr);
 
 /// (Re)computes centroid, u/v, hull and alpha-shape of a primitive from its
 /// inliers projected on its current plane.

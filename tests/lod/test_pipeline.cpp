@@ -388,3 +388,39 @@ TEST(LodPipeline, FootprintWallsCloseAPartlyScannedBuilding) {
   EXPECT_FALSE(has_note(q, "walls along the footprint"));
   EXPECT_FALSE(q.stats.walls_inferred);
 }
+
+// Caps are recorded decisions (issue 16): planes.max_planes keeps the largest
+// planes, and the report says how many were found and left out.
+TEST(LodPipeline, PlaneCapIsRecorded) {
+  const auto b = test::chimney_windows();
+  LodParams p = fast_params();
+  const LodResult all = build_lod_tree(b.input, p);
+  EXPECT_EQ(all.stats.planes_found, all.stats.planes_detected);
+  for (const auto& n : all.stats.notes) EXPECT_EQ(n.find("planes.max_planes"), std::string::npos);
+  ASSERT_GT(all.stats.planes_found, 6);
+  p.planes.max_planes = 6;
+  const LodResult capped = build_lod_tree(b.input, p);
+  EXPECT_EQ(capped.stats.planes_found, all.stats.planes_found);
+  EXPECT_EQ(capped.stats.planes_detected, 6);
+  bool noted = false;
+  for (const auto& n : capped.stats.notes)
+    noted |= n.find("planes.max_planes = 6 reached: " + std::to_string(all.stats.planes_found) +
+                    " planes found") != std::string::npos;
+  EXPECT_TRUE(noted);
+}
+
+// alpha.alpha reaches IO-View: the shapes of the detected planes are built
+// with the user's radius (it used to apply to regularized planes only).
+TEST(LodPipeline, AlphaRadiusChangesTheShapes) {
+  const auto b = test::chimney_windows();
+  LodParams p = fast_params();
+  p.regularization.enabled = false;  // only detection builds the shapes
+  const LodResult r7 = build_lod_tree(b.input, p);
+  p.alpha.alpha = 0.3;  // a few sample spacings: the window openings stay open
+  const LodResult r0 = build_lod_tree(b.input, p);
+  double a7 = 0, a0 = 0;
+  for (const auto& pl : r7.planes) a7 += pl.inferred ? 0 : pl.area;
+  for (const auto& pl : r0.planes) a0 += pl.inferred ? 0 : pl.area;
+  // Before, detection always used 7 m: the same shapes, the same areas.
+  EXPECT_GT(std::abs(a0 - a7), 0.01 * a7);  // 2 % on this house
+}

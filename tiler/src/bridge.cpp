@@ -155,7 +155,8 @@ LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p,
               {"cut_outs", s.cut_outs},           {"clusters", s.clusters},
               {"level_sets", s.level_sets},       {"ioview_cells", s.ioview_cells},
               {"bsp_nodes", s.bsp_nodes},         {"lod_nodes", s.lod_nodes},
-              {"planes_turned", s.planes_turned}, {"models", std::int64_t(r.models.size())}};
+              {"planes_turned", s.planes_turned}, {"models", std::int64_t(r.models.size())},
+              {"planes_found", s.planes_found},   {"bsp_cap_hit", s.bsp_cap_hit ? 1 : 0}};
   j.lod_tree_vs_bsp_tree = {{"lod_tree_cuts_to_finest", s.lod_tree_cuts_to_finest},
                             {"bsp_tree_nodes", s.baseline_bsp_nodes},
                             {"bsp_tree_cuts_to_finest", s.baseline_cuts_to_finest}};

@@ -56,9 +56,11 @@ struct LodStats {
   int input_points = 0, input_faces = 0;
   bool normals_estimated = false;
   bool walls_inferred = false;
-  int planes_detected = 0;  ///< P
-  int planes_turned = 0;    ///< planes turned round by the orientation check
-  int planes_sorted = 0;    ///< S (after regularization/templates)
+  int planes_detected = 0;   ///< P (after the planes.max_planes cap)
+  int planes_found = 0;      ///< planes region growing found (before the cap)
+  bool bsp_cap_hit = false;  ///< a BSP stopped at bsp.max_cells (IO-View or LOD-Tree)
+  int planes_turned = 0;     ///< planes turned round by the orientation check
+  int planes_sorted = 0;     ///< S (after regularization/templates)
   int principal = 0;
   int add_ons = 0, cut_outs = 0;  ///< secondary structures
   int clusters = 0;
