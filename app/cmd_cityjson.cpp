@@ -18,7 +18,7 @@ int cmd_cityjson(ArgParser& args) {
           "attribute citylod_models. `citylod tile` writes DIR/buildings.city.jsonl itself.\n"
           "See docs/cityjson.md.");
   args.option("out", 'o', "FILE", "output file (conventionally *.city.jsonl)");
-  args.option("scale", 0, "S", "transform scale: one vertex integer step, CRS units", "0.001");
+  args.option("scale", 0, "S", "transform scale: one vertex integer step, CRS units", "0.0001");
   args.option("min-change", 0, "M", "as assemble: the kept chain's interpolation threshold", "0.1");
   args.option("hausdorff-tolerance", 0, "M", "as assemble: accuracy of the Hausdorff distances",
               "0.1");

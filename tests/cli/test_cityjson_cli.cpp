@@ -90,7 +90,7 @@ TEST(CityJsonCli, DelftTileOneValidChainPerBuilding) {
   const json tiles_index = json::parse(bj);
   std::set<std::string> in_tiles, in_cityjson;
   for (const auto& [id, b] : tiles_index["buildings"].items()) in_tiles.insert(id);
-  std::size_t multi = 0, semantics = 0, solids = 0, valid = 0, chain_matches = 0;
+  std::size_t multi = 0, semantics = 0, solids = 0, valid = 0, chain_matches = 0, snapped = 0;
   const Box3 bounds = las_bounds(las);
   std::map<std::string, Box3> finest_box;
   for (const auto& f : seq.features) {
@@ -130,7 +130,12 @@ TEST(CityJsonCli, DelftTileOneValidChainPerBuilding) {
       EXPECT_LE(b.hi[2], bounds.hi[2] + 1) << cid;
       if (g + 1 == geoms.size()) finest_box[cid] = b;
     }
-    EXPECT_EQ(geoms.back()["lod"], "2.2") << cid;
+    // the finest model is LoD2.2, a fallback (extruded footprint) LoD1.2
+    EXPECT_EQ(geoms.back()["lod"], o["attributes"]["citylod_status"] == "fallback" ? "1.2" : "2.2")
+        << cid;
+    snapped += std::count_if(o["attributes"]["citylod_models"].begin(),
+                             o["attributes"]["citylod_models"].end(),
+                             [](const json& m) { return m.contains("snapped_m"); });
     semantics += all_sem;
   }
   EXPECT_EQ(in_cityjson, in_tiles);
@@ -175,10 +180,10 @@ TEST(CityJsonCli, DelftTileOneValidChainPerBuilding) {
     EXPECT_LT(dz[dz.size() / 2], 0.5);
   }
   std::printf(
-      "Delft tile CityJSON: %zu buildings, %zu solids (%zu valid), %zu with >= 2 LODs "
+      "Delft tile CityJSON: %zu buildings, %zu solids (%zu valid, %zu snapped), %zu with >= 2 LODs "
       "(%.0f %%), %zu with roof/wall/ground on every solid (%.0f %%), %ju bytes; vs roofer "
       "LoD2.2: median centre offset %.3f m, median top difference %.3f m\n",
-      seq.features.size(), solids, valid, multi, 100.0 * double(multi) / n, semantics,
+      seq.features.size(), solids, valid, snapped, multi, 100.0 * double(multi) / n, semantics,
       100.0 * double(semantics) / n, std::uintmax_t(fs::file_size(file)),
       dxy.empty() ? -1.0 : dxy[dxy.size() / 2], dz.empty() ? -1.0 : dz[dz.size() / 2]);
 

@@ -187,7 +187,7 @@ TEST(CityJson, StructureFollowsTheSpecification) {
   for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
   EXPECT_EQ(seq.header["metadata"]["referenceSystem"],
             "https://www.opengis.net/def/crs/EPSG/0/28992");
-  EXPECT_EQ(seq.header["transform"]["scale"][0], 0.001);
+  EXPECT_EQ(seq.header["transform"]["scale"][0], 0.0001);
   ASSERT_EQ(seq.features.size(), 2u);
   // the footprint's own id, the chunk id as an attribute
   EXPECT_EQ(seq.features[0]["id"], "A1");
@@ -231,8 +231,8 @@ TEST(CityJson, RoundTripGivesBackTheModelsInTheCrs) {
   const auto v = feature_vertices(seq.header, seq.features[0]);
   const json& geoms = object_of(seq.features[0])["geometry"];
   ASSERT_EQ(geoms.size(), models.size());
-  // quantized to 1 mm: each coordinate within half a step (+ the ENU round trip)
-  const double tol = 0.0005 + 1e-6;
+  // quantized to 0.1 mm: each coordinate within half a step (+ the ENU round trip)
+  const double tol = 0.00005 + 1e-6;
   for (std::size_t g = 0; g < models.size(); ++g) {
     const PolygonMesh& truth = models[g].rd;
     const json& b = geoms[g]["boundaries"];

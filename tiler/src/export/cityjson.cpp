@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -71,6 +72,9 @@ constexpr double kRoofHeightTolerance = 0.1;
 /// A downward face is GroundSurface when it lies within this of the model's
 /// lowest point, else OuterCeilingSurface (the underside of an overhang).
 constexpr double kGroundTolerance = 0.5;
+/// Snapping radii (integer steps per axis) tried, in order, when a quantized
+/// model is not a valid solid.
+constexpr long kSnapSteps[] = {1, 2, 4, 8};
 
 enum Semantic : int { kRoof = 0, kWall = 1, kGround = 2, kCeiling = 3 };
 const char* const kSemanticType[] = {"RoofSurface", "WallSurface", "GroundSurface",
@@ -197,6 +201,7 @@ struct Geometry {
   std::string lod;
   json attributes;
   bool valid = false, full_semantics = false, from_obj = false;
+  double snapped = 0;  // vertices within this were snapped together to keep the solid valid
 };
 
 struct Feature {
@@ -241,6 +246,81 @@ class VertexPool {
   std::map<std::array<long long, 3>, std::uint32_t> index_;
   std::vector<std::array<long long, 3>> list_;
 };
+
+/// lod::check_mesh of triangles over feature vertices (collapsed ones left out).
+lod::MeshCheck check_written(const std::vector<std::array<std::uint32_t, 3>>& tris,
+                             const VertexPool& pool) {
+  io::TriangleMesh m;
+  std::map<std::uint32_t, std::uint32_t> local;
+  auto index = [&](std::uint32_t q) {
+    const auto [it, fresh] = local.emplace(q, std::uint32_t(m.vertices.size()));
+    if (fresh) m.vertices.push_back(pool.relative(q));
+    return it->second;
+  };
+  for (const auto& q : tris) {
+    if (q[0] == q[1] || q[1] == q[2] || q[0] == q[2]) continue;
+    m.triangles.push_back({index(q[0]), index(q[1]), index(q[2])});
+  }
+  return lod::check_mesh(to_lod_mesh(m));
+}
+
+/// The triangles with every vertex replaced by the smallest index of its
+/// cluster (vertices within `r` integer steps per axis, transitively), the
+/// collapsed ones and pairs of opposite copies (zero-volume fins) removed;
+/// from[i] = the input triangle of output triangle i.
+std::vector<std::array<std::uint32_t, 3>> snap_triangles(
+    const std::vector<std::array<std::uint32_t, 3>>& tris, const VertexPool& pool, long r,
+    std::vector<std::size_t>& from) {
+  std::vector<std::uint32_t> vs;
+  for (const auto& t : tris) vs.insert(vs.end(), t.begin(), t.end());
+  std::sort(vs.begin(), vs.end());
+  vs.erase(std::unique(vs.begin(), vs.end()), vs.end());
+  std::map<std::uint32_t, std::uint32_t> parent;
+  for (auto v : vs) parent[v] = v;
+  std::function<std::uint32_t(std::uint32_t)> find = [&](std::uint32_t x) {
+    return parent[x] == x ? x : parent[x] = find(parent[x]);
+  };
+  const auto& q = pool.list();
+  std::vector<std::uint32_t> by_x = vs;
+  std::sort(by_x.begin(), by_x.end(), [&](auto a, auto b) { return q[a] < q[b]; });
+  for (std::size_t i = 0; i < by_x.size(); ++i)
+    for (std::size_t j = i + 1; j < by_x.size() && q[by_x[j]][0] - q[by_x[i]][0] <= r; ++j)
+      if (std::llabs(q[by_x[j]][1] - q[by_x[i]][1]) <= r &&
+          std::llabs(q[by_x[j]][2] - q[by_x[i]][2]) <= r) {
+        const std::uint32_t a = find(by_x[i]), b = find(by_x[j]);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+  std::vector<std::array<std::uint32_t, 3>> out;
+  std::vector<std::size_t> src;
+  std::map<std::array<std::uint32_t, 3>, std::size_t> seen;  // rotated to the smallest first
+  auto canonical = [](std::array<std::uint32_t, 3> t) {
+    while (t[0] > t[1] || t[0] > t[2]) t = {t[1], t[2], t[0]};
+    return t;
+  };
+  std::vector<char> dead;
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    const std::array<std::uint32_t, 3> t{find(tris[i][0]), find(tris[i][1]), find(tris[i][2])};
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+    const auto opp = seen.find(canonical({t[0], t[2], t[1]}));
+    if (opp != seen.end() && !dead[opp->second]) {
+      dead[opp->second] = 1;  // a fin: both go
+      seen.erase(opp);
+      continue;
+    }
+    seen[canonical(t)] = out.size();
+    out.push_back(t);
+    src.push_back(i);
+    dead.push_back(0);
+  }
+  std::vector<std::array<std::uint32_t, 3>> kept;
+  from.clear();
+  for (std::size_t i = 0; i < out.size(); ++i)
+    if (!dead[i]) {
+      kept.push_back(out[i]);
+      from.push_back(src[i]);
+    }
+  return kept;
+}
 
 /// One building -> its CityJSONFeature.
 Feature make_feature(const std::string& work, const ChunkRecord& rec, const std::string& object_id,
@@ -374,20 +454,56 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     }
     g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
 
-    // valid solid as written (quantized): lod::check_mesh on its triangulation
-    io::PolygonMesh written;
-    std::map<std::uint32_t, std::uint32_t> local;
-    for (const auto& f : g.faces) {
-      std::vector<std::uint32_t> lf;
-      for (auto i : f) {
-        const auto [it, fresh] = local.emplace(i, std::uint32_t(written.vertices.size()));
-        if (fresh) written.vertices.push_back(pool.relative(i));
-        lf.push_back(it->second);
+    // valid solid as written (quantized): lod::check_mesh on the model's own
+    // triangles (the PLY: the same surface as the polygons) on the written
+    // vertices; a triangle that quantization collapses is left out
+    std::map<Vec3d, std::uint32_t> pool_of;
+    for (auto i : used) pool_of.emplace(pm.vertices[i], to_pool[i]);
+    std::vector<std::array<std::uint32_t, 3>> tris;  // pool indices, per PLY triangle
+    for (const auto& t : meshes[k].triangles) {
+      std::array<std::uint32_t, 3> q;
+      for (int c = 0; c < 3; ++c) {
+        const auto it = pool_of.find(meshes[k].vertices[t[size_t(c)]]);
+        if (it == pool_of.end())
+          throw std::logic_error(entries[k].file + ": a triangle vertex is not on the polygons");
+        q[size_t(c)] = it->second;
       }
-      written.faces.push_back(std::move(lf));
+      tris.push_back(q);
     }
-    const lod::MeshCheck chk = lod::check_mesh(to_lod_mesh(io::triangulate_polygons(written)));
-    g.valid = chk.valid() && dropped == 0;
+    lod::MeshCheck chk = check_written(tris, pool);
+    g.valid = chk.valid();
+    if (!g.valid) {
+      // Sub-millimetre features of the model (vertices a fraction of a step
+      // apart) that rounding moved across each other: snap the vertices
+      // within r steps of each other to one, drop what collapses, and write
+      // the model's triangles if that is a valid solid (docs/cityjson.md).
+      for (const long r : kSnapSteps) {
+        std::vector<std::size_t> from;
+        std::vector<std::array<std::uint32_t, 3>> snapped = snap_triangles(tris, pool, r, from);
+        const lod::MeshCheck c2 = check_written(snapped, pool);
+        if (!c2.valid()) continue;
+        g.faces.clear();
+        g.semantic.clear();
+        for (std::size_t i = 0; i < snapped.size(); ++i) {
+          const auto& t = meshes[k].triangles[from[i]];
+          const Vec3d n = newell(meshes[k].vertices, {t[0], t[1], t[2]});
+          const io::SurfaceClass c = io::classify_normal(n);
+          double fz = -std::numeric_limits<double>::infinity();
+          for (auto v : t) fz = std::max(fz, meshes[k].vertices[v][2]);
+          g.faces.push_back({snapped[i][0], snapped[i][1], snapped[i][2]});
+          g.semantic.push_back(c == io::SurfaceClass::roof     ? kRoof
+                               : c == io::SurfaceClass::wall   ? kWall
+                               : fz <= zmin + kGroundTolerance ? kGround
+                                                               : kCeiling);
+        }
+        std::set<int> cls(g.semantic.begin(), g.semantic.end());
+        g.full_semantics = cls.count(kRoof) && cls.count(kWall) && cls.count(kGround);
+        g.from_obj = false;
+        g.snapped = double(r) * opt.scale;
+        g.valid = true;
+        break;
+      }
+    }
     if (!g.valid) {
       std::string why = "closed " + std::to_string(chk.closed) + ", oriented " +
                         std::to_string(chk.oriented) + ", pinched " +
@@ -412,6 +528,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     a["triangles"] = meshes[k].triangles.size();
     a["polygons"] = g.faces.size();
     a["valid"] = g.valid;
+    if (g.snapped > 0) a["snapped_m"] = g.snapped;
     models.push_back(a);
     geoms.push_back(std::move(g));
   }
@@ -426,6 +543,23 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   if (!rep.reason.empty()) attrs["citylod_reason"] = rep.reason;
   attrs["citylod_models"] = models;
   obj["attributes"] = attrs;
+  // vertices no written face uses (left by snapping) are not written
+  std::vector<std::uint32_t> renum(pool.list().size(), 0);
+  std::vector<std::uint32_t> written_vertices;
+  {
+    std::vector<char> used_v(pool.list().size(), 0);
+    for (const Geometry& g : geoms)
+      for (const auto& f : g.faces)
+        for (auto i : f) used_v[i] = 1;
+    for (std::uint32_t i = 0; i < used_v.size(); ++i)
+      if (used_v[i]) {
+        renum[i] = std::uint32_t(written_vertices.size());
+        written_vertices.push_back(i);
+      }
+  }
+  for (Geometry& g : geoms)
+    for (auto& f : g.faces)
+      for (auto& i : f) i = renum[i];
   json geometry = json::array();
   out.full_semantics = true;
   for (const Geometry& g : geoms) {
@@ -456,11 +590,11 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   }
   obj["geometry"] = geometry;
   json verts = json::array();
-  for (std::uint32_t i = 0; i < pool.list().size(); ++i) {
+  for (const std::uint32_t i : written_vertices) {
     verts.push_back(pool.list()[i]);
     out.bbox.add(pool.absolute(i));
   }
-  out.vertices = pool.list().size();
+  out.vertices = written_vertices.size();
   json feat;
   feat["type"] = "CityJSONFeature";
   feat["id"] = object_id;
