@@ -290,6 +290,11 @@ GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema,
           throw IoError(rd.name_, what + ": string offsets lie outside the values");
         col.emplace_back(reinterpret_cast<const char*>(data) + a, std::size_t(b - a));
       }
+    } else if (type == "BOOLEAN") {
+      const auto [data, len] = rd.view(values, what);
+      if (len < (t.count + 7) / 8) throw IoError(rd.name_, what + ": values are truncated");
+      for (std::size_t i = 0; i < t.count; ++i)
+        t.numbers[name].push_back((data[i / 8] >> (i % 8)) & 1u ? 1.0 : 0.0);
     } else if (type == "SCALAR" || type == "ENUM") {
       std::string ct = string_member(def, "componentType");
       std::map<long long, std::string> names;

@@ -430,8 +430,12 @@ std::string GlbBuilder::glb() const {
   std::vector<std::uint32_t> offsets{0};
   std::vector<std::uint8_t> kind;
   std::vector<std::int32_t> level, step, index, count;
-  std::vector<float> height, area, error;
-  for (const auto& f : im.features) {
+  std::vector<float> height, area, error, rmse;
+  std::vector<std::uint8_t> valid((n + 7) / 8, 0);  // BOOLEAN: a bitstream, LSB first
+  for (std::size_t i = 0; i < n; ++i) {
+    const GlbFeature& f = im.features[i];
+    if (f.valid) valid[i / 8] |= std::uint8_t(1u << (i % 8));
+    rmse.push_back(f.rmse_m >= 0 ? float(f.rmse_m) : -1.0f);
     ids += f.building_id;
     offsets.push_back(std::uint32_t(ids.size()));
     kind.push_back(std::uint8_t(f.kind));
@@ -460,6 +464,9 @@ std::string GlbBuilder::glb() const {
   column("height", height.data(), n * 4);
   column("footprint_area", area.data(), n * 4);
   column("geometric_error", error.data(), n * 4);
+  column("rmse", rmse.data(), n * 4);
+  if (valid.empty()) valid.push_back(0);
+  column("valid", valid.data(), valid.size());
 
   auto prop = [](const char* type, const char* component, const char* description) {
     Value::Object o{{"type", str(type)}, {"description", str(description)}};
@@ -481,6 +488,16 @@ std::string GlbBuilder::glb() const {
       {"footprint_area",
        prop("SCALAR", "FLOAT32", "footprint area of the building, square metres")},
       {"geometric_error", prop("SCALAR", "FLOAT32", "distance to the finest model, metres")},
+      {"rmse",
+       obj({{"type", str("SCALAR")},
+            {"componentType", str("FLOAT32")},
+            {"noData", Value(-1.0)},
+            {"description",
+             str("RMSE of the building's input points to the model, metres (-1: not measured)")}})},
+      {"valid",
+       prop("BOOLEAN", nullptr,
+            "the model is a valid solid: closed, oriented, no pinched vertex, one outer shell, no "
+            "self-intersection")},
   };
   Value::Array enum_values{obj({{"name", str("anchor")}, {"value", Value(0)}}),
                            obj({{"name", str("interpolation")}, {"value", Value(1)}}),

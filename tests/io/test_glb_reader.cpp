@@ -54,7 +54,10 @@ void expect_round_trip(bool quantize, double tolerance) {
   add_house(c, 10, 8, 6, 3);
   for (auto& v : c.vertices) v = {v[0] + 1005, v[1] + 2001, v[2] + 10};
   b.add_feature(feature("bldg-a", io::LodKind::anchor, 4, 2), a);
-  b.add_feature(feature("bldg-c", io::LodKind::interpolation, 7, 1), c);
+  io::GlbFeature fc = feature("bldg-c", io::LodKind::interpolation, 7, 1);
+  fc.rmse_m = 0.375;
+  fc.valid = false;
+  b.add_feature(fc, c);
   const io::GlbDocument d = io::parse_glb(b.glb(), "mem.glb");
 
   ASSERT_EQ(d.property_tables.size(), 1u);
@@ -66,6 +69,9 @@ void expect_round_trip(bool quantize, double tolerance) {
   EXPECT_EQ(t.numbers.at("step"), (std::vector<double>{4, 7}));
   EXPECT_EQ(t.numbers.at("model_index"), (std::vector<double>{2, 1}));
   EXPECT_NEAR(t.numbers.at("geometric_error")[1], 0.25, 1e-7);
+  // quality: RMSE (noData -1 when not measured) and validity (BOOLEAN bitstream)
+  EXPECT_EQ(t.numbers.at("rmse"), (std::vector<double>{-1, 0.375}));
+  EXPECT_EQ(t.numbers.at("valid"), (std::vector<double>{1, 0}));
 
   const auto tris = triangles(d);
   ASSERT_EQ(tris.size(), 2u);

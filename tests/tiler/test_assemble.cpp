@@ -147,7 +147,7 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   EXPECT_EQ(root.json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["building"]
                      ["properties"]
                          .size(),
-            9u);
+            11u);
   std::set<int> features;
   for (const auto& v : glb_vertices(root)) features.insert(v.feature);
   EXPECT_EQ(features.size(), 50u);

@@ -6,12 +6,15 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
 #include "citylod/geo/georef.hpp"
 #include "citylod/io/error.hpp"
+#include "citylod/io/glb_reader.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/tiler/assemble.hpp"
 #include "citylod/tiler/cityjson.hpp"
 #include "citylod/tiler/workdir.hpp"
 #include "support/cityjson_check.hpp"
@@ -415,6 +418,35 @@ TEST(CityJson, LodMappingAndReferenceSystem) {
   EXPECT_EQ(tiler::cityjson_reference_system("EPSG:7415"),
             "https://www.opengis.net/def/crs/EPSG/0/7415");
   EXPECT_EQ(tiler::cityjson_reference_system(""), "");
+}
+
+// Issue 14 item 4: each feature of the tiles carries its model's RMSE to the
+// points and its validity, next to its place in the chain (kind, level, step).
+TEST(CityJson, TileFeaturesCarryRmseAndValidity) {
+  Scene s = make_scene("tile_quality");
+  add_building(s, "b-chain", chain(85000, 447500));
+  PolygonMesh open = box(85030, 447500, 0, 85040, 447508, 6);
+  open.faces.pop_back();  // one wall missing: not closed
+  add_building(s, "b-open", {{open, "anchor", 0, 0, true}});
+  tiler::AssembleParams p;
+  p.threads = 2;
+  tiler::assemble(s.work, s.work + "/tiles", p);
+  std::map<std::pair<std::string, int>, std::pair<double, double>>
+      got;  // (id, step) -> rmse, valid
+  for (const auto& e : fs::directory_iterator(s.work + "/tiles/tiles")) {
+    const io::GlbDocument d = io::read_glb(e.path().string());
+    for (const auto& t : d.property_tables)
+      for (std::size_t i = 0; i < t.count; ++i)
+        got[{t.strings.at("building_id")[i], int(t.numbers.at("step")[i])}] = {
+            t.numbers.at("rmse")[i], t.numbers.at("valid")[i]};
+  }
+  ASSERT_EQ(got.size(), 4u);  // the chain's 3 kept models + the open box
+  for (int step = 0; step < 3; ++step) {
+    const auto& [rmse, valid] = got.at({"b-chain", step});
+    EXPECT_NEAR(rmse, (1.5 - 0.5 * step) / 100 * 20, 1e-6);  // e2 % x 20 m diagonal
+    EXPECT_EQ(valid, 1.0);
+  }
+  EXPECT_EQ(got.at({"b-open", 0}).second, 0.0);
 }
 
 }  // namespace

@@ -41,6 +41,10 @@ struct GlbFeature {
   double height_m = 0;  ///< vertical extent of the model
   double footprint_area_m2 = 0;
   double error_m = 0;  ///< geometric error: distance to the building's finest model
+  /// RMSE of the building's input points to the model, metres (report.json
+  /// e2); < 0 = not measured (stored as the property's noData, -1).
+  double rmse_m = -1;
+  bool valid = true;  ///< the model is a valid solid (closed, oriented, one shell, ...)
 };
 
 struct GlbOptions {
