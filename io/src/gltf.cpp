@@ -3,14 +3,18 @@
 // Debian library) builds and serializes the glTF; its header stays here.
 #include "citylod/io/gltf.hpp"
 
+#include <meshoptimizer.h>
 #include <tiny_gltf.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <mutex>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <unordered_map>
 
 #include "citylod/io/error.hpp"
@@ -136,6 +140,44 @@ struct BinWriter {
     model.bufferViews.push_back(bv);
     return int(model.bufferViews.size() - 1);
   }
+  /// EXT_meshopt_compression: the view's data encoded (the view points at the
+  /// encoded bytes until glb() rewrites it onto the fallback buffer).
+  struct Meshopt {
+    int view;
+    std::size_t raw_length, stride, count;
+    const char* mode;    // "ATTRIBUTES" | "TRIANGLES"
+    const char* filter;  // "NONE" | "OCTAHEDRAL"
+  };
+  std::vector<Meshopt>* meshopt = nullptr;  // set: compress vertex/index views
+
+  /// Vertex attribute data, `count` elements of `stride` bytes; `plain_stride`:
+  /// the bufferView's byteStride without compression (0 = none).
+  int attributes(const void* p, std::size_t count, std::size_t stride, const char* filter,
+                 int plain_stride) {
+    if (!meshopt) return view(p, count * stride, kArrayBuffer, plain_stride);
+    std::vector<unsigned char> enc(meshopt_encodeVertexBufferBound(count, stride));
+    enc.resize(meshopt_encodeVertexBuffer(enc.data(), enc.size(), p, count, stride));
+    if (enc.empty()) throw IoError(kWhere, "meshopt vertex encoding failed");
+    const int v = view(enc.data(), enc.size(), kArrayBuffer, int(stride));
+    meshopt->push_back({v, count * stride, stride, count, "ATTRIBUTES", filter});
+    return v;
+  }
+  int triangles(const std::vector<std::uint32_t>& ix, std::size_t vertices, bool u16) {
+    const std::size_t size = u16 ? 2 : 4;
+    if (!meshopt) {
+      if (u16) {
+        std::vector<std::uint16_t> s(ix.begin(), ix.end());
+        return view(s.data(), s.size() * 2, kElementArrayBuffer);
+      }
+      return view(ix.data(), ix.size() * 4, kElementArrayBuffer);
+    }
+    std::vector<unsigned char> enc(meshopt_encodeIndexBufferBound(ix.size(), vertices));
+    enc.resize(meshopt_encodeIndexBuffer(enc.data(), enc.size(), ix.data(), ix.size()));
+    if (enc.empty()) throw IoError(kWhere, "meshopt index encoding failed");
+    const int v = view(enc.data(), enc.size(), kElementArrayBuffer);
+    meshopt->push_back({v, ix.size() * size, size, ix.size(), "TRIANGLES", "NONE"});
+    return v;
+  }
   int accessor(int view, int component, int type, std::size_t count, bool normalized = false,
                std::vector<double> min = {}, std::vector<double> max = {}) {
     tinygltf::Accessor a;
@@ -152,6 +194,73 @@ struct BinWriter {
   }
 };
 
+std::uint32_t le32(const std::string& b, std::size_t at) {
+  std::uint32_t v;
+  std::memcpy(&v, b.data() + at, 4);
+  return v;
+}
+void put32(std::string& b, std::uint32_t v) {
+  char c[4];
+  std::memcpy(c, &v, 4);
+  b.append(c, 4);
+}
+
+/// The glb tinygltf wrote, with every encoded bufferView moved onto a
+/// fallback buffer (no data) and described by its EXT_meshopt_compression
+/// object pointing at the encoded bytes in the BIN chunk.
+std::string with_meshopt_views(const std::string& glb,
+                               const std::vector<BinWriter::Meshopt>& views) {
+  const std::uint32_t json_len = le32(glb, 12);
+  nlohmann::ordered_json j = nlohmann::ordered_json::parse(glb.substr(20, json_len));
+  const std::size_t bin_at = 20 + json_len;
+  const std::uint32_t bin_len = le32(glb, bin_at);
+  std::size_t fallback = 0;
+  for (const auto& m : views) {
+    auto& bv = j["bufferViews"][size_t(m.view)];
+    nlohmann::ordered_json ext{{"buffer", 0},
+                               {"byteOffset", bv.value("byteOffset", 0)},
+                               {"byteLength", bv["byteLength"]},
+                               {"byteStride", m.stride},
+                               {"mode", m.mode},
+                               {"count", m.count}};
+    if (std::string(m.filter) != "NONE") ext["filter"] = m.filter;
+    while (fallback % 8) ++fallback;
+    bv["buffer"] = 1;
+    bv["byteOffset"] = fallback;
+    bv["byteLength"] = m.raw_length;
+    if (std::string(m.mode) == "ATTRIBUTES")
+      bv["byteStride"] = m.stride;
+    else
+      bv.erase("byteStride");
+    bv["extensions"]["EXT_meshopt_compression"] = ext;
+    fallback += m.raw_length;
+  }
+  j["buffers"] = nlohmann::ordered_json::array(
+      {{{"byteLength", bin_len}},
+       {{"byteLength", fallback},
+        {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}}});
+  for (const char* key : {"extensionsUsed", "extensionsRequired"}) {
+    std::vector<std::string> e = j.value(key, std::vector<std::string>{});
+    e.push_back("EXT_meshopt_compression");
+    std::sort(e.begin(), e.end());
+    j[key] = e;
+  }
+  std::string js = j.dump();
+  while (js.size() % 4) js.push_back(' ');
+  std::string out;
+  out.reserve(28 + js.size() + bin_len);
+  out.append("glTF", 4);
+  put32(out, 2);
+  put32(out, std::uint32_t(12 + 8 + js.size() + 8 + bin_len));
+  put32(out, std::uint32_t(js.size()));
+  out.append("JSON", 4);
+  out += js;
+  put32(out, bin_len);
+  out.append("BIN\0", 4);
+  out.append(glb, bin_at + 8, bin_len);
+  return out;
+}
+
 }  // namespace
 
 const char* to_string(LodKind k) {
@@ -164,6 +273,16 @@ const char* to_string(LodKind k) {
       return "fallback";
   }
   return "?";
+}
+
+const char* to_string(Compression c) {
+  return c == Compression::meshopt ? "meshopt" : "none";
+}
+
+Compression compression_from_string(const std::string& s) {
+  if (s == "none") return Compression::none;
+  if (s == "meshopt") return Compression::meshopt;
+  throw std::invalid_argument("compression must be none or meshopt, got '" + s + "'");
 }
 
 SurfaceClass classify_normal(const Vec3d& n) {
@@ -223,7 +342,36 @@ struct GlbBuilder::Impl {
     }
     return true;
   }
-  bool quantized(const Node& n) const { return opt.quantize && quantizable(n); }
+  /// A node's triangles in vertex-cache order (per primitive) and its vertices
+  /// in first-use order: what meshoptimizer's codecs compress best. Same
+  /// surfaces, same features.
+  static Node codec_order(const Node& in) {
+    Node out = in;
+    const std::size_t nv = in.rel.size();
+    std::vector<unsigned int> all;
+    for (auto& ix : out.indices) {
+      if (ix.empty()) continue;
+      meshopt_optimizeVertexCache(ix.data(), ix.data(), ix.size(), nv);
+      all.insert(all.end(), ix.begin(), ix.end());
+    }
+    std::vector<unsigned int> remap(nv, ~0u);
+    meshopt_optimizeVertexFetchRemap(remap.data(), all.data(), all.size(), nv);
+    std::size_t next = 0;
+    for (auto& r : remap) next = r != ~0u ? std::max(next, std::size_t(r) + 1) : next;
+    for (auto& r : remap)
+      if (r == ~0u) r = static_cast<unsigned int>(next++);  // unreferenced: at the end
+    for (std::size_t i = 0; i < nv; ++i) {
+      out.rel[remap[i]] = in.rel[i];
+      out.normals[remap[i]] = in.normals[i];
+      out.feature[remap[i]] = in.feature[i];
+    }
+    for (auto& ix : out.indices)
+      for (auto& v : ix) v = remap[v];
+    return out;
+  }
+  bool quantized(const Node& n) const {
+    return (opt.quantize || opt.compression == Compression::meshopt) && quantizable(n);
+  }
 };
 
 GlbBuilder::GlbBuilder(const Vec3d& origin, GlbOptions options) : impl_(std::make_unique<Impl>()) {
@@ -303,7 +451,7 @@ std::string GlbBuilder::glb() const {
   model.asset.version = "2.0";
   model.asset.generator = im.opt.generator;
   model.extensionsUsed = {"EXT_mesh_features", "EXT_structural_metadata"};
-  if (q) {
+  if (q || im.opt.compression == Compression::meshopt) {  // meshopt: int8 normals
     model.extensionsUsed.push_back("KHR_mesh_quantization");
     model.extensionsRequired.push_back("KHR_mesh_quantization");
   }
@@ -321,12 +469,24 @@ std::string GlbBuilder::glb() const {
   model.buffers.emplace_back();
   std::vector<unsigned char> bin;
   BinWriter w{model, bin};
+  const bool mo = im.opt.compression == Compression::meshopt;
+  std::vector<BinWriter::Meshopt> compressed;
+  if (mo) {
+    static std::once_flag versions;  // the formats EXT_meshopt_compression defines
+    std::call_once(versions, [] {
+      meshopt_encodeVertexVersion(0);
+      meshopt_encodeIndexVersion(1);
+    });
+    w.meshopt = &compressed;
+  }
   tinygltf::Scene scene;
   scene.name = "citylod";
 
   const Vec3d oy = to_yup(im.origin);
   for (std::size_t ni = 0; ni < im.nodes.size(); ++ni) {
-    const auto& node = im.nodes[ni];
+    Impl::Node ordered;
+    if (mo) ordered = Impl::codec_order(im.nodes[ni]);
+    const auto& node = mo ? ordered : im.nodes[ni];
     tinygltf::Node gn;
     gn.name = node.name;
     gn.translation = {oy[0], oy[1], oy[2]};
@@ -340,6 +500,20 @@ std::string GlbBuilder::glb() const {
     }
     // Vertex attributes.
     int pos_acc, nrm_acc;
+    // meshopt: int8 octahedral normals (meshopt's OCTAHEDRAL filter), 4 bytes each
+    auto oct_normals = [&] {
+      std::vector<float> n4(nv * 4, 0.0f);
+      for (std::size_t i = 0; i < nv; ++i) {
+        const Vec3f& n = node.normals[i];
+        n4[i * 4 + 0] = n[0];
+        n4[i * 4 + 1] = n[2];
+        n4[i * 4 + 2] = -n[1];
+      }
+      std::vector<std::int8_t> oct(nv * 4, 0);
+      meshopt_encodeFilterOct(oct.data(), nv, 4, 8, n4.data());
+      const int nvw = w.attributes(oct.data(), nv, 4, "OCTAHEDRAL", 4);
+      return w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_TYPE_VEC3, nv, true);
+    };
     if (node_q[ni]) {
       const double e = Impl::quant_extent(node);
       gn.scale = {e, e, e};
@@ -357,10 +531,14 @@ std::string GlbBuilder::glb() const {
               std::int16_t(std::lround(std::clamp(n[size_t(k)], -1.0, 1.0) * 32767.0));
         }
       }
-      const int pv = w.view(pos.data(), pos.size() * 2, kArrayBuffer, 8);
+      const int pv = w.attributes(pos.data(), nv, 8, "NONE", 8);
       pos_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true, mn, mx);
-      const int nvw = w.view(nrm.data(), nrm.size() * 2, kArrayBuffer, 8);
-      nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true);
+      if (mo) {
+        nrm_acc = oct_normals();
+      } else {
+        const int nvw = w.attributes(nrm.data(), nv, 8, "NONE", 8);
+        nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true);
+      }
     } else {
       std::vector<float> pos(nv * 3), nrm(nv * 3);
       std::vector<double> mn(3, std::numeric_limits<double>::infinity()),
@@ -377,13 +555,17 @@ std::string GlbBuilder::glb() const {
           nrm[i * 3 + size_t(k)] = ny[k];
         }
       }
-      const int pv = w.view(pos.data(), pos.size() * 4, kArrayBuffer);
+      const int pv = w.attributes(pos.data(), nv, 12, "NONE", 0);
       pos_acc =
           w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv, false, mn, mx);
-      const int nvw = w.view(nrm.data(), nrm.size() * 4, kArrayBuffer);
-      nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+      if (mo) {
+        nrm_acc = oct_normals();
+      } else {
+        const int nvw = w.attributes(nrm.data(), nv, 12, "NONE", 0);
+        nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+      }
     }
-    const int fv = w.view(node.feature.data(), node.feature.size() * 4, kArrayBuffer);
+    const int fv = w.attributes(node.feature.data(), nv, 4, "NONE", 0);
     const int fid_acc = w.accessor(fv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
 
     tinygltf::Mesh mesh;
@@ -391,15 +573,10 @@ std::string GlbBuilder::glb() const {
     for (int c = 0; c < 3; ++c) {
       const auto& ix = node.indices[size_t(c)];
       if (ix.empty()) continue;
-      int iv, ct;
-      if (nv <= 65535) {
-        std::vector<std::uint16_t> s(ix.begin(), ix.end());
-        iv = w.view(s.data(), s.size() * 2, kElementArrayBuffer);
-        ct = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
-      } else {
-        iv = w.view(ix.data(), ix.size() * 4, kElementArrayBuffer);
-        ct = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
-      }
+      const bool u16 = nv <= 65535;
+      const int iv = w.triangles(ix, nv, u16);
+      const int ct =
+          u16 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
       tinygltf::Primitive prim;
       prim.mode = TINYGLTF_MODE_TRIANGLES;
       prim.material = c;
@@ -520,7 +697,8 @@ std::string GlbBuilder::glb() const {
   std::ostringstream os;
   if (!writer.WriteGltfSceneToStream(&model, os, false, true))
     throw IoError(kWhere, "tinygltf could not serialize");
-  return os.str();
+  if (compressed.empty()) return os.str();
+  return with_meshopt_views(os.str(), compressed);
 }
 
 }  // namespace citylod::io

@@ -159,7 +159,8 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     for (const auto& t : mesh.triangles)
       for (auto v : t) km.bbox.add(mesh.vertices[v]);
     km.height_m = km.bbox.max[2] - km.bbox.min[2];
-    const io::GlbMeshSize s = io::glb_mesh_size(mesh, p.quantize);
+    const io::GlbMeshSize s =
+        io::glb_mesh_size(mesh, p.quantize || p.compression == io::Compression::meshopt);
     km.triangles = s.triangles;
     km.bytes = s.bytes;
     b.bbox.add(km.bbox);
@@ -311,7 +312,9 @@ class TreeBuilder {
       // (and for int16 quantization steps).
       double r = 0;
       for (int k = 0; k < 3; ++k) r = std::max(r, exact.max[size_t(k)] - exact.min[size_t(k)]);
-      const double pad = 1e-3 + r * 1e-6 + (p_.quantize ? 2 * r / 32767 : 0);
+      const double pad =
+          1e-3 + r * 1e-6 +
+          (p_.quantize || p_.compression == io::Compression::meshopt ? 2 * r / 32767 : 0);
       t.content_box = exact;
       for (int k = 0; k < 3; ++k) {
         t.content_box.min[size_t(k)] -= pad;
@@ -488,6 +491,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   if (params.building_models) fs::create_directories(stage / "buildings");
   io::GlbOptions gopt;
   gopt.quantize = params.quantize;
+  gopt.compression = params.compression;
 
   std::vector<std::size_t> glb_size(tiles.size(), 0);
   std::vector<std::string> write_errors(tiles.size());

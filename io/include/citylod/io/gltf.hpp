@@ -47,12 +47,25 @@ struct GlbFeature {
   bool valid = true;  ///< the model is a valid solid (closed, oriented, one shell, ...)
 };
 
+/// Geometry compression of the glb.
+///   none:    plain accessors (float32, or int16 with `quantize`).
+///   meshopt: EXT_meshopt_compression (required extension): quantized
+///            positions (int16, KHR_mesh_quantization) and normals (int8,
+///            OCTAHEDRAL filter), feature ids and indices through
+///            meshoptimizer's vertex / index codecs. Property tables stay plain.
+enum class Compression : std::uint8_t { none = 0, meshopt = 1 };
+const char* to_string(Compression c);  ///< "none" | "meshopt"
+/// Throws std::invalid_argument naming the accepted values.
+Compression compression_from_string(const std::string& s);
+
 struct GlbOptions {
   /// KHR_mesh_quantization: positions as normalized int16 (node scale restores
   /// metres; step = node extent / 32767), normals as normalized int16. A node
   /// where int16 would merge two distinct corners of one model keeps float
   /// positions (the model stays closed and edge-manifold as stored).
   bool quantize = false;
+  /// meshopt implies quantized positions (with the same float fallback).
+  Compression compression = Compression::none;
   std::string generator = "citylod";
 };
 
