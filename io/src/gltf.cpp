@@ -330,6 +330,38 @@ struct GlbBuilder::Impl {
   /// Whether int16 positions keep every feature's distinct vertices distinct:
   /// two corners closer than a quantization step would merge and make a
   /// closed model non-manifold. Such a node is written with float positions.
+  /// The features of a node whose distinct corners int16 would merge.
+  static std::set<float> unquantizable(const Node& n) {
+    const double e = quant_extent(n);
+    std::map<std::array<std::int64_t, 4>, Vec3d> seen;
+    std::set<float> bad;
+    for (std::size_t i = 0; i < n.rel.size(); ++i) {
+      const Vec3d y = to_yup(n.rel[i]);
+      const std::array<std::int64_t, 4> key{std::int64_t(n.feature[i]), quant(y[0], e),
+                                            quant(y[1], e), quant(y[2], e)};
+      const auto [it, added] = seen.emplace(key, n.rel[i]);
+      if (!added && it->second != n.rel[i]) bad.insert(n.feature[i]);
+    }
+    return bad;
+  }
+  /// The vertices and triangles of the features in `features` (in_set) or of
+  /// the others, renumbered.
+  static Node part(const Node& n, const std::set<float>& features, bool in_set) {
+    Node out;
+    out.name = n.name;
+    std::vector<std::uint32_t> map(n.rel.size(), ~0u);
+    for (std::size_t i = 0; i < n.rel.size(); ++i)
+      if ((features.count(n.feature[i]) != 0) == in_set) {
+        map[i] = std::uint32_t(out.rel.size());
+        out.rel.push_back(n.rel[i]);
+        out.normals.push_back(n.normals[i]);
+        out.feature.push_back(n.feature[i]);
+      }
+    for (int c = 0; c < 3; ++c)
+      for (std::uint32_t v : n.indices[size_t(c)])
+        if (map[v] != ~0u) out.indices[size_t(c)].push_back(map[v]);
+    return out;
+  }
   static bool quantizable(const Node& n) {
     const double e = quant_extent(n);
     std::map<std::array<std::int64_t, 4>, Vec3d> seen;
@@ -427,12 +459,17 @@ BBox3 GlbBuilder::stored_bounds() const {
   for (const auto& node : impl_->nodes) {
     const double e = Impl::quant_extent(node);
     const bool q = impl_->quantized(node);
-    for (const auto& p : node.rel) {
-      const Vec3d y = to_yup(p);
+    // meshopt: the features int16 would damage stay float (see glb())
+    const std::set<float> bad = !q && impl_->opt.compression == Compression::meshopt
+                                    ? Impl::unquantizable(node)
+                                    : std::set<float>{};
+    for (std::size_t i = 0; i < node.rel.size(); ++i) {
+      const Vec3d y = to_yup(node.rel[i]);
+      const bool qi = q || (!bad.empty() && !bad.count(node.feature[i]));
       Vec3d s;
       for (int k = 0; k < 3; ++k)
         s[size_t(k)] =
-            q ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e : double(float(y[size_t(k)]));
+            qi ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e : double(float(y[size_t(k)]));
       const Vec3d z = from_yup(s);
       b.add(Vec3d{o[0] + z[0], o[1] + z[1], o[2] + z[2]});
     }
@@ -483,21 +520,10 @@ std::string GlbBuilder::glb() const {
   scene.name = "citylod";
 
   const Vec3d oy = to_yup(im.origin);
-  for (std::size_t ni = 0; ni < im.nodes.size(); ++ni) {
-    Impl::Node ordered;
-    if (mo) ordered = Impl::codec_order(im.nodes[ni]);
-    const auto& node = mo ? ordered : im.nodes[ni];
-    tinygltf::Node gn;
-    gn.name = node.name;
-    gn.translation = {oy[0], oy[1], oy[2]};
+  // One glTF node with one mesh: `part`'s vertices quantized (node scale =
+  // `extent`) or float.
+  auto emit = [&](const Impl::Node& node, bool quantized, double extent, tinygltf::Node gn) -> int {
     const std::size_t nv = node.rel.size();
-    bool any = false;
-    for (const auto& ix : node.indices) any = any || !ix.empty();
-    if (nv == 0 || !any) {
-      model.nodes.push_back(gn);
-      scene.nodes.push_back(int(model.nodes.size() - 1));
-      continue;
-    }
     // Vertex attributes.
     int pos_acc, nrm_acc;
     // meshopt: int8 octahedral normals (meshopt's OCTAHEDRAL filter), 4 bytes each
@@ -514,8 +540,8 @@ std::string GlbBuilder::glb() const {
       const int nvw = w.attributes(oct.data(), nv, 4, "OCTAHEDRAL", 4);
       return w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_TYPE_VEC3, nv, true);
     };
-    if (node_q[ni]) {
-      const double e = Impl::quant_extent(node);
+    if (quantized) {
+      const double e = extent;
       gn.scale = {e, e, e};
       std::vector<std::int16_t> pos(nv * 4, 0), nrm(nv * 4, 0);
       std::vector<double> mn(3, 32767), mx(3, -32767);
@@ -596,6 +622,39 @@ std::string GlbBuilder::glb() const {
     model.meshes.push_back(mesh);
     gn.mesh = int(model.meshes.size() - 1);
     model.nodes.push_back(gn);
+    return int(model.nodes.size() - 1);
+  };
+  for (std::size_t ni = 0; ni < im.nodes.size(); ++ni) {
+    Impl::Node ordered;
+    if (mo) ordered = Impl::codec_order(im.nodes[ni]);
+    const auto& node = mo ? ordered : im.nodes[ni];
+    tinygltf::Node gn;
+    gn.name = node.name;
+    gn.translation = {oy[0], oy[1], oy[2]};
+    bool any = false;
+    for (const auto& ix : node.indices) any = any || !ix.empty();
+    if (node.rel.empty() || !any) {
+      model.nodes.push_back(gn);
+      scene.nodes.push_back(int(model.nodes.size() - 1));
+      continue;
+    }
+    const double extent = Impl::quant_extent(node);
+    const std::set<float> bad = mo && !node_q[ni] ? Impl::unquantizable(node) : std::set<float>{};
+    std::set<float> all(node.feature.begin(), node.feature.end());
+    if (bad.empty() || bad.size() == all.size()) {
+      scene.nodes.push_back(emit(node, node_q[ni] != 0, extent, gn));
+      continue;
+    }
+    // meshopt: the features int16 would damage stay float in a second mesh;
+    // the named node holds both (hiding it hides the model).
+    tinygltf::Node parent;
+    parent.name = node.name;
+    tinygltf::Node qn = gn, fn = gn;
+    qn.name = node.name + ":int16";
+    fn.name = node.name + ":float";
+    parent.children.push_back(emit(Impl::part(node, bad, false), true, extent, qn));
+    parent.children.push_back(emit(Impl::part(node, bad, true), false, extent, fn));
+    model.nodes.push_back(parent);
     scene.nodes.push_back(int(model.nodes.size() - 1));
   }
   model.scenes.push_back(scene);

@@ -187,6 +187,26 @@ TEST(CityJsonCli, DelftTileOneValidChainPerBuilding) {
       100.0 * double(semantics) / n, std::uintmax_t(fs::file_size(file)),
       dxy.empty() ? -1.0 : dxy[dxy.size() / 2], dz.empty() ? -1.0 : dz[dz.size() / 2]);
 
+  // the tiles: EXT_meshopt_compression by default (every glb requires it),
+  // against the same work directory assembled with --compression none
+  const CliRun none = run("assemble " + q(d / "out" / "work") + " -q --compression none --out " +
+                          q(d / "tiles_none"));
+  ASSERT_EQ(none.code, 0) << none.out;
+  auto tile_bytes = [](const fs::path& dir, bool meshopt) {
+    std::uintmax_t n = 0;
+    for (const auto& e : fs::directory_iterator(dir / "tiles")) {
+      n += fs::file_size(e.path());
+      const std::string b = slurp(e.path());
+      EXPECT_EQ(b.find("\"EXT_meshopt_compression\"") != std::string::npos, meshopt) << e.path();
+    }
+    return n;
+  };
+  const std::uintmax_t mo = tile_bytes(d / "out" / "tileset", true),
+                       plain = tile_bytes(d / "tiles_none", false);
+  std::printf("Delft tile glbs: meshopt %ju bytes, none %ju bytes (%.1f %%)\n", mo, plain,
+              100.0 * double(mo) / double(plain));
+  EXPECT_LT(double(mo), 0.5 * double(plain));
+
   // the subcommand on the same work directory writes the same bytes
   const CliRun c = run("cityjson " + q(d / "out" / "work") + " -q --threads 1 --out " +
                        q(d / "again.city.jsonl"));
