@@ -596,17 +596,23 @@ std::string GlbBuilder::glb() const {
 
     tinygltf::Mesh mesh;
     mesh.name = node.name;
+    // One index bufferView per mesh: each primitive's accessor is a slice.
+    const bool u16 = nv <= 65535;
+    const int ct =
+        u16 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    std::vector<std::uint32_t> all_ix;
+    for (const auto& ix : node.indices) all_ix.insert(all_ix.end(), ix.begin(), ix.end());
+    const int iv = w.triangles(all_ix, nv, u16);
+    std::size_t first = 0;
     for (int c = 0; c < 3; ++c) {
       const auto& ix = node.indices[size_t(c)];
       if (ix.empty()) continue;
-      const bool u16 = nv <= 65535;
-      const int iv = w.triangles(ix, nv, u16);
-      const int ct =
-          u16 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
       tinygltf::Primitive prim;
       prim.mode = TINYGLTF_MODE_TRIANGLES;
       prim.material = c;
       prim.indices = w.accessor(iv, ct, TINYGLTF_TYPE_SCALAR, ix.size());
+      model.accessors[size_t(prim.indices)].byteOffset = first * (u16 ? 2 : 4);
+      first += ix.size();
       prim.attributes["POSITION"] = pos_acc;
       prim.attributes["NORMAL"] = nrm_acc;
       prim.attributes["_FEATURE_ID_0"] = fid_acc;
