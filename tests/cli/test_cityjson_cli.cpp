@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -228,6 +229,29 @@ TEST(CityJsonCli, UsageAndBadInput) {
   EXPECT_EQ(r.code, 2) << r.out;
   r = run("cityjson --help");
   EXPECT_EQ(r.code, 0) << r.out;
+}
+
+// The official CityJSON 2.0 JSON schemas (the schemas/ folder of
+// github.com/cityjson/specs, not shipped with citylod) when
+// CITYLOD_CITYJSON_SCHEMAS points at them and python3 has jsonschema >= 4.18:
+// the example scene's file validates with no error.
+TEST(CityJsonCli, OfficialSchemaWhenAvailable) {
+  const char* dir = std::getenv("CITYLOD_CITYJSON_SCHEMAS");
+  if (!dir || !fs::exists(fs::path(dir) / "cityjsonfeature.schema.json"))
+    GTEST_SKIP() << "set CITYLOD_CITYJSON_SCHEMAS to the schemas/ folder of cityjson/specs";
+  if (sh("python3 -c 'import jsonschema, referencing'").code != 0)
+    GTEST_SKIP() << "python3 jsonschema >= 4.18 (with referencing) not installed";
+  const fs::path ex = fs::path(CITYLOD_SOURCE_DIR) / "examples" / "delft_small";
+  const fs::path d = tmp_dir("cityjson_schema");
+  const CliRun t = run("tile " + q(ex / "delft_small.las") + " --crs EPSG:28992 --footprints " +
+                       q(ex / "footprints.geojson") + " --threads 2 -q --out " + q(d / "out"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  const fs::path script = fs::path(CITYLOD_SOURCE_DIR) / "tests" / "support" / "cityjson_schema.py";
+  const CliRun v =
+      sh("python3 " + q(script) + " " + q(dir) + " " + q(d / "out" / "buildings.city.jsonl"));
+  std::printf("%s", v.out.c_str());
+  EXPECT_EQ(v.code, 0) << v.out;
+  EXPECT_NE(v.out.find("schema errors: 0"), std::string::npos) << v.out;
 }
 
 }  // namespace
