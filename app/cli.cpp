@@ -27,6 +27,7 @@ int cmd_serve(ArgParser& args);
 int cmd_eval(ArgParser& args);
 int cmd_tile(ArgParser& args);
 int cmd_rebuild(ArgParser& args);
+int cmd_cityjson(ArgParser& args);
 
 namespace {
 
@@ -53,6 +54,9 @@ const Command kCommands[] = {
      "recompute one building of a 'tile' output (--set) or pin its models (--select), update the "
      "tileset",
      cmd_rebuild},
+    {"cityjson",
+     "write every building's LOD chain of a work directory as CityJSON 2.0 (CityJSONSeq)",
+     cmd_cityjson},
     {"serve", "serve a tileset and the CesiumJS viewer on 127.0.0.1 (offline)", cmd_serve},
     {"eval", "validity, volume, e1/e2 RMSE and Hausdorff of models against their input", cmd_eval},
 };

@@ -14,7 +14,8 @@ int cmd_tile(ArgParser& args) {
           "One-command city run: split the scene into buildings (DIR/work), build every\n"
           "building's LOD-Tree (in parallel, resumable, each building isolated: a crash or\n"
           "failure gives that building its fallback model and the reason) and assemble the\n"
-          "3D Tiles tileset (DIR/tileset). Writes DIR/run_report.json. Re-running the same\n"
+          "3D Tiles tileset (DIR/tileset), and DIR/buildings.city.jsonl (CityJSON 2.0, every\n"
+          "building's chain). Writes DIR/run_report.json. Re-running the same\n"
           "command resumes: an up-to-date split is kept and finished buildings are reused.\n"
           "Per-building changes: 'citylod rebuild DIR --building ID'.");
   args.option("out", 'o', "DIR", "output directory (work/, tileset/, run_report.json)");
@@ -23,6 +24,8 @@ int cmd_tile(ArgParser& args) {
   declare_threads_option(args, "buildings processed at once (LOD stage) and assemble's threads");
   declare_assemble_options(args);
   args.flag("force", 'f', "split again even if DIR/work is up to date");
+  args.flag("no-cityjson", 0,
+            "do not write DIR/buildings.city.jsonl (CityJSON 2.0, docs/cityjson.md)");
   args.positional("INPUT", "point cloud or mesh file(s) of one scene", Arity::one_or_more);
   if (!args.parse()) return 0;
   if (!args.has("out")) throw UsageError("--out DIR is required");
@@ -35,6 +38,7 @@ int cmd_tile(ArgParser& args) {
   o.lod = parse_lod_params(args, city_lod_params());
   o.threads = parse_threads(args);
   o.assemble = parse_assemble_options(args);
+  o.cityjson = !args.has("no-cityjson");
 
   ProgressDisplay bars;
   const tiler::CityRunResult r = usage_errors([&] { return tiler::run_city(o, bars.fn()); });
@@ -65,6 +69,11 @@ int cmd_tile(ArgParser& args) {
            strf("%.0f", double(rep.peak_rss_children) / (1 << 20)) + " MiB (LOD stage)");
   log_info("tile: wrote " + o.out_dir + "/tileset/tileset.json (" +
            std::to_string(rep.assemble.tiles) + " tiles) and " + o.out_dir + "/run_report.json");
+  if (o.cityjson)
+    log_info("tile: wrote " + o.out_dir + "/buildings.city.jsonl (" +
+             std::to_string(r.cityjson.buildings) + " buildings, " +
+             std::to_string(r.cityjson.geometries) + " solids, " +
+             std::to_string(r.cityjson.invalid) + " invalid)");
   return 0;
 }
 

@@ -128,6 +128,10 @@ void declare_assemble_options(ArgParser& args) {
   args.option("hausdorff-tolerance", 0, "M",
               "accuracy of the Hausdorff distances between models, metres", "0.1");
   args.flag("quantize", 0, "KHR_mesh_quantization: int16 positions and normals (smaller glbs)");
+  args.option("compression", 0, "none|meshopt",
+              "glb geometry: EXT_meshopt_compression with quantized positions and normals "
+              "(meshopt), or plain accessors (none)",
+              "meshopt");
   args.flag("no-building-models", 0,
             "do not write buildings/*.glb (the viewer's LOD slider needs them)");
   args.flag("skip-missing", 0, "skip buildings without LOD models (warning) instead of failing");
@@ -145,6 +149,7 @@ AssembleParams parse_assemble_options(const ArgParser& args) {
   p.min_change_m = args.get_double("min-change");
   p.hausdorff_tolerance_m = args.get_double("hausdorff-tolerance");
   p.quantize = args.has("quantize");
+  usage_errors([&] { p.compression = io::compression_from_string(args.get("compression")); });
   p.building_models = !args.has("no-building-models");
   p.skip_missing = args.has("skip-missing");
   usage_errors([&] { p.validate(); });

@@ -32,6 +32,10 @@ endif()
 set(CMAKE_DISABLE_FIND_PACKAGE_VTK ON)
 find_package(PCL 1.12 REQUIRED COMPONENTS common search kdtree filters segmentation sample_consensus)
 
+# meshoptimizer (EXT_meshopt_compression of the glbs; private to citylod_io).
+# Debian 12: libmeshoptimizer-dev 0.18, target meshoptimizer::meshoptimizer.
+find_package(meshoptimizer REQUIRED)
+
 # tinygltf (Debian ships the header and a small library)
 find_path(TINYGLTF_INCLUDE_DIR tiny_gltf.h PATH_SUFFIXES tinygltf REQUIRED)
 find_library(TINYGLTF_LIBRARY tinygltf)

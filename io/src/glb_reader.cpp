@@ -2,8 +2,11 @@
 // every accessor read with explicit bounds checks.
 #include "citylod/io/glb_reader.hpp"
 
+#include <meshoptimizer.h>
 #include <tiny_gltf.h>
+#include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -290,6 +293,11 @@ GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema,
           throw IoError(rd.name_, what + ": string offsets lie outside the values");
         col.emplace_back(reinterpret_cast<const char*>(data) + a, std::size_t(b - a));
       }
+    } else if (type == "BOOLEAN") {
+      const auto [data, len] = rd.view(values, what);
+      if (len < (t.count + 7) / 8) throw IoError(rd.name_, what + ": values are truncated");
+      for (std::size_t i = 0; i < t.count; ++i)
+        t.numbers[name].push_back((data[i / 8] >> (i % 8)) & 1u ? 1.0 : 0.0);
     } else if (type == "SCALAR" || type == "ENUM") {
       std::string ct = string_member(def, "componentType");
       std::map<long long, std::string> names;
@@ -348,10 +356,107 @@ std::array<double, 16> multiply(const std::array<double, 16>& a, const std::arra
   return c;
 }
 
+namespace {
+
+std::uint32_t glb_u32(const std::string& b, std::size_t at) {
+  std::uint32_t v;
+  std::memcpy(&v, b.data() + at, 4);
+  return v;
+}
+void glb_put32(std::string& b, std::uint32_t v) {
+  char c[4];
+  std::memcpy(c, &v, 4);
+  b.append(c, 4);
+}
+
+/// A glb whose bufferViews use EXT_meshopt_compression, decoded into a plain
+/// glb (the decoded views appended to the BIN chunk); other glbs unchanged.
+/// `used`: whether the extension was there.
+std::string decode_meshopt(const std::string& bytes, const std::string& name, bool& used) {
+  used = false;
+  if (bytes.size() < 28 || bytes.find("EXT_meshopt_compression") == std::string::npos) return bytes;
+  const std::uint32_t json_len = glb_u32(bytes, 12);
+  if (20 + std::size_t(json_len) > bytes.size()) return bytes;  // tinygltf reports it
+  nlohmann::ordered_json j =
+      nlohmann::ordered_json::parse(bytes.substr(20, json_len), nullptr, false);
+  if (j.is_discarded() || !j.contains("bufferViews")) return bytes;
+  const std::size_t bin_at = 20 + json_len;
+  std::string bin;
+  if (bin_at + 8 <= bytes.size()) {
+    const std::uint32_t bin_len = glb_u32(bytes, bin_at);
+    if (bin_at + 8 + std::size_t(bin_len) > bytes.size())
+      throw IoError(name, "BIN chunk is truncated");
+    bin = bytes.substr(bin_at + 8, bin_len);
+  }
+  for (auto& bv : j["bufferViews"]) {
+    if (!bv.contains("extensions") || !bv["extensions"].contains("EXT_meshopt_compression"))
+      continue;
+    used = true;
+    const auto& e = bv["extensions"]["EXT_meshopt_compression"];
+    const std::size_t off = e.value("byteOffset", std::size_t(0)),
+                      len = e.value("byteLength", std::size_t(0)),
+                      stride = e.value("byteStride", std::size_t(0)),
+                      count = e.value("count", std::size_t(0));
+    const std::string mode = e.value("mode", ""), filter = e.value("filter", "NONE");
+    if (e.value("buffer", -1) != 0 || off + len > bin.size() || stride == 0)
+      throw IoError(name,
+                    "EXT_meshopt_compression: a bufferView's data lies outside the BIN chunk");
+    std::vector<unsigned char> out(count * stride);
+    const auto* src = reinterpret_cast<const unsigned char*>(bin.data() + off);
+    int rc = -1;
+    if (mode == "ATTRIBUTES") {
+      rc = meshopt_decodeVertexBuffer(out.data(), count, stride, src, len);
+      if (rc == 0 && filter == "OCTAHEDRAL") meshopt_decodeFilterOct(out.data(), count, stride);
+      if (rc == 0 && filter == "QUATERNION") meshopt_decodeFilterQuat(out.data(), count, stride);
+      if (rc == 0 && filter == "EXPONENTIAL") meshopt_decodeFilterExp(out.data(), count, stride);
+    } else if (mode == "TRIANGLES") {
+      rc = meshopt_decodeIndexBuffer(out.data(), count, stride, src, len);
+    } else if (mode == "INDICES") {
+      rc = meshopt_decodeIndexSequence(out.data(), count, stride, src, len);
+    }
+    if (rc != 0)
+      throw IoError(name,
+                    "EXT_meshopt_compression: cannot decode a bufferView (mode " + mode + ")");
+    while (bin.size() % 8) bin.push_back('\0');
+    bv["buffer"] = 0;
+    bv["byteOffset"] = bin.size();
+    bv["byteLength"] = out.size();
+    bv["extensions"].erase("EXT_meshopt_compression");
+    if (bv["extensions"].empty()) bv.erase("extensions");
+    bin.append(reinterpret_cast<const char*>(out.data()), out.size());
+  }
+  if (!used) return bytes;
+  while (bin.size() % 4) bin.push_back('\0');
+  j["buffers"] = nlohmann::ordered_json::array({{{"byteLength", bin.size()}}});
+  for (const char* key : {"extensionsUsed", "extensionsRequired"})
+    if (j.contains(key)) {
+      auto& a = j[key];
+      for (auto it = a.begin(); it != a.end();)
+        it = *it == "EXT_meshopt_compression" ? a.erase(it) : it + 1;
+      if (a.empty()) j.erase(key);
+    }
+  std::string js = j.dump();
+  while (js.size() % 4) js.push_back(' ');
+  std::string out("glTF", 4);
+  glb_put32(out, 2);
+  glb_put32(out, std::uint32_t(28 + js.size() + bin.size()));
+  glb_put32(out, std::uint32_t(js.size()));
+  out.append("JSON", 4);
+  out += js;
+  glb_put32(out, std::uint32_t(bin.size()));
+  out.append("BIN\0", 4);
+  out += bin;
+  return out;
+}
+
+}  // namespace
+
 GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   check_container(bytes, name);
   if (bytes.size() > std::numeric_limits<unsigned int>::max())
     throw IoError(name, "glb larger than 4 GiB");
+  bool meshopt = false;
+  const std::string plain = decode_meshopt(bytes, name, meshopt);
   tinygltf::Model model;
   tinygltf::TinyGLTF loader;
   // Images are not needed (and never decoded): accept them as they are.
@@ -361,8 +466,8 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   std::string err, warn;
   const std::string base = std::filesystem::path(name).parent_path().string();
   if (!loader.LoadBinaryFromMemory(&model, &err, &warn,
-                                   reinterpret_cast<const unsigned char*>(bytes.data()),
-                                   static_cast<unsigned int>(bytes.size()), base)) {
+                                   reinterpret_cast<const unsigned char*>(plain.data()),
+                                   static_cast<unsigned int>(plain.size()), base)) {
     std::string e = err.empty() ? "tinygltf could not parse it" : err;
     for (auto& c : e)
       if (c == '\n' || c == '\r') c = ' ';
@@ -372,6 +477,10 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   const Reader rd(model, name);
   GlbDocument doc;
   doc.extensions_used = model.extensionsUsed;
+  if (meshopt) {
+    doc.extensions_used.push_back("EXT_meshopt_compression");
+    std::sort(doc.extensions_used.begin(), doc.extensions_used.end());
+  }
   doc.generator = model.asset.generator;
 
   // ---- property tables

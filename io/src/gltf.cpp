@@ -3,7 +3,9 @@
 // Debian library) builds and serializes the glTF; its header stays here.
 #include "citylod/io/gltf.hpp"
 
+#include <meshoptimizer.h>
 #include <tiny_gltf.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -11,8 +13,10 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <unordered_map>
 
 #include "citylod/io/error.hpp"
@@ -138,6 +142,44 @@ struct BinWriter {
     model.bufferViews.push_back(bv);
     return int(model.bufferViews.size() - 1);
   }
+  /// EXT_meshopt_compression: the view's data encoded (the view points at the
+  /// encoded bytes until glb() rewrites it onto the fallback buffer).
+  struct Meshopt {
+    int view;
+    std::size_t raw_length, stride, count;
+    const char* mode;    // "ATTRIBUTES" | "TRIANGLES"
+    const char* filter;  // "NONE" | "OCTAHEDRAL"
+  };
+  std::vector<Meshopt>* meshopt = nullptr;  // set: compress vertex/index views
+
+  /// Vertex attribute data, `count` elements of `stride` bytes; `plain_stride`:
+  /// the bufferView's byteStride without compression (0 = none).
+  int attributes(const void* p, std::size_t count, std::size_t stride, const char* filter,
+                 int plain_stride) {
+    if (!meshopt) return view(p, count * stride, kArrayBuffer, plain_stride);
+    std::vector<unsigned char> enc(meshopt_encodeVertexBufferBound(count, stride));
+    enc.resize(meshopt_encodeVertexBuffer(enc.data(), enc.size(), p, count, stride));
+    if (enc.empty()) throw IoError(kWhere, "meshopt vertex encoding failed");
+    const int v = view(enc.data(), enc.size(), kArrayBuffer, int(stride));
+    meshopt->push_back({v, count * stride, stride, count, "ATTRIBUTES", filter});
+    return v;
+  }
+  int triangles(const std::vector<std::uint32_t>& ix, std::size_t vertices, bool u16) {
+    const std::size_t size = u16 ? 2 : 4;
+    if (!meshopt) {
+      if (u16) {
+        std::vector<std::uint16_t> s(ix.begin(), ix.end());
+        return view(s.data(), s.size() * 2, kElementArrayBuffer);
+      }
+      return view(ix.data(), ix.size() * 4, kElementArrayBuffer);
+    }
+    std::vector<unsigned char> enc(meshopt_encodeIndexBufferBound(ix.size(), vertices));
+    enc.resize(meshopt_encodeIndexBuffer(enc.data(), enc.size(), ix.data(), ix.size()));
+    if (enc.empty()) throw IoError(kWhere, "meshopt index encoding failed");
+    const int v = view(enc.data(), enc.size(), kElementArrayBuffer);
+    meshopt->push_back({v, ix.size() * size, size, ix.size(), "TRIANGLES", "NONE"});
+    return v;
+  }
   int accessor(int view, int component, int type, std::size_t count, bool normalized = false,
                std::vector<double> min = {}, std::vector<double> max = {}) {
     tinygltf::Accessor a;
@@ -153,6 +195,73 @@ struct BinWriter {
     return int(model.accessors.size() - 1);
   }
 };
+
+std::uint32_t le32(const std::string& b, std::size_t at) {
+  std::uint32_t v;
+  std::memcpy(&v, b.data() + at, 4);
+  return v;
+}
+void put32(std::string& b, std::uint32_t v) {
+  char c[4];
+  std::memcpy(c, &v, 4);
+  b.append(c, 4);
+}
+
+/// The glb tinygltf wrote, with every encoded bufferView moved onto a
+/// fallback buffer (no data) and described by its EXT_meshopt_compression
+/// object pointing at the encoded bytes in the BIN chunk.
+std::string with_meshopt_views(const std::string& glb,
+                               const std::vector<BinWriter::Meshopt>& views) {
+  const std::uint32_t json_len = le32(glb, 12);
+  nlohmann::ordered_json j = nlohmann::ordered_json::parse(glb.substr(20, json_len));
+  const std::size_t bin_at = 20 + json_len;
+  const std::uint32_t bin_len = le32(glb, bin_at);
+  std::size_t fallback = 0;
+  for (const auto& m : views) {
+    auto& bv = j["bufferViews"][size_t(m.view)];
+    nlohmann::ordered_json ext{{"buffer", 0},
+                               {"byteOffset", bv.value("byteOffset", 0)},
+                               {"byteLength", bv["byteLength"]},
+                               {"byteStride", m.stride},
+                               {"mode", m.mode},
+                               {"count", m.count}};
+    if (std::string(m.filter) != "NONE") ext["filter"] = m.filter;
+    while (fallback % 8) ++fallback;
+    bv["buffer"] = 1;
+    bv["byteOffset"] = fallback;
+    bv["byteLength"] = m.raw_length;
+    if (std::string(m.mode) == "ATTRIBUTES")
+      bv["byteStride"] = m.stride;
+    else
+      bv.erase("byteStride");
+    bv["extensions"]["EXT_meshopt_compression"] = ext;
+    fallback += m.raw_length;
+  }
+  j["buffers"] = nlohmann::ordered_json::array(
+      {{{"byteLength", bin_len}},
+       {{"byteLength", fallback},
+        {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}}});
+  for (const char* key : {"extensionsUsed", "extensionsRequired"}) {
+    std::vector<std::string> e = j.value(key, std::vector<std::string>{});
+    e.push_back("EXT_meshopt_compression");
+    std::sort(e.begin(), e.end());
+    j[key] = e;
+  }
+  std::string js = j.dump();
+  while (js.size() % 4) js.push_back(' ');
+  std::string out;
+  out.reserve(28 + js.size() + bin_len);
+  out.append("glTF", 4);
+  put32(out, 2);
+  put32(out, std::uint32_t(12 + 8 + js.size() + 8 + bin_len));
+  put32(out, std::uint32_t(js.size()));
+  out.append("JSON", 4);
+  out += js;
+  put32(out, bin_len);
+  out.append("BIN\0", 4);
+  out.append(glb, bin_at + 8, bin_len);
+  return out;
+}
 
 }  // namespace
 
@@ -225,6 +334,16 @@ std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann:
   return out;
 }
 
+const char* to_string(Compression c) {
+  return c == Compression::meshopt ? "meshopt" : "none";
+}
+
+Compression compression_from_string(const std::string& s) {
+  if (s == "none") return Compression::none;
+  if (s == "meshopt") return Compression::meshopt;
+  throw std::invalid_argument("compression must be none or meshopt, got '" + s + "'");
+}
+
 SurfaceClass classify_normal(const Vec3d& n) {
   if (n[2] >= 0.34) return SurfaceClass::roof;  // slope below ~70 degrees
   if (n[2] <= -0.34) return SurfaceClass::base;
@@ -270,6 +389,38 @@ struct GlbBuilder::Impl {
   /// Whether int16 positions keep every feature's distinct vertices distinct:
   /// two corners closer than a quantization step would merge and make a
   /// closed model non-manifold. Such a node is written with float positions.
+  /// The features of a node whose distinct corners int16 would merge.
+  static std::set<float> unquantizable(const Node& n) {
+    const double e = quant_extent(n);
+    std::map<std::array<std::int64_t, 4>, Vec3d> seen;
+    std::set<float> bad;
+    for (std::size_t i = 0; i < n.rel.size(); ++i) {
+      const Vec3d y = to_yup(n.rel[i]);
+      const std::array<std::int64_t, 4> key{std::int64_t(n.feature[i]), quant(y[0], e),
+                                            quant(y[1], e), quant(y[2], e)};
+      const auto [it, added] = seen.emplace(key, n.rel[i]);
+      if (!added && it->second != n.rel[i]) bad.insert(n.feature[i]);
+    }
+    return bad;
+  }
+  /// The vertices and triangles of the features in `features` (in_set) or of
+  /// the others, renumbered.
+  static Node part(const Node& n, const std::set<float>& features, bool in_set) {
+    Node out;
+    out.name = n.name;
+    std::vector<std::uint32_t> map(n.rel.size(), ~0u);
+    for (std::size_t i = 0; i < n.rel.size(); ++i)
+      if ((features.count(n.feature[i]) != 0) == in_set) {
+        map[i] = std::uint32_t(out.rel.size());
+        out.rel.push_back(n.rel[i]);
+        out.normals.push_back(n.normals[i]);
+        out.feature.push_back(n.feature[i]);
+      }
+    for (int c = 0; c < 3; ++c)
+      for (std::uint32_t v : n.indices[size_t(c)])
+        if (map[v] != ~0u) out.indices[size_t(c)].push_back(map[v]);
+    return out;
+  }
   static bool quantizable(const Node& n) {
     const double e = quant_extent(n);
     std::map<std::array<std::int64_t, 4>, Vec3d> seen;
@@ -282,7 +433,36 @@ struct GlbBuilder::Impl {
     }
     return true;
   }
-  bool quantized(const Node& n) const { return opt.quantize && quantizable(n); }
+  /// A node's triangles in vertex-cache order (per primitive) and its vertices
+  /// in first-use order: what meshoptimizer's codecs compress best. Same
+  /// surfaces, same features.
+  static Node codec_order(const Node& in) {
+    Node out = in;
+    const std::size_t nv = in.rel.size();
+    std::vector<unsigned int> all;
+    for (auto& ix : out.indices) {
+      if (ix.empty()) continue;
+      meshopt_optimizeVertexCache(ix.data(), ix.data(), ix.size(), nv);
+      all.insert(all.end(), ix.begin(), ix.end());
+    }
+    std::vector<unsigned int> remap(nv, ~0u);
+    meshopt_optimizeVertexFetchRemap(remap.data(), all.data(), all.size(), nv);
+    std::size_t next = 0;
+    for (auto& r : remap) next = r != ~0u ? std::max(next, std::size_t(r) + 1) : next;
+    for (auto& r : remap)
+      if (r == ~0u) r = static_cast<unsigned int>(next++);  // unreferenced: at the end
+    for (std::size_t i = 0; i < nv; ++i) {
+      out.rel[remap[i]] = in.rel[i];
+      out.normals[remap[i]] = in.normals[i];
+      out.feature[remap[i]] = in.feature[i];
+    }
+    for (auto& ix : out.indices)
+      for (auto& v : ix) v = remap[v];
+    return out;
+  }
+  bool quantized(const Node& n) const {
+    return (opt.quantize || opt.compression == Compression::meshopt) && quantizable(n);
+  }
 };
 
 GlbBuilder::GlbBuilder(const Vec3d& origin, GlbOptions options) : impl_(std::make_unique<Impl>()) {
@@ -338,12 +518,17 @@ BBox3 GlbBuilder::stored_bounds() const {
   for (const auto& node : impl_->nodes) {
     const double e = Impl::quant_extent(node);
     const bool q = impl_->quantized(node);
-    for (const auto& p : node.rel) {
-      const Vec3d y = to_yup(p);
+    // meshopt: the features int16 would damage stay float (see glb())
+    const std::set<float> bad = !q && impl_->opt.compression == Compression::meshopt
+                                    ? Impl::unquantizable(node)
+                                    : std::set<float>{};
+    for (std::size_t i = 0; i < node.rel.size(); ++i) {
+      const Vec3d y = to_yup(node.rel[i]);
+      const bool qi = q || (!bad.empty() && !bad.count(node.feature[i]));
       Vec3d s;
       for (int k = 0; k < 3; ++k)
         s[size_t(k)] =
-            q ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e : double(float(y[size_t(k)]));
+            qi ? double(Impl::quant(y[size_t(k)], e)) / 32767.0 * e : double(float(y[size_t(k)]));
       const Vec3d z = from_yup(s);
       b.add(Vec3d{o[0] + z[0], o[1] + z[1], o[2] + z[2]});
     }
@@ -362,7 +547,7 @@ std::string GlbBuilder::glb() const {
   model.asset.version = "2.0";
   model.asset.generator = im.opt.generator;
   model.extensionsUsed = {"EXT_mesh_features", "EXT_structural_metadata"};
-  if (q) {
+  if (q || im.opt.compression == Compression::meshopt) {  // meshopt: int8 normals
     model.extensionsUsed.push_back("KHR_mesh_quantization");
     model.extensionsRequired.push_back("KHR_mesh_quantization");
   }
@@ -380,27 +565,42 @@ std::string GlbBuilder::glb() const {
   model.buffers.emplace_back();
   std::vector<unsigned char> bin;
   BinWriter w{model, bin};
+  const bool mo = im.opt.compression == Compression::meshopt;
+  std::vector<BinWriter::Meshopt> compressed;
+  if (mo) {
+    static std::once_flag versions;  // the formats EXT_meshopt_compression defines
+    std::call_once(versions, [] {
+      meshopt_encodeVertexVersion(0);
+      meshopt_encodeIndexVersion(1);
+    });
+    w.meshopt = &compressed;
+  }
   tinygltf::Scene scene;
   scene.name = "citylod";
 
   const Vec3d oy = to_yup(im.origin);
-  for (std::size_t ni = 0; ni < im.nodes.size(); ++ni) {
-    const auto& node = im.nodes[ni];
-    tinygltf::Node gn;
-    gn.name = node.name;
-    gn.translation = {oy[0], oy[1], oy[2]};
+  // One glTF node with one mesh: `part`'s vertices quantized (node scale =
+  // `extent`) or float.
+  auto emit = [&](const Impl::Node& node, bool quantized, double extent, tinygltf::Node gn) -> int {
     const std::size_t nv = node.rel.size();
-    bool any = false;
-    for (const auto& ix : node.indices) any = any || !ix.empty();
-    if (nv == 0 || !any) {
-      model.nodes.push_back(gn);
-      scene.nodes.push_back(int(model.nodes.size() - 1));
-      continue;
-    }
     // Vertex attributes.
     int pos_acc, nrm_acc;
-    if (node_q[ni]) {
-      const double e = Impl::quant_extent(node);
+    // meshopt: int8 octahedral normals (meshopt's OCTAHEDRAL filter), 4 bytes each
+    auto oct_normals = [&] {
+      std::vector<float> n4(nv * 4, 0.0f);
+      for (std::size_t i = 0; i < nv; ++i) {
+        const Vec3f& n = node.normals[i];
+        n4[i * 4 + 0] = n[0];
+        n4[i * 4 + 1] = n[2];
+        n4[i * 4 + 2] = -n[1];
+      }
+      std::vector<std::int8_t> oct(nv * 4, 0);
+      meshopt_encodeFilterOct(oct.data(), nv, 4, 8, n4.data());
+      const int nvw = w.attributes(oct.data(), nv, 4, "OCTAHEDRAL", 4);
+      return w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_TYPE_VEC3, nv, true);
+    };
+    if (quantized) {
+      const double e = extent;
       gn.scale = {e, e, e};
       std::vector<std::int16_t> pos(nv * 4, 0), nrm(nv * 4, 0);
       std::vector<double> mn(3, 32767), mx(3, -32767);
@@ -416,10 +616,14 @@ std::string GlbBuilder::glb() const {
               std::int16_t(std::lround(std::clamp(n[size_t(k)], -1.0, 1.0) * 32767.0));
         }
       }
-      const int pv = w.view(pos.data(), pos.size() * 2, kArrayBuffer, 8);
+      const int pv = w.attributes(pos.data(), nv, 8, "NONE", 8);
       pos_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true, mn, mx);
-      const int nvw = w.view(nrm.data(), nrm.size() * 2, kArrayBuffer, 8);
-      nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true);
+      if (mo) {
+        nrm_acc = oct_normals();
+      } else {
+        const int nvw = w.attributes(nrm.data(), nv, 8, "NONE", 8);
+        nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true);
+      }
     } else {
       std::vector<float> pos(nv * 3), nrm(nv * 3);
       std::vector<double> mn(3, std::numeric_limits<double>::infinity()),
@@ -436,33 +640,38 @@ std::string GlbBuilder::glb() const {
           nrm[i * 3 + size_t(k)] = ny[k];
         }
       }
-      const int pv = w.view(pos.data(), pos.size() * 4, kArrayBuffer);
+      const int pv = w.attributes(pos.data(), nv, 12, "NONE", 0);
       pos_acc =
           w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv, false, mn, mx);
-      const int nvw = w.view(nrm.data(), nrm.size() * 4, kArrayBuffer);
-      nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+      if (mo) {
+        nrm_acc = oct_normals();
+      } else {
+        const int nvw = w.attributes(nrm.data(), nv, 12, "NONE", 0);
+        nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+      }
     }
-    const int fv = w.view(node.feature.data(), node.feature.size() * 4, kArrayBuffer);
+    const int fv = w.attributes(node.feature.data(), nv, 4, "NONE", 0);
     const int fid_acc = w.accessor(fv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
 
     tinygltf::Mesh mesh;
     mesh.name = node.name;
+    // One index bufferView per mesh: each primitive's accessor is a slice.
+    const bool u16 = nv <= 65535;
+    const int ct =
+        u16 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    std::vector<std::uint32_t> all_ix;
+    for (const auto& ix : node.indices) all_ix.insert(all_ix.end(), ix.begin(), ix.end());
+    const int iv = w.triangles(all_ix, nv, u16);
+    std::size_t first = 0;
     for (int c = 0; c < 3; ++c) {
       const auto& ix = node.indices[size_t(c)];
       if (ix.empty()) continue;
-      int iv, ct;
-      if (nv <= 65535) {
-        std::vector<std::uint16_t> s(ix.begin(), ix.end());
-        iv = w.view(s.data(), s.size() * 2, kElementArrayBuffer);
-        ct = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
-      } else {
-        iv = w.view(ix.data(), ix.size() * 4, kElementArrayBuffer);
-        ct = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
-      }
       tinygltf::Primitive prim;
       prim.mode = TINYGLTF_MODE_TRIANGLES;
       prim.material = c;
       prim.indices = w.accessor(iv, ct, TINYGLTF_TYPE_SCALAR, ix.size());
+      model.accessors[size_t(prim.indices)].byteOffset = first * (u16 ? 2 : 4);
+      first += ix.size();
       prim.attributes["POSITION"] = pos_acc;
       prim.attributes["NORMAL"] = nrm_acc;
       prim.attributes["_FEATURE_ID_0"] = fid_acc;
@@ -478,6 +687,39 @@ std::string GlbBuilder::glb() const {
     model.meshes.push_back(mesh);
     gn.mesh = int(model.meshes.size() - 1);
     model.nodes.push_back(gn);
+    return int(model.nodes.size() - 1);
+  };
+  for (std::size_t ni = 0; ni < im.nodes.size(); ++ni) {
+    Impl::Node ordered;
+    if (mo) ordered = Impl::codec_order(im.nodes[ni]);
+    const auto& node = mo ? ordered : im.nodes[ni];
+    tinygltf::Node gn;
+    gn.name = node.name;
+    gn.translation = {oy[0], oy[1], oy[2]};
+    bool any = false;
+    for (const auto& ix : node.indices) any = any || !ix.empty();
+    if (node.rel.empty() || !any) {
+      model.nodes.push_back(gn);
+      scene.nodes.push_back(int(model.nodes.size() - 1));
+      continue;
+    }
+    const double extent = Impl::quant_extent(node);
+    const std::set<float> bad = mo && !node_q[ni] ? Impl::unquantizable(node) : std::set<float>{};
+    std::set<float> all(node.feature.begin(), node.feature.end());
+    if (bad.empty() || bad.size() == all.size()) {
+      scene.nodes.push_back(emit(node, node_q[ni] != 0, extent, gn));
+      continue;
+    }
+    // meshopt: the features int16 would damage stay float in a second mesh;
+    // the named node holds both (hiding it hides the model).
+    tinygltf::Node parent;
+    parent.name = node.name;
+    tinygltf::Node qn = gn, fn = gn;
+    qn.name = node.name + ":int16";
+    fn.name = node.name + ":float";
+    parent.children.push_back(emit(Impl::part(node, bad, false), true, extent, qn));
+    parent.children.push_back(emit(Impl::part(node, bad, true), false, extent, fn));
+    model.nodes.push_back(parent);
     scene.nodes.push_back(int(model.nodes.size() - 1));
   }
   model.scenes.push_back(scene);
@@ -489,8 +731,12 @@ std::string GlbBuilder::glb() const {
   std::vector<std::uint32_t> offsets{0};
   std::vector<std::uint8_t> kind;
   std::vector<std::int32_t> level, step, index, count;
-  std::vector<float> height, area, error;
-  for (const auto& f : im.features) {
+  std::vector<float> height, area, error, rmse;
+  std::vector<std::uint8_t> valid((n + 7) / 8, 0);  // BOOLEAN: a bitstream, LSB first
+  for (std::size_t i = 0; i < n; ++i) {
+    const GlbFeature& f = im.features[i];
+    if (f.valid) valid[i / 8] |= std::uint8_t(1u << (i % 8));
+    rmse.push_back(f.rmse_m >= 0 ? float(f.rmse_m) : -1.0f);
     ids += f.building_id;
     offsets.push_back(std::uint32_t(ids.size()));
     kind.push_back(std::uint8_t(f.kind));
@@ -582,6 +828,9 @@ std::string GlbBuilder::glb() const {
     }
     attr_props[a.property] = obj(std::move(def));
   }
+  column("rmse", rmse.data(), n * 4);
+  if (valid.empty()) valid.push_back(0);
+  column("valid", valid.data(), valid.size());
 
   auto prop = [](const char* type, const char* component, const char* description) {
     Value::Object o{{"type", str(type)}, {"description", str(description)}};
@@ -603,6 +852,16 @@ std::string GlbBuilder::glb() const {
       {"footprint_area",
        prop("SCALAR", "FLOAT32", "footprint area of the building, square metres")},
       {"geometric_error", prop("SCALAR", "FLOAT32", "distance to the finest model, metres")},
+      {"rmse",
+       obj({{"type", str("SCALAR")},
+            {"componentType", str("FLOAT32")},
+            {"noData", Value(-1.0)},
+            {"description",
+             str("RMSE of the building's input points to the model, metres (-1: not measured)")}})},
+      {"valid",
+       prop("BOOLEAN", nullptr,
+            "the model is a valid solid: closed, oriented, no pinched vertex, one outer shell, no "
+            "self-intersection")},
   };
   for (auto& [k, v] : attr_props) class_props[k] = std::move(v);
   Value::Array enum_values{obj({{"name", str("anchor")}, {"value", Value(0)}}),
@@ -626,7 +885,8 @@ std::string GlbBuilder::glb() const {
   std::ostringstream os;
   if (!writer.WriteGltfSceneToStream(&model, os, false, true))
     throw IoError(kWhere, "tinygltf could not serialize");
-  return os.str();
+  if (compressed.empty()) return os.str();
+  return with_meshopt_views(os.str(), compressed);
 }
 
 }  // namespace citylod::io

@@ -3,6 +3,8 @@
 // quantized; corrupt bytes are an IoError naming the file.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -44,17 +46,22 @@ std::map<std::int64_t, std::vector<std::array<Vec3d, 3>>> triangles(const io::Gl
   return out;
 }
 
-void expect_round_trip(bool quantize, double tolerance) {
+void expect_round_trip(bool quantize, double tolerance,
+                       io::Compression compression = io::Compression::none) {
   const Vec3d origin{1000.0, 2000.0, 10.0};
   io::GlbOptions opt;
   opt.quantize = quantize;
+  opt.compression = compression;
   io::GlbBuilder b(origin, opt);
   TriangleMesh a, c;
   add_box(a, 990, 1995, 10, 1000, 2003, 16);
   add_house(c, 10, 8, 6, 3);
   for (auto& v : c.vertices) v = {v[0] + 1005, v[1] + 2001, v[2] + 10};
   b.add_feature(feature("bldg-a", io::LodKind::anchor, 4, 2), a);
-  b.add_feature(feature("bldg-c", io::LodKind::interpolation, 7, 1), c);
+  io::GlbFeature fc = feature("bldg-c", io::LodKind::interpolation, 7, 1);
+  fc.rmse_m = 0.375;
+  fc.valid = false;
+  b.add_feature(fc, c);
   const io::GlbDocument d = io::parse_glb(b.glb(), "mem.glb");
 
   ASSERT_EQ(d.property_tables.size(), 1u);
@@ -66,6 +73,9 @@ void expect_round_trip(bool quantize, double tolerance) {
   EXPECT_EQ(t.numbers.at("step"), (std::vector<double>{4, 7}));
   EXPECT_EQ(t.numbers.at("model_index"), (std::vector<double>{2, 1}));
   EXPECT_NEAR(t.numbers.at("geometric_error")[1], 0.25, 1e-7);
+  // quality: RMSE (noData -1 when not measured) and validity (BOOLEAN bitstream)
+  EXPECT_EQ(t.numbers.at("rmse"), (std::vector<double>{-1, 0.375}));
+  EXPECT_EQ(t.numbers.at("valid"), (std::vector<double>{1, 0}));
 
   const auto tris = triangles(d);
   ASSERT_EQ(tris.size(), 2u);
@@ -98,6 +108,11 @@ TEST(GlbReader, RoundTripOfTheWriter) {
 
 TEST(GlbReader, RoundTripQuantized) {
   expect_round_trip(true, 20.0 / 32767 * 2);
+}
+
+TEST(GlbReader, RoundTripMeshopt) {
+  // EXT_meshopt_compression: int16 positions (20 m node), decoded by the reader
+  expect_round_trip(false, 20.0 / 32767 * 2, io::Compression::meshopt);
 }
 
 TEST(GlbReader, CorruptBytesNameTheFile) {
@@ -164,6 +179,38 @@ TEST(GlbReader, QuantizationNeverMergesCornersOfAModel) {
   io::GlbBuilder plain(origin, opt);
   plain.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
   EXPECT_NE(plain.glb().find("KHR_mesh_quantization"), std::string::npos);
+}
+
+TEST(GlbReader, MeshoptKeepsOnlyTheDamagedFeaturesFloat) {
+  io::GlbOptions opt;
+  opt.compression = io::Compression::meshopt;
+  TriangleMesh far, thin;
+  add_box(far, 900, 900, 0, 1000, 1000, 10);  // node extent 1000 m: int16 step ~3 cm
+  add_box(thin, 0, 0, 0, 10, 10, 0.004);      // 4 mm thick slab: int16 would flatten it
+  io::GlbBuilder b({0, 0, 0}, opt);
+  b.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
+  b.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);
+  const io::BBox3 stored = b.stored_bounds();
+  const io::GlbDocument d = io::parse_glb(b.glb(), "mem.glb");
+  EXPECT_NE(
+      std::find(d.extensions_used.begin(), d.extensions_used.end(), "EXT_meshopt_compression"),
+      d.extensions_used.end());
+  const auto tris = triangles(d);
+  double zmax = 0;
+  for (const auto& tri : tris.at(1))
+    for (const auto& p : tri) zmax = std::max(zmax, p[2]);
+  EXPECT_NEAR(zmax, 0.004, 1e-6);  // the slab is float: it keeps its thickness
+  io::BBox3 got;
+  for (const auto& [f, ts] : tris)
+    for (const auto& tri : ts)
+      for (const auto& p : tri) got.add(p);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(got.min[size_t(k)], stored.min[size_t(k)], 1e-4);
+    EXPECT_NEAR(got.max[size_t(k)], stored.max[size_t(k)], 1e-4);
+  }
+  EXPECT_NEAR(got.max[0], 1000, 1000.0 / 32767);  // the far box: int16
+  EXPECT_EQ(tris.at(0).size(), far.triangles.size());
+  EXPECT_EQ(tris.at(1).size(), thin.triangles.size());
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 // tests/cli/test_assemble*.cpp.
 #pragma once
 
+#include <meshoptimizer.h>
 #include <Eigen/Dense>
 #include <nlohmann/json.hpp>
 
@@ -186,6 +187,33 @@ inline GlbFile read_glb(const std::string& path) {
   if (at + 8 <= b.size()) {
     if (u32(b, at + 4) != 0x004E4942) throw std::runtime_error(path + ": second chunk is not BIN");
     g.bin = b.substr(at + 8, u32(b, at));
+  }
+  // EXT_meshopt_compression: decode each compressed view (meshoptimizer's
+  // decoders, as a client does) and point the view at the decoded bytes.
+  for (auto& bv : g.json["bufferViews"]) {
+    if (!bv.contains("extensions") || !bv["extensions"].contains("EXT_meshopt_compression"))
+      continue;
+    const auto e = bv["extensions"]["EXT_meshopt_compression"];
+    const std::size_t count = e["count"], stride = e["byteStride"], len = e["byteLength"];
+    const std::size_t off = e.value("byteOffset", std::size_t(0));
+    if (e["buffer"] != 0 || off + len > g.bin.size())
+      throw std::runtime_error(path + ": meshopt view outside the BIN chunk");
+    std::string out(count * stride, '\0');
+    const auto* src = reinterpret_cast<const unsigned char*>(g.bin.data() + off);
+    int rc = -1;
+    if (e["mode"] == "ATTRIBUTES") {
+      rc = meshopt_decodeVertexBuffer(out.data(), count, stride, src, len);
+      if (rc == 0 && e.value("filter", "NONE") == "OCTAHEDRAL")
+        meshopt_decodeFilterOct(out.data(), count, stride);
+    } else if (e["mode"] == "TRIANGLES") {
+      rc = meshopt_decodeIndexBuffer(out.data(), count, stride, src, len);
+    }
+    if (rc != 0) throw std::runtime_error(path + ": a meshopt view does not decode");
+    while (g.bin.size() % 8) g.bin.push_back('\0');
+    bv["byteOffset"] = g.bin.size();
+    bv["byteLength"] = out.size();
+    bv["buffer"] = 0;
+    g.bin += out;
   }
   return g;
 }

@@ -271,6 +271,7 @@ json to_json(const AssembleParams& p) {
           {"min_change_m", p.min_change_m},
           {"hausdorff_tolerance_m", p.hausdorff_tolerance_m},
           {"quantize", p.quantize},
+          {"compression", io::to_string(p.compression)},
           {"building_models", p.building_models},
           {"skip_missing", p.skip_missing}};
 }
@@ -283,6 +284,8 @@ AssembleParams assemble_params_from_json(const json& j) {
   p.min_change_m = j.value("min_change_m", p.min_change_m);
   p.hausdorff_tolerance_m = j.value("hausdorff_tolerance_m", p.hausdorff_tolerance_m);
   p.quantize = j.value("quantize", p.quantize);
+  // a run report without it predates compression: its tiles are plain
+  p.compression = io::compression_from_string(j.value("compression", std::string("none")));
   p.building_models = j.value("building_models", p.building_models);
   p.skip_missing = j.value("skip_missing", p.skip_missing);
   p.validate();

@@ -25,6 +25,7 @@
 #include "citylod/io/reader.hpp"
 #include "citylod/io/tileset.hpp"
 #include "citylod/lod/polygon2d.hpp"
+#include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/threads.hpp"
 #include "citylod/tiler/workdir.hpp"
 
@@ -59,7 +60,9 @@ struct KeptModel {
   io::LodKind kind = io::LodKind::anchor;
   int level = 0, step = 0;
   double error_m = 0, hausdorff_m = 0, height_m = 0;
-  BBox3 bbox;  // scene ENU
+  double rmse_m = -1;  // of the input points (report.json e2), -1 = not measured
+  bool valid = false;  // lod::check_mesh(...).valid()
+  BBox3 bbox;          // scene ENU
   std::size_t triangles = 0, bytes = 0;
 };
 
@@ -152,10 +155,14 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     km.step = entries[k].step;
     km.error_m = choice.error_m[i];
     km.hausdorff_m = choice.hausdorff_m[i];
+    const ModelRecord& mr = rep.models[k];
+    if (mr.e2 >= 0 && rep.bbox_diagonal_m > 0) km.rmse_m = mr.e2 / 100 * rep.bbox_diagonal_m;
+    km.valid = lod::check_mesh(to_lod_mesh(mesh, rec.origin)).valid();
     for (const auto& t : mesh.triangles)
       for (auto v : t) km.bbox.add(mesh.vertices[v]);
     km.height_m = km.bbox.max[2] - km.bbox.min[2];
-    const io::GlbMeshSize s = io::glb_mesh_size(mesh, p.quantize);
+    const io::GlbMeshSize s =
+        io::glb_mesh_size(mesh, p.quantize || p.compression == io::Compression::meshopt);
     km.triangles = s.triangles;
     km.bytes = s.bytes;
     b.bbox.add(km.bbox);
@@ -307,7 +314,9 @@ class TreeBuilder {
       // (and for int16 quantization steps).
       double r = 0;
       for (int k = 0; k < 3; ++k) r = std::max(r, exact.max[size_t(k)] - exact.min[size_t(k)]);
-      const double pad = 1e-3 + r * 1e-6 + (p_.quantize ? 2 * r / 32767 : 0);
+      const double pad =
+          1e-3 + r * 1e-6 +
+          (p_.quantize || p_.compression == io::Compression::meshopt ? 2 * r / 32767 : 0);
       t.content_box = exact;
       for (int k = 0; k < 3; ++k) {
         t.content_box.min[size_t(k)] -= pad;
@@ -355,6 +364,8 @@ io::GlbFeature feature_of(const Building& b, std::size_t m) {
   f.footprint_area_m2 = b.footprint_area_m2;
   f.error_m = km.error_m;
   f.attributes = b.attributes;
+  f.rmse_m = km.rmse_m;
+  f.valid = km.valid;
   return f;
 }
 
@@ -488,6 +499,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
     for (const auto& b : buildings) attrs.push_back(&b.attributes);
     gopt.attributes = io::glb_attribute_schema(attrs);
   }
+  gopt.compression = params.compression;
 
   std::vector<std::size_t> glb_size(tiles.size(), 0);
   std::vector<std::string> write_errors(tiles.size());
@@ -590,6 +602,8 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
                     {"step", km.step},
                     {"error_m", km.error_m},
                     {"hausdorff_m", km.hausdorff_m},
+                    {"rmse_m", km.rmse_m >= 0 ? nlohmann::ordered_json(km.rmse_m) : nullptr},
+                    {"valid", km.valid},
                     {"height", km.height_m},
                     {"triangles", km.triangles},
                     {"file", fs::path(km.file).filename().string()}});

@@ -243,6 +243,18 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   report.assemble = {since(t0),      st.buildings, st.tiles,   st.glb_bytes,
                      st.models_kept, st.depth,     st.warnings};
 
+  // ---- CityJSON of the same chains (docs/cityjson.md)
+  if (opt.cityjson) {
+    CityJsonOptions co;
+    co.min_change_m = ap.min_change_m;
+    co.hausdorff_tolerance_m = ap.hausdorff_tolerance_m;
+    co.skip_missing = ap.skip_missing;
+    co.threads = threads;
+    res.cityjson =
+        write_cityjson(work, (fs::path(dir) / "buildings.city.jsonl").string(), co, progress);
+    for (const auto& w : res.cityjson.warnings) log_warn(w);
+  }
+
   // ---- summary + run report
   report.buildings = building_records(work, overrides);
   for (const auto& b : report.buildings) {

@@ -19,6 +19,7 @@
 
 #include "citylod/io/hash.hpp"
 #include "citylod/tiler/city_run.hpp"
+#include "citylod/tiler/cityjson.hpp"
 #include "citylod/tiler/log.hpp"
 
 namespace citylod::tiler {
@@ -182,6 +183,16 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
   res.changed = d.changed;
   res.added = d.added;
   res.removed = d.removed;
+  // The CityJSON of a `tile` output follows (docs/cityjson.md).
+  const fs::path cj = dir / "buildings.city.jsonl";
+  if (fs::exists(cj)) {
+    CityJsonOptions co;
+    co.min_change_m = ap.min_change_m;
+    co.hausdorff_tolerance_m = ap.hausdorff_tolerance_m;
+    co.skip_missing = ap.skip_missing;
+    co.threads = ap.threads;
+    for (const auto& w : write_cityjson(work, cj.string(), co, progress).warnings) log_warn(w);
+  }
 
   // Keep the run report in step.
   run.buildings = building_records(work, ov);

@@ -41,7 +41,8 @@ struct GlbPrimitive {
 };
 
 /// One EXT_structural_metadata property table: STRING and ENUM properties
-/// (enum values as their names) in `strings`, SCALAR properties in `numbers`;
+/// (enum values as their names) in `strings`, SCALAR and BOOLEAN (0 / 1)
+/// properties in `numbers`;
 /// other property types are not read.
 struct GlbPropertyTable {
   std::string name, class_name;

@@ -43,6 +43,10 @@ struct GlbFeature {
   double height_m = 0;  ///< vertical extent of the model
   double footprint_area_m2 = 0;
   double error_m = 0;  ///< geometric error: distance to the building's finest model
+  /// RMSE of the building's input points to the model, metres (report.json
+  /// e2); < 0 = not measured (stored as the property's noData, -1).
+  double rmse_m = -1;
+  bool valid = true;  ///< the model is a valid solid (closed, oriented, one shell, ...)
   /// Values of the GlbOptions::attributes by name (a JSON object; a missing key or
   /// null is "no data"), e.g. the building's footprint attributes.
   nlohmann::json attributes = nlohmann::json::object();
@@ -66,12 +70,25 @@ struct GlbAttribute {
 /// booleans as JSON text). Deterministic for the same set of objects.
 std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann::json*>& objects);
 
+/// Geometry compression of the glb.
+///   none:    plain accessors (float32, or int16 with `quantize`).
+///   meshopt: EXT_meshopt_compression (required extension): quantized
+///            positions (int16, KHR_mesh_quantization) and normals (int8,
+///            OCTAHEDRAL filter), feature ids and indices through
+///            meshoptimizer's vertex / index codecs. Property tables stay plain.
+enum class Compression : std::uint8_t { none = 0, meshopt = 1 };
+const char* to_string(Compression c);  ///< "none" | "meshopt"
+/// Throws std::invalid_argument naming the accepted values.
+Compression compression_from_string(const std::string& s);
+
 struct GlbOptions {
   /// KHR_mesh_quantization: positions as normalized int16 (node scale restores
   /// metres; step = node extent / 32767), normals as normalized int16. A node
   /// where int16 would merge two distinct corners of one model keeps float
   /// positions (the model stays closed and edge-manifold as stored).
   bool quantize = false;
+  /// meshopt implies quantized positions (with the same float fallback).
+  Compression compression = Compression::none;
   std::string generator = "citylod";
   /// Extra properties of the "building" class, from GlbFeature::attributes.
   std::vector<GlbAttribute> attributes;

@@ -42,7 +42,10 @@ struct AssembleParams {
   double min_change_m = 0.1;
   /// Tolerance of the Hausdorff distances (metres).
   double hausdorff_tolerance_m = 0.1;
-  bool quantize = false;        ///< KHR_mesh_quantization in every glb
+  bool quantize = false;  ///< KHR_mesh_quantization in every glb
+  /// EXT_meshopt_compression (quantized positions and normals, meshopt codecs)
+  /// or plain accessors; docs/3dtiles.md.
+  io::Compression compression = io::Compression::meshopt;
   bool building_models = true;  ///< write buildings/<id>.glb + buildings.json (viewer's LOD slider)
   bool skip_missing = false;  ///< buildings without models: skip with a warning instead of failing
   bool force = false;         ///< replace an existing OUT that is not a citylod tileset

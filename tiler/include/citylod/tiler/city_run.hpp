@@ -19,6 +19,7 @@
 
 #include "citylod/lod/params.hpp"
 #include "citylod/tiler/assemble.hpp"
+#include "citylod/tiler/cityjson.hpp"
 #include "citylod/tiler/lod_stage.hpp"
 #include "citylod/tiler/progress.hpp"
 #include "citylod/tiler/split.hpp"
@@ -55,6 +56,7 @@ struct CityRunOptions {
   lod::LodParams lod = city_lod_params();  ///< global LOD parameters (threads is ignored)
   AssembleParams assemble;                 ///< threads is set from `threads`
   int threads = 0;                         ///< 0 = all cores: buildings at once, assemble's threads
+  bool cityjson = true;                    ///< also write DIR/buildings.city.jsonl (cityjson.hpp)
 };
 
 struct CityRunResult {
@@ -62,6 +64,7 @@ struct CityRunResult {
   SplitReport split;
   CityLodSummary lod;
   AssembleStats assemble;
+  CityJsonStats cityjson;  ///< when CityRunOptions::cityjson
   /// "id (status): reason" of every fallback / failed building.
   std::vector<std::string> problems;
 };

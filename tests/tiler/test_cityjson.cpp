@@ -1,0 +1,453 @@
+// CityJSON 2.0 output (tiler/cityjson.hpp): structure by the specification's
+// rules, round trip back to the models in the input's CRS, semantics, lod
+// mapping, validity records, determinism, bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "citylod/geo/georef.hpp"
+#include "citylod/io/error.hpp"
+#include "citylod/io/glb_reader.hpp"
+#include "citylod/io/writers.hpp"
+#include "citylod/tiler/assemble.hpp"
+#include "citylod/tiler/cityjson.hpp"
+#include "citylod/tiler/workdir.hpp"
+#include "support/cityjson_check.hpp"
+#include "support/cli_run.hpp"
+
+namespace citylod::test {
+namespace {
+
+using io::PolygonMesh;
+using io::Vec3d;
+using nlohmann::json;
+
+/// A convex solid's polygons, each turned to face away from the centroid.
+PolygonMesh convex(const std::vector<Vec3d>& v, const std::vector<std::vector<std::uint32_t>>& f) {
+  PolygonMesh m;
+  m.vertices = v;
+  Vec3d c{0, 0, 0};
+  for (const auto& p : v)
+    for (int k = 0; k < 3; ++k) c[size_t(k)] += p[size_t(k)] / double(v.size());
+  for (auto face : f) {
+    Vec3d n{0, 0, 0}, g{0, 0, 0};
+    for (std::size_t i = 0; i < face.size(); ++i) {
+      const Vec3d &a = v[face[i]], &b = v[face[(i + 1) % face.size()]];
+      n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+      n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+      n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+      for (int k = 0; k < 3; ++k) g[size_t(k)] += a[size_t(k)] / double(face.size());
+    }
+    if (n[0] * (g[0] - c[0]) + n[1] * (g[1] - c[1]) + n[2] * (g[2] - c[2]) < 0)
+      std::reverse(face.begin(), face.end());
+    m.faces.push_back(face);
+  }
+  return m;
+}
+
+/// Box [x0,x1]x[y0,y1]x[z0,z1] (6 quads).
+PolygonMesh box(double x0, double y0, double z0, double x1, double y1, double z1) {
+  std::vector<Vec3d> v;
+  for (int i = 0; i < 8; ++i)
+    v.push_back({(i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0});
+  return convex(
+      v, {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}});
+}
+
+/// Gable house on [x0,x0+w]x[y0,y0+d], walls h, ridge along x at rise r (7 faces).
+PolygonMesh house(double x0, double y0, double w, double d, double h, double r) {
+  std::vector<Vec3d> v{{x0, y0, 0},
+                       {x0 + w, y0, 0},
+                       {x0 + w, y0 + d, 0},
+                       {x0, y0 + d, 0},
+                       {x0, y0, h},
+                       {x0 + w, y0, h},
+                       {x0 + w, y0 + d, h},
+                       {x0, y0 + d, h},
+                       {x0, y0 + d / 2, h + r},
+                       {x0 + w, y0 + d / 2, h + r}};
+  return convex(v, {{0, 1, 2, 3},
+                    {0, 1, 5, 4},
+                    {3, 2, 6, 7},
+                    {0, 3, 7, 8, 4},
+                    {1, 2, 6, 9, 5},
+                    {4, 5, 9, 8},
+                    {7, 6, 9, 8}});
+}
+
+// The scene: EPSG:28992 with its origin in Delft; models are made in RD
+// coordinates (the truth) and moved to each chunk's ENU frame the way split
+// moves the points, so the exporter has to find the RD coordinates again.
+const Vec3d kOriginRd{85000, 447500, 0};
+
+struct Scene {
+  std::string work;
+  tiler::Manifest man;
+  geo::Georef georef;
+};
+
+Scene make_scene(const std::string& name) {
+  Scene s{(fs::path(CITYLOD_TEST_TMP) / "cityjson" / name).string(),
+          {},
+          geo::Georef::from_crs(geo::Crs::parse("EPSG:28992"),
+                                Eigen::Vector3d(kOriginRd[0], kOriginRd[1], kOriginRd[2]))};
+  fs::remove_all(s.work);
+  fs::create_directories(s.work);
+  s.man.scene.crs = "EPSG:28992";
+  s.man.scene.origin_crs = {kOriginRd[0], kOriginRd[1], kOriginRd[2]};
+  const auto& o = s.georef.frame().origin();
+  s.man.scene.origin_lon = o[0];
+  s.man.scene.origin_lat = o[1];
+  s.man.scene.origin_h = o[2];
+  return s;
+}
+
+struct Model {
+  PolygonMesh rd;  // in RD
+  std::string kind = "anchor";
+  int level = 0, step = 0;
+  bool obj = true;  // write the merged polygons next to the PLY
+};
+
+/// Adds a building whose models are given in RD: chunk origin = ENU of the
+/// first model's first vertex (rounded), files relative to it.
+void add_building(Scene& s, const std::string& id, const std::vector<Model>& models,
+                  const std::string& source = "") {
+  tiler::ChunkRecord r;
+  r.id = id;
+  r.source = source;
+  const Eigen::Vector3d o = s.georef.to_local(Eigen::Vector3d(
+      models[0].rd.vertices[0][0], models[0].rd.vertices[0][1], models[0].rd.vertices[0][2]));
+  r.origin = {std::round(o[0]), std::round(o[1]), std::round(o[2])};
+  r.status = tiler::Status::ok;
+  const std::string dir = tiler::lod_dir(s.work, id);
+  fs::create_directories(dir);
+  tiler::LodReport rep;
+  rep.input = "synthetic";
+  rep.status = tiler::Status::ok;
+  rep.bbox_diagonal_m = 20;
+  for (const Model& m : models) {
+    PolygonMesh local = m.rd;
+    for (auto& v : local.vertices) {
+      const Eigen::Vector3d e = s.georef.to_local(Eigen::Vector3d(v[0], v[1], v[2]));
+      v = {e[0] - r.origin[0], e[1] - r.origin[1], e[2] - r.origin[2]};
+    }
+    char stem[64];
+    std::snprintf(stem, sizeof stem, "model_%d_%s_L%d", m.step, m.kind.c_str(), m.level);
+    const io::TriangleMesh tri =
+        io::triangulate_polygons(local);  // ear clipping: L-shaped walls too
+    io::write_ply((fs::path(dir) / (std::string(stem) + ".ply")).string(), tri);
+    if (m.obj) io::write_obj((fs::path(dir) / (std::string(stem) + ".obj")).string(), local);
+    tiler::ModelRecord mr;
+    mr.file = std::string(stem) + ".ply";
+    mr.kind = tiler::model_kind_from_string(m.kind);
+    mr.level = m.level;
+    mr.step = m.step;
+    mr.triangles = tri.triangles.size();
+    mr.e2 = 1.5 - 0.5 * m.step;  // % of the 20 m diagonal
+    rep.models.push_back(mr);
+  }
+  tiler::write_lod_report(tiler::lod_report_path(s.work, id), rep);
+  s.man.chunks.push_back(r);
+  tiler::write_manifest(s.work, s.man);
+}
+
+/// box (anchor L0) -> low gable (interpolation L1) -> gable (anchor L1), in RD.
+std::vector<Model> chain(double x0, double y0) {
+  return {{box(x0, y0, 0, x0 + 12, y0 + 9, 8), "anchor", 0, 0, true},
+          {house(x0, y0, 12, 9, 8, 1.5), "interpolation", 1, 1, true},
+          {house(x0, y0, 12, 9, 8, 3.0), "anchor", 1, 2, true}};
+}
+
+tiler::CityJsonOptions opts(int threads = 2) {
+  tiler::CityJsonOptions o;
+  o.threads = threads;
+  return o;
+}
+
+const json& object_of(const json& f) {
+  return f["CityObjects"][f["id"].get<std::string>()];
+}
+
+TEST(CityJson, StructureFollowsTheSpecification) {
+  Scene s = make_scene("structure");
+  add_building(s, "fp-A1", chain(85010, 447510), "footprint:A1");
+  add_building(s, "fp-B2", chain(85040, 447530), "footprint:B2");
+  const std::string out = s.work + "/structure.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.buildings, 2u);
+  EXPECT_EQ(st.geometries, 6u);
+  EXPECT_EQ(st.invalid, 0u);
+  EXPECT_EQ(st.multi_lod, 2u);
+  EXPECT_EQ(st.full_semantics, 2u);
+  EXPECT_EQ(st.triangulated, 0u);
+  const CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  EXPECT_EQ(seq.header["metadata"]["referenceSystem"],
+            "https://www.opengis.net/def/crs/EPSG/0/28992");
+  EXPECT_EQ(seq.header["transform"]["scale"][0], 0.0001);
+  ASSERT_EQ(seq.features.size(), 2u);
+  // the footprint's own id, the chunk id as an attribute
+  EXPECT_EQ(seq.features[0]["id"], "A1");
+  EXPECT_EQ(object_of(seq.features[0])["type"], "Building");
+  EXPECT_EQ(object_of(seq.features[0])["attributes"]["citylod_id"], "fp-A1");
+  // geometries coarse -> fine with their lod and per-model attributes aligned
+  const json& o = object_of(seq.features[1]);
+  ASSERT_EQ(o["geometry"].size(), 3u);
+  EXPECT_EQ(o["geometry"][0]["lod"], "1.2");
+  EXPECT_EQ(o["geometry"][1]["lod"], "2.1");
+  EXPECT_EQ(o["geometry"][2]["lod"], "2.2");
+  const json& ms = o["attributes"]["citylod_models"];
+  ASSERT_EQ(ms.size(), 3u);
+  EXPECT_EQ(ms[1]["kind"], "interpolation");
+  EXPECT_EQ(ms[1]["level"], 1);
+  EXPECT_EQ(ms[1]["step"], 1);
+  EXPECT_NEAR(ms[1]["rmse_m"].get<double>(), 0.01 * 20, 1e-9);  // e2 1 % of 20 m
+  EXPECT_EQ(ms[2]["triangles"], 16);  // fan: 5 quads x 2 + 2 pentagons x 3
+  EXPECT_EQ(ms[2]["polygons"], 7);
+  EXPECT_EQ(ms[2]["error_m"], 0.0);
+  for (std::size_t g = 0; g < 3; ++g) {
+    EXPECT_EQ(ms[g]["lod"], o["geometry"][g]["lod"]);
+    EXPECT_TRUE(ms[g]["valid"].get<bool>());
+  }
+  // the extent is in RD
+  const auto& e = seq.header["metadata"]["geographicalExtent"];
+  EXPECT_NEAR(e[0].get<double>(), 85010, 1e-3);
+  EXPECT_NEAR(e[4].get<double>(), 447539, 1e-3);
+  EXPECT_NEAR(e[5].get<double>(), 11, 1e-3);
+}
+
+TEST(CityJson, RoundTripGivesBackTheModelsInTheCrs) {
+  Scene s = make_scene("roundtrip");
+  const std::vector<Model> models = chain(85110.1234, 447610.5678);
+  add_building(s, "b-1", models);
+  const std::string out = s.work + "/roundtrip.city.jsonl";
+  tiler::write_cityjson(s.work, out, opts());
+  const CjSeq seq = read_cjseq(out);
+  ASSERT_EQ(seq.features.size(), 1u);
+  EXPECT_EQ(seq.features[0]["id"], "b-1");  // no footprint: the chunk id
+  const auto v = feature_vertices(seq.header, seq.features[0]);
+  const json& geoms = object_of(seq.features[0])["geometry"];
+  ASSERT_EQ(geoms.size(), models.size());
+  // quantized to 0.1 mm: each coordinate within half a step (+ the ENU round trip)
+  const double tol = 0.00005 + 1e-6;
+  for (std::size_t g = 0; g < models.size(); ++g) {
+    const PolygonMesh& truth = models[g].rd;
+    const json& b = geoms[g]["boundaries"];
+    ASSERT_EQ(b.size(), 1u);
+    ASSERT_EQ(b[0].size(), truth.faces.size()) << "geometry " << g;
+    // face by face, vertex by vertex, in the same order
+    for (std::size_t f = 0; f < truth.faces.size(); ++f) {
+      const json& ring = b[0][f][0];
+      ASSERT_EQ(ring.size(), truth.faces[f].size());
+      for (std::size_t i = 0; i < ring.size(); ++i) {
+        const auto& p = v[ring[i].get<std::size_t>()];
+        const Vec3d& q = truth.vertices[truth.faces[f][i]];
+        for (int k = 0; k < 3; ++k)
+          EXPECT_NEAR(p[size_t(k)], q[size_t(k)], tol) << "geometry " << g << " face " << f;
+      }
+    }
+    const SolidCheck c = check_solid(b, feature_vertices(seq.header, seq.features[0], true));
+    EXPECT_TRUE(c.valid()) << "geometry " << g;
+  }
+  // one vertex list for the building: the box's 8 corners are shared by the houses
+  EXPECT_EQ(v.size(), 8u + 2u + 2u);
+}
+
+TEST(CityJson, SemanticsFromFaceNormals) {
+  Scene s = make_scene("semantics");
+  // an overhang: an upper box wider than the lower one (its underside faces down, 3 m up)
+  PolygonMesh m;
+  m.vertices = {{0, 0, 0},  {10, 0, 0}, {10, 10, 0}, {0, 10, 0},    // 0-3 ground
+                {0, 0, 6},  {12, 0, 6}, {12, 10, 6}, {0, 10, 6},    // 4-7 roof
+                {10, 0, 3}, {12, 0, 3}, {12, 10, 3}, {10, 10, 3}};  // 8-11 overhang
+  for (auto& p : m.vertices) p = {p[0] + 85000, p[1] + 447500, p[2]};
+  m.faces = {{0, 3, 2, 1},          // ground (down)
+             {4, 5, 6, 7},          // roof (up)
+             {8, 11, 10, 9},        // overhang underside (down, 3 m up)
+             {0, 1, 8, 9, 5, 4},    // south wall (y = 0)
+             {3, 7, 6, 10, 11, 2},  // north wall (y = 10)
+             {0, 4, 7, 3},          // west wall
+             {1, 2, 11, 8},         // east wall, lower part (x = 10)
+             {9, 10, 6, 5}};        // east wall, upper part (x = 12)
+  add_building(s, "b-overhang", {{m, "anchor", 0, 0, true}});
+  const std::string out = s.work + "/semantics.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.invalid, 0u);
+  const CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  const json& g = object_of(seq.features[0])["geometry"][0];
+  std::vector<std::string> types;
+  for (const auto& i : g["semantics"]["values"][0])
+    types.push_back(g["semantics"]["surfaces"][i.get<std::size_t>()]["type"]);
+  const std::vector<std::string> want{"GroundSurface", "RoofSurface", "OuterCeilingSurface",
+                                      "WallSurface",   "WallSurface", "WallSurface",
+                                      "WallSurface",   "WallSurface"};
+  EXPECT_EQ(types, want);
+  EXPECT_EQ(g["lod"], "2.2");  // the finest (only) model
+}
+
+TEST(CityJson, TriangulatedAndInvalidModelsAreRecorded) {
+  Scene s = make_scene("records");
+  // no OBJ: the PLY's triangles are the faces
+  add_building(s, "b-tri", {{box(85000, 447500, 0, 85010, 447508, 6), "anchor", 0, 0, false}});
+  // an open box (no ground): written, recorded as not a valid solid
+  PolygonMesh open = box(85030, 447500, 0, 85040, 447508, 6);
+  open.faces.erase(std::remove_if(open.faces.begin(), open.faces.end(),
+                                  [&](const auto& f) {
+                                    for (auto i : f)
+                                      if (open.vertices[i][2] != 0) return false;
+                                    return true;
+                                  }),
+                   open.faces.end());
+  ASSERT_EQ(open.faces.size(), 5u);
+  add_building(s, "b-open", {{open, "anchor", 0, 0, true}});
+  const std::string out = s.work + "/records.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.buildings, 2u);
+  EXPECT_EQ(st.triangulated, 1u);
+  EXPECT_EQ(st.invalid, 1u);
+  ASSERT_EQ(st.warnings.size(), 1u);
+  EXPECT_NE(st.warnings[0].find("b-open"), std::string::npos) << st.warnings[0];
+  const CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  const json& open_obj = object_of(seq.features[0]);  // "b-open" < "b-tri"
+  EXPECT_FALSE(open_obj["attributes"]["citylod_models"][0]["valid"].get<bool>());
+  const json& tri = object_of(seq.features[1]);
+  EXPECT_EQ(tri["geometry"][0]["boundaries"][0].size(), 12u);
+  EXPECT_TRUE(tri["attributes"]["citylod_models"][0]["valid"].get<bool>());
+  EXPECT_EQ(tri["geometry"][0]["lod"], "2.2");
+}
+
+TEST(CityJson, SameBytesWhateverTheThreads) {
+  Scene s = make_scene("threads");
+  for (int i = 0; i < 12; ++i)
+    add_building(s, "b-" + std::to_string(100 + i),
+                 chain(85000 + 30 * (i % 4), 447500 + 25 * (i / 4)));
+  const std::string a = s.work + "/t1.city.jsonl", b = s.work + "/t3.city.jsonl";
+  tiler::write_cityjson(s.work, a, opts(1));
+  tiler::write_cityjson(s.work, b, opts(3));
+  EXPECT_EQ(slurp(a), slurp(b));
+  EXPECT_FALSE(fs::exists(a + ".partial"));
+  EXPECT_FALSE(fs::exists(a + ".partial.body"));
+}
+
+TEST(CityJson, LocalSceneKeepsEnuMetresWithoutReferenceSystem) {
+  Scene s = make_scene("local");
+  s.man.scene.crs = "";
+  s.man.scene.origin_crs = {0, 0, 0};
+  // with no CRS the "RD" numbers of add_building are only used through the
+  // georef to build the chunk files: write a chunk directly in ENU instead
+  tiler::ChunkRecord r;
+  r.id = "b-local";
+  r.origin = {100, 200, 0};
+  r.status = tiler::Status::ok;
+  const std::string dir = tiler::lod_dir(s.work, r.id);
+  fs::create_directories(dir);
+  const PolygonMesh m = box(0, 0, 0, 10, 8, 5);
+  io::write_ply(dir + "/model_0_anchor_L0.ply", io::triangulate_fan(m));
+  io::write_obj(dir + "/model_0_anchor_L0.obj", m);
+  tiler::LodReport rep;
+  rep.status = tiler::Status::ok;
+  tiler::ModelRecord mr;
+  mr.file = "model_0_anchor_L0.ply";
+  rep.models.push_back(mr);
+  tiler::write_lod_report(tiler::lod_report_path(s.work, r.id), rep);
+  s.man.chunks = {r};
+  tiler::write_manifest(s.work, s.man);
+  const std::string out = s.work + "/local.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.reference_system, "");
+  const CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  EXPECT_FALSE(seq.header["metadata"].contains("referenceSystem"));
+  const auto& e = seq.header["metadata"]["geographicalExtent"];
+  const std::vector<double> want{100, 200, 0, 110, 208, 5};
+  for (std::size_t k = 0; k < 6; ++k) EXPECT_NEAR(e[k].get<double>(), want[k], 1e-9);
+  EXPECT_TRUE(object_of(seq.features[0])["attributes"]["citylod_models"][0]["rmse_m"].is_null());
+}
+
+TEST(CityJson, BadInputIsOneClearError) {
+  Scene s = make_scene("bad");
+  add_building(s, "b-ok", chain(85000, 447500));
+  tiler::ChunkRecord missing;
+  missing.id = "b-missing";
+  missing.status = tiler::Status::ok;
+  s.man.chunks.push_back(missing);
+  tiler::write_manifest(s.work, s.man);
+  const std::string out = s.work + "/bad.city.jsonl";
+  try {
+    tiler::write_cityjson(s.work, out, opts());
+    ADD_FAILURE() << "no error";
+  } catch (const std::exception& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("b-missing"), std::string::npos) << msg;
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  }
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out + ".partial.body"));
+  // skip_missing: the others are written
+  tiler::CityJsonOptions o = opts();
+  o.skip_missing = true;
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, o);
+  EXPECT_EQ(st.buildings, 1u);
+  EXPECT_EQ(st.skipped, 1u);
+  // no work directory, bad option
+  EXPECT_THROW(tiler::write_cityjson(s.work + "/nope", out, opts()), io::IoError);
+  o.scale = 0;
+  EXPECT_THROW(tiler::write_cityjson(s.work, out, o), std::invalid_argument);
+  // a manifest whose origin is not where its CRS puts origin_crs
+  s.man.scene.origin_h += 10;
+  tiler::write_manifest(s.work, s.man);
+  EXPECT_THROW(tiler::write_cityjson(s.work, out, opts()), io::IoError);
+}
+
+TEST(CityJson, LodMappingAndReferenceSystem) {
+  EXPECT_EQ(tiler::cityjson_lod(true, true, true, 0), "1.2");     // fallback
+  EXPECT_EQ(tiler::cityjson_lod(false, true, false, 1), "2.2");   // finest
+  EXPECT_EQ(tiler::cityjson_lod(false, false, false, 1), "1.2");  // one flat roof height
+  EXPECT_EQ(tiler::cityjson_lod(false, false, false, 3), "1.3");  // flat roofs, several heights
+  EXPECT_EQ(tiler::cityjson_lod(false, false, true, 0), "2.1");   // coarser, sloped
+  EXPECT_EQ(tiler::cityjson_reference_system("EPSG:28992"),
+            "https://www.opengis.net/def/crs/EPSG/0/28992");
+  EXPECT_EQ(tiler::cityjson_reference_system("EPSG:7415"),
+            "https://www.opengis.net/def/crs/EPSG/0/7415");
+  EXPECT_EQ(tiler::cityjson_reference_system(""), "");
+}
+
+// Issue 14 item 4: each feature of the tiles carries its model's RMSE to the
+// points and its validity, next to its place in the chain (kind, level, step).
+TEST(CityJson, TileFeaturesCarryRmseAndValidity) {
+  Scene s = make_scene("tile_quality");
+  add_building(s, "b-chain", chain(85000, 447500));
+  PolygonMesh open = box(85030, 447500, 0, 85040, 447508, 6);
+  open.faces.pop_back();  // one wall missing: not closed
+  add_building(s, "b-open", {{open, "anchor", 0, 0, true}});
+  tiler::AssembleParams p;
+  p.threads = 2;
+  tiler::assemble(s.work, s.work + "/tiles", p);
+  std::map<std::pair<std::string, int>, std::pair<double, double>>
+      got;  // (id, step) -> rmse, valid
+  for (const auto& e : fs::directory_iterator(s.work + "/tiles/tiles")) {
+    const io::GlbDocument d = io::read_glb(e.path().string());
+    for (const auto& t : d.property_tables)
+      for (std::size_t i = 0; i < t.count; ++i)
+        got[{t.strings.at("building_id")[i], int(t.numbers.at("step")[i])}] = {
+            t.numbers.at("rmse")[i], t.numbers.at("valid")[i]};
+  }
+  ASSERT_EQ(got.size(), 4u);  // the chain's 3 kept models + the open box
+  for (int step = 0; step < 3; ++step) {
+    const auto& [rmse, valid] = got.at({"b-chain", step});
+    EXPECT_NEAR(rmse, (1.5 - 0.5 * step) / 100 * 20, 1e-6);  // e2 % x 20 m diagonal
+    EXPECT_EQ(valid, 1.0);
+  }
+  EXPECT_EQ(got.at({"b-open", 0}).second, 0.0);
+}
+
+}  // namespace
+}  // namespace citylod::test

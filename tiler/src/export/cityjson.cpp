@@ -1,0 +1,740 @@
+// `citylod cityjson`: a work directory -> CityJSON 2.0 text sequence (docs/cityjson.md).
+// Reads top to bottom: the georeferencing, one building (its models as
+// polygons, semantics, lod), its feature, the file.
+#include "citylod/tiler/cityjson.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <optional>
+#include <set>
+#include <stdexcept>
+
+#include <omp.h>
+#include <nlohmann/json.hpp>
+
+#include "citylod/geo/crs.hpp"
+#include "citylod/geo/georef.hpp"
+#include "citylod/io/error.hpp"
+#include "citylod/io/gltf.hpp"
+#include "citylod/io/reader.hpp"
+#include "citylod/lod/lod.hpp"
+#include "citylod/tiler/assemble.hpp"
+#include "citylod/tiler/bridge.hpp"
+#include "citylod/tiler/threads.hpp"
+#include "citylod/tiler/workdir.hpp"
+
+namespace citylod::tiler {
+
+namespace fs = std::filesystem;
+using io::Vec3d;
+using json = nlohmann::ordered_json;
+
+void CityJsonOptions::validate() const {
+  if (!(scale > 0) || !std::isfinite(scale) || scale > 1)
+    throw std::invalid_argument("cityjson scale must be in (0, 1] (CRS units per integer step)");
+  if (!(min_change_m >= 0) || !std::isfinite(min_change_m))
+    throw std::invalid_argument("min_change_m must be >= 0");
+  if (!(hausdorff_tolerance_m > 0) || !std::isfinite(hausdorff_tolerance_m))
+    throw std::invalid_argument("hausdorff_tolerance_m must be > 0");
+  if (threads < 0) throw std::invalid_argument("threads must be >= 0");
+}
+
+std::string cityjson_lod(bool fallback, bool finest, bool sloped_roof, std::size_t roof_heights) {
+  if (fallback) return "1.2";
+  if (finest) return "2.2";
+  if (sloped_roof) return "2.1";
+  return roof_heights <= 1 ? "1.2" : "1.3";
+}
+
+std::string cityjson_reference_system(const std::string& crs_spec) {
+  if (crs_spec.empty()) return "";
+  const geo::Crs crs = geo::Crs::parse(crs_spec);
+  if (!crs.epsg()) return "";
+  return "https://www.opengis.net/def/crs/EPSG/0/" + std::to_string(*crs.epsg());
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// ------------------------------------------------------------ thresholds (docs/cityjson.md)
+/// A roof face is horizontal when its normal is within ~2.6 degrees of up.
+constexpr double kHorizontalNz = 0.999;
+/// Horizontal roof faces closer than this in height are one roof height.
+constexpr double kRoofHeightTolerance = 0.1;
+/// A downward face is GroundSurface when it lies within this of the model's
+/// lowest point, else OuterCeilingSurface (the underside of an overhang).
+constexpr double kGroundTolerance = 0.5;
+/// Snapping radii (integer steps per axis) tried, in order, when a quantized
+/// model is not a valid solid.
+constexpr long kSnapSteps[] = {1, 2, 4, 8};
+
+enum Semantic : int { kRoof = 0, kWall = 1, kGround = 2, kCeiling = 3 };
+const char* const kSemanticType[] = {"RoofSurface", "WallSurface", "GroundSurface",
+                                     "OuterCeilingSurface"};
+
+// ------------------------------------------------------------ georeferencing
+/// Scene ENU -> the input's CRS, as split made the scene frame. The height
+/// mode is the one that reproduces the manifest's origin (FromCrs, or EGM96
+/// for `--geoid egm96`). Local scenes (no CRS) keep their ENU metres.
+struct Georeferencing {
+  std::optional<geo::Georef> georef;
+  Vec3d translate{0, 0, 0};
+  std::string reference_system;
+};
+
+Georeferencing georeferencing(const Manifest& man, const std::string& work_dir) {
+  Georeferencing g;
+  const SceneInfo& sc = man.scene;
+  if (sc.crs.empty()) return g;
+  const std::string where = manifest_path(work_dir);
+  try {
+    const geo::Crs crs = geo::Crs::parse(sc.crs);
+    const Eigen::Vector3d o(sc.origin_crs[0], sc.origin_crs[1], sc.origin_crs[2]);
+    for (geo::HeightMode mode : {geo::HeightMode::FromCrs, geo::HeightMode::Egm96}) {
+      geo::TransformOptions to;
+      to.height = mode;
+      geo::Georef r = geo::Georef::from_crs(crs, o, to);
+      const geo::LonLatH& f = r.frame().origin();
+      if (std::fabs(f[0] - sc.origin_lon) < 1e-9 && std::fabs(f[1] - sc.origin_lat) < 1e-9 &&
+          std::fabs(f[2] - sc.origin_h) < 1e-3) {
+        g.georef.emplace(std::move(r));
+        break;
+      }
+    }
+    if (!g.georef)
+      throw io::IoError(where, "the scene origin (" + std::to_string(sc.origin_lon) + ", " +
+                                   std::to_string(sc.origin_lat) + ", " +
+                                   std::to_string(sc.origin_h) + ") is not where " + sc.crs +
+                                   " puts origin_crs: cannot convert back to the CRS");
+    if (crs.epsg())
+      g.reference_system = "https://www.opengis.net/def/crs/EPSG/0/" + std::to_string(*crs.epsg());
+  } catch (const geo::GeoError& e) {
+    throw io::IoError(where, e.what());
+  }
+  for (int k = 0; k < 3; ++k) g.translate[size_t(k)] = std::round(sc.origin_crs[size_t(k)]);
+  return g;
+}
+
+// ------------------------------------------------------------ one model
+Vec3d newell(const std::vector<Vec3d>& v, const std::vector<std::uint32_t>& f) {
+  Vec3d n{0, 0, 0};
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const Vec3d &a = v[f[i]], &b = v[f[(i + 1) % f.size()]];
+    n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+    n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+    n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+  }
+  const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  if (l > 0)
+    for (auto& c : n) c /= l;
+  return n;
+}
+
+/// Signed volume and area of a triangulated surface (for the OBJ/PLY match).
+std::pair<double, double> volume_area(const io::TriangleMesh& m) {
+  double vol = 0, area = 0;
+  const Vec3d& o = m.vertices.empty() ? Vec3d{0, 0, 0} : m.vertices[0];
+  for (const auto& t : m.triangles) {
+    Vec3d p[3];
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k)
+        p[i][size_t(k)] = m.vertices[t[size_t(i)]][size_t(k)] - o[size_t(k)];
+    const Vec3d u{p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+    const Vec3d w{p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
+    const Vec3d c{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+    area += std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) / 2;
+    vol += (p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) -
+            p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
+            p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0])) /
+           6;
+  }
+  return {vol, area};
+}
+
+std::set<Vec3d> used_positions(const std::vector<Vec3d>& v,
+                               const std::vector<std::vector<std::uint32_t>>& faces) {
+  std::set<Vec3d> s;
+  for (const auto& f : faces)
+    for (auto i : f) s.insert(v[i]);
+  return s;
+}
+
+/// The model's faces as polygons, in its file's frame (chunk-relative). The
+/// merged polygons of the OBJ the LOD stage writes next to the PLY when it is
+/// the same surface (same vertices, volume and area); else the PLY's triangles.
+io::PolygonMesh model_polygons(const std::string& ply, const io::TriangleMesh& mesh,
+                               bool& from_obj) {
+  io::PolygonMesh tri;
+  tri.vertices = mesh.vertices;
+  for (const auto& t : mesh.triangles) tri.faces.push_back({t[0], t[1], t[2]});
+  from_obj = false;
+  const fs::path obj = fs::path(ply).replace_extension(".obj");
+  if (obj == fs::path(ply) || !fs::exists(obj)) return tri;
+  io::PolygonMesh pm;
+  try {
+    pm = io::read_polygon_mesh(obj.string());
+  } catch (const io::IoError&) {
+    return tri;  // not ours or damaged: the PLY is the model
+  }
+  if (used_positions(pm.vertices, pm.faces) != used_positions(tri.vertices, tri.faces)) return tri;
+  const auto [v0, a0] = volume_area(mesh);
+  const auto [v1, a1] = volume_area(io::triangulate_polygons(pm));
+  const double tol = 1e-9 * std::max(1.0, a0);
+  if (std::fabs(v0 - v1) > tol * std::max(1.0, std::cbrt(std::fabs(v0))) ||
+      std::fabs(a0 - a1) > tol)
+    return tri;
+  from_obj = true;
+  return pm;
+}
+
+struct Geometry {
+  std::vector<std::vector<std::uint32_t>> faces;  // feature vertex indices
+  std::vector<int> semantic;                      // per face
+  std::string lod;
+  json attributes;
+  bool valid = false, full_semantics = false, from_obj = false;
+  double snapped = 0;  // vertices within this were snapped together to keep the solid valid
+};
+
+struct Feature {
+  std::string id;
+  std::string line;  // the JSON text, no newline
+  std::size_t geometries = 0, invalid = 0, triangulated = 0, vertices = 0;
+  bool full_semantics = false;
+  io::BBox3 bbox;  // CRS
+  std::vector<std::string> warnings;
+  std::string error;  // the building cannot be written
+  bool skipped = false;
+};
+
+double round_to(double x, double step) {
+  return std::round(x / step) * step;
+}
+
+/// Quantized feature vertices, deduplicated.
+class VertexPool {
+ public:
+  VertexPool(const Vec3d& translate, double scale) : t_(translate), s_(scale) {}
+  std::uint32_t add(const Vec3d& crs) {
+    std::array<long long, 3> q;
+    for (int k = 0; k < 3; ++k) q[size_t(k)] = std::llround((crs[size_t(k)] - t_[size_t(k)]) / s_);
+    const auto [it, fresh] = index_.emplace(q, std::uint32_t(list_.size()));
+    if (fresh) list_.push_back(q);
+    return it->second;
+  }
+  /// Back in CRS units relative to translate (small numbers for the checks).
+  Vec3d relative(std::uint32_t i) const {
+    return {double(list_[i][0]) * s_, double(list_[i][1]) * s_, double(list_[i][2]) * s_};
+  }
+  Vec3d absolute(std::uint32_t i) const {
+    const Vec3d r = relative(i);
+    return {r[0] + t_[0], r[1] + t_[1], r[2] + t_[2]};
+  }
+  const std::vector<std::array<long long, 3>>& list() const { return list_; }
+
+ private:
+  Vec3d t_;
+  double s_;
+  std::map<std::array<long long, 3>, std::uint32_t> index_;
+  std::vector<std::array<long long, 3>> list_;
+};
+
+/// lod::check_mesh of triangles over feature vertices (collapsed ones left out).
+lod::MeshCheck check_written(const std::vector<std::array<std::uint32_t, 3>>& tris,
+                             const VertexPool& pool) {
+  io::TriangleMesh m;
+  std::map<std::uint32_t, std::uint32_t> local;
+  auto index = [&](std::uint32_t q) {
+    const auto [it, fresh] = local.emplace(q, std::uint32_t(m.vertices.size()));
+    if (fresh) m.vertices.push_back(pool.relative(q));
+    return it->second;
+  };
+  for (const auto& q : tris) {
+    if (q[0] == q[1] || q[1] == q[2] || q[0] == q[2]) continue;
+    m.triangles.push_back({index(q[0]), index(q[1]), index(q[2])});
+  }
+  return lod::check_mesh(to_lod_mesh(m));
+}
+
+/// The triangles with every vertex replaced by the smallest index of its
+/// cluster (vertices within `r` integer steps per axis, transitively), the
+/// collapsed ones and pairs of opposite copies (zero-volume fins) removed;
+/// from[i] = the input triangle of output triangle i.
+std::vector<std::array<std::uint32_t, 3>> snap_triangles(
+    const std::vector<std::array<std::uint32_t, 3>>& tris, const VertexPool& pool, long r,
+    std::vector<std::size_t>& from) {
+  std::vector<std::uint32_t> vs;
+  for (const auto& t : tris) vs.insert(vs.end(), t.begin(), t.end());
+  std::sort(vs.begin(), vs.end());
+  vs.erase(std::unique(vs.begin(), vs.end()), vs.end());
+  std::map<std::uint32_t, std::uint32_t> parent;
+  for (auto v : vs) parent[v] = v;
+  std::function<std::uint32_t(std::uint32_t)> find = [&](std::uint32_t x) {
+    return parent[x] == x ? x : parent[x] = find(parent[x]);
+  };
+  const auto& q = pool.list();
+  std::vector<std::uint32_t> by_x = vs;
+  std::sort(by_x.begin(), by_x.end(), [&](auto a, auto b) { return q[a] < q[b]; });
+  for (std::size_t i = 0; i < by_x.size(); ++i)
+    for (std::size_t j = i + 1; j < by_x.size() && q[by_x[j]][0] - q[by_x[i]][0] <= r; ++j)
+      if (std::llabs(q[by_x[j]][1] - q[by_x[i]][1]) <= r &&
+          std::llabs(q[by_x[j]][2] - q[by_x[i]][2]) <= r) {
+        const std::uint32_t a = find(by_x[i]), b = find(by_x[j]);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+  std::vector<std::array<std::uint32_t, 3>> out;
+  std::vector<std::size_t> src;
+  std::map<std::array<std::uint32_t, 3>, std::size_t> seen;  // rotated to the smallest first
+  auto canonical = [](std::array<std::uint32_t, 3> t) {
+    while (t[0] > t[1] || t[0] > t[2]) t = {t[1], t[2], t[0]};
+    return t;
+  };
+  std::vector<char> dead;
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    const std::array<std::uint32_t, 3> t{find(tris[i][0]), find(tris[i][1]), find(tris[i][2])};
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+    const auto opp = seen.find(canonical({t[0], t[2], t[1]}));
+    if (opp != seen.end() && !dead[opp->second]) {
+      dead[opp->second] = 1;  // a fin: both go
+      seen.erase(opp);
+      continue;
+    }
+    seen[canonical(t)] = out.size();
+    out.push_back(t);
+    src.push_back(i);
+    dead.push_back(0);
+  }
+  std::vector<std::array<std::uint32_t, 3>> kept;
+  from.clear();
+  for (std::size_t i = 0; i < out.size(); ++i)
+    if (!dead[i]) {
+      kept.push_back(out[i]);
+      from.push_back(src[i]);
+    }
+  return kept;
+}
+
+/// One building -> its CityJSONFeature.
+Feature make_feature(const std::string& work, const ChunkRecord& rec, const std::string& object_id,
+                     std::optional<geo::Georef>& georef, const Vec3d& translate,
+                     const CityJsonOptions& opt) {
+  Feature out;
+  out.id = object_id;
+  const std::string report_path = lod_report_path(work, rec.id);
+  if (!fs::exists(report_path)) {
+    out.error = io::IoError(report_path, "building '" + rec.id +
+                                             "' has no LOD models (run 'citylod lod' on the "
+                                             "work directory first)")
+                    .what();
+    return out;
+  }
+  const LodReport rep = read_lod_report(report_path);
+  if (rep.models.empty()) {
+    out.error = io::IoError(report_path, "building '" + rec.id + "' has no models (status \"" +
+                                             to_string(rep.status) + "\")")
+                    .what();
+    return out;
+  }
+  // ---- the models and the chain
+  const std::string dir = lod_dir(work, rec.id);
+  std::vector<ModelEntry> entries;
+  std::vector<io::TriangleMesh> meshes;
+  for (const ModelRecord& m : rep.models) {
+    ModelEntry e;
+    const fs::path f = m.file;
+    e.file = (f.is_absolute() ? f : fs::path(dir) / f).string();
+    e.kind = m.kind;
+    e.level = m.level;
+    e.step = m.step;
+    if (!fs::exists(e.file))
+      throw io::IoError(e.file, "model listed in " + report_path + " is missing");
+    meshes.push_back(io::read_mesh(e.file));
+    entries.push_back(e);
+  }
+  std::vector<std::size_t> kept;
+  std::vector<double> error_m;
+  if (opt.all_models) {
+    for (std::size_t i = 0; i < entries.size(); ++i) kept.push_back(i);
+    std::sort(kept.begin(), kept.end(),
+              [&](std::size_t a, std::size_t b) { return entries[a].step < entries[b].step; });
+  } else {
+    const ModelChoice c =
+        choose_models(entries, meshes, opt.min_change_m, opt.hausdorff_tolerance_m);
+    kept = c.kept;
+    error_m = c.error_m;
+  }
+  if (kept.empty())
+    throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
+
+  // ---- polygons, semantics, lod per model (chunk frame), then the CRS
+  VertexPool pool(translate, opt.scale);
+  std::vector<Geometry> geoms;
+  json models = json::array();
+  for (std::size_t gi = 0; gi < kept.size(); ++gi) {
+    const std::size_t k = kept[gi];
+    const ModelRecord& mr = rep.models[k];
+    Geometry g;
+    io::PolygonMesh pm = model_polygons(entries[k].file, meshes[k], g.from_obj);
+    // semantics and roof shape, in the model's own (ENU) frame
+    double zmin = std::numeric_limits<double>::infinity();
+    for (const auto& f : pm.faces)
+      for (auto i : f) zmin = std::min(zmin, pm.vertices[i][2]);
+    bool sloped = false;
+    std::vector<double> roof_z;
+    std::vector<int> sem;
+    for (const auto& f : pm.faces) {
+      const Vec3d n = newell(pm.vertices, f);
+      const io::SurfaceClass c = io::classify_normal(n);
+      double fz_max = -std::numeric_limits<double>::infinity(), fz_sum = 0;
+      for (auto i : f) {
+        fz_max = std::max(fz_max, pm.vertices[i][2]);
+        fz_sum += pm.vertices[i][2];
+      }
+      if (c == io::SurfaceClass::roof) {
+        sem.push_back(kRoof);
+        if (n[2] < kHorizontalNz)
+          sloped = true;
+        else
+          roof_z.push_back(fz_sum / double(f.size()));
+      } else if (c == io::SurfaceClass::base) {
+        sem.push_back(fz_max <= zmin + kGroundTolerance ? kGround : kCeiling);
+      } else {
+        sem.push_back(kWall);
+      }
+    }
+    std::sort(roof_z.begin(), roof_z.end());
+    std::size_t heights = 0;
+    for (std::size_t i = 0; i < roof_z.size(); ++i)
+      if (i == 0 || roof_z[i] - roof_z[i - 1] > kRoofHeightTolerance) ++heights;
+    const bool finest = gi + 1 == kept.size();
+    g.lod =
+        cityjson_lod(entries[k].kind == ModelKind::fallback, finest, sloped, sloped ? 0 : heights);
+
+    // to the CRS (scene ENU = chunk origin + file coordinates), quantized
+    std::vector<std::uint32_t> used;
+    {
+      std::vector<char> is_used(pm.vertices.size(), 0);
+      for (const auto& f : pm.faces)
+        for (auto i : f) is_used[i] = 1;
+      for (std::uint32_t i = 0; i < pm.vertices.size(); ++i)
+        if (is_used[i]) used.push_back(i);
+    }
+    Eigen::Matrix3Xd pts(3, long(used.size()));
+    for (std::size_t j = 0; j < used.size(); ++j)
+      for (int c = 0; c < 3; ++c)
+        pts(c, long(j)) = pm.vertices[used[j]][size_t(c)] + rec.origin[size_t(c)];
+    if (georef) georef->to_crs_inplace(pts);
+    std::vector<std::uint32_t> to_pool(pm.vertices.size(), 0);
+    for (std::size_t j = 0; j < used.size(); ++j)
+      to_pool[used[j]] = pool.add({pts(0, long(j)), pts(1, long(j)), pts(2, long(j))});
+    std::size_t dropped = 0;
+    std::set<int> classes;
+    for (std::size_t fi = 0; fi < pm.faces.size(); ++fi) {
+      std::vector<std::uint32_t> ring;
+      for (auto i : pm.faces[fi]) {
+        const std::uint32_t q = to_pool[i];
+        if (ring.empty() || ring.back() != q) ring.push_back(q);
+      }
+      while (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+      if (ring.size() < 3) {
+        ++dropped;
+        continue;
+      }
+      g.faces.push_back(std::move(ring));
+      g.semantic.push_back(sem[fi]);
+      classes.insert(sem[fi]);
+    }
+    g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
+
+    // valid solid as written (quantized): lod::check_mesh on the model's own
+    // triangles (the PLY: the same surface as the polygons) on the written
+    // vertices; a triangle that quantization collapses is left out
+    std::map<Vec3d, std::uint32_t> pool_of;
+    for (auto i : used) pool_of.emplace(pm.vertices[i], to_pool[i]);
+    std::vector<std::array<std::uint32_t, 3>> tris;  // pool indices, per PLY triangle
+    for (const auto& t : meshes[k].triangles) {
+      std::array<std::uint32_t, 3> q;
+      for (int c = 0; c < 3; ++c) {
+        const auto it = pool_of.find(meshes[k].vertices[t[size_t(c)]]);
+        if (it == pool_of.end())
+          throw std::logic_error(entries[k].file + ": a triangle vertex is not on the polygons");
+        q[size_t(c)] = it->second;
+      }
+      tris.push_back(q);
+    }
+    lod::MeshCheck chk = check_written(tris, pool);
+    g.valid = chk.valid();
+    if (!g.valid) {
+      // Sub-millimetre features of the model (vertices a fraction of a step
+      // apart) that rounding moved across each other: snap the vertices
+      // within r steps of each other to one, drop what collapses, and write
+      // the model's triangles if that is a valid solid (docs/cityjson.md).
+      for (const long r : kSnapSteps) {
+        std::vector<std::size_t> from;
+        std::vector<std::array<std::uint32_t, 3>> snapped = snap_triangles(tris, pool, r, from);
+        const lod::MeshCheck c2 = check_written(snapped, pool);
+        if (!c2.valid()) continue;
+        g.faces.clear();
+        g.semantic.clear();
+        for (std::size_t i = 0; i < snapped.size(); ++i) {
+          const auto& t = meshes[k].triangles[from[i]];
+          const Vec3d n = newell(meshes[k].vertices, {t[0], t[1], t[2]});
+          const io::SurfaceClass c = io::classify_normal(n);
+          double fz = -std::numeric_limits<double>::infinity();
+          for (auto v : t) fz = std::max(fz, meshes[k].vertices[v][2]);
+          g.faces.push_back({snapped[i][0], snapped[i][1], snapped[i][2]});
+          g.semantic.push_back(c == io::SurfaceClass::roof     ? kRoof
+                               : c == io::SurfaceClass::wall   ? kWall
+                               : fz <= zmin + kGroundTolerance ? kGround
+                                                               : kCeiling);
+        }
+        std::set<int> cls(g.semantic.begin(), g.semantic.end());
+        g.full_semantics = cls.count(kRoof) && cls.count(kWall) && cls.count(kGround);
+        g.from_obj = false;
+        g.snapped = double(r) * opt.scale;
+        g.valid = true;
+        break;
+      }
+    }
+    if (!g.valid) {
+      std::string why = "closed " + std::to_string(chk.closed) + ", oriented " +
+                        std::to_string(chk.oriented) + ", pinched " +
+                        std::to_string(chk.pinched_vertices) + ", shells " +
+                        std::to_string(chk.shells) + ", self-intersecting " +
+                        std::to_string(chk.self_intersecting);
+      if (dropped) why += ", " + std::to_string(dropped) + " faces collapsed by quantization";
+      out.warnings.push_back("cityjson: " + rec.id + " model step " + std::to_string(mr.step) +
+                             " is not a valid solid as written (" + why + ")");
+    }
+
+    json a;
+    a["lod"] = g.lod;
+    a["kind"] = io::to_string(mr.kind);
+    a["level"] = mr.level;
+    a["step"] = mr.step;
+    if (mr.e2 >= 0 && rep.bbox_diagonal_m > 0)
+      a["rmse_m"] = round_to(mr.e2 / 100 * rep.bbox_diagonal_m, 1e-4);
+    else
+      a["rmse_m"] = nullptr;
+    if (!error_m.empty()) a["error_m"] = round_to(error_m[gi], 1e-4);
+    a["triangles"] = meshes[k].triangles.size();
+    a["polygons"] = g.faces.size();
+    a["valid"] = g.valid;
+    if (g.snapped > 0) a["snapped_m"] = g.snapped;
+    models.push_back(a);
+    geoms.push_back(std::move(g));
+  }
+
+  // ---- the feature
+  json obj;
+  obj["type"] = "Building";
+  json attrs;
+  attrs["citylod_id"] = rec.id;
+  if (!rec.source.empty()) attrs["citylod_source"] = rec.source;
+  attrs["citylod_status"] = to_string(rep.status);
+  if (!rep.reason.empty()) attrs["citylod_reason"] = rep.reason;
+  attrs["citylod_models"] = models;
+  obj["attributes"] = attrs;
+  // vertices no written face uses (left by snapping) are not written
+  std::vector<std::uint32_t> renum(pool.list().size(), 0);
+  std::vector<std::uint32_t> written_vertices;
+  {
+    std::vector<char> used_v(pool.list().size(), 0);
+    for (const Geometry& g : geoms)
+      for (const auto& f : g.faces)
+        for (auto i : f) used_v[i] = 1;
+    for (std::uint32_t i = 0; i < used_v.size(); ++i)
+      if (used_v[i]) {
+        renum[i] = std::uint32_t(written_vertices.size());
+        written_vertices.push_back(i);
+      }
+  }
+  for (Geometry& g : geoms)
+    for (auto& f : g.faces)
+      for (auto& i : f) i = renum[i];
+  json geometry = json::array();
+  out.full_semantics = true;
+  for (const Geometry& g : geoms) {
+    json boundaries = json::array(), values = json::array();
+    json shell = json::array();
+    for (const auto& f : g.faces) shell.push_back(json::array({f}));
+    boundaries.push_back(shell);
+    values.push_back(g.semantic);
+    std::set<int> present(g.semantic.begin(), g.semantic.end());
+    // surfaces: one object per class present, values index into them
+    json surfaces = json::array();
+    std::map<int, int> slot;
+    for (int c : present) {
+      slot[c] = int(surfaces.size());
+      surfaces.push_back({{"type", kSemanticType[c]}});
+    }
+    for (auto& v : values[0]) v = slot[v.get<int>()];
+    json geo;
+    geo["type"] = "Solid";
+    geo["lod"] = g.lod;
+    geo["boundaries"] = boundaries;
+    geo["semantics"] = {{"surfaces", surfaces}, {"values", values}};
+    geometry.push_back(geo);
+    ++out.geometries;
+    out.invalid += !g.valid;
+    out.triangulated += !g.from_obj;
+    out.full_semantics = out.full_semantics && g.full_semantics;
+  }
+  obj["geometry"] = geometry;
+  json verts = json::array();
+  for (const std::uint32_t i : written_vertices) {
+    verts.push_back(pool.list()[i]);
+    out.bbox.add(pool.absolute(i));
+  }
+  out.vertices = written_vertices.size();
+  json feat;
+  feat["type"] = "CityJSONFeature";
+  feat["id"] = object_id;
+  feat["CityObjects"] = {{object_id, obj}};
+  feat["vertices"] = verts;
+  out.line = feat.dump();
+  return out;
+}
+
+/// CityObject id: the footprint's own id for footprint chunks (the id a GIS
+/// team joins on), the chunk id otherwise or when footprint ids repeat.
+std::vector<std::string> object_ids(const std::vector<const ChunkRecord*>& recs) {
+  std::vector<std::string> ids;
+  const std::string prefix = "footprint:";
+  for (const auto* r : recs)
+    ids.push_back(r->source.rfind(prefix, 0) == 0 && r->source.size() > prefix.size()
+                      ? r->source.substr(prefix.size())
+                      : r->id);
+  std::map<std::string, int> count;
+  for (const auto& i : ids) ++count[i];
+  for (std::size_t i = 0; i < ids.size(); ++i)
+    if (count[ids[i]] > 1 || (ids[i] != recs[i]->id && count.count(recs[i]->id)))
+      ids[i] = recs[i]->id;
+  return ids;
+}
+
+}  // namespace
+
+CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out_path,
+                             const CityJsonOptions& opt, const ProgressFn& progress) {
+  opt.validate();
+  const auto t0 = Clock::now();
+  CityJsonStats st;
+  if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
+  const Manifest man = read_manifest(work_dir);
+  if (man.chunks.empty())
+    throw io::IoError(manifest_path(work_dir),
+                      "the manifest lists no buildings (nothing to write)");
+  Georeferencing gr = georeferencing(man, work_dir);
+  st.reference_system = gr.reference_system;
+  const fs::path out = fs::absolute(out_path).lexically_normal();
+  if (out.filename().empty() || fs::is_directory(out))
+    throw io::IoError(out_path, "not a file path for the CityJSONSeq output");
+
+  std::vector<const ChunkRecord*> recs;
+  for (const auto& c : man.chunks) {
+    if (c.skipped()) {
+      ++st.skipped;
+      continue;
+    }
+    recs.push_back(&c);
+  }
+  std::sort(recs.begin(), recs.end(), [](const auto* a, const auto* b) { return a->id < b->id; });
+  const std::vector<std::string> ids = object_ids(recs);
+
+  // Features in batches (bounded memory), written in id order to a side file;
+  // the header (which needs the extent) goes first in the final file.
+  if (out.has_parent_path()) fs::create_directories(out.parent_path());
+  const fs::path body = out.string() + ".partial.body";
+  const fs::path stage = out.string() + ".partial";
+  std::ofstream bf(body, std::ios::binary | std::ios::trunc);
+  if (!bf) throw io::IoError(body.string(), "cannot write");
+  const int nthreads = resolve_threads(opt.threads);
+  std::vector<std::optional<geo::Georef>> georefs(static_cast<std::size_t>(nthreads));
+  for (auto& g : georefs)
+    if (gr.georef) g.emplace(gr.georef->clone());
+  io::BBox3 extent;
+  const std::size_t batch = std::size_t(16 * nthreads);
+  auto fail = [&](const std::string& msg) {
+    bf.close();
+    fs::remove(body);
+    throw std::runtime_error(msg);
+  };
+  for (std::size_t b0 = 0; b0 < recs.size(); b0 += batch) {
+    const std::size_t b1 = std::min(recs.size(), b0 + batch);
+    std::vector<Feature> feats(b1 - b0);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+    for (long i = long(b0); i < long(b1); ++i) {
+      Feature& f = feats[size_t(i) - b0];
+      try {
+        f = make_feature(work_dir, *recs[size_t(i)], ids[size_t(i)],
+                         georefs[size_t(omp_get_thread_num())], gr.translate, opt);
+      } catch (const std::exception& e) {
+        f.error = e.what();
+      }
+    }
+    for (Feature& f : feats) {
+      if (!f.error.empty()) {
+        if (!opt.skip_missing) fail(f.error);
+        st.warnings.push_back("skipped: " + f.error);
+        ++st.skipped;
+        continue;
+      }
+      bf << f.line << '\n';
+      ++st.buildings;
+      st.geometries += f.geometries;
+      st.invalid += f.invalid;
+      st.triangulated += f.triangulated;
+      st.vertices += f.vertices;
+      st.multi_lod += f.geometries >= 2;
+      st.full_semantics += f.full_semantics;
+      extent.add(f.bbox);
+      for (auto& w : f.warnings) st.warnings.push_back(std::move(w));
+    }
+    notify_progress(progress, "cityjson", 0.95 * double(b1) / double(recs.size()), "buildings");
+  }
+  bf.close();
+  if (!bf) fail(body.string() + ": write failed");
+  if (st.buildings == 0) fail(work_dir + ": no building has LOD models (nothing to write)");
+
+  // ---- header + body -> stage -> out
+  json head;
+  head["type"] = "CityJSON";
+  head["version"] = "2.0";
+  head["transform"] = {{"scale", {opt.scale, opt.scale, opt.scale}},
+                       {"translate", {gr.translate[0], gr.translate[1], gr.translate[2]}}};
+  json meta;
+  if (!gr.reference_system.empty()) meta["referenceSystem"] = gr.reference_system;
+  meta["geographicalExtent"] = {extent.min[0], extent.min[1], extent.min[2],
+                                extent.max[0], extent.max[1], extent.max[2]};
+  meta["title"] = "citylod LOD chains of " + std::to_string(st.buildings) + " buildings";
+  head["metadata"] = meta;
+  head["CityObjects"] = json::object();
+  head["vertices"] = json::array();
+  {
+    std::ofstream sf(stage, std::ios::binary | std::ios::trunc);
+    std::ifstream in(body, std::ios::binary);
+    sf << head.dump() << '\n' << in.rdbuf();
+    sf.flush();
+    if (!sf) {
+      fs::remove(stage);
+      fail(stage.string() + ": write failed");
+    }
+  }
+  fs::remove(body);
+  fs::rename(stage, out);
+  st.bytes = fs::file_size(out);
+  st.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  notify_finished(progress, "cityjson");
+  return st;
+}
+
+}  // namespace citylod::tiler
