@@ -394,6 +394,10 @@ class Splitter {
   void count_unmatched(const Spiller& spill);
   void drop_footprint_points(RegionPoints& pts) const;
   std::size_t footprint_of(const Vec2& q) const;
+  std::size_t mesh_footprint_of(std::size_t mesh, std::size_t tri, bool above_ground) const;
+  void mesh_footprint_members(const RegionPoints& pts, const CellSegmentation& seg,
+                              const std::set<std::size_t>& mine,
+                              std::map<std::size_t, std::vector<std::uint32_t>>& members) const;
   void process_cell_footprints(const Spiller& spill, const CellKey& key,
                                const std::vector<std::size_t>& owned);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
@@ -425,6 +429,7 @@ class Splitter {
   std::vector<io::TriangleMesh> meshes_;               // mesh scenes (in memory), ENU
   std::vector<std::vector<std::int32_t>> tri_label_;   // mesh triangle -> chunk
   std::vector<std::vector<std::uint32_t>> tri_votes_;  // samples behind that choice
+  std::vector<double> mesh_up_;  // +1 when a mesh's faces point up/out (counter-clockwise), else -1
 
   FootprintSet fp_set_;         // as read (source CRS), until load_footprints()
   std::string fp_source_;       // for messages
@@ -686,6 +691,22 @@ void Splitter::pass2_spill(Spiller& spill) {
         }
       }
       if (!ps.empty()) push_refs(ps, tri_of, ii);
+      // Orientation of the whole mesh: the signed xy area of a city surface (terrain and
+      // roofs seen from above) is positive when its faces point up/out. The wall rule of
+      // mesh_footprint_of() needs the outward side of each face.
+      double up = 0;
+      for (const auto& tri : mesh.triangles) {
+        const Vec3d& p0 = mesh.vertices[tri[0]];
+        const Vec3d& p1 = mesh.vertices[tri[1]];
+        const Vec3d& p2 = mesh.vertices[tri[2]];
+        up += (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0]);
+      }
+      mesh_up_.resize(ii + 1);
+      mesh_up_[ii] = up < 0 ? -1.0 : 1.0;
+      if (up < 0 && !opt_.footprints.empty())
+        rep_.notes.push_back(in.path +
+                             ": faces point down (clockwise seen from above); taken as "
+                             "reversed for the wall-to-footprint test");
       rep_.points += mesh.vertices.size();
       rep_.triangles += mesh.triangles.size();
       tri_label_.resize(ii + 1);
@@ -893,6 +914,116 @@ std::size_t Splitter::footprint_of(const Vec2& q) const {
     }
   }
   return best_d > buf ? SIZE_MAX : best;
+}
+
+// Mesh triangles are judged whole, by their geometry (no foliage test: the faces a
+// footprint claims are all kept). A face no steeper than 60 degrees (roof, terrain)
+// goes to the footprint holding the largest share of its xy projection when that share
+// is at least kMeshMinShare; otherwise (eaves, overhangs) to the footprint nearest to its
+// centroid within --footprint-buffer. A steeper face (wall) goes to the footprint that
+// holds the point --footprint-buffer behind it (against its outward normal), preferring
+// one that does not also hold the point as far in front of it: on a footprint edge
+// shared by touching buildings the wall belongs to the building it bounds, not to the
+// one it faces; else to the nearest footprint within the buffer. Faces whose samples
+// all lie on the ground (DTM) are never claimed, except walls found by the rule above.
+constexpr double kMeshMinShare = 0.5;      ///< share of a face's xy area inside a footprint
+constexpr double kMeshWallCos = 0.5;       ///< |n_z| below this (steeper than 60 deg): a wall
+constexpr double kMeshMinWallProbe = 0.2;  ///< m, the probe distance when the buffer is 0
+
+std::size_t Splitter::mesh_footprint_of(std::size_t mesh, std::size_t tri,
+                                        bool above_ground) const {
+  const auto& m = meshes_[mesh];
+  const auto& t = m.triangles[tri];
+  const Vec3d& p0 = m.vertices[t[0]];
+  const Vec3d& p1 = m.vertices[t[1]];
+  const Vec3d& p2 = m.vertices[t[2]];
+  const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
+  const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
+  const Eigen::Vector3d n = e1.cross(e2) * mesh_up_[mesh];
+  const double len = n.norm();
+  const Vec2 c{(p0[0] + p1[0] + p2[0]) / 3, (p0[1] + p1[1] + p2[1]) / 3};
+  const double buf = opt_.footprint_buffer;
+  // Candidates: footprints whose buffered bbox meets the triangle's xy bbox, in index order.
+  std::vector<std::size_t> cand;
+  const double bx0 = std::min({p0[0], p1[0], p2[0]}), bx1 = std::max({p0[0], p1[0], p2[0]});
+  const double by0 = std::min({p0[1], p1[1], p2[1]}), by1 = std::max({p0[1], p1[1], p2[1]});
+  for (int bx = int(std::floor(bx0 / fp_bucket_)); bx <= int(std::floor(bx1 / fp_bucket_)); ++bx)
+    for (int by = int(std::floor(by0 / fp_bucket_)); by <= int(std::floor(by1 / fp_bucket_));
+         ++by) {
+      const auto it = fp_index_.find({bx, by});
+      if (it == fp_index_.end()) continue;
+      for (std::size_t i : it->second) {
+        const auto& b = fps_[i].bbox;
+        if (bx1 < b[0] - buf || bx0 > b[2] + buf || by1 < b[1] - buf || by0 > b[3] + buf) continue;
+        cand.push_back(i);
+      }
+    }
+  if (cand.empty()) return SIZE_MAX;
+  std::sort(cand.begin(), cand.end());
+  cand.erase(std::unique(cand.begin(), cand.end()), cand.end());
+  const auto nearest = [&](const Vec2& q) {
+    std::size_t best = SIZE_MAX;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (std::size_t i : cand) {
+      const double d = distance_to_footprint(fps_[i], q);
+      if (d < best_d) best = i, best_d = d;
+    }
+    return best_d > buf ? SIZE_MAX : best;
+  };
+  if (!(len > 0)) return above_ground ? nearest(c) : SIZE_MAX;
+  if (std::abs(n[2]) >= kMeshWallCos * len) {  // roof, terrain: by area
+    Ring xy{{p0[0], p0[1]}, {p1[0], p1[1]}, {p2[0], p2[1]}};
+    if (signed_area(xy) < 0) std::swap(xy[1], xy[2]);
+    const double a = std::abs(signed_area(xy));
+    std::size_t best = SIZE_MAX;
+    double best_a = 0;
+    for (std::size_t i : cand) {
+      const double ai = area_inside(fps_[i], xy);
+      if (ai > best_a) best = i, best_a = ai;
+    }
+    if (!above_ground) return SIZE_MAX;
+    if (best != SIZE_MAX && best_a >= kMeshMinShare * a) return best;
+    return nearest(c);
+  }
+  // wall: the footprint it bounds
+  const double h = std::hypot(n[0], n[1]);
+  const double probe = std::max(buf, kMeshMinWallProbe);
+  const Vec2 back{c[0] - probe * n[0] / h, c[1] - probe * n[1] / h};
+  const Vec2 front{c[0] + probe * n[0] / h, c[1] + probe * n[1] / h};
+  std::size_t inside = SIZE_MAX;
+  for (std::size_t i : cand) {
+    if (!point_in_footprint(fps_[i], back)) continue;
+    if (!point_in_footprint(fps_[i], front)) return i;
+    if (inside == SIZE_MAX) inside = i;
+  }
+  if (inside != SIZE_MAX) return inside;
+  return above_ground ? nearest(c) : SIZE_MAX;
+}
+
+// The samples of every triangle whose footprint (mesh_footprint_of) is one of `mine`.
+void Splitter::mesh_footprint_members(
+    const RegionPoints& pts, const CellSegmentation& seg, const std::set<std::size_t>& mine,
+    std::map<std::size_t, std::vector<std::uint32_t>>& members) const {
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> samples;
+  std::unordered_map<std::uint64_t, bool> high;
+  for (std::size_t k = 0; k < pts.pos.size(); ++k) {
+    const std::uint64_t s = pts.src[k];
+    samples[s].push_back(static_cast<std::uint32_t>(k));
+    bool& h = high[s];
+    h = h || (!seg.ground[k] && seg.hag[k] >= opt_.seg.ground_tolerance);
+  }
+  std::vector<std::uint64_t> tris;
+  tris.reserve(samples.size());
+  for (const auto& [s, v] : samples) tris.push_back(s);
+  std::sort(tris.begin(), tris.end());  // sample order in each chunk: by triangle
+  for (std::uint64_t s : tris) {
+    const std::size_t m = std::size_t(s >> 40), t = std::size_t(s & ((1ull << 40) - 1));
+    const std::size_t f = mesh_footprint_of(m, t, high[s]);
+    if (f == SIZE_MAX || !mine.count(f)) continue;
+    auto& dst = members[f];
+    const auto& v = samples[s];
+    dst.insert(dst.end(), v.begin(), v.end());
+  }
 }
 
 // ---------------------------------------------------------------------- pass 3
@@ -1105,7 +1236,8 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   std::map<std::size_t, std::vector<std::uint32_t>> members;
   const std::set<std::size_t> mine(owned.begin(), owned.end());
   const bool have_cls = mode_ != ClassMode::none;
-  for (std::size_t k = 0; k < pts.pos.size(); ++k) {
+  if (!meshes_.empty()) mesh_footprint_members(pts, seg, mine, members);
+  for (std::size_t k = 0; meshes_.empty() && k < pts.pos.size(); ++k) {
     if (mode_ == ClassMode::buildings) {
       if (pts.cls[k] != 6) continue;
     } else {
