@@ -165,12 +165,15 @@ int main(int argc, char** argv) {
         ++true_count[std::size_t(truth.building[t])];
 
     std::vector<double> kept_all, prec_all, e1_all, e2_all;
+    std::vector<int> chunk_of(n, -1);  // index in m.chunks
+    int chunk_index = -1;
     std::size_t unmatched = 0, tree_chunks = 0;
     std::set<int> trees_seen;
     std::map<int, std::size_t> alone;  // building -> chunks where it is > 50 % and >= 50 % kept
     std::printf("%-46s %7s %7s %7s %7s %7s %7s\n", "chunk", "tris", "kept%", "prec%", "other",
                 "terrain", "tree");
     for (const auto& c : m.chunks) {
+      ++chunk_index;
       if (c.skipped()) continue;
       const io::TriangleMesh cm = io::read_mesh(tiler::chunk_path(work, c.id));
       std::map<int, std::size_t> by_building;  // -1 terrain, -2 tree
@@ -187,6 +190,7 @@ int main(int argc, char** argv) {
         }
         const int b = truth.building[std::size_t(t)];
         const int k = truth.kind[std::size_t(t)];
+        chunk_of[std::size_t(t)] = chunk_index;
         ++by_building[k == 1 || k == 2 ? b : (k == 0 ? -1 : -2)];
         tree_crown += k == 3;
       }
@@ -221,11 +225,28 @@ int main(int argc, char** argv) {
             }
             const fs::path tmp = fs::temp_directory_path() / ("mesh_city_bench_" + c.id + ".ply");
             io::write_ply(tmp.string(), model);
-            const auto ev = tiler::evaluate_models({tmp.string()},
-                                                   data + "/truth/" + truth.id[std::size_t(b)] +
-                                                       ".obj",
-                                                   20000);
+            // The truth as a dense point set (5 cm lattice on every face): the distances
+            // are then to its surface, not to its few vertices.
+            const io::TriangleMesh tm =
+                io::read_mesh(data + "/truth/" + truth.id[std::size_t(b)] + ".obj");
+            io::PointSet ref;
+            for (const auto& tri : tm.triangles) {
+              const Eigen::Vector3d a(tm.vertices[tri[0]].data());
+              const Eigen::Vector3d ab = Eigen::Vector3d(tm.vertices[tri[1]].data()) - a;
+              const Eigen::Vector3d ac = Eigen::Vector3d(tm.vertices[tri[2]].data()) - a;
+              const int steps = 1 + int(std::max(ab.norm(), ac.norm()) / 0.05);
+              for (int i = 0; i <= steps; ++i)
+                for (int j = 0; i + j <= steps; ++j) {
+                  const Eigen::Vector3d q = a + ab * (double(i) / steps) + ac * (double(j) / steps);
+                  ref.positions.push_back({q[0], q[1], q[2]});
+                }
+            }
+            const fs::path tref =
+                fs::temp_directory_path() / ("mesh_city_bench_ref_" + c.id + ".ply");
+            io::write_ply(tref.string(), ref);
+            const auto ev = tiler::evaluate_models({tmp.string()}, tref.string(), 20000);
             fs::remove(tmp);
+            fs::remove(tref);
             const double e1 = ev[0].e.e1 * ev[0].e.diagonal / 100;
             const double e2 = ev[0].e.e2 * ev[0].e.diagonal / 100;
             e1_all.push_back(e1);
@@ -258,6 +279,31 @@ int main(int argc, char** argv) {
         std::printf(" terrain:%zu tree:%zu\n", by_building[-1], by_building[-2]);
         (void)tree_crown;
       }
+    }
+    // Where each building's lost faces went: no chunk, or another chunk.
+    std::printf("%-46s %9s %9s %9s %9s\n", "lost faces of", "roof:none", "roof:other",
+                "wall:none", "wall:other");
+    for (std::size_t b = 0; b < truth.id.size(); ++b) {
+      std::size_t lost[2][2] = {{0, 0}, {0, 0}};
+      int own = -1;
+      for (std::size_t ci = 0; ci < m.chunks.size(); ++ci)
+        if (m.chunks[ci].id == "fp-" + truth.id[b]) own = int(ci);
+      if (own < 0) continue;
+      for (std::size_t t = 0; t < n; ++t) {
+        if (truth.building[t] != int(b) || (truth.kind[t] != 1 && truth.kind[t] != 2)) continue;
+        if (chunk_of[t] == own) continue;
+        ++lost[truth.kind[t] - 1][chunk_of[t] < 0 ? 0 : 1];
+        if (std::getenv("MESH_CITY_BENCH_DUMP")) {
+          const auto& tri = scene.triangles[t];
+          const auto& a = scene_crs[tri[0]];
+          const auto& bb = scene_crs[tri[1]];
+          const auto& cc = scene_crs[tri[2]];
+          std::fprintf(stderr, "lost %zu kind %d tri %zu -> %s : %.2f %.2f %.2f | %.2f %.2f %.2f | %.2f %.2f %.2f\n", b, int(truth.kind[t]), t,
+                       chunk_of[t] < 0 ? "none" : m.chunks[std::size_t(chunk_of[t])].id.c_str(), a[0], a[1], a[2], bb[0], bb[1], bb[2], cc[0], cc[1], cc[2]);
+        }
+      }
+      std::printf("%-46s %9zu %9zu %9zu %9zu\n", truth.id[b].c_str(), lost[0][0], lost[0][1],
+                  lost[1][0], lost[1][1]);
     }
     if (!kept_all.empty())
       std::printf("footprint chunks %zu: kept median %.1f %% (min %.1f), precision median %.1f %% "
