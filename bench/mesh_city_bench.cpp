@@ -50,9 +50,9 @@ double median(std::vector<double> v) {
 }
 
 struct Truth {
-  std::vector<int> building;        ///< per scene triangle: buildings.csv index, -1, -2
-  std::vector<std::uint8_t> kind;   ///< 0 terrain 1 roof 2 wall 3 crown 4 trunk
-  std::vector<std::string> id;      ///< per buildings.csv index: gml id
+  std::vector<int> building;       ///< per scene triangle: buildings.csv index, -1, -2
+  std::vector<std::uint8_t> kind;  ///< 0 terrain 1 roof 2 wall 3 crown 4 trunk
+  std::vector<std::string> id;     ///< per buildings.csv index: gml id
 };
 
 Truth read_truth(const std::string& dir, std::size_t n) {
@@ -141,11 +141,13 @@ int main(int argc, char** argv) {
     const geo::Crs crs = geo::Crs::parse(m.scene.crs);
     const geo::VerticalChoice vc = geo::choose_vertical(crs);
     geo::Georef g = geo::Georef::from_crs(
-        vc.crs, Eigen::Vector3d(m.scene.origin_crs[0], m.scene.origin_crs[1], m.scene.origin_crs[2]),
+        vc.crs,
+        Eigen::Vector3d(m.scene.origin_crs[0], m.scene.origin_crs[1], m.scene.origin_crs[2]),
         vc.options);
     io::TriangleMesh scene = io::read_mesh(data + "/scene.ply");
     const std::vector<io::Vec3d> scene_crs = scene.vertices;
-    Eigen::Map<Eigen::Matrix3Xd> v(scene.vertices[0].data(), 3, Eigen::Index(scene.vertices.size()));
+    Eigen::Map<Eigen::Matrix3Xd> v(scene.vertices[0].data(), 3,
+                                   Eigen::Index(scene.vertices.size()));
     g.to_local_inplace(v);
     const std::size_t n = scene.triangles.size();
     const Truth truth = read_truth(data, n);
@@ -212,15 +214,14 @@ int main(int argc, char** argv) {
           const auto rep = tiler::read_lod_report(tiler::lod_report_path(work, c.id));
           const tiler::ModelRecord* fin = nullptr;
           for (const auto& mr : rep.models)
-            if (tiler::is_anchor(mr.kind))
-              fin = &mr;
+            if (tiler::is_anchor(mr.kind)) fin = &mr;
           if (!fin && !rep.models.empty()) fin = &rep.models.back();
           if (fin) {
             const fs::path mp = fs::path(tiler::lod_dir(work, c.id)) / fin->file;
             io::TriangleMesh model = io::read_mesh(mp.string());
             for (auto& p : model.vertices) {
-              const Eigen::Vector3d q = g.to_crs(Eigen::Vector3d(
-                  p[0] + c.origin[0], p[1] + c.origin[1], p[2] + c.origin[2]));
+              const Eigen::Vector3d q = g.to_crs(
+                  Eigen::Vector3d(p[0] + c.origin[0], p[1] + c.origin[1], p[2] + c.origin[2]));
               p = {q[0], q[1], q[2]};
             }
             const fs::path tmp = fs::temp_directory_path() / ("mesh_city_bench_" + c.id + ".ply");
@@ -267,12 +268,15 @@ int main(int argc, char** argv) {
           const double kept = 100.0 * double(best) / double(true_count[std::size_t(major)]);
           std::size_t others = 0;
           for (const auto& [bb, k] : by_building)
-            if (bb >= 0 && bb != major && 100.0 * double(k) / double(true_count[std::size_t(bb)]) > 10)
+            if (bb >= 0 && bb != major &&
+                100.0 * double(k) / double(true_count[std::size_t(bb)]) > 10)
               ++others;
           if (others == 0 && kept >= 50) ++alone[major];
         }
         std::printf("%-46s %7zu  majority %s (%zu), buildings:", c.id.c_str(), cm.triangles.size(),
-                    major == -2 ? "tree" : major == -1 ? "terrain" : truth.id[std::size_t(major)].c_str(),
+                    major == -2   ? "tree"
+                    : major == -1 ? "terrain"
+                                  : truth.id[std::size_t(major)].c_str(),
                     best);
         for (const auto& [bb, k] : by_building)
           if (bb >= 0) std::printf(" %d:%zu", bb, k);
@@ -281,8 +285,8 @@ int main(int argc, char** argv) {
       }
     }
     // Where each building's lost faces went: no chunk, or another chunk.
-    std::printf("%-46s %9s %9s %9s %9s\n", "lost faces of", "roof:none", "roof:other",
-                "wall:none", "wall:other");
+    std::printf("%-46s %9s %9s %9s %9s\n", "lost faces of", "roof:none", "roof:other", "wall:none",
+                "wall:other");
     for (std::size_t b = 0; b < truth.id.size(); ++b) {
       std::size_t lost[2][2] = {{0, 0}, {0, 0}};
       int own = -1;
@@ -298,24 +302,29 @@ int main(int argc, char** argv) {
           const auto& a = scene_crs[tri[0]];
           const auto& bb = scene_crs[tri[1]];
           const auto& cc = scene_crs[tri[2]];
-          std::fprintf(stderr, "lost %zu kind %d tri %zu -> %s : %.2f %.2f %.2f | %.2f %.2f %.2f | %.2f %.2f %.2f\n", b, int(truth.kind[t]), t,
-                       chunk_of[t] < 0 ? "none" : m.chunks[std::size_t(chunk_of[t])].id.c_str(), a[0], a[1], a[2], bb[0], bb[1], bb[2], cc[0], cc[1], cc[2]);
+          std::fprintf(
+              stderr,
+              "lost %zu kind %d tri %zu -> %s : %.2f %.2f %.2f | %.2f %.2f %.2f | %.2f %.2f %.2f\n",
+              b, int(truth.kind[t]), t,
+              chunk_of[t] < 0 ? "none" : m.chunks[std::size_t(chunk_of[t])].id.c_str(), a[0], a[1],
+              a[2], bb[0], bb[1], bb[2], cc[0], cc[1], cc[2]);
         }
       }
       std::printf("%-46s %9zu %9zu %9zu %9zu\n", truth.id[b].c_str(), lost[0][0], lost[0][1],
                   lost[1][0], lost[1][1]);
     }
     if (!kept_all.empty())
-      std::printf("footprint chunks %zu: kept median %.1f %% (min %.1f), precision median %.1f %% "
-                  "(min %.1f)\n",
-                  kept_all.size(), median(kept_all),
-                  *std::min_element(kept_all.begin(), kept_all.end()), median(prec_all),
-                  *std::min_element(prec_all.begin(), prec_all.end()));
+      std::printf(
+          "footprint chunks %zu: kept median %.1f %% (min %.1f), precision median %.1f %% "
+          "(min %.1f)\n",
+          kept_all.size(), median(kept_all), *std::min_element(kept_all.begin(), kept_all.end()),
+          median(prec_all), *std::min_element(prec_all.begin(), prec_all.end()));
     if (!e1_all.empty())
-      std::printf("finest models %zu: model->truth RMSE median %.3f m (max %.3f), truth->model "
-                  "median %.3f m (max %.3f)\n",
-                  e1_all.size(), median(e1_all), *std::max_element(e1_all.begin(), e1_all.end()),
-                  median(e2_all), *std::max_element(e2_all.begin(), e2_all.end()));
+      std::printf(
+          "finest models %zu: model->truth RMSE median %.3f m (max %.3f), truth->model "
+          "median %.3f m (max %.3f)\n",
+          e1_all.size(), median(e1_all), *std::max_element(e1_all.begin(), e1_all.end()),
+          median(e2_all), *std::max_element(e2_all.begin(), e2_all.end()));
     std::size_t nfp = 0;
     for (const auto& c : m.chunks) nfp += !c.skipped() && building_of_id.count(c.id) == 0;
     if (nfp)
