@@ -60,7 +60,8 @@ struct SplitOptions {
   /// --unmatched: building points outside every footprint are dropped (counted), or
   /// clustered into buildings without footprint (the no-footprint segmentation).
   enum class Unmatched { drop, segment } unmatched = Unmatched::drop;
-  double footprint_buffer = 0.5;  ///< m, points (mesh faces: centroids) this close outside a footprint belong to it
+  double footprint_buffer =
+      0.5;  ///< m, points (mesh faces: centroids) this close outside a footprint belong to it
   std::uint64_t memory_limit = 2ull << 30;  ///< bytes
   double cell_size = 100;                   ///< m (reduced automatically when the density needs it)
   double halo = 20;                         ///< m around each cell
