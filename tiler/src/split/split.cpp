@@ -22,6 +22,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+
 #include "citylod/geo/georef.hpp"
 #include "citylod/geo/units.hpp"
 #include "citylod/geo/vertical.hpp"
@@ -395,6 +397,7 @@ class Splitter {
   void drop_footprint_points(RegionPoints& pts) const;
   std::size_t footprint_of(const Vec2& q) const;
   std::size_t mesh_footprint_of(std::size_t mesh, std::size_t tri, bool above_ground) const;
+  double mesh_planar_share(std::vector<std::uint64_t> tris) const;
   void mesh_footprint_members(const RegionPoints& pts, const CellSegmentation& seg,
                               const std::set<std::size_t>& mine,
                               std::map<std::size_t, std::vector<std::uint32_t>>& members) const;
@@ -1026,6 +1029,117 @@ void Splitter::mesh_footprint_members(
   }
 }
 
+// Trees on meshes: MVS meshes make crowns smooth closed blobs, which the point
+// features (PCA scatter of small neighbourhoods) take for roofs. A building is made of
+// planar faces of several m^2; a crown is curved at that scale. The triangles of a
+// cluster are grown into planar regions over shared edges (a neighbour joins when its
+// normal is within kMeshPlanarAngle of the region's plane and its vertices within
+// kMeshPlanarTolerance of it; the plane is refitted as the region doubles); the share of
+// the area in regions of >= kMeshPlanarRegionArea decides (< kMeshMinPlanarShare: a tree).
+// Returns -1 (no decision) for triangle soups without shared edges.
+constexpr double kMeshPlanarTolerance = 0.15;  ///< m (3 sigma of the 5 cm MVS noise)
+constexpr double kMeshPlanarAngle = 30;        ///< degrees
+constexpr double kMeshPlanarRegionArea = 6;    ///< m^2
+constexpr double kMeshMinPlanarShare = 0.4;
+
+double Splitter::mesh_planar_share(std::vector<std::uint64_t> tris) const {
+  std::sort(tris.begin(), tris.end());
+  tris.erase(std::unique(tris.begin(), tris.end()), tris.end());
+  const std::size_t n = tris.size();
+  if (n == 0) return -1;
+  std::vector<Eigen::Vector3d> nrm(n), cen(n);
+  std::vector<std::array<Eigen::Vector3d, 3>> vtx(n);
+  std::vector<double> area(n);
+  // Edges by vertex position (welded at 1 mm): meshes written with a vertex per face corner
+  // have neighbourhoods too.
+  std::map<std::array<long long, 3>, std::uint64_t> vid;
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> edges;  // (v0 << 32 | v1), v0 < v1
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t m = std::size_t(tris[i] >> 40), t = std::size_t(tris[i] & ((1ull << 40) - 1));
+    const auto& tr = meshes_[m].triangles[t];
+    std::uint64_t id[3];
+    for (int k = 0; k < 3; ++k) {
+      const Vec3d& p = meshes_[m].vertices[tr[std::size_t(k)]];
+      vtx[i][std::size_t(k)] = Eigen::Vector3d(p[0], p[1], p[2]);
+      const std::array<long long, 3> q{std::llround(p[0] * 1000), std::llround(p[1] * 1000),
+                                       std::llround(p[2] * 1000)};
+      id[k] = vid.emplace(q, vid.size()).first->second;
+    }
+    const Eigen::Vector3d c = (vtx[i][1] - vtx[i][0]).cross(vtx[i][2] - vtx[i][0]);
+    area[i] = 0.5 * c.norm();
+    nrm[i] = area[i] > 0 ? Eigen::Vector3d(c.normalized()) : Eigen::Vector3d(0, 0, 0);
+    cen[i] = (vtx[i][0] + vtx[i][1] + vtx[i][2]) / 3;
+    for (int k = 0; k < 3; ++k) {
+      std::uint64_t a = id[k], b = id[(k + 1) % 3];
+      if (a == b) continue;
+      if (a > b) std::swap(a, b);
+      edges[(a << 32) | b].push_back(std::uint32_t(i));
+    }
+  }
+  std::vector<std::vector<std::uint32_t>> adj(n);
+  std::size_t shared = 0;
+  for (const auto& [e, ts] : edges)
+    for (std::size_t a = 0; a < ts.size(); ++a)
+      for (std::size_t b = a + 1; b < ts.size(); ++b) {
+        adj[ts[a]].push_back(ts[b]);
+        adj[ts[b]].push_back(ts[a]);
+        ++shared;
+      }
+  if (2 * shared < n) return -1;  // a triangle soup: no neighbourhoods to judge
+  for (auto& a : adj) std::sort(a.begin(), a.end());
+  const double cos_max = std::cos(kMeshPlanarAngle * M_PI / 180);
+  std::vector<char> done(n, 0);
+  double total = 0, planar = 0;
+  for (std::size_t i = 0; i < n; ++i) total += area[i];
+  std::vector<std::uint32_t> queue;
+  for (std::size_t seed = 0; seed < n; ++seed) {
+    if (done[seed] || area[seed] <= 0) continue;
+    done[seed] = 1;
+    queue.assign(1, std::uint32_t(seed));
+    Eigen::Vector3d pn = nrm[seed], pc = cen[seed];
+    double w = 0, fit_w = 0;
+    Eigen::Vector3d s1(0, 0, 0);
+    Eigen::Matrix3d s2 = Eigen::Matrix3d::Zero();
+    const auto add = [&](std::size_t t) {
+      for (const auto& v : vtx[t]) {
+        s1 += area[t] * v;
+        s2 += area[t] * v * v.transpose();
+      }
+      w += 3 * area[t];
+    };
+    add(seed);
+    fit_w = w;
+    double region = 0;
+    for (std::size_t q = 0; q < queue.size(); ++q) {
+      const std::size_t t = queue[q];
+      region += area[t];
+      for (std::uint32_t u : adj[t]) {
+        if (done[u] || area[u] <= 0) continue;
+        if (nrm[u].dot(pn) < cos_max) continue;
+        bool near = true;
+        for (const auto& v : vtx[u])
+          near = near && std::abs((v - pc).dot(pn)) <= kMeshPlanarTolerance;
+        if (!near) continue;
+        done[u] = 1;
+        queue.push_back(u);
+        add(u);
+        if (w >= 2 * fit_w && queue.size() >= 4) {  // refit the plane
+          const Eigen::Vector3d mean = s1 / w;
+          const Eigen::Matrix3d cov = s2 / w - mean * mean.transpose();
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+          Eigen::Vector3d nn = es.eigenvectors().col(0);
+          if (nn.dot(pn) < 0) nn = -nn;
+          pn = nn;
+          pc = mean;
+          fit_w = w;
+        }
+      }
+    }
+    if (region >= kMeshPlanarRegionArea) planar += region;
+  }
+  return total > 0 ? planar / total : -1;
+}
+
 // ---------------------------------------------------------------------- pass 3
 std::size_t Splitter::load_region(const Spiller& spill, const std::array<double, 4>& box,
                                   RegionPoints& out, std::size_t max_points) {
@@ -1185,16 +1299,31 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, b
     halo = std::min(2 * halo, opt_.max_halo);
     ++rep_.halo_growths;
   }
-  for (const auto& cl : seg.clusters) {
+  for (auto& cl : seg.clusters) {
     if (!owns(cl)) continue;
+    double planar_share = -1;  // mesh scenes: share of the cluster's area in large planar faces
+    if (!meshes_.empty() && cl.building) {
+      std::vector<std::uint64_t> tris;
+      tris.reserve(cl.members.size());
+      for (std::uint32_t k : cl.members) tris.push_back(pts.src[k]);
+      planar_share = mesh_planar_share(std::move(tris));
+      if (planar_share >= 0 && planar_share < kMeshMinPlanarShare) {
+        cl.building = false;
+        char why[160];
+        std::snprintf(why, sizeof why,
+                      "vegetation (mesh: %.0f%% of its area in planar faces of >= %.0f m2)",
+                      100 * planar_share, kMeshPlanarRegionArea);
+        cl.reject_reason = why;
+      }
+    }
     {
-      char line[256];
+      char line[320];
       std::snprintf(line, sizeof line,
                     "cluster at (%.1f, %.1f): %zu points, area %.1f m2, width %.1f m, height %.1f "
                     "m, foliage ratio %.2f, "
-                    "planar %.2f: %s",
+                    "planar %.2f, mesh planar faces %.2f: %s",
                     cl.centroid[0], cl.centroid[1], cl.members.size(), cl.area, cl.width, cl.height,
-                    cl.vegetation_ratio, cl.planar_fraction,
+                    cl.vegetation_ratio, cl.planar_fraction, planar_share,
                     cl.building ? "building" : cl.reject_reason.c_str());
       rep_.cluster_log.push_back(line);
     }
