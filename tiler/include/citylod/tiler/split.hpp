@@ -16,11 +16,11 @@
 //           grows while an owned cluster touches its edge), chunk files.
 // Mesh inputs are held in memory; their triangles are sampled (centroid + ~4 per m^2)
 // and the samples segmented like points. Without footprints each triangle goes to the
-// cluster holding most of its samples, and a cluster with less than 40 % of its area in
-// planar faces of >= 6 m^2 (its triangles grown into planar regions) is vegetation. With footprints each triangle is judged whole,
-// by its geometry, and never by a foliage test: a face no steeper than 60 degrees goes
-// to the footprint holding the largest share (>= 0.5) of its xy projection, else to the
-// nearest footprint within footprint_buffer (eaves); a steeper face (wall) to the
+// cluster holding most of its samples, and a cluster with less than 20 % of its area in
+// planar faces of >= 6 m^2 (its triangles grown into planar regions) is vegetation. With footprints
+// each triangle is judged whole, by its geometry, and never by a foliage test: a face no steeper
+// than 60 degrees goes to the footprint holding the largest share (>= 0.5) of its xy projection,
+// else to the nearest footprint within footprint_buffer (eaves); a steeper face (wall) to the
 // footprint it bounds (holding the point footprint_buffer behind it, against its
 // outward normal; on a shared footprint edge not the one it faces); faces all on the
 // ground (DTM) are not claimed (see mesh_footprint_of() in split.cpp).
