@@ -16,6 +16,8 @@
 // of tree crowns that became chunks and of buildings on their own. With --rmse
 // (and LOD output in WORK/lod) also the finest model's RMSE against truth/<id>.obj,
 // model -> truth and truth -> model, in metres.
+// MESH_CITY_BENCH_DUMP=1 also prints every lost face (scene index, kind, where it went,
+// its vertices in the local frame) to stderr.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
