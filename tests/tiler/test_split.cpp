@@ -12,7 +12,11 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <sstream>
 
+#include "citylod/geo/crs.hpp"
+#include "citylod/geo/georef.hpp"
+#include "citylod/geo/vertical.hpp"
 #include "citylod/io/hash.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/io/writers.hpp"
@@ -404,6 +408,241 @@ TEST_F(SplitSynthetic, MeshScenesSplitTriangles) {
   }
 }
 
+// ------------------------------------------------------------------ mesh faces by geometry
+namespace {
+
+/// A triangle soup with an owner per triangle (0 = A, 1 = B, -1 terrain).
+struct TaggedMesh {
+  io::TriangleMesh mesh;
+  std::vector<int> owner;
+  /// A grid of nu x nv quads from p0 along u and v, two triangles each, facing u x v.
+  void rect(const io::Vec3d& p0, const io::Vec3d& u, const io::Vec3d& v, int nu, int nv, int who) {
+    const auto at = [&](int i, int j) {
+      const double a = double(i) / nu, b = double(j) / nv;
+      return io::Vec3d{p0[0] + a * u[0] + b * v[0], p0[1] + a * u[1] + b * v[1],
+                       p0[2] + a * u[2] + b * v[2]};
+    };
+    for (int i = 0; i < nu; ++i)
+      for (int j = 0; j < nv; ++j) {
+        const auto base = static_cast<std::uint32_t>(mesh.vertices.size());
+        for (const auto& p : {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)})
+          mesh.vertices.push_back(p);
+        mesh.triangles.push_back({base, base + 1, base + 2});
+        mesh.triangles.push_back({base, base + 2, base + 3});
+        owner.push_back(who);
+        owner.push_back(who);
+      }
+  }
+  /// 1 m terrain cells over [-10, 30] x [-10, 20] outside [0, 20] x [0, 10].
+  void terrain() {
+    for (int x = -10; x < 30; ++x)
+      for (int y = -10; y < 20; ++y)
+        if (x + 1 <= 0 || x >= 20 || y + 1 <= 0 || y >= 10)
+          rect({double(x), double(y), 0}, {1, 0, 0}, {0, 1, 0}, 1, 1, -1);
+  }
+  /// Walls of the box [x0, x1] x [0, 10] from z0 to z1 on the sides listed ("S", "N", "W", "E").
+  void walls(double x0, double x1, double z0, double z1, const std::string& sides, int who) {
+    const int nx = int(std::lround((x1 - x0) / 0.5)), nz = int(std::lround((z1 - z0) / 0.5));
+    if (sides.find('S') != std::string::npos)
+      rect({x0, 0, z0}, {x1 - x0, 0, 0}, {0, 0, z1 - z0}, nx, nz, who);
+    if (sides.find('N') != std::string::npos)
+      rect({x1, 10, z0}, {x0 - x1, 0, 0}, {0, 0, z1 - z0}, nx, nz, who);
+    if (sides.find('W') != std::string::npos)
+      rect({x0, 10, z0}, {0, -10, 0}, {0, 0, z1 - z0}, 20, nz, who);
+    if (sides.find('E') != std::string::npos)
+      rect({x1, 0, z0}, {0, 10, 0}, {0, 0, z1 - z0}, 20, nz, who);
+  }
+};
+
+using CentroidKey = std::array<long long, 3>;
+CentroidKey centroid_key(const io::Vec3d& a, const io::Vec3d& b, const io::Vec3d& c) {
+  return {std::llround((a[0] + b[0] + c[0]) / 3 * 100),
+          std::llround((a[1] + b[1] + c[1]) / 3 * 100),
+          std::llround((a[2] + b[2] + c[2]) / 3 * 100)};
+}
+
+/// Splits `tm` with the footprints B = [10, 20] x [0, 10] and A = [0, 10] x [0, 10] (in that
+/// order: a tie on the shared edge would go to B) and checks
+/// that chunk fp-A holds exactly the triangles owned by A and fp-B exactly those of B.
+void expect_faces_go_to_their_owner(const TaggedMesh& tm, const fs::path& dir) {
+  const std::string in = (dir / "mesh.ply").string();
+  io::write_ply(in, tm.mesh);
+  test::SynthCity none;
+  none.boxes.clear();
+  const std::string fp = (dir / "fp.geojson").string();
+  std::ofstream(fp) << test::city_footprints_geojson(
+      none, {{"B", 10, 0, 20, 10, 0}, {"A", 0, 0, 10, 10, 0}});
+  SplitOptions o = local_options(in, dir / "work");
+  o.footprints = fp;
+  tiler::split_scene(o);
+  std::map<CentroidKey, int> owner;
+  for (std::size_t t = 0; t < tm.mesh.triangles.size(); ++t) {
+    const auto& tr = tm.mesh.triangles[t];
+    owner[centroid_key(tm.mesh.vertices[tr[0]], tm.mesh.vertices[tr[1]], tm.mesh.vertices[tr[2]])] =
+        tm.owner[t];
+  }
+  std::size_t expected[2] = {0, 0};
+  for (int w : tm.owner)
+    if (w >= 0) ++expected[w];
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
+  ASSERT_EQ(m.chunks.size(), 2u);
+  for (int who = 0; who < 2; ++who) {
+    const tiler::ChunkRecord& c = m.chunks[std::size_t(who)];
+    ASSERT_EQ(c.id, who == 0 ? "fp-A" : "fp-B");
+    const io::TriangleMesh cm = io::read_mesh(tiler::chunk_path(o.work_dir, c.id));
+    EXPECT_EQ(cm.triangles.size(), expected[who]) << c.id;
+    std::size_t wrong = 0;
+    for (const auto& tr : cm.triangles) {
+      io::Vec3d p[3];
+      for (int k = 0; k < 3; ++k)
+        for (int a = 0; a < 3; ++a) p[k][a] = cm.vertices[tr[k]][a] + c.origin[a];
+      const auto it = owner.find(centroid_key(p[0], p[1], p[2]));
+      ASSERT_NE(it, owner.end());
+      wrong += it->second != who;
+    }
+    EXPECT_EQ(wrong, 0u) << c.id;
+  }
+}
+
+}  // namespace
+
+TEST(SplitFootprints, AreaInsideClipsAgainstEveryRing) {
+  tiler::Footprint f;
+  tiler::Polygon2 p;
+  p.rings = {{{0, 0}, {10, 0}, {10, 10}, {0, 10}},
+             {{4, 4}, {4, 6}, {6, 6}, {6, 4}}};  // with a hole
+  tiler::normalise(p);
+  f.polygons.push_back(p);
+  // a triangle half outside: (8,1) (12,1) (12,5) -> the part x <= 10 is (8,1) (10,1) (10,3)
+  EXPECT_NEAR(tiler::area_inside(f, {{8, 1}, {12, 1}, {12, 5}}), 2.0, 1e-12);
+  // inside the hole: nothing; over the hole: the triangle minus the hole's part
+  EXPECT_NEAR(tiler::area_inside(f, {{4.5, 4.5}, {5.5, 4.5}, {5, 5.5}}), 0.0, 1e-12);
+  EXPECT_NEAR(tiler::area_inside(f, {{3, 3}, {7, 3}, {7, 7}}), 8.0 - 2.0, 1e-12);
+  // a concave (L-shaped) footprint against a triangle spanning its notch
+  tiler::Footprint l;
+  tiler::Polygon2 q;
+  q.rings = {{{0, 0}, {4, 0}, {4, 2}, {2, 2}, {2, 4}, {0, 4}}};
+  tiler::normalise(q);
+  l.polygons.push_back(q);
+  EXPECT_NEAR(tiler::area_inside(l, {{0, 0}, {4, 0}, {0, 4}}), 8.0 - 0.0, 1e-12);
+  EXPECT_NEAR(tiler::area_inside(l, {{1, 1}, {5, 1}, {5, 5}}), 2.0 + 1.0 - 0.5, 1e-12);
+}
+
+// Issue 15 item 2: two touching boxes, no party wall; A (8 m) is taller than B (5 m): the
+// part of A's east wall above B's roof stands on the shared footprint edge and faces B.
+TEST(SplitMeshFootprints, TouchingBoxesKeepEveryFaceOnItsOwnSide) {
+  const fs::path dir = tmp_dir("mesh_touching");
+  TaggedMesh tm;
+  tm.terrain();
+  tm.rect({0, 0, 8}, {10, 0, 0}, {0, 10, 0}, 20, 20, 0);   // roof A
+  tm.rect({10, 0, 5}, {10, 0, 0}, {0, 10, 0}, 20, 20, 1);  // roof B
+  tm.walls(0, 10, 0, 8, "SNW", 0);
+  tm.walls(0, 10, 5, 8, "E", 0);  // on the shared edge, facing B
+  tm.walls(10, 20, 0, 5, "SNE", 1);
+  expect_faces_go_to_their_owner(tm, dir);
+}
+
+// A roof across the shared edge, triangulated with triangles straddling it (0.6 m columns:
+// shares 4/9 and 8/9 on A's side): each goes to the footprint holding most of its area;
+// the roof reaches 0.4 m past B's far edge (within --footprint-buffer): those go to B.
+TEST(SplitMeshFootprints, StraddlingTrianglesGoToTheLargerShare) {
+  const fs::path dir = tmp_dir("mesh_straddle");
+  TaggedMesh tm;
+  tm.terrain();
+  tm.walls(0, 10, 0, 6, "SNW", 0);
+  tm.walls(10, 20, 0, 6, "SNE", 1);
+  const std::size_t first = tm.mesh.triangles.size();
+  tm.rect({0, 0, 6}, {20.4, 0, 0}, {0, 10, 0}, 34, 20, 0);
+  std::size_t straddling = 0;
+  for (std::size_t t = first; t < tm.mesh.triangles.size(); ++t) {
+    const auto& tr = tm.mesh.triangles[t];
+    // Area on A's side (x < 10): clip by the half plane, independently of tiler.
+    std::vector<std::array<double, 2>> poly;
+    for (int k = 0; k < 3; ++k) {
+      const auto& p = tm.mesh.vertices[tr[k]];
+      const auto& q = tm.mesh.vertices[tr[(k + 1) % 3]];
+      if (p[0] <= 10) poly.push_back({p[0], p[1]});
+      if ((p[0] < 10) != (q[0] < 10) && p[0] != 10 && q[0] != 10) {
+        const double s = (10 - p[0]) / (q[0] - p[0]);
+        poly.push_back({10, p[1] + s * (q[1] - p[1])});
+      }
+    }
+    double a = 0, total = 0;
+    for (std::size_t k = 0; k < poly.size(); ++k)
+      a +=
+          poly[k][0] * poly[(k + 1) % poly.size()][1] - poly[(k + 1) % poly.size()][0] * poly[k][1];
+    for (int k = 0; k < 3; ++k) {
+      const auto& p = tm.mesh.vertices[tr[k]];
+      const auto& q = tm.mesh.vertices[tr[(k + 1) % 3]];
+      total += p[0] * q[1] - q[0] * p[1];
+    }
+    const double share = std::abs(a) / std::abs(total);
+    tm.owner[t] = share > 0.5 ? 0 : 1;
+    straddling += share > 0 && share < 1;
+  }
+  EXPECT_EQ(straddling, 40u);
+  expect_faces_go_to_their_owner(tm, dir);
+}
+
+// Issue 15 item 3: without footprints, a smooth closed crown (an icosphere of radius 3 m,
+// 0.4 m edges, as MVS meshes trees) passes the point features (it is locally planar) but has
+// no planar face of 6 m^2: rejected; the box next to it (a vertex per quad corner, welded
+// only by position) is the one chunk.
+TEST(SplitMeshClusters, SmoothCrownIsATreeAndTheBoxABuilding) {
+  const fs::path dir = tmp_dir("mesh_crown");
+  TaggedMesh tm;
+  tm.terrain();
+  tm.rect({0, 0, 6}, {10, 0, 0}, {0, 10, 0}, 20, 20, 0);
+  tm.walls(0, 10, 0, 6, "SNWE", 0);
+  // icosphere: icosahedron subdivided 3 times, vertices shared
+  const double g = (1 + std::sqrt(5.0)) / 2;
+  std::vector<Eigen::Vector3d> v{{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0},
+                                 {0, -1, g}, {0, 1, g}, {0, -1, -g}, {0, 1, -g},
+                                 {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  std::vector<std::array<std::uint32_t, 3>> f{
+      {0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+      {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+      {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  for (auto& p : v) p.normalize();
+  for (int level = 0; level < 3; ++level) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> mid;
+    const auto middle = [&](std::uint32_t a, std::uint32_t b) {
+      const auto key = std::make_pair(std::min(a, b), std::max(a, b));
+      const auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      v.push_back((v[a] + v[b]).normalized());
+      return mid[key] = std::uint32_t(v.size() - 1);
+    };
+    std::vector<std::array<std::uint32_t, 3>> next;
+    for (const auto& t : f) {
+      const std::uint32_t ab = middle(t[0], t[1]), bc = middle(t[1], t[2]), ca = middle(t[2], t[0]);
+      next.push_back({t[0], ab, ca});
+      next.push_back({t[1], bc, ab});
+      next.push_back({t[2], ca, bc});
+      next.push_back({ab, bc, ca});
+    }
+    f = std::move(next);
+  }
+  const auto base = std::uint32_t(tm.mesh.vertices.size());
+  for (const auto& p : v) tm.mesh.vertices.push_back({24 + 3 * p[0], 14 + 3 * p[1], 6 + 3 * p[2]});
+  for (const auto& t : f) {
+    tm.mesh.triangles.push_back({base + t[0], base + t[1], base + t[2]});
+    tm.owner.push_back(-2);
+  }
+  const std::string in = (dir / "mesh.ply").string();
+  io::write_ply(in, tm.mesh);
+  const SplitReport r = tiler::split_scene(local_options(in, dir / "work"));
+  const tiler::Manifest m = tiler::read_manifest((dir / "work").string());
+  ASSERT_EQ(m.chunks.size(), 1u);
+  EXPECT_NEAR(m.chunks[0].bbox_min[0], 0, 0.01);
+  EXPECT_NEAR(m.chunks[0].bbox_max[0], 10, 0.01);
+  EXPECT_NEAR(m.chunks[0].bbox_max[1], 10, 0.01);
+  std::size_t crowns = 0;
+  for (const auto& line : r.cluster_log)
+    crowns += line.find("vegetation (mesh: 0%") != std::string::npos;
+  EXPECT_EQ(crowns, 1u);
+}
+
 TEST_F(SplitSynthetic, RerunIsUpToDateAndOptionChangesResplit) {
   const fs::path dir = tmp_dir("synth_rerun");
   const std::string in = write_points(dir, true);
@@ -743,6 +982,188 @@ TEST(SplitRealData, City3dBlockBuildingsWithoutTrees) {
   EXPECT_EQ(mostly_inside, fp.faces.size()) << "each footprinted building is one chunk";
   EXPECT_GT(fp_points, 10000u);
   EXPECT_LE(m.chunks.size(), fp.faces.size() + 2);
+}
+
+/// mesh_city split into WORK (footprints or not): per chunk, how many of its triangles carry
+/// each truth label (buildings.csv row for roof/wall faces, -1 terrain, -2 tree), found by
+/// centroid (scene vertices taken to the split's ENU frame); `true_faces[row]` = roof + wall
+/// triangles of each building.
+struct MeshCityLabels {
+  std::map<std::string, int> row_of;  ///< "fp-<id>" -> buildings.csv row
+  std::vector<std::size_t> true_faces;
+  std::vector<std::map<int, std::size_t>> chunk_labels;  ///< manifest chunk order
+  std::size_t unmatched = 0;
+};
+
+MeshCityLabels mesh_city_labels(const std::string& dir, const tiler::Manifest& m,
+                                const std::string& work) {
+  MeshCityLabels out;
+  io::TriangleMesh scene = io::read_mesh(dir + "/scene.ply");
+  const std::size_t n = scene.triangles.size();
+  std::vector<std::int32_t> building(n);
+  std::vector<std::uint8_t> kind(n);
+  std::ifstream lab(dir + "/scene_face_labels.bin", std::ios::binary);
+  lab.read(reinterpret_cast<char*>(building.data()), std::streamsize(4 * n));
+  lab.read(reinterpret_cast<char*>(kind.data()), std::streamsize(n));
+  EXPECT_TRUE(lab.good());
+  std::ifstream csv(dir + "/buildings.csv");
+  std::string line;
+  std::getline(csv, line);
+  while (std::getline(csv, line)) {
+    std::stringstream ss(line);
+    std::string id, bag, idx;
+    std::getline(ss, id, ',');
+    std::getline(ss, bag, ',');
+    std::getline(ss, idx, ',');
+    out.row_of["fp-" + id] = std::stoi(idx);
+  }
+  const geo::Crs crs = geo::Crs::parse(m.scene.crs);
+  const geo::VerticalChoice vc = geo::choose_vertical(crs);
+  geo::Georef g = geo::Georef::from_crs(
+      vc.crs, Eigen::Vector3d(m.scene.origin_crs[0], m.scene.origin_crs[1], m.scene.origin_crs[2]),
+      vc.options);
+  Eigen::Map<Eigen::Matrix3Xd> v(scene.vertices[0].data(), 3, Eigen::Index(scene.vertices.size()));
+  g.to_local_inplace(v);
+  const auto cell = [](const Eigen::Vector3d& p) {
+    return std::array<long long, 3>{std::llround(std::floor(p[0] / 0.02)),
+                                    std::llround(std::floor(p[1] / 0.02)),
+                                    std::llround(std::floor(p[2] / 0.02))};
+  };
+  std::vector<Eigen::Vector3d> cen(n);
+  std::map<std::array<long long, 3>, std::vector<std::size_t>> grid;
+  out.true_faces.assign(out.row_of.size(), 0);
+  for (std::size_t t = 0; t < n; ++t) {
+    cen[t].setZero();
+    for (int k = 0; k < 3; ++k)
+      cen[t] += Eigen::Vector3d(scene.vertices[scene.triangles[t][std::size_t(k)]].data()) / 3;
+    grid[cell(cen[t])].push_back(t);
+    if (building[t] >= 0 && (kind[t] == 1 || kind[t] == 2))
+      ++out.true_faces[std::size_t(building[t])];
+  }
+  for (const auto& c : m.chunks) {
+    out.chunk_labels.emplace_back();
+    if (c.skipped()) continue;
+    const io::TriangleMesh cm = io::read_mesh(tiler::chunk_path(work, c.id));
+    for (const auto& tr : cm.triangles) {
+      Eigen::Vector3d p(c.origin[0], c.origin[1], c.origin[2]);
+      for (int k = 0; k < 3; ++k) p += Eigen::Vector3d(cm.vertices[tr[std::size_t(k)]].data()) / 3;
+      const auto k0 = cell(p);
+      long best = -1;
+      double bd = 0.01;
+      for (long long dx = -1; dx <= 1; ++dx)
+        for (long long dy = -1; dy <= 1; ++dy)
+          for (long long dz = -1; dz <= 1; ++dz) {
+            const auto it = grid.find({k0[0] + dx, k0[1] + dy, k0[2] + dz});
+            if (it == grid.end()) continue;
+            for (std::size_t t : it->second)
+              if ((cen[t] - p).norm() < bd) bd = (cen[t] - p).norm(), best = long(t);
+          }
+      if (best < 0) {
+        ++out.unmatched;
+        continue;
+      }
+      const auto t = std::size_t(best);
+      ++out.chunk_labels.back()[kind[t] == 1 || kind[t] == 2 ? building[t]
+                                : kind[t] == 0               ? -1
+                                                             : -2];
+    }
+  }
+  return out;
+}
+
+SplitOptions mesh_city_options(const std::string& dir, const fs::path& work) {
+  std::ifstream wkt_in(dir + "/crs_local.wkt");
+  SplitOptions o;
+  o.inputs = {dir + "/scene.ply"};
+  o.work_dir = work.string();
+  o.crs.assign(std::istreambuf_iterator<char>(wkt_in), std::istreambuf_iterator<char>());
+  return o;
+}
+
+// Issue 15 item 2 on mesh_city (26 touching buildings, no party walls, 5 cm noise): the share
+// of each building's true roof + wall triangles (scene_face_labels.bin) that land in its
+// footprint's chunk. Measured: median 97.4 %, min 92.3 % (was 78.4 / 54.3 % with the
+// one-sample PCA test); precision median 96.2 %, min 91.8 %.
+TEST(SplitRealData, MeshCityKeepsEveryBuildingFace) {
+  const std::string dir = kData + "/mesh_city";
+  if (!have("mesh_city/scene.ply")) GTEST_SKIP() << "shared data not found: " << kData;
+  SplitOptions o = mesh_city_options(dir, tmp_dir("mesh_city") / "work");
+  o.footprints = dir + "/footprints_bgt_local.geojson";
+  tiler::split_scene(o);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
+  const MeshCityLabels l = mesh_city_labels(dir, m, o.work_dir);
+  EXPECT_EQ(l.unmatched, 0u);
+  std::vector<double> kept, precision;
+  for (std::size_t i = 0; i < m.chunks.size(); ++i) {
+    const auto& c = m.chunks[i];
+    ASSERT_TRUE(l.row_of.count(c.id)) << c.id;
+    ASSERT_FALSE(c.skipped()) << c.id;
+    const int row = l.row_of.at(c.id);
+    std::size_t total = 0;
+    for (const auto& [label, count] : l.chunk_labels[i]) total += count;
+    const auto it = l.chunk_labels[i].find(row);
+    const double mine = it == l.chunk_labels[i].end() ? 0.0 : double(it->second);
+    kept.push_back(mine / double(l.true_faces[std::size_t(row)]));
+    precision.push_back(mine / double(total));
+  }
+  ASSERT_EQ(kept.size(), 26u);
+  std::sort(kept.begin(), kept.end());
+  std::sort(precision.begin(), precision.end());
+  std::printf("[mesh_city] kept share median %.3f min %.3f, precision median %.3f min %.3f\n",
+              kept[13], kept[0], precision[13], precision[0]);
+  EXPECT_GE(kept[13], 0.96);
+  EXPECT_GE(kept[0], 0.90);
+  EXPECT_GE(precision[13], 0.95);
+  EXPECT_GE(precision[0], 0.90);
+}
+
+// Issue 15 item 3 on mesh_city without footprints: before, 7 of the 10 tree crowns became
+// chunks (3 were too small or low); now none, and every building is still in a chunk
+// (touching buildings stay merged: 4 chunks hold the 26 buildings, as before).
+TEST(SplitRealData, MeshCityTreesAreNotBuildings) {
+  const std::string dir = kData + "/mesh_city";
+  if (!have("mesh_city/scene.ply")) GTEST_SKIP() << "shared data not found: " << kData;
+  const SplitOptions o = mesh_city_options(dir, tmp_dir("mesh_city_nofp") / "work");
+  const SplitReport r = tiler::split_scene(o);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);
+  const MeshCityLabels l = mesh_city_labels(dir, m, o.work_dir);
+  EXPECT_EQ(l.unmatched, 0u);
+  std::size_t tree_chunks = 0;
+  std::set<int> covered;  // buildings with most of their faces in one chunk
+  for (const auto& labels : l.chunk_labels) {
+    int major = -1;
+    std::size_t best = 0;
+    for (const auto& [label, count] : labels)
+      if (count > best) best = count, major = label;
+    tree_chunks += major == -2;
+    for (const auto& [label, count] : labels)
+      if (label >= 0 && 2 * count > l.true_faces[std::size_t(label)]) covered.insert(label);
+  }
+  std::printf(
+      "[mesh_city, no footprints] %zu chunks, %zu of them trees, %zu of 26 buildings in "
+      "a chunk, %s vegetation rejections\n",
+      m.chunks.size(), tree_chunks, covered.size(),
+      std::to_string(r.rejected_by.count("vegetation") ? r.rejected_by.at("vegetation") : 0)
+          .c_str());
+  EXPECT_EQ(tree_chunks, 0u);
+  EXPECT_EQ(covered.size(), 26u);
+}
+
+// The mesh vegetation test on real, noisier building meshes: easy3d_building.off has 34 % of
+// its area in planar faces >= 6 m2, the b9 urban block 47 % (mesh_city's crowns <= 10 %):
+// each is still one building.
+TEST(SplitRealData, NoisyBuildingMeshesAreNotVegetation) {
+  for (const char* rel : {"noisy_mesh/easy3d_building.off", "urban_block_b9/b9_mesh.off"}) {
+    if (!have(rel)) GTEST_SKIP() << "shared data not found: " << kData;
+    const fs::path dir = tmp_dir("noisy_mesh");
+    SplitOptions o = local_options(kData + "/" + rel, dir / "work");
+    o.cell_size = 100;
+    o.halo = 20;
+    const SplitReport r = tiler::split_scene(o);
+    EXPECT_EQ(r.chunks, 1u) << rel;
+    for (const auto& line : r.cluster_log)
+      EXPECT_EQ(line.find("vegetation (mesh:"), std::string::npos) << rel << ": " << line;
+  }
 }
 
 }  // namespace

@@ -55,6 +55,38 @@ double distance_to_footprint(const Footprint& f, const Vec2& p) {
   return best;
 }
 
+double area_inside(const Footprint& f, const Ring& convex) {
+  if (convex.size() < 3) return 0;
+  double total = 0;
+  Ring cur, next;
+  for (const auto& poly : f.polygons)
+    for (const auto& ring : poly.rings) {
+      cur = ring;
+      // Clip by each edge a->b of the convex ring: keep the left side (CCW interior).
+      for (std::size_t e = 0; e < convex.size() && !cur.empty(); ++e) {
+        const Vec2& a = convex[e];
+        const Vec2& b = convex[(e + 1) % convex.size()];
+        const auto side = [&](const Vec2& q) {
+          return (b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0]);
+        };
+        next.clear();
+        for (std::size_t i = 0; i < cur.size(); ++i) {
+          const Vec2& p = cur[i];
+          const Vec2& q = cur[(i + 1) % cur.size()];
+          const double sp = side(p), sq = side(q);
+          if (sp >= 0) next.push_back(p);
+          if ((sp >= 0) != (sq >= 0)) {
+            const double t = sp / (sp - sq);
+            next.push_back({p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])});
+          }
+        }
+        cur.swap(next);
+      }
+      if (cur.size() >= 3) total += signed_area(cur);
+    }
+  return total;
+}
+
 void normalise(Polygon2& p) {
   for (std::size_t i = 0; i < p.rings.size(); ++i) {
     Ring& r = p.rings[i];

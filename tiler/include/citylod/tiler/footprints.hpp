@@ -73,6 +73,11 @@ bool point_in_footprint(const Footprint& f, const Vec2& q);
 double distance_to_ring(const Ring& r, const Vec2& p);  ///< to the boundary
 double distance_to_footprint(const Footprint& f,
                              const Vec2& p);  ///< 0 inside, else to the boundary
+/// Area of the part of the convex CCW ring `convex` (e.g. a triangle's xy projection) that
+/// lies inside the footprint: every ring of every polygon is clipped against `convex`
+/// (Sutherland-Hodgman; exact for a concave subject since only the clipper must be
+/// convex) and the signed areas summed, so holes subtract. Needs normalise()d polygons.
+double area_inside(const Footprint& f, const Ring& convex);
 /// Orients exterior rings CCW and holes CW, drops repeated closing vertices.
 void normalise(Polygon2& p);
 /// 2D convex hull, CCW, no collinear points (Andrew's monotone chain).

@@ -14,8 +14,16 @@
 //           (classes, or PCA scatter/planarity), buildings (footprints, or 2D
 //           Euclidean clusters owned by the cell holding their centroid; the halo
 //           grows while an owned cluster touches its edge), chunk files.
-// Mesh inputs are held in memory (vertices are clustered like points, each
-// triangle goes to the building holding the majority of its vertices).
+// Mesh inputs are held in memory; their triangles are sampled (centroid + ~4 per m^2)
+// and the samples segmented like points. Without footprints each triangle goes to the
+// cluster holding most of its samples, and a cluster with less than 20 % of its area in
+// planar faces of >= 6 m^2 (its triangles grown into planar regions) is vegetation. With footprints
+// each triangle is judged whole, by its geometry, and never by a foliage test: a face no steeper
+// than 60 degrees goes to the footprint holding the largest share (>= 0.5) of its xy projection,
+// else to the nearest footprint within footprint_buffer (eaves); a steeper face (wall) to the
+// footprint it bounds (holding the point footprint_buffer behind it, against its
+// outward normal; on a shared footprint edge not the one it faces); faces all on the
+// ground (DTM) are not claimed (see mesh_footprint_of() in split.cpp).
 // Everything is staged in WORK/.split.tmp.<pid>/ and published by rename; a
 // failed run leaves WORK as it was. Re-running with identical inputs (paths,
 // sizes, mtimes) and options returns up_to_date without touching WORK.
@@ -53,7 +61,8 @@ struct SplitOptions {
   /// --unmatched: building points outside every footprint are dropped (counted), or
   /// clustered into buildings without footprint (the no-footprint segmentation).
   enum class Unmatched { drop, segment } unmatched = Unmatched::drop;
-  double footprint_buffer = 0.5;  ///< m, points this close outside a footprint belong to it
+  double footprint_buffer =
+      0.5;  ///< m, points (mesh faces: centroids) this close outside a footprint belong to it
   std::uint64_t memory_limit = 2ull << 30;  ///< bytes
   double cell_size = 100;                   ///< m (reduced automatically when the density needs it)
   double halo = 20;                         ///< m around each cell
