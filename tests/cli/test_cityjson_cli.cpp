@@ -98,6 +98,8 @@ TEST(CityJsonCli, DelftTileOneValidChainPerBuilding) {
     const json& o = f["CityObjects"][f["id"].get<std::string>()];
     const std::string cid = o["attributes"]["citylod_id"];
     in_cityjson.insert(cid);
+    // the footprint's own attributes travel with the building (here its "id")
+    EXPECT_EQ(o["attributes"].value("id", std::string()), f["id"].get<std::string>()) << cid;
     const json& geoms = o["geometry"];
     multi += geoms.size() >= 2;
     // the same chain as the tileset: as many geometries, same steps

@@ -536,7 +536,9 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   // ---- the feature
   json obj;
   obj["type"] = "Building";
-  json attrs;
+  json attrs = json::object();
+  // the footprint's own attributes (typed as read from its source), then ours
+  for (const auto& [k, v] : rec.attributes.items()) attrs[k] = v;
   attrs["citylod_id"] = rec.id;
   if (!rec.source.empty()) attrs["citylod_source"] = rec.source;
   attrs["citylod_status"] = to_string(rep.status);
