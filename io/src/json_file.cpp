@@ -5,12 +5,15 @@
 #include <fstream>
 
 #include "citylod/io/error.hpp"
+#include "citylod/io/file_check.hpp"
 
 namespace citylod::io {
 
 nlohmann::json read_json_file(const std::string& path) {
+  const std::uint64_t size = regular_file_size(path);
+  if (size > (std::uint64_t(1) << 30)) throw IoError(path, "larger than 1 GiB; not a citylod JSON");
   std::ifstream f(path);
-  if (!f) throw IoError(path, std::filesystem::exists(path) ? "cannot open" : "no such file");
+  if (!f) throw IoError(path, "cannot open");
   try {
     nlohmann::json j;
     f >> j;
