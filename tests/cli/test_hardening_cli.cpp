@@ -368,4 +368,198 @@ TEST(LowItems, ATruncatedChunkIsNoticedOnResume) {
   EXPECT_EQ(slurp(chunk), good);
 }
 
+// ------------------------------------------------------------ serve
+
+struct Server {
+  pid_t pid = -1;
+  int port = 0;
+  Server(const fs::path& ts, bool cors) {
+    int fds[2];
+    EXPECT_EQ(::pipe(fds), 0);
+    pid = ::fork();
+    if (pid == 0) {
+      ::dup2(fds[1], 1);
+      ::close(fds[0]);
+      const std::string bin = CITYLOD_BINARY;
+      if (cors)
+        ::execl(bin.c_str(), bin.c_str(), "serve", "-q", ts.c_str(), "--port", "0", "--cors",
+                (char*)nullptr);
+      else
+        ::execl(bin.c_str(), bin.c_str(), "serve", "-q", ts.c_str(), "--port", "0", (char*)nullptr);
+      ::_exit(127);
+    }
+    ::close(fds[1]);
+    std::string line;
+    char c;
+    while (line.find('\n') == std::string::npos && ::read(fds[0], &c, 1) == 1) line.push_back(c);
+    ::close(fds[0]);
+    const auto at = line.find("http://127.0.0.1:");
+    EXPECT_NE(at, std::string::npos) << line;
+    if (at != std::string::npos) port = std::stoi(line.substr(at + 17));
+  }
+  ~Server() {
+    ::kill(pid, SIGTERM);
+    int st = 0;
+    ::waitpid(pid, &st, 0);
+  }
+  /// Peak resident memory of the server (kB).
+  long peak_kb() const {
+    std::ifstream f("/proc/" + std::to_string(pid) + "/status");
+    std::string l;
+    while (std::getline(f, l))
+      if (l.rfind("VmHWM:", 0) == 0) return std::stol(l.substr(6));
+    return -1;
+  }
+};
+
+int connect_to(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(std::uint16_t(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+std::string get(int port, const std::string& path, const std::string& extra = "") {
+  const int fd = connect_to(port);
+  if (fd < 0) return "";
+  const std::string req =
+      "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\n" + extra + "Connection: close\r\n\r\n";
+  (void)!::write(fd, req.data(), req.size());
+  std::string resp;
+  char buf[65536];
+  ssize_t n;
+  while ((n = ::read(fd, buf, sizeof buf)) > 0) resp.append(buf, std::size_t(n));
+  ::close(fd);
+  return resp;
+}
+
+std::string body_of(const std::string& resp) {
+  const auto at = resp.find("\r\n\r\n");
+  return at == std::string::npos ? "" : resp.substr(at + 4);
+}
+
+TEST(Serve, NothingOutsideTheTilesetIsServedThroughSymbolicLinks) {
+  const fs::path d = tmp_dir("hardening_serve_links");
+  fs::create_directories(d / "ts");
+  fs::create_directories(d / "outside");
+  std::ofstream(d / "ts" / "tileset.json") << R"({"asset": {"version": "1.1"}})";
+  std::ofstream(d / "outside" / "secret.txt") << "TOP-SECRET\n";
+  std::ofstream(d / "ts" / "inside.txt") << "fine\n";
+  fs::create_symlink(d / "outside" / "secret.txt", d / "ts" / "secret.txt");
+  fs::create_directory_symlink(d / "outside", d / "ts" / "up");
+  fs::create_symlink("/etc/passwd", d / "ts" / "passwd");
+  fs::create_symlink(d / "ts" / "inside.txt", d / "ts" / "alias.txt");  // inside: served
+  Server s(d / "ts", false);
+  ASSERT_GT(s.port, 0);
+  for (const char* p : {"/tileset/secret.txt", "/tileset/up/secret.txt", "/tileset/passwd"}) {
+    const std::string r = get(s.port, p);
+    EXPECT_EQ(r.find("200 OK"), std::string::npos) << p << ": " << r;
+    EXPECT_EQ(r.find("TOP-SECRET"), std::string::npos) << p;
+    EXPECT_EQ(r.find("root:"), std::string::npos) << p;
+  }
+  EXPECT_EQ(body_of(get(s.port, "/tileset/alias.txt")), "fine\n");
+  // CORS only when asked
+  EXPECT_EQ(get(s.port, "/tileset/tileset.json").find("Access-Control-Allow-Origin"),
+            std::string::npos);
+  Server c(d / "ts", true);
+  EXPECT_NE(get(c.port, "/tileset/tileset.json").find("Access-Control-Allow-Origin: *"),
+            std::string::npos);
+}
+
+TEST(Serve, RangesStreamingAndSlowClients) {
+  const fs::path d = tmp_dir("hardening_serve_range");
+  fs::create_directories(d / "ts");
+  std::ofstream(d / "ts" / "tileset.json") << R"({"asset": {"version": "1.1"}})";
+  const std::size_t big = 96u << 20;
+  {
+    std::string chunk(1 << 20, '\0');
+    for (std::size_t i = 0; i < chunk.size(); ++i) chunk[i] = char('a' + i % 26);
+    std::ofstream o(d / "ts" / "big.bin", std::ios::binary);
+    for (std::size_t k = 0; k < big / chunk.size(); ++k) o << chunk;
+  }
+  Server s(d / "ts", false);
+  ASSERT_GT(s.port, 0);
+  std::string r = get(s.port, "/tileset/big.bin", "Range: bytes=10-19\r\n");
+  EXPECT_NE(r.find("206 Partial Content"), std::string::npos) << r.substr(0, 300);
+  EXPECT_NE(r.find("Content-Range: bytes 10-19/" + std::to_string(big)), std::string::npos);
+  EXPECT_EQ(body_of(r), "klmnopqrst");
+  r = get(s.port, "/tileset/big.bin", "Range: bytes=-3\r\n");
+  EXPECT_EQ(body_of(r).size(), 3u);
+  r = get(s.port, "/tileset/big.bin", "Range: bytes=" + std::to_string(big) + "-\r\n");
+  EXPECT_NE(r.find("416"), std::string::npos) << r.substr(0, 300);
+  // 70 clients that send nothing do not stall the others
+  std::vector<int> slow;
+  for (int i = 0; i < 70; ++i) slow.push_back(connect_to(s.port));
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_NE(get(s.port, "/tileset/tileset.json").find("200 OK"), std::string::npos);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 2.0);
+  for (int fd : slow) ::close(fd);
+  // 6 parallel whole-file GETs of 96 MB: streamed, not held in memory
+  std::vector<std::thread> ts;
+  std::vector<std::size_t> got(6);
+  for (int i = 0; i < 6; ++i)
+    ts.emplace_back([&, i] { got[std::size_t(i)] = get(s.port, "/tileset/big.bin").size(); });
+  for (auto& t : ts) t.join();
+  for (auto g : got) EXPECT_GT(g, big);
+  EXPECT_LT(s.peak_kb(), 64 * 1024) << "peak RSS of serve";
+}
+
+// ------------------------------------------------------------ the LOD worker dies with its parent
+
+/// Pids of the children of `pid`.
+std::vector<pid_t> children_of(pid_t pid) {
+  std::vector<pid_t> out;
+  std::ifstream f("/proc/" + std::to_string(pid) + "/task/" + std::to_string(pid) + "/children");
+  pid_t c;
+  while (f >> c) out.push_back(c);
+  return out;
+}
+
+bool alive(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
+  std::string s;
+  std::getline(f, s);
+  const auto close = s.rfind(')');
+  return !s.empty() && close != std::string::npos && s[close + 2] != 'Z';
+}
+
+TEST(Serve, TheLodWorkerDiesWithItsParent) {
+  const fs::path d = tmp_dir("hardening_worker");
+  ASSERT_EQ(run("split " + example_args() + " -o " + q(d / "w")).code, 0);
+  for (const int sig : {SIGKILL, SIGTERM}) {
+    SCOPED_TRACE(sig);
+    fs::remove_all(d / "w" / "lod");
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      const std::string bin = CITYLOD_BINARY, work = (d / "w").string();
+      ::execl(bin.c_str(), bin.c_str(), "lod", "-q", work.c_str(), "--threads", "1",
+              (char*)nullptr);
+      ::_exit(127);
+    }
+    std::vector<pid_t> kids;
+    for (int i = 0; i < 2000 && kids.empty(); ++i) {
+      kids = children_of(pid);
+      if (kids.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    ASSERT_EQ(kids.size(), 1u) << "no worker seen";
+    ::kill(pid, sig);
+    int st = 0;
+    ::waitpid(pid, &st, 0);
+    EXPECT_TRUE(WIFSIGNALED(st) && WTERMSIG(st) == sig) << st;
+    bool gone = false;
+    for (int i = 0; i < 200 && !gone; ++i) {
+      gone = !alive(kids[0]);
+      if (!gone) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    EXPECT_TRUE(gone) << "worker " << kids[0] << " outlived its parent";
+    if (!gone) ::kill(kids[0], SIGKILL);
+  }
+}
+
 }  // namespace

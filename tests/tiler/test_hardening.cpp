@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "citylod/tiler/assemble.hpp"
 #include "citylod/tiler/city_run.hpp"
 #include "citylod/tiler/dir_lock.hpp"
+#include "citylod/tiler/lod_stage.hpp"
 #include "citylod/tiler/workdir.hpp"
 #include "support/cli_run.hpp"
 #include "tiler/test_work_support.hpp"
@@ -90,7 +92,8 @@ TEST(SafeIds, AWorkDirectoryWhoseFoldersAreLinksIsRefused) {
 struct LockHolder {
   pid_t pid = -1;
   int release = -1;
-  explicit LockHolder(const std::string& dir) {
+  /// shard < 0: DirLock(dir); else the LOD stage lock of shard `shard` of 2.
+  explicit LockHolder(const std::string& dir, int shard = -1) {
     int ready[2], go[2];
     EXPECT_EQ(::pipe(ready), 0);
     EXPECT_EQ(::pipe(go), 0);
@@ -99,7 +102,16 @@ struct LockHolder {
       ::close(ready[0]);
       ::close(go[1]);
       {
-        DirLock lock(dir);
+        LodStageOptions o;
+        o.work_dir = dir;
+        o.shard_index = shard;
+        o.shard_count = 2;
+        std::optional<DirLock> whole;
+        std::optional<LodStageLock> stage;
+        if (shard < 0)
+          whole.emplace(dir);
+        else
+          stage.emplace(o);
         char c = 1;
         if (::write(ready[1], &c, 1) != 1) ::_exit(2);
         ::read(go[0], &c, 1);  // until the parent closes its end
@@ -148,6 +160,21 @@ TEST(DirLock, ASecondWriterRefusesAtOnceNamingTheDirectoryAndTheHolder) {
   DirLock a(d.string());
   { DirLock b(d.string()); }
   EXPECT_TRUE(fs::exists(d / ".citylod.lock"));
+}
+
+TEST(DirLock, TheShardsOfOneLodStageRunAtOnceAndExcludeEveryOtherWriter) {
+  const fs::path d = fresh_dir("lock_shards");
+  LockHolder shard0(d.string(), 0);
+  LodStageOptions o;
+  o.work_dir = d.string();
+  o.shard_count = 2;
+  o.shard_index = 1;
+  { LodStageLock other_shard(o); }  // shard 1 runs beside shard 0
+  o.shard_index = 0;
+  EXPECT_THROW(LodStageLock same_shard(o), DirBusy);
+  EXPECT_THROW(DirLock whole(d.string()), DirBusy);  // tile, split, assemble, lod WORK
+  o.shard_count = 1;
+  EXPECT_THROW(LodStageLock unsharded(o), DirBusy);
 }
 
 TEST(DirLock, AFinishedRunLeavesNoLockFileAndNoDirectoryItCreated) {

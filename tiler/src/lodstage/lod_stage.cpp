@@ -214,6 +214,17 @@ std::size_t LodStagePlan::up_to_date() const {
       std::count_if(items.begin(), items.end(), [](const Item& i) { return i.up_to_date; }));
 }
 
+namespace {
+bool sharded(const LodStageOptions& o) {
+  return o.shard_count > 1 && o.only.empty();
+}
+}  // namespace
+
+LodStageLock::LodStageLock(const LodStageOptions& o)
+    : work_(o.work_dir, sharded(o) ? DirLock::Mode::shared : DirLock::Mode::exclusive) {
+  if (sharded(o)) shard_.emplace(DirLock::for_shard(o.work_dir, o.shard_index, o.shard_count));
+}
+
 LodStagePlan plan_lod_stage(const LodStageOptions& o) {
   LodStagePlan plan;
   plan.manifest = read_manifest(o.work_dir);
@@ -251,7 +262,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
   const auto t0 = std::chrono::steady_clock::now();
   LodStageReport rep;
   const LodStagePlan plan = plan_lod_stage(o);
-  const DirLock lock(o.work_dir);  // one writer (dir_lock.hpp); held already in a city run
+  const LodStageLock lock(o);  // one writer (dir_lock.hpp); held already in a city run
   rep.total = plan.items.size();
   fs::create_directories(fs::path(o.work_dir) / "lod");
 

@@ -57,7 +57,7 @@ CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& pr
   LodStageOptions every = o;
   every.only.clear();
   const LodStagePlan plan = plan_lod_stage(every);  // before the fork: what is up to date
-  const DirLock lock(o.work_dir);                   // one writer; the worker inherits it
+  const LodStageLock lock(o);  // one writer (shards: one per shard); the worker inherits it
   CityLodSummary s;
   s.buildings = plan.items.size();
   if (o.only.empty()) {

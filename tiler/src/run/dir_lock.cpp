@@ -59,16 +59,25 @@ DirBusy::DirBusy(const std::string& dir, long pid)
                          "; wait for it to finish or use another directory"),
       pid_(pid) {}
 
-DirLock::DirLock(const std::string& dir)
-    : DirLock((fs::path(dir) / ".citylod.lock").string(), dir) {}
+DirLock::DirLock(const std::string& dir, Mode mode)
+    : DirLock((fs::path(dir) / ".citylod.lock").string(), dir, mode) {}
+
+DirLock DirLock::for_shard(const std::string& dir, int index, int count) {
+  return DirLock((fs::path(dir) / (".citylod.shard-" + std::to_string(index) + "-of-" +
+                                   std::to_string(count) + ".lock"))
+                     .string(),
+                 dir + " (shard " + std::to_string(index) + "/" + std::to_string(count) + ")",
+                 Mode::exclusive);
+}
 
 DirLock DirLock::for_output(const std::string& out) {
   fs::path p = fs::absolute(out).lexically_normal();
   if (p.filename().empty()) p = p.parent_path();
-  return DirLock((p.parent_path() / ("." + p.filename().string() + ".citylod.lock")).string(), out);
+  return DirLock((p.parent_path() / ("." + p.filename().string() + ".citylod.lock")).string(), out,
+                 Mode::exclusive);
 }
 
-DirLock::DirLock(const std::string& lock_file, const std::string& what) {
+DirLock::DirLock(const std::string& lock_file, const std::string& what, Mode mode) {
   const fs::path parent = fs::path(lock_file).parent_path();
   std::error_code ec;
   const bool existed = parent.empty() || fs::exists(parent, ec);
@@ -86,7 +95,7 @@ DirLock::DirLock(const std::string& lock_file, const std::string& what) {
     const int fd = ::open(key.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0)
       throw io::IoError(key, std::string("cannot open lock file: ") + std::strerror(errno));
-    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    if (::flock(fd, (mode == Mode::shared ? LOCK_SH : LOCK_EX) | LOCK_NB) != 0) {
       const int err = errno;
       ::close(fd);
       if (err == EWOULDBLOCK) throw DirBusy(what, holder_pid(key));
@@ -117,9 +126,10 @@ DirLock::~DirLock() {
   std::lock_guard<std::mutex> guard(held_mutex());
   auto it = held().find(key_);
   if (it == held().end() || --it->second.count > 0) return;
-  // Remove the file while still holding the lock (a waiter re-checks the inode),
-  // and the directory the lock created if nothing else was put in it.
-  ::unlink(key_.c_str());
+  // Remove the file while still holding it exclusively (a contender re-checks the
+  // inode): a shared holder only when it is the last one (the upgrade succeeds).
+  // Then the directory the lock created, if nothing else was put in it.
+  if (::flock(it->second.fd, LOCK_EX | LOCK_NB) == 0) ::unlink(key_.c_str());
   ::close(it->second.fd);
   if (!it->second.created.empty()) ::rmdir(it->second.created.c_str());
   held().erase(it);
