@@ -285,9 +285,10 @@ GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema,
       if (os == 0) throw IoError(rd.name_, what + ": unknown stringOffsetType " + ot);
       if (olen < (t.count + 1) * os)
         throw IoError(rd.name_, what + ": string offsets are truncated");
+      const unsigned char* const offsets = offs;  // (a lambda cannot capture a binding in C++17)
       auto off = [&](std::size_t i) {
         std::uint64_t v = 0;
-        std::memcpy(&v, offs + i * os, os);
+        std::memcpy(&v, offsets + i * os, os);
         return v;
       };
       auto& col = t.strings[name];
