@@ -3,6 +3,7 @@
 // line naming the file, a non-zero exit, nothing touched outside the output.
 #include <gtest/gtest.h>
 
+#include "fixtures/las_writer.hpp"
 #include "support/cli_run.hpp"
 
 #include <arpa/inet.h>
@@ -166,6 +167,20 @@ TEST(NoSignal, ALongEpsgCodeIsAClearError) {
                        " --crs EPSG:" + std::string(100000, '7') + " -o " + q(d / "w"));
   EXPECT_GT(r.code, 0) << r.out.substr(0, 500);  // an error, not a signal (-1)
   EXPECT_NE(r.out.find("EPSG:777"), std::string::npos) << r.out.substr(0, 500);
+  EXPECT_LT(r.out.size(), 2000u);
+}
+
+TEST(NoSignal, ALongEpsgCodeInALasCrsRecordIsAClearError) {
+  const fs::path d = tmp_dir("hardening_las_crs");
+  const fs::path las = d / "long_crs.las";
+  {
+    LasWriter w(las.string(), {0.01, 0.01, 0.01}, {0, 0, 0}, "EPSG:" + std::string(60000, '9'));
+    for (int i = 0; i < 100; ++i) w.add(85000 + i % 10, 446000 + i / 10, 1);
+    w.close();
+  }
+  const CliRun r = run("split " + q(las) + " -o " + q(d / "w"));
+  EXPECT_GT(r.code, 0) << r.out.substr(0, 500);  // an error, not a signal (-1)
+  EXPECT_NE(r.out.find("long_crs.las"), std::string::npos) << r.out.substr(0, 500);
   EXPECT_LT(r.out.size(), 2000u);
 }
 
