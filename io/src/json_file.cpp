@@ -11,7 +11,9 @@ namespace citylod::io {
 
 nlohmann::json read_json_file(const std::string& path) {
   const std::uint64_t size = regular_file_size(path);
-  if (size > (std::uint64_t(1) << 30)) throw IoError(path, "larger than 1 GiB; not a citylod JSON");
+  // parsed JSON takes ~10x its text in memory: a bound keeps a hostile file under ~3 GB
+  if (size > (std::uint64_t(256) << 20))
+    throw IoError(path, "larger than 256 MiB; not a citylod JSON record or tileset");
   std::ifstream f(path);
   if (!f) throw IoError(path, "cannot open");
   try {

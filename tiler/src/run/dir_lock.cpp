@@ -93,6 +93,9 @@ DirLock::DirLock(const std::string& lock_file, const std::string& what, Mode mod
   }
   for (int attempt = 0;; ++attempt) {
     const int fd = ::open(key.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    // A directory this process cannot write (a read-only work directory that
+    // assemble only reads): nothing can be locked, and nothing of ours written there.
+    if (fd < 0 && (errno == EACCES || errno == EROFS)) return;
     if (fd < 0)
       throw io::IoError(key, std::string("cannot open lock file: ") + std::strerror(errno));
     if (::flock(fd, (mode == Mode::shared ? LOCK_SH : LOCK_EX) | LOCK_NB) != 0) {

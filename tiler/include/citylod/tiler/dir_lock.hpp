@@ -17,6 +17,7 @@
 // which the next run reuses); a finished run removes the file. Nested locks of
 // one process are counted (run_city() locks WORK, then the LOD stage locks it
 // again); the forked LOD worker inherits its parent's lock and dies with it.
+// A directory the process may not write (read-only) is not locked: only read there.
 #pragma once
 
 #include <stdexcept>
