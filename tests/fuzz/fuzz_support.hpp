@@ -16,15 +16,21 @@
 
 namespace citylod::fuzz {
 
-/// A private scratch directory (in /dev/shm when it exists), made once.
+/// A private scratch directory (in /dev/shm when it exists), made once and
+/// removed when the process exits normally (libFuzzer's -max_total_time).
 inline const std::string& scratch_dir() {
-  static const std::string dir = [] {
+  // never destroyed: the exit handler below runs after the static destructors
+  static const std::string* const dir = [] {
     const std::string base = std::filesystem::exists("/dev/shm") ? "/dev/shm" : "/tmp";
-    std::string d = base + "/citylod-fuzz-" + std::to_string(::getpid());
-    std::filesystem::create_directories(d);
+    auto* d = new std::string(base + "/citylod-fuzz-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(*d);
+    std::atexit([] {
+      std::error_code ec;
+      std::filesystem::remove_all(scratch_dir(), ec);
+    });
     return d;
   }();
-  return dir;
+  return *dir;
 }
 
 /// Writes the fuzzer's bytes to `name` in the scratch directory; returns its path.
