@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <exception>
 #include <mutex>
+#include <new>
 
 #include "cli.hpp"
 
@@ -365,7 +366,7 @@ int run_cli(int argc, char** argv) {
   std::setlocale(LC_ALL, "C");
   install_log_sink();
   std::vector<std::string> args(argv + 1, argv + argc);
-  std::string cmd_name;
+  std::string cmd_name, subject;
   try {
     std::size_t i = 0;
     for (; i < args.size(); ++i) {
@@ -400,6 +401,8 @@ int run_cli(int argc, char** argv) {
       if (args[i] == c.name) cmd = &c;
     if (!cmd) throw UsageError("unknown command '" + args[i] + "'");
     cmd_name = cmd->name;
+    for (std::size_t k = i + 1; k < args.size() && subject.size() < 200; ++k)
+      if (!args[k].empty() && args[k][0] != '-') subject += (subject.empty() ? "" : " ") + args[k];
     ArgParser parser(cmd->name,
                      std::vector<std::string>(args.begin() + static_cast<long>(i) + 1, args.end()));
     return cmd->run(parser);
@@ -407,6 +410,12 @@ int run_cli(int argc, char** argv) {
     return usage_error(e.what(), cmd_name);
   } catch (const Cancelled&) {
     log_error("cancelled");
+    return 1;
+  } catch (const std::bad_alloc&) {
+    // the one error without a file of its own: name what the command was working on
+    log_error((subject.empty() ? cmd_name : cmd_name + " " + subject) +
+              ": out of memory (the input needs more memory than this machine has, or declares "
+              "sizes it does not hold)");
     return 1;
   } catch (const std::exception& e) {
     log_error(one_line(e.what()));

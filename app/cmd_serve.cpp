@@ -6,15 +6,26 @@
 //   /tileset/<path>   -> TILESET_DIR/<path>
 //   /cesium/<path>    -> CESIUM/<path>
 //   /<path>           -> VIEWER/<path>
+//
+// Hardening: symbolic links are resolved and a file must lie under its root;
+// at most 128 connections (then 503), request headers within 10 s, idle
+// connections closed after 15 s, clients that read nothing dropped after 30 s;
+// files streamed in 64 KiB pieces with single-range Range support; CORS only
+// with --cors.
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <signal.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -23,6 +34,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "cli.hpp"
 
@@ -99,8 +111,18 @@ std::string url_decode(const std::string& s, bool& ok) {
   return out;
 }
 
+/// True when `p` is `root` or lies under it (both canonical).
+bool within(const fs::path& p, const fs::path& root) {
+  auto r = root.begin(), q = p.begin();
+  for (; r != root.end(); ++r, ++q)
+    if (q == p.end() || *q != *r) return false;
+  return true;
+}
+
 /// Maps a request path to a file under one of the roots; empty when the path
-/// is malformed or escapes its root.
+/// is malformed or escapes its root. Symbolic links are resolved (realpath)
+/// and the file must still lie under its (canonical) root: nothing outside
+/// the tileset, the viewer and CesiumJS is ever served.
 fs::path resolve(const Roots& r, const std::string& raw_path) {
   std::string path = raw_path.substr(0, raw_path.find_first_of("?#"));
   bool ok = true;
@@ -126,43 +148,169 @@ fs::path resolve(const Roots& r, const std::string& raw_path) {
   if (rel.empty() || rel.is_absolute()) return {};
   for (const auto& part : rel)
     if (part == "..") return {};
-  return root / rel;
+  std::error_code ec;
+  const fs::path real = fs::canonical(root / rel, ec);
+  if (ec) return root / rel;  // missing: 404
+  if (!within(real, root)) return {};
+  return real;
 }
 
 bool send_all(int fd, const char* p, std::size_t n) {
   while (n > 0) {
     const ssize_t k = ::send(fd, p, n, MSG_NOSIGNAL);
     if (k < 0 && errno == EINTR) continue;
-    if (k <= 0) return false;
+    if (k <= 0) return false;  // error or send timeout (a client that does not read)
     p += k;
     n -= std::size_t(k);
   }
   return true;
 }
 
-bool respond(int fd, int code, const char* reason, const std::string& type, const std::string& body,
-             bool head, bool keep_alive) {
+struct ServeOptions {
+  bool cors = false;
+};
+
+std::string headers(int code, const char* reason, const std::string& type, std::uint64_t length,
+                    bool keep_alive, const ServeOptions& o, const std::string& extra = "") {
   std::ostringstream h;
   h << "HTTP/1.1 " << code << ' ' << reason << "\r\n"
     << "Content-Type: " << type << "\r\n"
-    << "Content-Length: " << body.size() << "\r\n"
+    << "Content-Length: " << length << "\r\n"
     << "Cache-Control: no-cache\r\n"
-    << "Access-Control-Allow-Origin: *\r\n"
+    << "Accept-Ranges: bytes\r\n"
+    << extra << (o.cors ? "Access-Control-Allow-Origin: *\r\n" : "")
     << "Connection: " << (keep_alive ? "keep-alive" : "close") << "\r\n\r\n";
-  const std::string hs = h.str();
+  return h.str();
+}
+
+bool respond(int fd, int code, const char* reason, const std::string& type, const std::string& body,
+             bool head, bool keep_alive, const ServeOptions& o, const std::string& extra = "") {
+  const std::string hs = headers(code, reason, type, body.size(), keep_alive, o, extra);
   if (!send_all(fd, hs.data(), hs.size())) return false;
   return head || send_all(fd, body.data(), body.size());
 }
 
-void handle_connection(int fd, const Roots& roots) {
-  timeval tv{10, 0};
-  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+/// The value of header `name` (lower case, with ':') in a lower-cased request, or "".
+std::string header_value(const std::string& lower, const std::string& name) {
+  const auto at = lower.find("\r\n" + name);
+  if (at == std::string::npos) return "";
+  const auto b = at + 2 + name.size();
+  const auto e = lower.find("\r\n", b);
+  std::string v = lower.substr(b, e == std::string::npos ? std::string::npos : e - b);
+  v.erase(0, v.find_first_not_of(" \t"));
+  while (!v.empty() && (v.back() == ' ' || v.back() == '\t')) v.pop_back();
+  return v;
+}
+
+/// One "bytes=A-B" range of a file of `size` bytes. 0: no (usable) Range header
+/// (serve all), 1: [first, last], -1: unsatisfiable (416).
+int parse_range(const std::string& value, std::uint64_t size, std::uint64_t& first,
+                std::uint64_t& last) {
+  if (value.rfind("bytes=", 0) != 0) return 0;
+  const std::string spec = value.substr(6);
+  if (spec.find(',') != std::string::npos) return 0;  // several ranges: the whole file
+  const auto dash = spec.find('-');
+  if (dash == std::string::npos) return 0;
+  const std::string a = spec.substr(0, dash), b = spec.substr(dash + 1);
+  auto number = [](const std::string& t, std::uint64_t& v) {
+    if (t.empty() || t.size() > 19 || t.find_first_not_of("0123456789") != std::string::npos)
+      return false;
+    v = std::stoull(t);
+    return true;
+  };
+  std::uint64_t x = 0, y = 0;
+  if (a.empty()) {  // the last y bytes
+    if (!number(b, y)) return 0;
+    if (y == 0 || size == 0) return -1;
+    first = size - std::min(y, size);
+    last = size - 1;
+    return 1;
+  }
+  if (!number(a, x)) return 0;
+  if (!b.empty() && (!number(b, y) || y < x)) return 0;
+  if (x >= size) return -1;
+  first = x;
+  last = b.empty() ? size - 1 : std::min(y, size - 1);
+  return 1;
+}
+
+/// Streams [first, last] of an open file in 64 KiB pieces (never the whole file in memory).
+bool send_file_range(int sock, int file, std::uint64_t first, std::uint64_t last) {
+  std::vector<char> buf(1 << 16);
+  for (std::uint64_t at = first; at <= last;) {
+    const std::size_t want = std::size_t(std::min<std::uint64_t>(buf.size(), last - at + 1));
+    const ssize_t k = ::pread(file, buf.data(), want, off_t(at));
+    if (k < 0 && errno == EINTR) continue;
+    if (k <= 0) return false;  // the file shrank: the client sees a short body
+    if (!send_all(sock, buf.data(), std::size_t(k))) return false;
+    at += std::uint64_t(k);
+  }
+  return true;
+}
+
+using Clock = std::chrono::steady_clock;
+constexpr int kHeaderSeconds = 10;  // a request's headers must arrive within this
+constexpr int kIdleSeconds = 15;    // a kept-alive connection with no request is closed
+constexpr int kSendSeconds = 30;    // a client that reads nothing for this long is dropped
+
+/// Waits until `fd` is readable or `deadline`; false on timeout.
+bool wait_readable(int fd, Clock::time_point deadline) {
+  for (;;) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+    if (left <= 0) return false;
+    pollfd p{fd, POLLIN, 0};
+    const int k = ::poll(&p, 1, int(std::min<long long>(left, 1000000)));
+    if (k < 0 && errno == EINTR) continue;
+    return k > 0;
+  }
+}
+
+bool serve_file(int fd, const fs::path& file, const std::string& lower, bool head, bool keep,
+                const ServeOptions& o, const std::string& target) {
+  const int in = ::open(file.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
+  struct stat st {};
+  if (in < 0 || ::fstat(in, &st) != 0 || !S_ISREG(st.st_mode)) {
+    if (in >= 0) ::close(in);
+    return respond(fd, 404, "Not Found", "text/plain", "not found: " + target + "\n", head, keep,
+                   o);
+  }
+  const std::uint64_t size = std::uint64_t(st.st_size);
+  std::uint64_t first = 0, last = size ? size - 1 : 0;
+  const int range = parse_range(header_value(lower, "range:"), size, first, last);
+  bool ok;
+  if (range < 0) {
+    ok = respond(fd, 416, "Range Not Satisfiable", "text/plain", "range not satisfiable\n", head,
+                 keep, o, "Content-Range: bytes */" + std::to_string(size) + "\r\n");
+  } else {
+    const std::uint64_t length = range ? last - first + 1 : size;
+    const std::string extra = range ? "Content-Range: bytes " + std::to_string(first) + "-" +
+                                          std::to_string(last) + "/" + std::to_string(size) + "\r\n"
+                                    : "";
+    const std::string hs = headers(range ? 206 : 200, range ? "Partial Content" : "OK",
+                                   mime_type(file.extension().string()), length, keep, o, extra);
+    ok = send_all(fd, hs.data(), hs.size()) &&
+         (head || length == 0 || send_file_range(fd, in, first, first + length - 1));
+    log_debug("serve: " + std::to_string(range ? 206 : 200) + " " + target);
+  }
+  ::close(in);
+  return ok;
+}
+
+void handle_connection(int fd, const Roots& roots, const ServeOptions& o) {
+  timeval tv{kSendSeconds, 0};
+  setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
   std::string buf;
   char chunk[8192];
   for (;;) {
+    // The first byte of a request within the idle time, all its headers within kHeaderSeconds.
+    const auto idle_deadline = Clock::now() + std::chrono::seconds(kIdleSeconds);
+    Clock::time_point deadline = idle_deadline;
+    bool started = !buf.empty();
+    if (started) deadline = Clock::now() + std::chrono::seconds(kHeaderSeconds);
     std::size_t end;
     while ((end = buf.find("\r\n\r\n")) == std::string::npos) {
-      if (buf.size() > 65536) {
+      if (buf.size() > 65536 || !wait_readable(fd, deadline)) {
         ::close(fd);
         return;
       }
@@ -173,37 +321,35 @@ void handle_connection(int fd, const Roots& roots) {
         return;
       }
       buf.append(chunk, std::size_t(k));
+      if (!started) {
+        started = true;
+        deadline = Clock::now() + std::chrono::seconds(kHeaderSeconds);
+      }
     }
-    const std::string req = buf.substr(0, end);
+    const std::string req = buf.substr(0, end + 2);
     buf.erase(0, end + 4);
     std::istringstream rs(req);
     std::string method, target, version;
     rs >> method >> target >> version;
     std::string lower = req;
     for (auto& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
-    const bool keep = version == "HTTP/1.1" && lower.find("connection: close") == std::string::npos;
+    const bool keep = version == "HTTP/1.1" && header_value(lower, "connection:") != "close";
     const bool head = method == "HEAD";
     bool alive = true;
     if (method != "GET" && !head) {
-      alive = respond(fd, 405, "Method Not Allowed", "text/plain", "method not allowed\n", false,
-                      false) &&
-              false;
+      respond(fd, 405, "Method Not Allowed", "text/plain", "method not allowed\n", false, false, o);
+      alive = false;
     } else {
       const fs::path file = resolve(roots, target);
       std::error_code ec;
       if (file.empty()) {
-        alive = respond(fd, 400, "Bad Request", "text/plain", "bad path\n", head, keep);
+        alive = respond(fd, 400, "Bad Request", "text/plain", "bad path\n", head, keep, o);
       } else if (!fs::is_regular_file(file, ec)) {
         log_debug("serve: 404 " + target);
-        alive =
-            respond(fd, 404, "Not Found", "text/plain", "not found: " + target + "\n", head, keep);
+        alive = respond(fd, 404, "Not Found", "text/plain", "not found: " + target + "\n", head,
+                        keep, o);
       } else {
-        std::ifstream in(file, std::ios::binary);
-        std::ostringstream body;
-        body << in.rdbuf();
-        log_debug("serve: 200 " + target);
-        alive =
-            respond(fd, 200, "OK", mime_type(file.extension().string()), body.str(), head, keep);
+        alive = serve_file(fd, file, lower, head, keep, o, target);
       }
     }
     if (!alive || !keep) break;
@@ -223,8 +369,13 @@ int cmd_serve(ArgParser& args) {
   args.option("viewer", 0, "DIR", "viewer files (default: examples/viewer of the source tree)");
   args.option("cesium", 0, "DIR",
               "CesiumJS Build/Cesium directory (default: found in node_modules)");
+  args.flag("cors", 0,
+            "send 'Access-Control-Allow-Origin: *' (lets pages of other origins load the "
+            "tileset; off by default)");
   args.positional("TILESET_DIR", "directory with tileset.json", Arity::one);
   if (!args.parse()) return 0;
+  ServeOptions so;
+  so.cors = args.has("cors");
 
   Roots roots;
   roots.tileset = fs::absolute(args.positionals().at(0));
@@ -245,6 +396,9 @@ int cmd_serve(ArgParser& args) {
         "will not start");
     roots.cesium.clear();
   }
+  // Canonical roots (symbolic links resolved): a served file's real path must lie under one.
+  for (fs::path* r : {&roots.tileset, &roots.viewer, &roots.cesium})
+    if (!r->empty()) *r = fs::canonical(*r);
   const auto port = args.get_int("port");
   if (port < 0 || port > 65535) throw UsageError("--port must be 0..65535");
 
@@ -268,22 +422,33 @@ int cmd_serve(ArgParser& args) {
   std::fflush(stdout);
   ::signal(SIGPIPE, SIG_IGN);
 
+  // Bounded connections, one thread each: beyond kMaxConnections a client gets
+  // 503 at once (the accept loop never blocks on a slow client).
+  constexpr int kMaxConnections = 128;
   std::atomic<int> active{0};
   for (;;) {
-    const int fd = ::accept(srv, nullptr, nullptr);
+    const int fd = ::accept4(srv, nullptr, nullptr, SOCK_CLOEXEC);
     if (fd < 0) {
       if (errno == EINTR || errno == ECONNABORTED) continue;
+      if (errno == EMFILE || errno == ENFILE) {  // out of descriptors: let some close
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        continue;
+      }
       const std::string why = std::strerror(errno);
       ::close(srv);
       throw std::runtime_error("accept: " + why);
     }
-    if (active.load() >= 64) {  // plenty for one browser; serve inline beyond that
-      handle_connection(fd, roots);
+    if (active.load() >= kMaxConnections) {
+      timeval tv{1, 0};
+      setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+      respond(fd, 503, "Service Unavailable", "text/plain", "too many connections\n", false, false,
+              so, "Retry-After: 1\r\n");
+      ::close(fd);
       continue;
     }
     ++active;
-    std::thread([fd, &roots, &active] {
-      handle_connection(fd, roots);
+    std::thread([fd, &roots, &active, so] {
+      handle_connection(fd, roots, so);
       --active;
     }).detach();
   }

@@ -2,6 +2,8 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "citylod/tiler/city_run.hpp"
+#include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/split.hpp"
 #include "cli.hpp"
 #include "stage_options.hpp"
@@ -36,7 +38,8 @@ int cmd_split(ArgParser& args) {
   o.force = args.has("force");
 
   ProgressDisplay bars;
-  const SplitReport r = usage_errors([&] { return split_scene(o, bars.fn()); });
+  const tiler::DirLock lock(o.work_dir);  // one writer per work directory
+  const SplitReport r = usage_errors([&] { return tiler::split_checked(o, bars.fn()); });
   bars.finish();
   if (r.up_to_date) {
     log_info("split: " + o.work_dir + " is up to date (" + std::to_string(r.chunks) + " chunks)");

@@ -83,6 +83,10 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
   o.ignore_classes = args.has("ignore-classes");
   usage_errors([&] {
     o.memory_limit = parse_memory_size(args.get("memory-limit"));
+    // a lower bound: tiny cells multiply the grid (and split's work) without end
+    if (!(o.cell_size >= 10))
+      throw std::invalid_argument(
+          "--cell-size must be at least 10 m (the size split's automatic reduction stops at)");
     o.validate();
   });
   return o;

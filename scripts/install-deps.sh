@@ -15,7 +15,8 @@ build_pkgs=(
   libgtest-dev libgmock-dev libmeshoptimizer-dev libomp-dev
   libgdal-dev
 )
-test_pkgs=(clang-format chromium gdal-bin gnuplot-nox slurm-wlm munge postgresql-15-postgis-3)
+# clang-14 + libclang-rt-14-dev: the libFuzzer harnesses (scripts/fuzz.sh)
+test_pkgs=(clang-format clang-14 libclang-rt-14-dev chromium gdal-bin gnuplot-nox slurm-wlm munge postgresql-15-postgis-3)
 # Node.js/npm: use the machine's own if present (Debian's npm conflicts with a
 # nodejs installed from elsewhere); otherwise Debian's.
 if ! command -v npm >/dev/null 2>&1; then test_pkgs+=(nodejs npm); fi

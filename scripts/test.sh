@@ -2,17 +2,19 @@
 # Installs dependencies, checks the formatting (scripts/format.sh --check),
 # builds Release with tests and warnings as errors, runs the whole test suite,
 # then builds everything again with ASan+UBSan and runs the unit, CLI and
-# real-data tests under the sanitizers.
-# Usage: scripts/test.sh [--no-install] [--no-sanitize]
+# real-data tests under the sanitizers, then runs every fuzzer briefly
+# (scripts/fuzz.sh 10: libFuzzer + ASan, clang-14).
+# Usage: scripts/test.sh [--no-install] [--no-sanitize] [--no-fuzz]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-install=1 sanitize=1
+install=1 sanitize=1 fuzz=1
 for a in "$@"; do
   case "$a" in
     --no-install) install=0 ;;
     --no-sanitize) sanitize=0 ;;
-    *) echo "usage: scripts/test.sh [--no-install] [--no-sanitize]" >&2; exit 2 ;;
+    --no-fuzz) fuzz=0 ;;
+    *) echo "usage: scripts/test.sh [--no-install] [--no-sanitize] [--no-fuzz]" >&2; exit 2 ;;
   esac
 done
 
@@ -40,5 +42,9 @@ if ((sanitize)); then
   cmake --build build-asan -j"$jobs"
   ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 1800 -L '^(geo|io|lod|tiler|cli|lodreal)$'
+fi
+if ((fuzz)); then
+  echo "== fuzzers of every reader (libFuzzer + ASan), 10 s each (RELIABILITY.md)"
+  scripts/fuzz.sh 10
 fi
 echo "== all tests passed"

@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <regex>
 
 namespace citylod::geo {
 
@@ -119,6 +118,35 @@ bool on_wgs84_datum(Context& ctx, const PJ* crs) {
   return name.rfind("World Geodetic System 1984", 0) == 0;
 }
 
+/// "EPSG:<digits>[+<digits>]", spaces around, any case. A hand parser: a
+/// std::regex match recurses once per character and a long code overflowed the stack.
+bool is_epsg_code(const std::string& s) {
+  const std::size_t n = s.size();
+  std::size_t i = 0;
+  auto space = [&](std::size_t k) { return std::isspace(static_cast<unsigned char>(s[k])) != 0; };
+  auto digits = [&]() {
+    const std::size_t b = i;
+    while (i < n && std::isdigit(static_cast<unsigned char>(s[i]))) ++i;
+    return i > b;
+  };
+  while (i < n && space(i)) ++i;
+  if (n - i < 5) return false;
+  for (const char c : std::string("EPSG:"))
+    if (std::toupper(static_cast<unsigned char>(s[i++])) != c) return false;
+  if (!digits()) return false;
+  if (i < n && s[i] == '+') {
+    ++i;
+    if (!digits()) return false;
+  }
+  while (i < n && space(i)) ++i;
+  return i == n;
+}
+
+/// At most 80 characters of a user's text in a message.
+std::string clip(const std::string& s) {
+  return s.size() <= 80 ? s : s.substr(0, 77) + "...";
+}
+
 std::string type_name(PJ_TYPE t) {
   switch (t) {
     case PJ_TYPE_GEOCENTRIC_CRS:
@@ -145,9 +173,8 @@ class CrsBuilder {
     try {
       crs = detail::create_crs(ctx, definition, spec);
     } catch (const GeoError&) {
-      static const std::regex code_re(R"(\s*EPSG:\d+(\+\d+)?\s*)", std::regex::icase);
-      if (std::regex_match(spec, code_re))
-        throw GeoError("unknown CRS '" + trim(spec) + "': PROJ has no such code");
+      if (is_epsg_code(spec))
+        throw GeoError("unknown CRS '" + clip(trim(spec)) + "': PROJ has no such code");
       throw;
     }
     return describe(ctx, crs.get(), spec, definition);

@@ -35,8 +35,10 @@ std::string Context::take_error(const PJ* p) {
 PjPtr create_crs(Context& ctx, const std::string& definition, const std::string& spec) {
   ctx.clear();
   PjPtr crs(proj_create(ctx.get(), definition.c_str()));
-  if (!crs) throw GeoError("cannot parse CRS '" + spec + "': " + ctx.take_error());
-  if (!proj_is_crs(crs.get())) throw GeoError("'" + spec + "' is not a CRS definition");
+  // at most 80 characters of the user's text in the message
+  const std::string shown = spec.size() <= 80 ? spec : spec.substr(0, 77) + "...";
+  if (!crs) throw GeoError("cannot parse CRS '" + shown + "': " + ctx.take_error());
+  if (!proj_is_crs(crs.get())) throw GeoError("'" + shown + "' is not a CRS definition");
   return crs;
 }
 

@@ -9,11 +9,11 @@
 #include <ogrsf_frmts.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
 #include <mutex>
-#include <regex>
 
 #include "citylod/io/error.hpp"
 
@@ -62,9 +62,44 @@ class QuietGdal {
 };
 
 // A "PG:" connection string without its password, for messages.
+// A hand parser: a std::regex match recurses per character (a long string overflowed the stack).
 std::string mask_source(const std::string& s) {
-  static const std::regex pw(R"((password\s*=\s*)('[^']*'|\S+))", std::regex::icase);
-  return std::regex_replace(s, pw, "$1***");
+  auto space = [&](std::size_t k) { return std::isspace(static_cast<unsigned char>(s[k])) != 0; };
+  std::string out;
+  std::size_t i = 0;
+  const std::string key = "password";
+  while (i < s.size()) {
+    bool match = s.size() - i >= key.size();
+    for (std::size_t k = 0; match && k < key.size(); ++k)
+      match = std::tolower(static_cast<unsigned char>(s[i + k])) == key[k];
+    if (!match) {
+      out += s[i++];
+      continue;
+    }
+    std::size_t j = i + key.size();
+    while (j < s.size() && space(j)) ++j;
+    if (j >= s.size() || s[j] != '=') {
+      out += s[i++];
+      continue;
+    }
+    ++j;
+    while (j < s.size() && space(j)) ++j;
+    std::size_t e = j;
+    if (e < s.size() && s[e] == '\'') {
+      const std::size_t close = s.find('\'', e + 1);
+      e = close == std::string::npos ? e : close + 1;
+    }
+    if (e == j)
+      while (e < s.size() && !space(e)) ++e;
+    if (e == j) {  // nothing after '='
+      out += s.substr(i, j - i);
+      i = j;
+      continue;
+    }
+    out += s.substr(i, j - i) + "***";
+    i = e;
+  }
+  return out;
 }
 
 bool is_pg(const std::string& s) {

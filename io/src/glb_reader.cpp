@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "citylod/io/error.hpp"
+#include "citylod/io/file_check.hpp"
 
 namespace citylod::io {
 
@@ -145,7 +146,8 @@ double component(const unsigned char* p, int ct, bool normalized) {
 
 class Reader {
  public:
-  Reader(const tinygltf::Model& m, std::string name) : m_(m), name_(std::move(name)) {}
+  Reader(const tinygltf::Model& m, std::string name, std::size_t file_size)
+      : m_(m), name_(std::move(name)), file_size_(file_size) {}
 
   /// Bytes of a bufferView, bounds-checked.
   std::pair<const unsigned char*, std::size_t> view(int index, const std::string& what) const {
@@ -174,10 +176,13 @@ class Reader {
                                std::to_string(nc) + " components, expected " +
                                std::to_string(comps));
     if (a.sparse.isSparse) throw IoError(name_, what + ": sparse accessors are not supported");
-    if (a.count > (std::size_t(1) << 32))
-      throw IoError(name_, what + ": accessor count is implausible");
-    std::vector<double> out(a.count * std::size_t(nc), 0.0);
-    if (a.bufferView < 0 || a.count == 0) return out;  // no bufferView: zeros (glTF 2.0)
+    // Declared sizes are checked against the real bytes before anything is allocated.
+    if (a.bufferView < 0 || a.count == 0) {  // no bufferView: zeros (glTF 2.0)
+      if (a.count > file_size_)
+        throw IoError(name_, what + ": accessor " + std::to_string(index) + " declares " +
+                                 std::to_string(a.count) + " elements without data");
+      return std::vector<double>(a.count * std::size_t(nc), 0.0);
+    }
     const auto [base, len] = view(a.bufferView, what);
     const std::size_t elem = std::size_t(cs) * std::size_t(nc);
     const std::size_t stride = m_.bufferViews[std::size_t(a.bufferView)].byteStride
@@ -187,6 +192,7 @@ class Reader {
         std::uint64_t(a.byteOffset) + std::uint64_t(stride) * (a.count - 1) + elem > len)
       throw IoError(name_,
                     what + ": accessor " + std::to_string(index) + " reads past its bufferView");
+    std::vector<double> out(a.count * std::size_t(nc), 0.0);
     for (std::size_t i = 0; i < a.count; ++i) {
       const unsigned char* p = base + a.byteOffset + i * stride;
       for (int k = 0; k < nc; ++k)
@@ -198,6 +204,7 @@ class Reader {
 
   const tinygltf::Model& m_;
   std::string name_;
+  std::size_t file_size_;
 };
 
 Mat4 node_matrix(const tinygltf::Node& n) {
@@ -281,9 +288,10 @@ GlbPropertyTable read_table(const Reader& rd, const tinygltf::Value& schema,
       if (os == 0) throw IoError(rd.name_, what + ": unknown stringOffsetType " + ot);
       if (olen < (t.count + 1) * os)
         throw IoError(rd.name_, what + ": string offsets are truncated");
+      const unsigned char* const offsets = offs;  // (a lambda cannot capture a binding in C++17)
       auto off = [&](std::size_t i) {
         std::uint64_t v = 0;
-        std::memcpy(&v, offs + i * os, os);
+        std::memcpy(&v, offsets + i * os, os);
         return v;
       };
       auto& col = t.strings[name];
@@ -463,6 +471,19 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
                            const unsigned char*, int, void*) { return true; },
                         nullptr);
+  // Only what the glb holds is read: no external buffers or images (any file of the machine).
+  tinygltf::FsCallbacks fs_cb{};
+  fs_cb.FileExists = [](const std::string&, void*) { return false; };
+  fs_cb.ExpandFilePath = [](const std::string& p, void*) { return p; };
+  fs_cb.ReadWholeFile = [](std::vector<unsigned char>*, std::string* err, const std::string& p,
+                           void*) {
+    if (err) *err += "external file '" + p + "' not read (a glb must hold its buffers)\n";
+    return false;
+  };
+  fs_cb.WriteWholeFile = [](std::string*, const std::string&, const std::vector<unsigned char>&,
+                            void*) { return false; };
+  fs_cb.user_data = nullptr;
+  loader.SetFsCallbacks(fs_cb);
   std::string err, warn;
   const std::string base = std::filesystem::path(name).parent_path().string();
   if (!loader.LoadBinaryFromMemory(&model, &err, &warn,
@@ -474,7 +495,7 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
     while (!e.empty() && e.back() == ' ') e.pop_back();
     throw IoError(name, "not a valid glb: " + e);
   }
-  const Reader rd(model, name);
+  const Reader rd(model, name, bytes.size());
   GlbDocument doc;
   doc.extensions_used = model.extensionsUsed;
   if (meshopt) {
@@ -603,12 +624,15 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
 }
 
 GlbDocument read_glb(const std::string& path) {
+  // the real size first: nothing is allocated for what the file does not hold
+  const std::uint64_t size = regular_file_size(path);
+  if (size > std::numeric_limits<unsigned int>::max()) throw IoError(path, "glb larger than 4 GiB");
   std::ifstream f(path, std::ios::binary);
-  if (!f) throw IoError(path, std::filesystem::exists(path) ? "cannot open" : "no such file");
-  std::ostringstream s;
-  s << f.rdbuf();
-  if (f.bad()) throw IoError(path, "read error");
-  return parse_glb(s.str(), path);
+  if (!f) throw IoError(path, "cannot open");
+  std::string bytes(std::size_t(size), '\0');
+  f.read(bytes.data(), std::streamsize(size));
+  if (std::uint64_t(f.gcount()) != size) throw IoError(path, "read error (file changed?)");
+  return parse_glb(bytes, path);
 }
 
 }  // namespace citylod::io

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "citylod/io/error.hpp"
+#include "citylod/io/file_check.hpp"
 
 namespace citylod::io {
 
@@ -32,6 +33,7 @@ std::string hash_hex(const void* data, std::size_t size, std::uint64_t seed) {
 }
 
 std::string hash_file(const std::string& path) {
+  regular_file_size(path);  // not a FIFO or a device
   std::ifstream f(path, std::ios::binary);
   if (!f) throw IoError(path, "cannot open for hashing");
   std::uint64_t h = 0xcbf29ce484222325ULL;

@@ -8,18 +8,14 @@
 #include <cmath>
 #include <cstring>
 
+#include "citylod/io/file_check.hpp"
+
 namespace citylod::io::detail {
 
 InputFile::InputFile(const std::string& path, std::size_t buffer_size) : path_(path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) {
-    if (errno == ENOENT) throw IoError(path, "no such file");
-    throw IoError(path, std::string("cannot access: ") + std::strerror(errno));
-  }
-  if (S_ISDIR(st.st_mode)) throw IoError(path, "is a directory, not a file");
+  size_ = regular_file_size(path);  // a FIFO or a device would block or never end
   f_ = std::fopen(path.c_str(), "rb");
   if (!f_) throw IoError(path, std::string("cannot open: ") + std::strerror(errno));
-  size_ = S_ISREG(st.st_mode) ? static_cast<std::uint64_t>(st.st_size) : 0;
   buf_.resize(std::max<std::size_t>(buffer_size, 4096));
 }
 

@@ -5,12 +5,17 @@
 #include <fstream>
 
 #include "citylod/io/error.hpp"
+#include "citylod/io/file_check.hpp"
 
 namespace citylod::io {
 
 nlohmann::json read_json_file(const std::string& path) {
+  const std::uint64_t size = regular_file_size(path);
+  // parsed JSON takes ~10x its text in memory: a bound keeps a hostile file under ~3 GB
+  if (size > (std::uint64_t(256) << 20))
+    throw IoError(path, "larger than 256 MiB; not a citylod JSON record or tileset");
   std::ifstream f(path);
-  if (!f) throw IoError(path, std::filesystem::exists(path) ? "cannot open" : "no such file");
+  if (!f) throw IoError(path, "cannot open");
   try {
     nlohmann::json j;
     f >> j;

@@ -191,6 +191,9 @@ class LasReader final : public LasRecordReader {
     info_.bbox.max = {le<double>(h + 179), le<double>(h + 195), le<double>(h + 211)};
     info_.bbox.min = {le<double>(h + 187), le<double>(h + 203), le<double>(h + 219)};
     info_.bbox_from_header = true;
+    for (int a = 0; a < 3; ++a)
+      if (!std::isfinite(info_.bbox.min[a]) || !std::isfinite(info_.bbox.max[a]))
+        in_.fail("bad LAS header: bounding box is not finite");
 
     std::uint64_t count = legacy_count;
     std::uint64_t evlr_start = 0;

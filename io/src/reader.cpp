@@ -297,6 +297,16 @@ FileInfo read_header(const std::string& path) {
   return detail::open_reader(path)->info();
 }
 
+namespace {
+/// A coordinate that is Inf or NaN (text "inf", 1e999, a binary NaN) is a defect of the file.
+void check_finite(const std::vector<Vec3d>& ps, std::uint64_t first, const std::string& path) {
+  for (std::size_t i = 0; i < ps.size(); ++i)
+    if (!std::isfinite(ps[i][0]) || !std::isfinite(ps[i][1]) || !std::isfinite(ps[i][2]))
+      throw IoError(path, "point " + std::to_string(first + i) +
+                              " has a coordinate that is not a finite number");
+}
+}  // namespace
+
 FileInfo scan_file(const std::string& path, ProgressFn progress, void* user) {
   auto r = detail::open_reader(path);
   FileInfo info = r->info();
@@ -305,6 +315,7 @@ FileInfo scan_file(const std::string& path, ProgressFn progress, void* user) {
   std::uint64_t counts[256] = {};
   std::uint64_t n = 0;
   while (r->read(batch, 1 << 18) > 0) {
+    check_finite(batch.positions, n, path);
     for (const auto& p : batch.positions) box.add(p);
     for (std::uint8_t c : batch.classes) ++counts[c];
     n += batch.size();
@@ -330,7 +341,10 @@ FileInfo scan_file(const std::string& path, ProgressFn progress, void* user) {
 PointSet read_points(const std::string& path) {
   auto r = detail::open_reader(path);
   PointSet all, batch;
-  while (r->read(batch, 1 << 20) > 0) all.append(batch);
+  while (r->read(batch, 1 << 20) > 0) {
+    check_finite(batch.positions, all.size(), path);
+    all.append(batch);
+  }
   return all;
 }
 
@@ -341,6 +355,7 @@ void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3
   const Format f = detect_format(path);
   if (f == Format::obj) {
     detail::read_obj_mesh(path, mesh, normals);
+    check_finite(mesh.vertices, 0, path);
     return;
   }
   auto r = detail::open_reader(path);
@@ -350,6 +365,7 @@ void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3
   PointSet all, batch;
   while (r->read(batch, 1 << 20) > 0) all.append(batch);
   r->read_faces(mesh.faces);
+  check_finite(all.positions, 0, path);
   mesh.vertices = std::move(all.positions);
   normals = std::move(all.normals);
   colors = std::move(all.colors);

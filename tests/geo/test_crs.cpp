@@ -189,3 +189,21 @@ TEST(Units, AutzenInFeetIsConsistent) {
       crs, Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], 0), Eigen::Vector3d(b[3], b[4], 40000)));
   EXPECT_EQ(heights.warnings.size(), 1u);
 }
+
+// Issue 13: a long EPSG code overflowed the stack in the pattern match (a signal).
+TEST(Crs, ALongEpsgCodeIsAnErrorNotACrash) {
+  for (const std::size_t n : {std::size_t(20), std::size_t(100000), std::size_t(2000000)}) {
+    const std::string spec = "EPSG:" + std::string(n, '9');
+    try {
+      Crs::parse(spec);
+      ADD_FAILURE() << "parsed " << n << " digits";
+    } catch (const GeoError& e) {
+      const std::string what = e.what();
+      EXPECT_LT(what.size(), 400u) << "the message repeats the whole code";
+      EXPECT_NE(what.find("EPSG:999"), std::string::npos) << what;
+    }
+  }
+  EXPECT_THROW(Crs::parse("  epsg:4326+" + std::string(500000, '1') + "  "), GeoError);
+  EXPECT_THROW(Crs::parse("EPSG:" + std::string(500000, ' ')), GeoError);
+  EXPECT_EQ(Crs::parse(" epsg:28992 ").epsg(), 28992);
+}

@@ -303,6 +303,24 @@ TEST_F(SplitSynthetic, UnmatchedBuildingPointsAreCountedOrSegmented) {
   EXPECT_EQ(fp_chunks, 2u);
 }
 
+// Issue 13: a footprint id with ".." gives a chunk id without it (the work
+// directory's ids are checked as path components when read back).
+TEST_F(SplitSynthetic, FootprintIdWithDotsGivesASafeChunkId) {
+  const fs::path dir = tmp_dir("synth_dotdot");
+  const std::string in = write_points(dir, true);
+  const std::string fp = (dir / "fp.geojson").string();
+  std::ofstream(fp) << R"({"type":"FeatureCollection","features":[
+    {"type":"Feature","properties":{"id":"../../A"},"geometry":{"type":"Polygon","coordinates":[
+      [[10,10],[30,10],[30,25],[10,25],[10,10]]]}}]})";
+  SplitOptions o = local_options(in, dir / "work");
+  o.footprints = fp;
+  tiler::split_scene(o);
+  const tiler::Manifest m = tiler::read_manifest(o.work_dir);  // throws on an unsafe id
+  ASSERT_EQ(m.chunks.size(), 1u);
+  EXPECT_EQ(m.chunks[0].id.find(".."), std::string::npos) << m.chunks[0].id;
+  EXPECT_EQ(m.chunks[0].id.find('/'), std::string::npos) << m.chunks[0].id;
+}
+
 // Issue 13: a self-intersecting (bowtie) footprint's centroid used to land far
 // away and split visited ~10^9 grid cells. It is repaired (GEOS MakeValid), and
 // the work is bounded even when it is not.

@@ -1,6 +1,7 @@
 // io <-> lod conversions (bridge.hpp).
 #include "citylod/tiler/bridge.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -32,8 +33,47 @@ BuildingFile read_building_file(const std::string& path) {
   return f;
 }
 
+/// Largest coordinate the engine takes, in its local frame (metres from the
+/// building's centre): beyond, its exact predicates and grids misbehave.
+constexpr double kMaxLocalCoordinate = 1e7;
+
+/// What the engine cannot take is an input error, named here (not a crash inside it):
+/// a coordinate that is not finite or too large, a mesh whose every face is degenerate.
+void check_building_input(const lod::BuildingInput& in, const std::string& path) {
+  for (std::size_t i = 0; i < in.points.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const double v = in.points[i][k];
+      if (!std::isfinite(v))
+        throw io::IoError(path, "vertex/point " + std::to_string(i) +
+                                    " has a coordinate that "
+                                    "is not a finite number");
+      if (std::fabs(v) > kMaxLocalCoordinate)
+        throw io::IoError(path, "vertex/point " + std::to_string(i) +
+                                    " lies more than 1e7 m from the centre of the data "
+                                    "(coordinates of extreme magnitude; not one building)");
+    }
+  for (const auto& t : in.triangles)
+    for (const int v : t)
+      if (v < 0 || std::size_t(v) >= in.points.size())
+        throw io::IoError(path, "a triangle refers to vertex " + std::to_string(v) + " of " +
+                                    std::to_string(in.points.size()));
+  if (!in.triangles.empty()) {
+    const bool any_area =
+        std::any_of(in.triangles.begin(), in.triangles.end(), [&](const std::array<int, 3>& t) {
+          const Eigen::Vector3d &a = in.points[std::size_t(t[0])],
+                                &b = in.points[std::size_t(t[1])],
+                                &c = in.points[std::size_t(t[2])];
+          return (b - a).cross(c - a).norm() > 1e-12;
+        });
+    if (!any_area)
+      throw io::IoError(path, "all " + std::to_string(in.triangles.size()) +
+                                  " triangles are degenerate (zero area); nothing to model");
+  }
+}
+
 /// The conversion of a building file to the engine's input: local = file - origin.
-lod::BuildingInput to_building_input(const BuildingFile& f, const io::Vec3d& o) {
+lod::BuildingInput to_building_input(const BuildingFile& f, const io::Vec3d& o,
+                                     const std::string& path) {
   lod::BuildingInput in;
   if (f.is_mesh) {
     for (const auto& v : f.mesh.vertices)
@@ -47,6 +87,7 @@ lod::BuildingInput to_building_input(const BuildingFile& f, const io::Vec3d& o) 
     if (f.points.has_normals())
       for (const auto& n : f.points.normals) in.normals.emplace_back(n[0], n[1], n[2]);
   }
+  check_building_input(in, path);
   return in;
 }
 
@@ -57,18 +98,23 @@ LoadedBuilding load_building(const std::string& path) {
   LoadedBuilding b;
   b.is_mesh = f.is_mesh;
   io::BBox3 box;
-  for (const auto& v : f.is_mesh ? f.mesh.vertices : f.points.positions) box.add(v);
+  for (const auto& v : f.is_mesh ? f.mesh.vertices : f.points.positions) {
+    if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
+      throw io::IoError(path, "a vertex/point has a coordinate that is not a finite number");
+    box.add(v);
+  }
   if (!f.is_mesh && box.empty()) throw io::IoError(path + ": no points");
   if (!box.empty())
     for (int k = 0; k < 3; ++k)
       b.origin[size_t(k)] = std::round((box.min[size_t(k)] + box.max[size_t(k)]) / 2);
-  b.input = to_building_input(f, b.origin);
+  b.input = to_building_input(f, b.origin, path);
   b.input.name = fs::path(path).filename().string();
   return b;
 }
 
 lod::BuildingInput chunk_input(const std::string& work, const ChunkRecord& c) {
-  lod::BuildingInput in = to_building_input(read_building_file(chunk_path(work, c.id)), {0, 0, 0});
+  const std::string path = chunk_path(work, c.id);
+  lod::BuildingInput in = to_building_input(read_building_file(path), {0, 0, 0}, path);
   for (const auto& q : c.outline) in.footprint.emplace_back(q[0] - c.origin[0], q[1] - c.origin[1]);
   in.ground_z = c.ground_z - c.origin[2];
   in.has_ground_z = true;

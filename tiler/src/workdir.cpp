@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -13,6 +14,7 @@
 
 #include "citylod/io/atomic_file.hpp"
 #include "citylod/io/error.hpp"
+#include "citylod/io/hash.hpp"
 #include "citylod/io/json_file.hpp"
 
 namespace citylod::tiler {
@@ -49,15 +51,57 @@ ModelKind model_kind_from_string(const std::string& s) {
   throw std::invalid_argument("unknown kind '" + s + "'");
 }
 
-// ------------------------------------------------------------ paths
+// ------------------------------------------------------------ ids and paths
+namespace {
+bool safe_name_char(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' ||
+         c == '_' || c == '.';
+}
+
+/// `name` quoted for a message: printable ASCII kept, the rest as \xNN, cut at 60 characters.
+std::string shown_name(const std::string& name) {
+  std::string q = "'";
+  for (std::size_t i = 0; i < name.size() && i < 60; ++i) {
+    const auto c = static_cast<unsigned char>(name[i]);
+    if (c >= 0x20 && c < 0x7f) {
+      q += char(c);
+    } else {
+      char b[8];
+      std::snprintf(b, sizeof b, "\\x%02x", c);
+      q += b;
+    }
+  }
+  return q + (name.size() > 60 ? "...'" : "'");
+}
+
+const std::string& checked_id(const std::string& id) {
+  if (!is_safe_id(id))
+    throw std::invalid_argument("building id " + shown_name(id) + " is not a safe file name");
+  return id;
+}
+}  // namespace
+
+bool is_safe_id(const std::string& id) {
+  if (id.empty() || id.size() > kMaxIdLength || id[0] == '.') return false;
+  if (id.find("..") != std::string::npos) return false;
+  return std::all_of(id.begin(), id.end(), safe_name_char);
+}
+
+void require_safe_id(const std::string& id, const std::string& file) {
+  if (!is_safe_id(id))
+    throw io::IoError(file, "building id " + shown_name(id) + " is not a safe name (1-" +
+                                std::to_string(kMaxIdLength) +
+                                " characters of A-Z a-z 0-9 . _ -, no leading '.', no '..')");
+}
+
 std::string manifest_path(const std::string& w) {
   return (fs::path(w) / "manifest.json").string();
 }
 std::string chunk_path(const std::string& w, const std::string& id) {
-  return (fs::path(w) / "chunks" / (id + ".ply")).string();
+  return (fs::path(w) / "chunks" / (checked_id(id) + ".ply")).string();
 }
 std::string lod_dir(const std::string& w, const std::string& id) {
-  return (fs::path(w) / "lod" / id).string();
+  return (fs::path(w) / "lod" / checked_id(id)).string();
 }
 std::string lod_report_path(const std::string& w, const std::string& id) {
   return (fs::path(lod_dir(w, id)) / "report.json").string();
@@ -150,6 +194,11 @@ std::vector<ModelRecord> models_from_json(const json& arr, const std::string& pa
       throw io::IoError(path, "model " + std::to_string(index) + " has no \"file\"");
     ModelRecord r;
     r.file = m["file"].get<std::string>();
+    // a plain file name in the report's folder: nothing outside it is read
+    if (r.file.empty() || r.file[0] == '.' || r.file.size() > 255 ||
+        r.file.find_first_of("/\\") != std::string::npos || r.file.find('\0') != std::string::npos)
+      throw io::IoError(path, "model " + std::to_string(index) + ": file " + shown_name(r.file) +
+                                  " is not a plain file name in the report's folder");
     try {
       r.kind = model_kind_from_string(m.value("kind", std::string("anchor")));
     } catch (const std::invalid_argument& e) {
@@ -214,6 +263,7 @@ LodReport lod_report_from_json(const json& j, const std::string& path) {
     if (st == j.end()) r.reason = "report.json records no status";
     if (j.contains("reason") && j["reason"].is_string()) r.reason = j["reason"].get<std::string>();
     r.id = j.value("id", std::string());
+    if (!r.id.empty()) require_safe_id(r.id, path);
     r.key = j.value("key", std::string());
     if (j.contains("parameters")) r.parameters = string_map(j["parameters"]);
     if (j.contains("counts"))
@@ -255,6 +305,7 @@ json to_json(const BuildingRecord& b) {
 BuildingRecord building_from_json(const json& o) {
   BuildingRecord b;
   b.id = o.at("id").get<std::string>();
+  if (!is_safe_id(b.id)) checked_id(b.id);
   b.source = o.value("source", std::string());
   b.status = status_from_string(o.value("status", std::string("failed")));
   b.reason = o.value("reason", std::string());
@@ -299,6 +350,17 @@ Manifest read_manifest(const std::string& work_dir) {
   const std::string path = manifest_path(work_dir);
   if (!fs::exists(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
   if (!fs::exists(path)) throw io::IoError(path, "missing manifest (run 'citylod split' first)");
+  // Its folders must be inside it: a symbolic link would lead deletions elsewhere.
+  for (const char* sub : {"chunks", "lod"}) {
+    std::error_code ec;
+    const fs::path p = fs::path(work_dir) / sub;
+    const auto st = fs::symlink_status(p, ec);
+    if (!ec && fs::exists(st) && !fs::is_directory(st))
+      throw io::IoError(p.string(), fs::is_symlink(st)
+                                        ? "is a symbolic link (a work directory's folders must "
+                                          "be inside it)"
+                                        : "is not a directory");
+  }
   const json j = read_json_file(path);
   Manifest m;
   try {
@@ -317,7 +379,10 @@ Manifest read_manifest(const std::string& work_dir) {
     m.scene.vertical = s.value("vertical", "");
     m.scene.building_points = s.value("building_points", std::int64_t(-1));
     m.scene.unmatched_points = s.value("unmatched_points", std::int64_t(-1));
-    for (const auto& c : j.at("chunks")) m.chunks.push_back(chunk_from_json(c));
+    for (const auto& c : j.at("chunks")) {
+      m.chunks.push_back(chunk_from_json(c));
+      require_safe_id(m.chunks.back().id, path);
+    }
   } catch (const io::IoError&) {
     throw;
   } catch (const std::exception& e) {
@@ -360,6 +425,29 @@ void write_manifest(const std::string& work_dir, const Manifest& m) {
   io::atomic_write_file(manifest_path(work_dir), j.dump(1) + "\n");
 }
 
+bool chunk_intact(const std::string& work_dir, const ChunkRecord& c) {
+  const std::string path = chunk_path(work_dir, c.id);
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return false;
+  if (c.content_hash.empty()) return true;
+  try {
+    return io::hash_file(path) == c.content_hash;
+  } catch (const io::IoError&) {
+    return false;
+  }
+}
+
+void require_own_chunks(const std::string& work_dir) {
+  const fs::path chunks = fs::path(work_dir) / "chunks";
+  std::error_code ec;
+  if (!fs::exists(chunks, ec) || fs::exists(manifest_path(work_dir), ec)) return;
+  if (fs::is_directory(chunks, ec) && fs::is_empty(chunks, ec)) return;
+  throw io::IoError(chunks.string(),
+                    "exists and is not empty, but " + work_dir +
+                        " has no manifest.json: not made by 'citylod split'; not replaced "
+                        "(move it away or choose another work directory)");
+}
+
 // ------------------------------------------------------------ report.json
 LodReport read_lod_report(const std::string& path) {
   return lod_report_from_json(read_json_file(path), path);
@@ -397,6 +485,7 @@ Overrides read_overrides(const std::string& work_dir) {
     throw std::runtime_error(path + ": not a citylod overrides file");
   try {
     for (const auto& [id, b] : j["buildings"].items()) {
+      if (!is_safe_id(id)) checked_id(id);
       BuildingOverride bo;
       if (b.contains("set")) bo.set = string_map(b["set"]);
       if (b.contains("select"))

@@ -26,6 +26,7 @@
 #include "citylod/io/tileset.hpp"
 #include "citylod/lod/polygon2d.hpp"
 #include "citylod/tiler/bridge.hpp"
+#include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/threads.hpp"
 #include "citylod/tiler/workdir.hpp"
 
@@ -399,9 +400,8 @@ io::Tile to_tile(const std::vector<TileNode>& tiles, std::size_t id) {
 /// Replaces `out` by the staged directory. Refuses to delete a directory that
 /// is not a previous tileset unless `force`.
 void check_output_dir(const fs::path& out, bool force) {
-  const fs::path old = out.string() + ".old";
-  if (!fs::exists(out) && fs::exists(old / "tileset.json"))
-    fs::rename(old, out);  // killed mid-swap
+  if (fs::exists(fs::path(out.string() + ".old") / "tileset.json"))
+    io::recover_directory(out.string());  // killed mid-swap (file systems without exchange)
   if (!fs::exists(out)) return;
   if (!fs::is_directory(out)) throw io::IoError(out.string(), "exists and is not a directory");
   const bool empty = fs::directory_iterator(out) == fs::directory_iterator();
@@ -421,16 +421,18 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
     notify_progress(progress, "assemble", f, stage);
   };
   if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
+  fs::path out = fs::absolute(out_dir).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();  // "DIR/"
+  if (out.filename().empty() || out == out.root_path())
+    throw io::IoError(out_dir, "not a valid output directory");
+  // One writer: of the work directory (no LOD stage changes it meanwhile) and of the output.
+  const DirLock work_lock(work_dir), out_lock = DirLock::for_output(out.string());
   const Manifest man = read_manifest(work_dir);
   if (man.chunks.empty())
     throw io::IoError(manifest_path(work_dir),
                       "the manifest lists no buildings (nothing to assemble)");
   require_valid_origin(man, work_dir);
   const auto& sc = man.scene;
-  fs::path out = fs::absolute(out_dir).lexically_normal();
-  if (out.filename().empty()) out = out.parent_path();  // "DIR/"
-  if (out.filename().empty() || out == out.root_path())
-    throw io::IoError(out_dir, "not a valid output directory");
   check_output_dir(out, params.force);
 
   // ---- 1. buildings
@@ -625,17 +627,10 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   st.depth = io::tile_depth(ts.root);
   st.root_error_m = tiles[0].error;
 
-  // ---- 4. swap the staged directory in
-  if (fs::exists(out)) {
-    const fs::path old = out.string() + ".old";
-    fs::remove_all(old);
-    fs::rename(out, old);
-    fs::rename(stage, out);
-    fs::remove_all(old);
-  } else {
-    if (out.has_parent_path()) fs::create_directories(out.parent_path());
-    fs::rename(stage, out);
-  }
+  // ---- 4. switch the staged directory in: fsync'd, then one atomic exchange
+  // (the output is at every instant the previous or the new complete tileset)
+  if (out.has_parent_path()) fs::create_directories(out.parent_path());
+  io::publish_directory(stage.string(), out.string());
   st.seconds_write = seconds_since(t1);
   report(1.0, "done");
   notify_finished(progress, "assemble");

@@ -33,6 +33,10 @@ namespace {
 
 constexpr Mat4 kIdentity{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
 constexpr int kMaxExternalDepth = 8;
+// Bounds of a hostile tileset (a real one is < 30 levels deep): recursion depth,
+// and tiles in all (each external tileset is read once, so fan-out cannot multiply).
+constexpr int kMaxTileDepth = 256;
+constexpr std::size_t kMaxTiles = 5'000'000;
 
 struct ContentRef {
   std::string file;  // path to read
@@ -49,8 +53,15 @@ struct Walker {
   std::vector<ContentRef> contents;
   std::size_t tiles = 0;
   int depth = 0;
+  std::set<std::string> external_seen;  // canonical paths of the tilesets read
 
   void tileset(const std::string& path, int level, const Mat4& parent, int external_depth) {
+    std::error_code ec;
+    const fs::path canon = fs::weakly_canonical(path, ec);
+    if (!external_seen.insert(ec ? path : canon.string()).second)
+      throw io::IoError(path,
+                        "tileset referenced more than once (a cycle or a repeat; each "
+                        "external tileset is read once)");
     const nlohmann::json ts = read_json_file(path);
     if (!ts.is_object() || !ts.contains("root") || !ts["root"].is_object())
       throw io::IoError(path, "not a 3D Tiles tileset (no \"root\" tile)");
@@ -60,7 +71,11 @@ struct Walker {
   void tile(const nlohmann::json& t, const std::string& file, const fs::path& base,
             const std::string& where, int level, const Mat4& parent, int external_depth) {
     if (!t.is_object()) throw io::IoError(file, where + " is not a JSON object");
-    ++tiles;
+    if (level > kMaxTileDepth)
+      throw io::IoError(
+          file, "tiles nested deeper than " + std::to_string(kMaxTileDepth) + " levels (not read)");
+    if (++tiles > kMaxTiles)
+      throw io::IoError(file, "more than " + std::to_string(kMaxTiles) + " tiles (not read)");
     depth = std::max(depth, level);
     Mat4 m = parent;
     if (t.contains("transform")) {
@@ -120,8 +135,9 @@ struct Walker {
       const auto& ch = t["children"];
       if (!ch.is_array()) throw io::IoError(file, where + ": \"children\" is not an array");
       for (std::size_t i = 0; i < ch.size(); ++i)
-        tile(ch[i], file, base, where + ".children[" + std::to_string(i) + "]", level + 1, m,
-             external_depth);
+        tile(ch[i], file, base,
+             (where.size() < 200 ? where : "...") + ".children[" + std::to_string(i) + "]",
+             level + 1, m, external_depth);
     }
   }
 };

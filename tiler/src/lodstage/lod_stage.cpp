@@ -22,6 +22,7 @@
 #include "citylod/io/hash.hpp"
 #include "citylod/io/json_file.hpp"
 #include "citylod/tiler/bridge.hpp"
+#include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/log.hpp"
 
 namespace citylod::tiler {
@@ -188,6 +189,10 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
   fs::remove_all(stage);
   lod::LodResult r;
   try {
+    if (!crashed_before && !chunk_intact(work, c))
+      throw std::runtime_error(chunk_path(work, c.id) +
+                               ": missing, truncated or changed since split (its hash is not the "
+                               "manifest's); run 'citylod split --force' again");
     const lod::BuildingInput in = chunk_input(work, c);
     r = crashed_before ? lod::fallback_result(in, "crashed in an earlier run; not retried")
                        : lod::build_lod_tree(in, p);
@@ -207,6 +212,17 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
 std::size_t LodStagePlan::up_to_date() const {
   return std::size_t(
       std::count_if(items.begin(), items.end(), [](const Item& i) { return i.up_to_date; }));
+}
+
+namespace {
+bool sharded(const LodStageOptions& o) {
+  return o.shard_count > 1 && o.only.empty();
+}
+}  // namespace
+
+LodStageLock::LodStageLock(const LodStageOptions& o)
+    : work_(o.work_dir, sharded(o) ? DirLock::Mode::shared : DirLock::Mode::exclusive) {
+  if (sharded(o)) shard_.emplace(DirLock::for_shard(o.work_dir, o.shard_index, o.shard_count));
 }
 
 LodStagePlan plan_lod_stage(const LodStageOptions& o) {
@@ -246,6 +262,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
   const auto t0 = std::chrono::steady_clock::now();
   LodStageReport rep;
   const LodStagePlan plan = plan_lod_stage(o);
+  const LodStageLock lock(o);  // one writer (dir_lock.hpp); held already in a city run
   rep.total = plan.items.size();
   fs::create_directories(fs::path(o.work_dir) / "lod");
 

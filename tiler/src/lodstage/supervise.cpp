@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <vector>
 
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -14,15 +15,56 @@ namespace citylod::tiler {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+// The running worker, for the forwarding handler (one supervised child at a time).
+volatile sig_atomic_t g_child = 0;
+volatile sig_atomic_t g_signal = 0;
+
+extern "C" void forward_signal(int sig) {
+  g_signal = sig;
+  if (g_child > 0) ::kill(pid_t(g_child), sig);
+}
+
+/// While alive: SIGTERM / SIGINT / SIGHUP to the supervisor are passed on to the
+/// worker; afterwards the supervisor dies of the same signal (see supervise()).
+class ForwardSignals {
+ public:
+  explicit ForwardSignals(pid_t child) {
+    g_child = child;
+    g_signal = 0;
+    struct sigaction sa {};
+    sa.sa_handler = forward_signal;
+    sigemptyset(&sa.sa_mask);
+    for (int i = 0; i < 3; ++i) ::sigaction(kSignals[i], &sa, &old_[i]);
+  }
+  ~ForwardSignals() {
+    for (int i = 0; i < 3; ++i) ::sigaction(kSignals[i], &old_[i], nullptr);
+    g_child = 0;
+  }
+  ForwardSignals(const ForwardSignals&) = delete;
+  ForwardSignals& operator=(const ForwardSignals&) = delete;
+
+ private:
+  static constexpr int kSignals[3] = {SIGTERM, SIGINT, SIGHUP};
+  struct sigaction old_[3]{};
+};
+
+}  // namespace
+
 int supervise(const std::string& work_dir, const std::function<int()>& work, int max_restarts,
               int* crashes) {
   for (int attempt = 0;; ++attempt) {
     if (crashes) *crashes = attempt;
     std::fflush(stdout);
     std::fflush(stderr);
+    const pid_t parent = ::getpid();
     const pid_t pid = ::fork();
     if (pid < 0) return work();  // no fork: run in-process
     if (pid == 0) {
+      // The worker dies with its supervisor (even by SIGKILL): no orphan keeps writing.
+      ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+      if (::getppid() != parent) ::_exit(1);  // the supervisor died before the prctl
       int rc = 1;
       try {
         rc = work();
@@ -35,9 +77,13 @@ int supervise(const std::string& work_dir, const std::function<int()>& work, int
       ::_exit(rc);
     }
     int status = 0;
-    while (::waitpid(pid, &status, 0) < 0) {
-      if (errno != EINTR) return 1;
+    {
+      const ForwardSignals forward(pid);
+      while (::waitpid(pid, &status, 0) < 0) {
+        if (errno != EINTR) return 1;
+      }
     }
+    if (g_signal != 0) ::raise(g_signal);  // handlers restored: die of it as asked
     if (WIFEXITED(status)) return WEXITSTATUS(status);
     const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
     if (sig == SIGKILL || sig == SIGTERM || sig == SIGINT) return 128 + sig;  // killed from outside

@@ -13,6 +13,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/log.hpp"
 #include "citylod/tiler/supervise.hpp"
 #include "citylod/tiler/threads.hpp"
@@ -56,6 +57,7 @@ CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& pr
   LodStageOptions every = o;
   every.only.clear();
   const LodStagePlan plan = plan_lod_stage(every);  // before the fork: what is up to date
+  const LodStageLock lock(o);  // one writer (shards: one per shard); the worker inherits it
   CityLodSummary s;
   s.buildings = plan.items.size();
   if (o.only.empty()) {
@@ -190,6 +192,24 @@ std::vector<BuildingRecord> building_records(const std::string& work_dir,
   return out;
 }
 
+// ------------------------------------------------------------ split, checked
+SplitReport split_checked(SplitOptions so, const ProgressFn& progress) {
+  const std::string& work = so.work_dir;
+  require_own_chunks(work);
+  SplitReport r = split_scene(so, progress);
+  if (!r.up_to_date) return r;
+  // Up to date by its inputs and options: are the chunks still what split wrote?
+  const Manifest m = read_manifest(work);
+  const auto bad = std::find_if(m.chunks.begin(), m.chunks.end(), [&](const ChunkRecord& c) {
+    return !c.skipped() && !chunk_intact(work, c);
+  });
+  if (bad == m.chunks.end()) return r;
+  log_warn("split: " + chunk_path(work, bad->id) +
+           " is missing, truncated or changed since split; splitting again");
+  so.force = true;
+  return split_scene(so, progress);
+}
+
 // ------------------------------------------------------------ tile
 CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   const auto t_start = std::chrono::steady_clock::now();
@@ -206,6 +226,8 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   ap.threads = threads;
   ap.validate();
   fs::create_directories(dir);
+  // One writer per output: a second run into DIR refuses at once (dir_lock.hpp).
+  const DirLock dir_lock(dir), work_lock(work);
 
   CityRunResult res;
   RunReport& report = res.report;
@@ -215,7 +237,7 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
 
   // ---- split (no OpenMP in this process before the fork below)
   auto t0 = std::chrono::steady_clock::now();
-  res.split = split_scene(so, progress);
+  res.split = split_checked(so, progress);
   const SplitReport& sr = res.split;
   const double t_split = since(t0);
   for (const auto& n : sr.notes) log_info("note: " + n);

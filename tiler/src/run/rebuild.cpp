@@ -7,12 +7,11 @@
 // select: pins which of its candidate models (by step, see its report.json) are
 //         shown; persisted in overrides.json and applied to its report.json
 //         ("models" filtered, full list in "models_all").
-// Then assemble runs into DIR/.tileset.rebuild; files whose bytes differ from
-// DIR/tileset are copied over (new ones added, vanished ones removed,
-// tileset.json last). Assemble itself recomputes the whole tileset.
+// Then assemble recomputes the whole tileset and switches it in atomically
+// (staged, fsync'd, one rename: assemble.hpp); the files whose bytes differ
+// are reported (changed, added, removed).
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -20,6 +19,7 @@
 #include "citylod/io/hash.hpp"
 #include "citylod/tiler/city_run.hpp"
 #include "citylod/tiler/cityjson.hpp"
+#include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/log.hpp"
 
 namespace citylod::tiler {
@@ -38,43 +38,22 @@ std::map<std::string, std::string> hash_tree(const fs::path& root) {
   return h;
 }
 
-bool same_bytes(const fs::path& a, const fs::path& b) {
-  if (fs::file_size(a) != fs::file_size(b)) return false;
-  std::ifstream fa(a, std::ios::binary), fb(b, std::ios::binary);
-  return std::equal(std::istreambuf_iterator<char>(fa), std::istreambuf_iterator<char>(),
-                    std::istreambuf_iterator<char>(fb), std::istreambuf_iterator<char>());
-}
-
-void replace_file(const fs::path& from, const fs::path& to) {
-  fs::create_directories(to.parent_path());
-  const fs::path tmp = to.string() + ".rebuild.tmp";
-  fs::copy_file(from, tmp, fs::copy_options::overwrite_existing);
-  fs::rename(tmp, to);
-}
-
 struct TreeDiff {
   std::vector<std::string> changed, added, removed;
 };
 
-/// Copies what differs from `stage` into `target` (tileset.json last), removes what vanished.
-TreeDiff publish_changes(const fs::path& stage, const fs::path& target) {
+TreeDiff diff(const std::map<std::string, std::string>& before,
+              const std::map<std::string, std::string>& after) {
   TreeDiff d;
-  const auto before = hash_tree(target), after = hash_tree(stage);
   for (const auto& [rel, h] : after) {
     auto it = before.find(rel);
     if (it == before.end())
       d.added.push_back(rel);
-    else if (it->second != h || !same_bytes(stage / rel, target / rel))
+    else if (it->second != h)
       d.changed.push_back(rel);
   }
   for (const auto& [rel, h] : before)
     if (!after.count(rel)) d.removed.push_back(rel);
-  auto is_root = [](const std::string& r) { return r == "tileset.json"; };
-  for (bool root : {false, true})
-    for (const auto* list : {&d.changed, &d.added})
-      for (const auto& rel : *list)
-        if (is_root(rel) == root) replace_file(stage / rel, target / rel);
-  for (const auto& rel : d.removed) fs::remove(target / rel);
   return d;
 }
 
@@ -106,6 +85,8 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
   const std::string work = (dir / "work").string();
   const fs::path tileset = dir / "tileset";
   RunReport run = read_run_report(dir.string());
+  const DirLock dir_lock(dir.string()), work_lock(work);  // one writer (dir_lock.hpp)
+  run = read_run_report(dir.string());                    // as the lock holder sees it
   lod::LodParams global =
       city_lod_params();  // a run report of an older version may lack newer names
   for (const auto& [k, v] : run.lod_params) global.set(k, v);
@@ -173,13 +154,14 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
   res.report_changed = report_before != report_after;
   log_info("rebuild: " + res.report + (res.report_changed ? " changed" : " unchanged"));
 
-  // Assemble into a staging dir, then replace only the files whose bytes differ.
-  const fs::path stage = dir / ".tileset.rebuild";
-  fs::remove_all(stage);
-  const AssembleStats st = assemble(work, stage.string(), ap, progress);
+  // Assemble publishes the new tileset in one atomic switch (assemble.hpp): killed
+  // at any point, DIR/tileset is the previous or the new complete tileset.
+  std::error_code ec;
+  fs::remove_all(dir / ".tileset.rebuild", ec);  // staging dir of older versions
+  const auto before = hash_tree(tileset);
+  const AssembleStats st = assemble(work, tileset.string(), ap, progress);
   for (const auto& w : st.warnings) log_warn(w);
-  TreeDiff d = publish_changes(stage, tileset);
-  fs::remove_all(stage);
+  const TreeDiff d = diff(before, hash_tree(tileset));
   res.changed = d.changed;
   res.added = d.added;
   res.removed = d.removed;

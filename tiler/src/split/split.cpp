@@ -159,6 +159,8 @@ std::string sanitize_id(const std::string& s) {
     r +=
         (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.') ? c : '_';
   if (r.empty() || r[0] == '.') r = "_" + r;
+  // a work directory's ids never hold ".." (workdir.cpp refuses them as paths)
+  for (std::size_t k = r.find(".."); k != std::string::npos; k = r.find("..")) r[k + 1] = '_';
   return r.substr(0, 120);
 }
 

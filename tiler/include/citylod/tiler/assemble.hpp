@@ -11,7 +11,8 @@
 //            splits while a tile is over its triangle / byte budget)
 //     -> (3) tiles/<name>.glb (GlbBuilder), buildings/<id>.glb (all kept models
 //            of one building, for the viewer), buildings.json, tileset.json,
-//            all staged in OUT.partial and swapped in at the end.
+//            all staged in OUT.partial, fsync'd and switched in by one atomic
+//            exchange (io::publish_directory) at the end.
 #pragma once
 
 #include <cstddef>
@@ -74,7 +75,9 @@ struct AssembleStats {
 /// Runs the whole stage. Throws io::IoError / std::runtime_error with a
 /// one-line message (missing manifest, empty work dir, building without
 /// models, unreadable model, ...). OUT is replaced only after everything was
-/// written (OUT.partial -> OUT). Progress: task "assemble" (not cancellable).
+/// written (OUT.partial <-> OUT, one atomic exchange): killed at any point, OUT
+/// is the previous or the new complete tileset. Holds the locks of the work
+/// directory and of OUT (dir_lock.hpp). Progress: task "assemble" (not cancellable).
 AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
                        const AssembleParams& params, const ProgressFn& progress = {});
 

@@ -48,6 +48,14 @@ CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& pr
 /// "lod: N buildings (X computed, Y reused): a ok, b fallback, c failed in S s".
 std::string describe(const CityLodSummary& s);
 
+// ------------------------------------------------------------ split, checked
+
+/// split_scene() as `citylod split` and `tile` run it: never replaces a
+/// WORK/chunks folder it did not make (require_own_chunks), and splits again
+/// (force) when the work directory is up to date by its inputs and options
+/// but a chunk is missing, truncated or changed (chunk_intact).
+SplitReport split_checked(SplitOptions o, const ProgressFn& progress = {});
+
 // ------------------------------------------------------------ tile
 
 struct CityRunOptions {
@@ -92,10 +100,11 @@ struct RebuildResult {
 };
 
 /// Recomputes (--set, --reset, or neither option) and/or re-selects (--select)
-/// one building, persists the choice in WORK/overrides.json, assembles into
-/// DIR/.tileset.rebuild and replaces only the tileset files whose bytes differ
-/// (tileset.json last); updates run_report.json. Throws std::invalid_argument
-/// for bad options, std::runtime_error otherwise.
+/// one building, persists the choice in WORK/overrides.json, assembles the
+/// tileset again (switched in atomically: DIR/tileset is at every instant the
+/// previous or the new complete tileset) and reports the files whose bytes
+/// differ; updates run_report.json. Holds the locks of DIR and DIR/work. Throws
+/// std::invalid_argument for bad options, std::runtime_error otherwise.
 RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress = {});
 
 /// "0,3,5" -> {0,3,5} sorted, unique; "all" / "auto" -> {}. Throws std::invalid_argument.

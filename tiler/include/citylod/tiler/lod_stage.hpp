@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,6 +24,7 @@
 #include "citylod/lod/lod.hpp"
 #include "citylod/lod/params.hpp"
 #include "citylod/tiler/bridge.hpp"
+#include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/progress.hpp"
 #include "citylod/tiler/workdir.hpp"
 
@@ -112,5 +114,17 @@ struct LodStageReport {
 /// supervise() when crashes must be isolated). Progress: task "lod", one
 /// count per building.
 LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progress = {});
+
+/// The locks a LOD stage holds (dir_lock.hpp): WORK exclusively; the shards of
+/// one stage (shard_count > 1, no `only`) WORK shared and their shard lock
+/// exclusively, so they run at once. Throws DirBusy.
+class LodStageLock {
+ public:
+  explicit LodStageLock(const LodStageOptions& o);
+
+ private:
+  DirLock work_;
+  std::optional<DirLock> shard_;
+};
 
 }  // namespace citylod::tiler

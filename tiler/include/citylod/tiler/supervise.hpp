@@ -3,6 +3,9 @@
 // the building(s) it was running are marked — `.crashed` when only one was
 // running, `.suspect` when several were (they are then retried one at a time)
 // — and the child is started again; finished buildings are not recomputed.
+// The child dies with its supervisor (PR_SET_PDEATHSIG: SIGKILL, even when the
+// supervisor is SIGKILLed), and SIGTERM / SIGINT / SIGHUP sent to the
+// supervisor are forwarded to it; the supervisor then dies of the same signal.
 #pragma once
 
 #include <functional>

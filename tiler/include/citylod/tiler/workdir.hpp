@@ -13,7 +13,14 @@
 //
 // Coordinates: the scene frame is ENU metres at the scene origin (SceneInfo);
 // each chunk has its own origin in that frame so its numbers stay small.
-// Everything is written atomically (temp file + rename).
+// Everything is written atomically (temp file + fsync + rename).
+//
+// A work directory is untrusted input: every building id read from its records
+// (manifest.json, report.json, overrides.json, run_report.json) must be a safe
+// file name (is_safe_id), a model's "file" a plain file name in the report's
+// folder, and WORK/chunks and WORK/lod real folders (not symbolic links); a
+// record breaking this is malformed (io::IoError naming it). So every path
+// derived from a work directory stays inside it.
 //
 // Defaults when a field is absent (one rule for every reader):
 //   - report.json without "status": Status::failed (a report that does not say
@@ -101,8 +108,24 @@ Manifest read_manifest(const std::string& work_dir);
 void require_valid_origin(const Manifest& m, const std::string& work_dir);
 /// Atomic; chunks are written sorted by id.
 void write_manifest(const std::string& work_dir, const Manifest& m);
+/// True when WORK/chunks/<id>.ply is a regular file whose hash is the record's
+/// content_hash (a record without a hash: when the file exists). A chunk
+/// truncated or changed since split is not intact.
+bool chunk_intact(const std::string& work_dir, const ChunkRecord& c);
+/// Throws io::IoError("<WORK>/chunks: ...") when WORK/chunks exists, is not
+/// empty and WORK has no manifest.json: split never replaces a folder it did not make.
+void require_own_chunks(const std::string& work_dir);
+
+/// Longest building id accepted (split writes at most 120 + a few characters).
+constexpr std::size_t kMaxIdLength = 200;
+/// True when `id` is safe as a file name inside the work directory: 1..kMaxIdLength
+/// characters of [A-Za-z0-9._-], not starting with '.', without "..".
+bool is_safe_id(const std::string& id);
+/// Throws io::IoError(file, "building id '<id>' is not a safe name ...") unless is_safe_id(id).
+void require_safe_id(const std::string& id, const std::string& file);
 
 std::string manifest_path(const std::string& work_dir);
+// The paths of one building; throw std::invalid_argument when !is_safe_id(id).
 std::string chunk_path(const std::string& work_dir, const std::string& id);
 std::string lod_dir(const std::string& work_dir, const std::string& id);
 std::string lod_report_path(const std::string& work_dir, const std::string& id);
@@ -111,7 +134,7 @@ std::string lod_report_path(const std::string& work_dir, const std::string& id);
 
 /// One candidate model of a building.
 struct ModelRecord {
-  std::string file;  ///< PLY, relative to the report's directory (or absolute)
+  std::string file;  ///< PLY, a plain file name in the report's directory
   ModelKind kind = ModelKind::anchor;
   int level = 0, step = 0;
   int cuts = 0;
