@@ -500,6 +500,7 @@ TEST(Serve, RangesStreamingAndSlowClients) {
   }
   Server s(d / "ts", false);
   ASSERT_GT(s.port, 0);
+  const long base_kb = s.peak_kb();  // the binary and its libraries, before any file is served
   std::string r = get(s.port, "/tileset/big.bin", "Range: bytes=10-19\r\n");
   EXPECT_NE(r.find("206 Partial Content"), std::string::npos) << r.substr(0, 300);
   EXPECT_NE(r.find("Content-Range: bytes 10-19/" + std::to_string(big)), std::string::npos);
@@ -522,7 +523,8 @@ TEST(Serve, RangesStreamingAndSlowClients) {
     ts.emplace_back([&, i] { got[std::size_t(i)] = get(s.port, "/tileset/big.bin").size(); });
   for (auto& t : ts) t.join();
   for (auto g : got) EXPECT_GT(g, big);
-  EXPECT_LT(s.peak_kb(), 64 * 1024) << "peak RSS of serve";
+  // whole-file reads would add 6 x 96 MB; streaming adds its buffers only
+  EXPECT_LT(s.peak_kb() - base_kb, 48 * 1024) << "peak RSS of serve above its start";
 }
 
 // ------------------------------------------------------------ the LOD worker dies with its parent
