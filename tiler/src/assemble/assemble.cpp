@@ -127,20 +127,9 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     if (!rep.reason.empty()) why += ": " + nlohmann::json(rep.reason).dump();
     throw io::IoError(report_path, why + ")");
   }
-  std::vector<ModelEntry> entries;
+  const std::vector<ModelEntry> entries = model_entries(dir, rep.models, report_path);
   std::vector<io::TriangleMesh> meshes;
-  for (const ModelRecord& m : rep.models) {
-    ModelEntry e;
-    const fs::path f = m.file;
-    e.file = (f.is_absolute() ? f : fs::path(dir) / f).string();
-    e.kind = m.kind;
-    e.level = m.level;
-    e.step = m.step;
-    if (!fs::exists(e.file))
-      throw io::IoError(e.file, "model listed in " + report_path + " is missing");
-    meshes.push_back(read_model(e.file, rec.origin));
-    entries.push_back(e);
-  }
+  for (const ModelEntry& e : entries) meshes.push_back(read_model(e.file, rec.origin));
   b.models_read = entries.size();
   const ModelChoice choice =
       choose_models(entries, meshes, p.min_change_m, p.hausdorff_tolerance_m);

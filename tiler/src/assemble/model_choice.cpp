@@ -4,11 +4,15 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
 
 #include "citylod/tiler/assemble.hpp"
+
+#include "citylod/io/error.hpp"
+#include "citylod/tiler/workdir.hpp"
 
 namespace citylod::tiler {
 
@@ -248,6 +252,24 @@ double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, 
   directed(a, tb, tolerance, stop_above, best);
   directed(b, ta, tolerance, stop_above, best);
   return best;
+}
+
+std::vector<ModelEntry> model_entries(const std::string& dir,
+                                      const std::vector<ModelRecord>& models,
+                                      const std::string& report_path) {
+  std::vector<ModelEntry> entries;
+  for (const ModelRecord& m : models) {
+    ModelEntry e;
+    const std::filesystem::path f = m.file;
+    e.file = (f.is_absolute() ? f : std::filesystem::path(dir) / f).string();
+    e.kind = m.kind;
+    e.level = m.level;
+    e.step = m.step;
+    if (!std::filesystem::exists(e.file))
+      throw io::IoError(e.file, "model listed in " + report_path + " is missing");
+    entries.push_back(std::move(e));
+  }
+  return entries;
 }
 
 ModelChoice choose_models(const std::vector<ModelEntry>& entries,

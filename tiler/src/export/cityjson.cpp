@@ -345,20 +345,9 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   }
   // ---- the models and the chain
   const std::string dir = lod_dir(work, rec.id);
-  std::vector<ModelEntry> entries;
+  const std::vector<ModelEntry> entries = model_entries(dir, rep.models, report_path);
   std::vector<io::TriangleMesh> meshes;
-  for (const ModelRecord& m : rep.models) {
-    ModelEntry e;
-    const fs::path f = m.file;
-    e.file = (f.is_absolute() ? f : fs::path(dir) / f).string();
-    e.kind = m.kind;
-    e.level = m.level;
-    e.step = m.step;
-    if (!fs::exists(e.file))
-      throw io::IoError(e.file, "model listed in " + report_path + " is missing");
-    meshes.push_back(io::read_mesh(e.file));
-    entries.push_back(e);
-  }
+  for (const ModelEntry& e : entries) meshes.push_back(io::read_mesh(e.file));
   std::vector<std::size_t> kept;
   std::vector<double> error_m;
   if (opt.all_models) {

@@ -100,6 +100,15 @@ struct ModelEntry {
   bool anchor() const { return kind != io::LodKind::interpolation; }
 };
 
+struct ModelRecord;  // workdir.hpp (which includes this header)
+
+/// The models one building's report lists, paths made absolute against the
+/// building's LOD directory `dir`; a listed file that does not exist is an
+/// IoError naming it and `report_path`.
+std::vector<ModelEntry> model_entries(const std::string& dir,
+                                      const std::vector<ModelRecord>& models,
+                                      const std::string& report_path);
+
 /// Which models of one building are kept, and their errors (metres).
 struct ModelChoice {
   std::vector<std::size_t> kept;  ///< indices into the input, coarse -> fine, last = finest anchor
