@@ -3,6 +3,8 @@
 // plinth or cut off; close_building runs the phases in order.
 #include "closure.hpp"
 
+#include "citylod/lod/polygon2d.hpp"
+
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
 #include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
@@ -174,18 +176,6 @@ std::vector<Vec2> simplify_closed(std::vector<Vec2> poly, double tol, double ang
 
 namespace {
 
-bool point_in_poly(const Vec2& p, const std::vector<Vec2>& poly) {
-  bool in = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Vec2& a = poly[i];
-    const Vec2& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
-      in = !in;
-  }
-  return in;
-}
-
 /// Triangles (CCW in xy) of a simple polygon, by a constrained Delaunay triangulation.
 std::vector<std::array<Vec2, 3>> triangulate(const std::vector<Vec2>& poly) {
   using CDT = CGAL::Constrained_Delaunay_triangulation_2<K>;
@@ -199,7 +189,7 @@ std::vector<std::array<Vec2, 3>> triangulate(const std::vector<Vec2>& poly) {
   for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
     const P2 &a = f->vertex(0)->point(), &b = f->vertex(1)->point(), &c = f->vertex(2)->point();
     const Vec2 g((a.x() + b.x() + c.x()) / 3, (a.y() + b.y() + c.y()) / 3);
-    if (!point_in_poly(g, poly)) continue;
+    if (!poly2::point_in_ring(poly, g)) continue;
     out.push_back({Vec2(a.x(), a.y()), Vec2(b.x(), b.y()), Vec2(c.x(), c.y())});
   }
   return out;
@@ -314,9 +304,9 @@ Terrain find_terrain(const Samples& s, const ClosureParams& p, const std::vector
     if (!low_up(pr) || !reaches_edge(pr)) continue;
     for (int i : pr.inliers) {
       ++total;
-      outside +=
-          building_outline.size() < 3 ||
-          !point_in_poly(Vec2(s.points[size_t(i)].x(), s.points[size_t(i)].y()), building_outline);
+      outside += building_outline.size() < 3 ||
+                 !poly2::point_in_ring(building_outline,
+                                       Vec2(s.points[size_t(i)].x(), s.points[size_t(i)].y()));
     }
   }
   t.on_terrain = 2 * outside > total;
