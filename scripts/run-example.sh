@@ -21,7 +21,7 @@ out=out/example
 mkdir -p "$out"
 
 "$citylod" info "$scene"
-"$citylod" tile "$scene" --crs EPSG:28992 --geoid egm96 \
+"$citylod" tile "$scene" --crs EPSG:28992 \
   --footprints examples/delft_small/footprints.geojson --threads "$(nproc)" --out "$out"
 
 echo
