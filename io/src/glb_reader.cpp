@@ -406,9 +406,26 @@ std::string decode_meshopt(const std::string& bytes, const std::string& name, bo
                       stride = e.value("byteStride", std::size_t(0)),
                       count = e.value("count", std::size_t(0));
     const std::string mode = e.value("mode", ""), filter = e.value("filter", "NONE");
-    if (e.value("buffer", -1) != 0 || off + len > bin.size() || stride == 0)
+    if (e.value("buffer", -1) != 0 || off > bin.size() || len > bin.size() - off || stride == 0)
       throw IoError(name,
                     "EXT_meshopt_compression: a bufferView's data lies outside the BIN chunk");
+    // The codecs' own preconditions (meshoptimizer asserts them: an abort, not
+    // an error), and a decoded size the encoded bytes can hold: the vertex
+    // codec packs at most 64:1, the index codecs less.
+    const bool index_stride = stride == 2 || stride == 4;
+    const bool ok_params =
+        mode == "ATTRIBUTES"
+            ? stride % 4 == 0 && stride <= 256 &&
+                  (filter == "NONE" || (filter == "OCTAHEDRAL" && (stride == 4 || stride == 8)) ||
+                   (filter == "QUATERNION" && stride == 8) || filter == "EXPONENTIAL")
+        : mode == "TRIANGLES" ? index_stride && count % 3 == 0
+                              : mode == "INDICES" && index_stride;
+    if (!ok_params)
+      throw IoError(name, "EXT_meshopt_compression: invalid mode, filter, byteStride or count");
+    if (count > (64 * len + 4096) / stride)
+      throw IoError(name, "EXT_meshopt_compression: a bufferView declares more data (" +
+                              std::to_string(count) + " x " + std::to_string(stride) +
+                              " bytes) than its " + std::to_string(len) + " bytes can hold");
     std::vector<unsigned char> out(count * stride);
     const auto* src = reinterpret_cast<const unsigned char*>(bin.data() + off);
     int rc = -1;

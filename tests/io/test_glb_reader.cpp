@@ -7,7 +7,10 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
+
 #include <map>
+#include <nlohmann/json.hpp>
 #include <set>
 
 #include "citylod/io/error.hpp"
@@ -214,4 +217,68 @@ TEST(GlbReader, MeshoptKeepsOnlyTheDamagedFeaturesFloat) {
 }
 
 }  // namespace
+}  // namespace citylod::test
+
+namespace citylod::test {
+namespace {
+
+/// The glb with its JSON chunk changed by `edit` (BIN chunk kept as it is).
+std::string edit_glb_json(const std::string& glb,
+                          const std::function<void(nlohmann::json&)>& edit) {
+  std::uint32_t json_len = 0;
+  std::memcpy(&json_len, glb.data() + 12, 4);
+  nlohmann::json j = nlohmann::json::parse(glb.substr(20, json_len));
+  edit(j);
+  std::string js = j.dump();
+  while (js.size() % 4) js.push_back(' ');
+  const std::string rest = glb.substr(20 + json_len);
+  std::string out(12, '\0');
+  auto put = [](std::string& s, std::size_t at, std::uint32_t v) { std::memcpy(&s[at], &v, 4); };
+  out += std::string(8, '\0') + js + rest;
+  put(out, 0, 0x46546C67u);  // "glTF"
+  put(out, 4, 2);
+  put(out, 8, std::uint32_t(out.size()));
+  put(out, 12, std::uint32_t(js.size()));
+  put(out, 16, 0x4E4F534Au);  // "JSON"
+  return out;
+}
+
+}  // namespace
+
+// Found by fuzz_glb: meshoptimizer asserts its preconditions (an abort); the
+// reader checks them first and names the file.
+TEST(GlbReader, MeshoptParametersAreCheckedBeforeDecoding) {
+  io::GlbOptions opt;
+  opt.compression = io::Compression::meshopt;
+  TriangleMesh box;
+  add_box(box, 0, 0, 0, 10, 10, 5);
+  io::GlbBuilder b({0, 0, 0}, opt);
+  b.add_feature(feature("b", io::LodKind::anchor, 1, 0), box);
+  const std::string glb = b.glb();
+  ASSERT_NO_THROW(io::parse_glb(glb, "ok.glb"));
+  auto with = [&](const char* mode, const std::function<void(nlohmann::json&)>& change) {
+    return edit_glb_json(glb, [&](nlohmann::json& j) {
+      for (auto& bv : j["bufferViews"])
+        if (bv.contains("extensions") && bv["extensions"].contains("EXT_meshopt_compression") &&
+            bv["extensions"]["EXT_meshopt_compression"]["mode"] == mode)
+          change(bv["extensions"]["EXT_meshopt_compression"]);
+    });
+  };
+  const std::vector<std::string> bad = {
+      with("TRIANGLES", [](nlohmann::json& e) { e["count"] = e["count"].get<int>() + 1; }),
+      with("TRIANGLES", [](nlohmann::json& e) { e["byteStride"] = 3; }),
+      with("ATTRIBUTES", [](nlohmann::json& e) { e["byteStride"] = 6; }),
+      with("ATTRIBUTES", [](nlohmann::json& e) { e["count"] = 1000000000; }),
+  };
+  for (std::size_t k = 0; k < bad.size(); ++k) {
+    SCOPED_TRACE("edit " + std::to_string(k));
+    try {
+      io::parse_glb(bad[k], "bad.glb");
+      ADD_FAILURE() << "no error";
+    } catch (const io::IoError& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.glb"), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace citylod::test
