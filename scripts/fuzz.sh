@@ -10,7 +10,8 @@
 # records, from a `citylod tile` run of examples/delft_small with the normal
 # build ($CITYLOD, default build/app/citylod); nothing is copied into the repo.
 # Corpora grow in $FUZZ_BUILD/fuzz-corpus/, crashes go to $FUZZ_BUILD/fuzz-artifacts/.
-# Exit status: 1 when any harness found something.
+# FUZZ_SEED=N fixes libFuzzer's seed (scripts/test.sh: CI runs the same
+# mutations each time). Exit status: 1 when any harness found something.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECS=${1:-60}
@@ -79,6 +80,7 @@ for h in "${HARNESSES[@]}"; do
   log=$ARTIFACTS/$h.log
   set +e
   "$B/tests/fuzz/$h" "$CORPUS/$h" -max_total_time="$SECS" -rss_limit_mb=2048 -timeout=20 \
+    ${FUZZ_SEED:+-seed="$FUZZ_SEED"} \
     -max_len=65536 -print_final_stats=1 -artifact_prefix="$ARTIFACTS/$h-" >"$log" 2>&1
   rc=$?
   set -e
