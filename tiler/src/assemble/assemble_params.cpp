@@ -20,5 +20,4 @@ void AssembleParams::validate() const {
   if (threads < 0) throw std::invalid_argument("threads must be >= 0");
 }
 
-
 }  // namespace citylod::tiler
