@@ -453,6 +453,24 @@ LodReport read_lod_report(const std::string& path) {
   return lod_report_from_json(read_json_file(path), path);
 }
 
+std::vector<const ChunkRecord*> buildings_to_model(const Manifest& m, const std::string& work_dir,
+                                                   std::size_t* skipped) {
+  std::vector<const ChunkRecord*> recs;
+  std::size_t n_skipped = 0;
+  for (const auto& c : m.chunks) {
+    if (c.skipped())
+      ++n_skipped;
+    else
+      recs.push_back(&c);
+  }
+  std::sort(recs.begin(), recs.end(), [](const auto* a, const auto* b) { return a->id < b->id; });
+  for (std::size_t i = 1; i < recs.size(); ++i)
+    if (recs[i]->id == recs[i - 1]->id)
+      throw io::IoError(manifest_path(work_dir), "building id '" + recs[i]->id + "' appears twice");
+  if (skipped) *skipped = n_skipped;
+  return recs;
+}
+
 std::optional<LodReport> find_lod_report(const std::string& work_dir, const std::string& id) {
   const std::string path = lod_report_path(work_dir, id);
   if (!fs::exists(path)) return std::nullopt;

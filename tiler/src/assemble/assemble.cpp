@@ -413,18 +413,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   check_output_dir(out, params.force);
 
   // ---- 1. buildings
-  std::vector<const ChunkRecord*> recs;
-  for (const auto& c : man.chunks) {
-    if (c.skipped()) {
-      ++st.skipped;
-      continue;
-    }
-    recs.push_back(&c);
-  }
-  std::sort(recs.begin(), recs.end(), [](const auto* a, const auto* b) { return a->id < b->id; });
-  for (std::size_t i = 1; i < recs.size(); ++i)
-    if (recs[i]->id == recs[i - 1]->id)
-      throw io::IoError(manifest_path(work_dir), "building id '" + recs[i]->id + "' appears twice");
+  const std::vector<const ChunkRecord*> recs = buildings_to_model(man, work_dir, &st.skipped);
   std::vector<Building> loaded(recs.size());
   std::vector<std::string> errors(recs.size());
   std::atomic<std::size_t> done{0};

@@ -630,15 +630,7 @@ CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out
   if (out.filename().empty() || fs::is_directory(out))
     throw io::IoError(out_path, "not a file path for the CityJSONSeq output");
 
-  std::vector<const ChunkRecord*> recs;
-  for (const auto& c : man.chunks) {
-    if (c.skipped()) {
-      ++st.skipped;
-      continue;
-    }
-    recs.push_back(&c);
-  }
-  std::sort(recs.begin(), recs.end(), [](const auto* a, const auto* b) { return a->id < b->id; });
+  const std::vector<const ChunkRecord*> recs = buildings_to_model(man, work_dir, &st.skipped);
   const std::vector<std::string> ids = object_ids(recs);
 
   // Features in batches (bounded memory), written in id order to a side file;

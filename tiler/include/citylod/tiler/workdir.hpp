@@ -103,6 +103,12 @@ struct Manifest {
 
 /// Throws io::IoError("<WORK>/manifest.json: ...") when missing or malformed.
 Manifest read_manifest(const std::string& work_dir);
+
+/// The manifest's buildings that have a chunk (not skipped by split), sorted by
+/// id; `*skipped` (when given) receives how many were skipped. An id listed
+/// twice is an IoError naming the manifest.
+std::vector<const ChunkRecord*> buildings_to_model(const Manifest& m, const std::string& work_dir,
+                                                   std::size_t* skipped = nullptr);
 /// Throws io::IoError naming the manifest when the scene origin is not a valid
 /// longitude / latitude / height (assemble and eval need it; split writes it).
 void require_valid_origin(const Manifest& m, const std::string& work_dir);
