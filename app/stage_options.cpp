@@ -41,6 +41,9 @@ void declare_split_options(ArgParser& args) {
               "drop")
       .option("footprint-buffer", 0, "M", "points this close outside a footprint belong to it",
               num(d.footprint_buffer))
+      .option("offset", 0, "X,Y[,Z]",
+              "added to every input coordinate before --crs (tiles in a shifted frame; default: "
+              "a metadata.xml <SRSOrigin>)")
       .option("memory-limit", 'm', "SIZE", "memory budget, e.g. 512M, 2G", "2G")
       .option("cell-size", 0, "M", "grid cell size", num(d.cell_size))
       .option("halo", 0, "M", "margin loaded around each cell", num(d.halo))
@@ -63,6 +66,7 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
   o.crs = args.get("crs");
   o.origin = args.get("origin");
   o.geoid = args.get("geoid");
+  o.offset = args.get("offset");
   o.vertical = args.get("vertical");
   o.footprints = args.get("footprints");
   o.footprints_layer = args.get("footprints-layer");

@@ -1185,3 +1185,297 @@ TEST(SplitRealData, NoisyBuildingMeshesAreNotVegetation) {
 }
 
 }  // namespace
+
+// ------------------------------------------------------------------ mesh tiles, sidecars
+namespace {
+
+/// The triangles of a chunk as sorted corner triples (mm), whatever its vertex order.
+std::multiset<std::array<long long, 9>> triangle_set(const std::string& ply,
+                                                     const tiler::ChunkRecord& c) {
+  const io::TriangleMesh m = io::read_mesh(ply);
+  std::multiset<std::array<long long, 9>> out;
+  for (const auto& t : m.triangles) {
+    std::array<std::array<long long, 3>, 3> v{};
+    for (std::size_t k = 0; k < 3; ++k)
+      for (std::size_t a = 0; a < 3; ++a)
+        v[k][a] = std::llround((m.vertices[t[k]][a] + c.origin[a]) * 1000);
+    std::sort(v.begin(), v.end());
+    out.insert({v[0][0], v[0][1], v[0][2], v[1][0], v[1][1], v[1][2], v[2][0], v[2][1], v[2][2]});
+  }
+  return out;
+}
+
+/// The triangles of `m` whose centroid x is below / not below `x`, each with its own vertices.
+io::TriangleMesh mesh_part(const io::TriangleMesh& m, double x, bool below, io::Vec3d shift) {
+  io::TriangleMesh out;
+  std::map<std::uint32_t, std::uint32_t> remap;
+  for (const auto& t : m.triangles) {
+    const double cx = (m.vertices[t[0]][0] + m.vertices[t[1]][0] + m.vertices[t[2]][0]) / 3;
+    if ((cx < x) != below) continue;
+    std::array<std::uint32_t, 3> nt{};
+    for (std::size_t k = 0; k < 3; ++k) {
+      auto [it, fresh] = remap.emplace(t[k], std::uint32_t(out.vertices.size()));
+      if (fresh) {
+        const auto& p = m.vertices[t[k]];
+        out.vertices.push_back({p[0] - shift[0], p[1] - shift[1], p[2] - shift[2]});
+      }
+      nt[k] = it->second;
+    }
+    out.triangles.push_back(nt);
+  }
+  return out;
+}
+
+}  // namespace
+
+// A folder of mesh tiles is one scene: the same buildings, the same triangles in each, as
+// the single file they were cut from (tiles cut through building B at x = 50).
+TEST_F(SplitSynthetic, MeshTilesInAFolderAreOneScene) {
+  const fs::path dir = tmp_dir("mesh_tiles");
+  const io::TriangleMesh mesh = test::make_city_mesh(city);
+  const std::string whole = (dir / "whole.ply").string();
+  io::write_ply(whole, mesh);
+  fs::create_directories(dir / "tiles" / "Data" / "Tile_1");
+  fs::create_directories(dir / "tiles" / "Data" / "Tile_0");
+  io::write_ply((dir / "tiles" / "Data" / "Tile_0" / "Tile_0.ply").string(),
+                mesh_part(mesh, 50, true, {0, 0, 0}));
+  // OBJ tile: the text writer's precision is enough for mm comparisons
+  {
+    const io::TriangleMesh t1 = mesh_part(mesh, 50, false, {0, 0, 0});
+    std::ofstream obj(dir / "tiles" / "Data" / "Tile_1" / "Tile_1.obj");
+    obj.precision(17);
+    for (const auto& v : t1.vertices) obj << "v " << v[0] << " " << v[1] << " " << v[2] << "\n";
+    for (const auto& t : t1.triangles)
+      obj << "f " << t[0] + 1 << " " << t[1] + 1 << " " << t[2] + 1 << "\n";
+  }
+  const std::string fp = (dir / "fp.geojson").string();
+  std::ofstream(fp) << test::city_footprints_geojson(city);
+  SplitOptions a = local_options(whole, dir / "work_whole");
+  a.footprints = fp;
+  SplitOptions b = local_options((dir / "tiles").string(), dir / "work_tiles");
+  b.footprints = fp;
+  const SplitReport ra = tiler::split_scene(a);
+  const SplitReport rb = tiler::split_scene(b);
+  EXPECT_EQ(rb.triangles, ra.triangles);
+  const tiler::Manifest ma = tiler::read_manifest(a.work_dir);
+  const tiler::Manifest mb = tiler::read_manifest(b.work_dir);
+  ASSERT_EQ(mb.scene.inputs.size(), 2u);  // both tiles, sorted by path
+  EXPECT_NE(mb.scene.inputs[0].find("Tile_0.ply"), std::string::npos);
+  ASSERT_EQ(ma.chunks.size(), city.boxes.size());
+  ASSERT_EQ(mb.chunks.size(), ma.chunks.size());
+  for (std::size_t i = 0; i < ma.chunks.size(); ++i) {
+    EXPECT_EQ(mb.chunks[i].id, ma.chunks[i].id);
+    EXPECT_EQ(mb.chunks[i].triangles, ma.chunks[i].triangles) << ma.chunks[i].id;
+    EXPECT_EQ(triangle_set(tiler::chunk_path(b.work_dir, mb.chunks[i].id), mb.chunks[i]),
+              triangle_set(tiler::chunk_path(a.work_dir, ma.chunks[i].id), ma.chunks[i]))
+        << ma.chunks[i].id;
+  }
+  // An empty folder: one line naming it.
+  fs::create_directories(dir / "empty");
+  SplitOptions e = local_options((dir / "empty").string(), dir / "work_empty");
+  try {
+    tiler::split_scene(e);
+    FAIL() << "no error";
+  } catch (const io::IoError& err) {
+    EXPECT_NE(std::string(err.what()).find((dir / "empty").string()), std::string::npos);
+  }
+}
+
+// Mesh faces spilled over many small cells (a triangle in every cell its box meets; claims
+// resolved per cell) give the chunks of one big cell: with footprints a triangle's chunk
+// is decided by its geometry alone.
+TEST_F(SplitSynthetic, MeshChunksDoNotDependOnTheCellGrid) {
+  const fs::path dir = tmp_dir("mesh_cells");
+  const io::TriangleMesh mesh = test::make_city_mesh(city);
+  const std::string in = (dir / "city_mesh.ply").string();
+  io::write_ply(in, mesh);
+  const std::string fp = (dir / "fp.geojson").string();
+  std::ofstream(fp) << test::city_footprints_geojson(city);
+  SplitOptions big = local_options(in, dir / "work_big");
+  big.footprints = fp;
+  big.cell_size = 400;
+  SplitOptions small = local_options(in, dir / "work_small");
+  small.footprints = fp;
+  small.cell_size = 10;
+  const SplitReport rb = tiler::split_scene(big);
+  const SplitReport rs = tiler::split_scene(small);
+  EXPECT_EQ(rb.cells, 1u);
+  EXPECT_GT(rs.cells, 100u);
+  const tiler::Manifest mb = tiler::read_manifest(big.work_dir);
+  const tiler::Manifest ms = tiler::read_manifest(small.work_dir);
+  ASSERT_EQ(ms.chunks.size(), mb.chunks.size());
+  for (std::size_t i = 0; i < mb.chunks.size(); ++i) {
+    EXPECT_EQ(ms.chunks[i].id, mb.chunks[i].id);
+    EXPECT_EQ(ms.chunks[i].content_hash, mb.chunks[i].content_hash) << mb.chunks[i].id;
+  }
+}
+
+// ContextCapture layout: metadata.xml (<SRS>, <SRSOrigin>) at the production root, tiles
+// in Data/: the same scene as the shifted-back file given with --crs, and --offset does
+// the same; a broken metadata.xml is one error naming it.
+TEST_F(SplitSynthetic, MeshTilesGeoreferencedByMetadataXml) {
+  const fs::path dir = tmp_dir("mesh_metadata");
+  const io::TriangleMesh mesh = test::make_city_mesh(city);
+  const io::Vec3d shift{85000, 447500, 0};
+  io::TriangleMesh rd = mesh;
+  for (auto& v : rd.vertices) v = {v[0] + shift[0], v[1] + shift[1], v[2]};
+  const std::string in_rd = (dir / "rd.ply").string();
+  io::write_ply(in_rd, rd);
+  fs::create_directories(dir / "prod" / "Data" / "Tile_0");
+  io::write_ply((dir / "prod" / "Data" / "Tile_0" / "Tile_0.ply").string(),
+                mesh_part(mesh, 1e9, true, {0, 0, 0}));
+  std::ofstream(dir / "prod" / "metadata.xml")
+      << "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<ModelMetadata version=\"1\">\n"
+         "\t<SRS>EPSG:28992</SRS>\n\t<SRSOrigin>85000,447500,0</SRSOrigin>\n"
+         "\t<Texture><ColorSource>Visible</ColorSource></Texture>\n</ModelMetadata>\n";
+  SplitOptions a;
+  a.inputs = {in_rd};
+  a.work_dir = (dir / "work_rd").string();
+  a.crs = "EPSG:28992";
+  a.cell_size = 50;
+  a.halo = 10;
+  SplitOptions b = a;
+  b.inputs = {(dir / "prod").string()};
+  b.crs.clear();
+  b.work_dir = (dir / "work_xml").string();
+  SplitOptions c = a;
+  c.inputs = {(dir / "prod" / "Data" / "Tile_0" / "Tile_0.ply").string()};
+  c.offset = "85000,447500";
+  c.work_dir = (dir / "work_offset").string();
+  const SplitReport ra = tiler::split_scene(a);
+  const SplitReport rb = tiler::split_scene(b);
+  const SplitReport rc = tiler::split_scene(c);
+  EXPECT_EQ(rb.crs, ra.crs);
+  EXPECT_NEAR(rb.origin_lon, ra.origin_lon, 1e-12);
+  EXPECT_NEAR(rb.origin_lat, ra.origin_lat, 1e-12);
+  EXPECT_NEAR(rc.origin_lat, ra.origin_lat, 1e-12);
+  EXPECT_EQ(rb.chunks, ra.chunks);
+  EXPECT_EQ(rc.chunks, ra.chunks);
+  const tiler::Manifest ma = tiler::read_manifest(a.work_dir);
+  const tiler::Manifest mb = tiler::read_manifest(b.work_dir);
+  ASSERT_EQ(mb.chunks.size(), ma.chunks.size());
+  for (std::size_t i = 0; i < ma.chunks.size(); ++i)
+    EXPECT_EQ(mb.chunks[i].content_hash, ma.chunks[i].content_hash) << ma.chunks[i].id;
+  // Edited sidecar: not up to date any more; broken: the error names the file.
+  std::ofstream(dir / "prod" / "metadata.xml")
+      << "<ModelMetadata version=\"1\"><SRS>EPSG:28992</SRS><SRSOrigin>85000;x</SRSOrigin>"
+         "</ModelMetadata>";
+  try {
+    tiler::split_scene(b);
+    FAIL() << "no error";
+  } catch (const io::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("metadata.xml"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("SRSOrigin"), std::string::npos) << e.what();
+  }
+  SplitOptions bad = c;
+  bad.offset = "1,x";
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+}
+
+// ------------------------------------------------------------------ memory budget (issue 13)
+namespace {
+/// Flat ground, `density` points per m^2 on a regular grid over [0, w) x [0, w), plus a
+/// 12 x 12 m, 9 m high block of roof and walls at the centre, and `patch` more points
+/// on the ground of [60, 80) x [60, 80).
+std::string write_ground(const fs::path& dir, double w, double density, int patch = 0) {
+  const double b0 = w / 2 - 6, b1 = w / 2 + 6;
+  io::PointSet ps;
+  const int side = int(std::ceil(std::sqrt(double(patch))));
+  for (int k = 0; k < patch; ++k)
+    ps.positions.push_back(
+        {60 + 20.0 * ((k % side) + 0.25) / side, 60 + 20.0 * ((k / side) + 0.25) / side, 0.0});
+  const double s = 1 / std::sqrt(density);
+  const int n = int(std::floor(w / s));
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const double x = (i + 0.5) * s, y = (j + 0.5) * s;
+      const bool roof = x >= b0 && x < b1 && y >= b0 && y < b1;
+      ps.positions.push_back({x, y, roof ? 9.0 : 0.02 * std::sin(x * 1.7 + y)});
+    }
+  for (double z = 0.3; z < 9; z += 0.3)
+    for (double t = 0; t < 12; t += 0.3) {
+      ps.positions.push_back({b0 + t, b0, z});
+      ps.positions.push_back({b0 + t, b1, z});
+      ps.positions.push_back({b0, b0 + t, z});
+      ps.positions.push_back({b1, b0 + t, z});
+    }
+  const std::string p = (dir / "ground.ply").string();
+  io::write_ply(p, ps);
+  return p;
+}
+}  // namespace
+
+// The budget is honoured monotonically: a scene that the old cell choice (from the
+// average density, regions checked on whole neighbour cells) split at 64M and 256M but
+// refused at 128M ("lower --cell-size") splits at every limit, with the same chunks.
+TEST(SplitMemory, BudgetHonouredMonotonically) {
+  const fs::path dir = tmp_dir("mem_monotone");
+  const std::string in = write_ground(dir, 300, 3.0);
+  std::vector<std::size_t> chunks;
+  for (const char* lim : {"64M", "128M", "256M"}) {
+    SplitOptions o;
+    o.inputs = {in};
+    o.work_dir = (dir / (std::string("work_") + lim)).string();
+    o.origin = "52.0,4.36,45.0";
+    o.memory_limit = tiler::parse_memory_size(lim);
+    SplitReport r;
+    ASSERT_NO_THROW(r = tiler::split_scene(o)) << lim;
+    chunks.push_back(r.chunks);
+  }
+  for (std::size_t c : chunks) EXPECT_EQ(c, 1u);
+}
+
+// A cell whose region exceeds the budget (a dense patch in a sparse scene: the cell is
+// chosen from the average density) is processed as quarters; the building elsewhere is
+// found as at a high limit.
+TEST(SplitMemory, DenseCellProcessedInQuarters) {
+  const fs::path dir = tmp_dir("mem_quarters");
+  // 64M: 75 k points a region; cell 50 m; the patch's region 90 x 90 m holds 56 k + 24 k
+  // points, its quarters' (65 x 65 m) at most 56 k + 12 k
+  const std::string in = write_ground(dir, 300, 3.0, 56000);
+  std::vector<SplitReport> rs;
+  for (const char* lim : {"64M", "2G"}) {
+    SplitOptions o;
+    o.inputs = {in};
+    o.work_dir = (dir / (std::string("work_") + lim)).string();
+    o.origin = "52.0,4.36,45.0";
+    o.memory_limit = tiler::parse_memory_size(lim);
+    SplitReport r;
+    ASSERT_NO_THROW(r = tiler::split_scene(o)) << lim;
+    rs.push_back(r);
+  }
+  EXPECT_EQ(rs[0].cell_size, 50);
+  EXPECT_LE(rs[0].max_region_points, 75497u);
+  const auto quarters = [](const SplitReport& r) {
+    for (const auto& n : r.notes)
+      if (n.find("in quarters") != std::string::npos) return true;
+    return false;
+  };
+  EXPECT_TRUE(quarters(rs[0]));
+  EXPECT_FALSE(quarters(rs[1]));
+  EXPECT_EQ(rs[0].chunks, 1u);
+  EXPECT_EQ(rs[1].chunks, 1u);
+}
+
+// Below the documented minimum (the densest smallest cell + halo over the budget) the
+// error is one line saying so (raise the limit), nothing is written.
+TEST(SplitMemory, DenseSceneNeedsTheDocumentedMinimum) {
+  const fs::path dir = tmp_dir("mem_minimum");
+  const std::string in = write_ground(dir, 20, 300.0);  // 120 k points
+  SplitOptions o;
+  o.inputs = {in};
+  o.work_dir = (dir / "work").string();
+  o.origin = "52.0,4.36,45.0";
+  o.halo = 5;  // the smallest region: (6.25 + 2 * 5)^2 m^2 = 79 k points > 75 k at 64M
+  o.memory_limit = 64ull << 20;
+  try {
+    tiler::split_scene(o);
+    FAIL() << "no error";
+  } catch (const io::IoError& e) {
+    const std::string w = e.what();
+    EXPECT_NE(w.find("raise --memory-limit"), std::string::npos) << w;
+    EXPECT_NE(w.find("smallest cell"), std::string::npos) << w;
+    EXPECT_EQ(w.find('\n'), std::string::npos) << w;
+  }
+  EXPECT_FALSE(fs::exists(o.work_dir + "/manifest.json"));
+}

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <locale>
 #include <memory>
 #include <optional>
 #include <regex>
@@ -68,6 +69,26 @@ std::uint64_t parse_memory_size(const std::string& s) {
   return static_cast<std::uint64_t>(v * mul);
 }
 
+namespace {
+/// "X,Y[,Z]" (commas or blanks) -> numbers; nullopt when malformed or not finite.
+std::optional<io::Vec3d> parse_triple(const std::string& s) {
+  std::string t = s;
+  for (auto& c : t)
+    if (c == ',') c = ' ';
+  std::istringstream in(t);
+  in.imbue(std::locale::classic());
+  io::Vec3d v{0, 0, 0};
+  int n = 0;
+  double d;
+  while (in >> d) {
+    if (n == 3 || !std::isfinite(d)) return std::nullopt;
+    v[std::size_t(n++)] = d;
+  }
+  if (!in.eof() || n < 2) return std::nullopt;
+  return v;
+}
+}  // namespace
+
 void SplitOptions::validate() const {
   auto positive = [](double v, const char* name) {
     if (!(v > 0) || !std::isfinite(v))
@@ -95,6 +116,8 @@ void SplitOptions::validate() const {
         "--geoid egm96 (orthometric heights) contradicts --vertical ellipsoidal");
   if (footprints.empty() && (!footprints_layer.empty() || !footprints_id.empty()))
     throw std::invalid_argument("--footprints-layer / --footprints-id need --footprints");
+  if (!offset.empty() && !parse_triple(offset))
+    throw std::invalid_argument("--offset: expected X,Y or X,Y,Z (numbers), got '" + offset + "'");
   positive(cell_size, "--cell-size");
   positive(halo, "--halo");
   positive(seg.cluster_tolerance, "--cluster-tolerance");
@@ -129,6 +152,7 @@ std::string SplitOptions::canonical() const {
   o << ";vertical=" << (vertical.empty() ? "auto" : vertical)
     << ";footprints_layer=" << footprints_layer << ";footprints_id=" << footprints_id
     << ";unmatched=" << (unmatched == Unmatched::segment ? "segment" : "drop");
+  if (!offset.empty()) o << ";offset=" << offset;
   return o.str();
 }
 
@@ -241,6 +265,95 @@ class Spiller {
   std::uint64_t bytes_ = 0;
 };
 
+// One spilled mesh triangle (mesh scenes): its corners in ENU with their attributes and
+// vertex ids, so that a region, and the chunk writer at the end, need no mesh in memory.
+struct FaceRec {
+  std::uint64_t id;      ///< input << 40 | triangle
+  std::uint64_t vid[3];  ///< input << 40 | vertex
+  double v[3][3];        ///< ENU corners
+  float n[3][3];         ///< vertex normals (when the input has them)
+  std::uint8_t rgb[3][3];
+  std::uint8_t pad[3];
+};
+static_assert(sizeof(FaceRec) == 152, "face record layout");
+
+// A chunk's claim on a triangle: the samples of the triangle among its members.
+struct ClaimRec {
+  FaceRec face;
+  std::uint32_t votes;
+  std::uint32_t chunk;  ///< index in the splitter's chunk list
+};
+static_assert(sizeof(ClaimRec) == 160, "claim record layout");
+
+/// Records of any type appended to per-cell files `<prefix>i_j.bin` through one
+/// bounded buffer (sorted by cell when full; the order within a cell is the order of
+/// arrival).
+template <class Rec>
+class CellFiles {
+ public:
+  CellFiles(fs::path dir, std::string prefix, std::size_t budget_records)
+      : dir_(std::move(dir)),
+        prefix_(std::move(prefix)),
+        budget_(std::max<std::size_t>(budget_records, 1024)) {}
+  fs::path file(const CellKey& k) const {
+    return dir_ / (prefix_ + std::to_string(k.first) + "_" + std::to_string(k.second) + ".bin");
+  }
+  void add(const CellKey& k, const Rec& r) {
+    buf_.push_back({k, r});
+    if (buf_.size() >= budget_) flush();
+  }
+  void flush() {
+    std::stable_sort(buf_.begin(), buf_.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<Rec> run;
+    for (std::size_t i = 0; i < buf_.size();) {
+      std::size_t j = i;
+      run.clear();
+      while (j < buf_.size() && buf_[j].first == buf_[i].first) run.push_back(buf_[j++].second);
+      append(buf_[i].first, run);
+      i = j;
+    }
+    std::vector<std::pair<CellKey, Rec>>().swap(buf_);
+  }
+  void append(const CellKey& k, const std::vector<Rec>& recs) {
+    const fs::path p = file(k);
+    std::FILE* f = std::fopen(p.c_str(), "ab");
+    if (!f)
+      throw IoError(p.string(), std::string("cannot open spill file: ") + std::strerror(errno));
+    const std::size_t n = std::fwrite(recs.data(), sizeof(Rec), recs.size(), f);
+    const bool ok = std::fclose(f) == 0 && n == recs.size();
+    if (!ok)
+      throw IoError(p.string(), std::string("cannot write spill file: ") + std::strerror(errno));
+    counts_[k] += recs.size();
+    bytes_ += recs.size() * sizeof(Rec);
+  }
+  /// Every record of a cell's file (empty when it has none).
+  std::vector<Rec> read(const CellKey& k) const {
+    std::vector<Rec> out;
+    const auto it = counts_.find(k);
+    if (it == counts_.end()) return out;
+    out.resize(it->second);
+    const fs::path p = file(k);
+    std::FILE* f = std::fopen(p.c_str(), "rb");
+    if (!f)
+      throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
+    const std::size_t got = std::fread(out.data(), sizeof(Rec), out.size(), f);
+    std::fclose(f);
+    if (got != out.size()) throw IoError(p.string(), "cannot read spill file (truncated)");
+    return out;
+  }
+  const std::map<CellKey, std::uint64_t>& counts() const { return counts_; }
+  std::uint64_t bytes() const { return bytes_; }
+
+ private:
+  fs::path dir_;
+  std::string prefix_;
+  std::size_t budget_;
+  std::vector<std::pair<CellKey, Rec>> buf_;
+  std::map<CellKey, std::uint64_t> counts_;
+  std::uint64_t bytes_ = 0;
+};
+
 /// Points of a cell + halo, gathered from the spill files.
 struct RegionPoints {
   std::array<double, 4> box{0, 0, 0, 0};  ///< xmin ymin xmax ymax
@@ -249,6 +362,13 @@ struct RegionPoints {
   std::vector<io::Rgb8> rgb;
   std::vector<std::uint8_t> cls;
   std::vector<std::uint64_t> src;
+  std::vector<FaceRec> faces;  ///< mesh scenes: the triangles meeting the box, by id
+  const FaceRec& face(std::uint64_t id) const {
+    const auto it = std::lower_bound(faces.begin(), faces.end(), id,
+                                     [](const FaceRec& f, std::uint64_t v) { return f.id < v; });
+    if (it == faces.end() || it->id != id) throw std::logic_error("split: region face missing");
+    return *it;
+  }
 };
 
 /// The work directory transaction: a staging dir inside WORK, removed unless committed.
@@ -264,6 +384,7 @@ class Staging {
     fs::remove_all(dir_, ec);
     fs::create_directories(dir_ / "spill", ec);
     fs::create_directories(dir_ / "chunks", ec);
+    fs::create_directories(dir_ / "faces", ec);
     if (ec) throw IoError(dir_.string(), "cannot create staging directory: " + ec.message());
   }
   ~Staging() {
@@ -279,6 +400,12 @@ class Staging {
   void drop_spill() {
     std::error_code ec;
     fs::remove_all(spill(), ec);
+  }
+  /// Mesh scenes: face records, chunk claims and won triangles.
+  fs::path faces() const { return dir_ / "faces"; }
+  void drop_faces() {
+    std::error_code ec;
+    fs::remove_all(faces(), ec);
   }
 
   /// Swaps the staged chunks in and writes the manifest; restores the old state on failure.
@@ -345,6 +472,9 @@ struct InputInfo {
   std::string abs;   ///< absolute, normalised (recorded in the manifest)
   io::FileInfo info;
   bool mesh = false;
+  io::Vec3d offset{0, 0, 0};   ///< added to its coordinates (--offset, or metadata.xml)
+  std::string sidecar_crs;     ///< CRS from FILE.prj or metadata.xml <SRS> ("" = none)
+  std::string sidecar_origin;  ///< "LAT,LON,0" from a metadata.xml <SRS>ENU:lat,lon
 };
 
 std::string crs_spec_of(const io::FileInfo& i) {
@@ -369,8 +499,105 @@ std::string inputs_label(const std::vector<InputInfo>& in) {
 /// A chunk being assembled, before the file is written.
 struct PendingChunk {
   ChunkRecord rec;
-  std::vector<std::uint64_t> mesh_refs;  ///< mesh scenes: triangle of each member sample
 };
+
+// ---------------------------------------------------------------------- inputs, sidecars
+/// A folder input stands for the scene files under it (any depth, sorted by path).
+std::vector<std::string> expand_inputs(const std::vector<std::string>& inputs) {
+  static const std::set<std::string> exts{"ply", "obj", "off", "las", "laz", "xyz", "pts"};
+  std::vector<std::string> out;
+  for (const auto& p : inputs) {
+    std::error_code ec;
+    if (!fs::is_directory(p, ec)) {
+      out.push_back(p);
+      continue;
+    }
+    std::vector<std::string> found;
+    for (fs::recursive_directory_iterator it(p, ec), end; !ec && it != end; it.increment(ec)) {
+      std::error_code e2;
+      if (it->is_regular_file(e2) && exts.count(io::extension_of(it->path().string())))
+        found.push_back(it->path().string());
+    }
+    if (ec) throw IoError(p, "cannot list the folder: " + ec.message());
+    if (found.empty()) throw IoError(p, "no PLY, OBJ, OFF, LAS, LAZ or XYZ file in this folder");
+    std::sort(found.begin(), found.end());
+    out.insert(out.end(), found.begin(), found.end());
+  }
+  return out;
+}
+
+std::string read_small_file(const fs::path& p) {
+  std::error_code ec;
+  const auto size = fs::file_size(p, ec);
+  if (ec) throw IoError(p.string(), "cannot read: " + ec.message());
+  if (size > (1u << 20)) throw IoError(p.string(), "too large for a metadata file (> 1 MiB)");
+  std::FILE* f = std::fopen(p.c_str(), "rb");
+  if (!f) throw IoError(p.string(), std::string("cannot open: ") + std::strerror(errno));
+  std::string s(size, '\0');
+  const std::size_t got = std::fread(s.data(), 1, s.size(), f);
+  std::fclose(f);
+  if (got != s.size()) throw IoError(p.string(), "cannot read");
+  return s;
+}
+
+/// The text of <tag>...</tag> (blanks trimmed); nullopt when absent.
+std::optional<std::string> xml_element(const std::string& doc, const std::string& tag) {
+  const std::size_t a = doc.find("<" + tag + ">");
+  if (a == std::string::npos) return std::nullopt;
+  const std::size_t b = doc.find("</" + tag + ">", a);
+  if (b == std::string::npos) return std::nullopt;
+  std::string v = doc.substr(a + tag.size() + 2, b - a - tag.size() - 2);
+  const auto blank = [](unsigned char c) { return std::isspace(c) != 0; };
+  while (!v.empty() && blank(static_cast<unsigned char>(v.back()))) v.pop_back();
+  std::size_t k = 0;
+  while (k < v.size() && blank(static_cast<unsigned char>(v[k]))) ++k;
+  return v.substr(k);
+}
+
+/// Sidecars of an input: FILE.prj beside it (CRS as WKT), else a ContextCapture
+/// metadata.xml in its folder or the two above it (<SRS> and <SRSOrigin>). Records
+/// the sidecar files used in `used` (for the up-to-date check).
+void read_sidecars(InputInfo& in, std::set<std::string>& used) {
+  const fs::path file(in.path);
+  fs::path prj = file;
+  prj.replace_extension(".prj");
+  std::error_code ec;
+  if (fs::is_regular_file(prj, ec)) {
+    in.sidecar_crs = read_small_file(prj);
+    while (!in.sidecar_crs.empty() &&
+           std::isspace(static_cast<unsigned char>(in.sidecar_crs.back())))
+      in.sidecar_crs.pop_back();
+    if (in.sidecar_crs.empty()) throw IoError(prj.string(), "empty .prj file");
+    used.insert(fs::absolute(prj).lexically_normal().string());
+  }
+  fs::path dir = fs::absolute(file).lexically_normal().parent_path();
+  for (int up = 0; up < 3 && !dir.empty(); ++up, dir = dir.parent_path()) {
+    const fs::path xml = dir / "metadata.xml";
+    if (!fs::is_regular_file(xml, ec)) {
+      if (dir == dir.root_path()) break;
+      continue;
+    }
+    const std::string doc = read_small_file(xml);
+    if (doc.find("<ModelMetadata") == std::string::npos) break;  // someone else's metadata.xml
+    used.insert(xml.string());
+    const auto srs = xml_element(doc, "SRS");
+    if (srs && !srs->empty() && in.sidecar_crs.empty()) {
+      if (srs->rfind("ENU:", 0) == 0) {
+        const auto ll = parse_triple(srs->substr(4));
+        if (!ll) throw IoError(xml.string(), "<SRS>" + *srs + "</SRS>: expected ENU:LAT,LON");
+        in.sidecar_origin = srs->substr(4) + ",0";
+      } else {
+        in.sidecar_crs = *srs;
+      }
+    }
+    if (const auto o = xml_element(doc, "SRSOrigin")) {
+      const auto v = parse_triple(*o);
+      if (!v) throw IoError(xml.string(), "<SRSOrigin>" + *o + "</SRSOrigin>: expected X,Y,Z");
+      in.offset = *v;
+    }
+    break;
+  }
+}
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
@@ -394,17 +621,20 @@ class Splitter {
   void read_footprints();
   void load_footprints();
   void pass3_cells(const Spiller& spill);
-  void process_cell_clusters(const Spiller& spill, const CellKey& key, bool unmatched);
+  void process_cell_clusters(const Spiller& spill, const CellKey& key, double size, bool unmatched);
   void count_unmatched(const Spiller& spill);
   void drop_footprint_points(RegionPoints& pts) const;
   std::size_t footprint_of(const Vec2& q) const;
-  std::size_t mesh_footprint_of(std::size_t mesh, std::size_t tri, bool above_ground) const;
-  double mesh_planar_share(std::vector<std::uint64_t> tris) const;
+  std::size_t mesh_footprint_of(const FaceRec& f, bool above_ground) const;
+  double mesh_planar_share(std::vector<std::uint64_t> tris, const RegionPoints& pts) const;
   void mesh_footprint_members(const RegionPoints& pts, const CellSegmentation& seg,
                               const std::set<std::size_t>& mine,
                               std::map<std::size_t, std::vector<std::uint32_t>>& members) const;
-  void process_cell_footprints(const Spiller& spill, const CellKey& key,
+  void process_cell_footprints(const Spiller& spill, const CellKey& key, double size,
                                const std::vector<std::size_t>& owned);
+  [[noreturn]] void region_too_large(const CellKey& key, double size, std::size_t n,
+                                     const std::string& what) const;
+  void spill_faces(const io::TriangleMesh& mesh, std::size_t input);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
                           std::size_t max_points);
   void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
@@ -431,9 +661,12 @@ class Splitter {
   double cell_ = 100;
   std::size_t region_budget_points_ = 0;
 
-  std::vector<io::TriangleMesh> meshes_;               // mesh scenes (in memory), ENU
-  std::vector<std::vector<std::int32_t>> tri_label_;   // mesh triangle -> chunk
-  std::vector<std::vector<std::uint32_t>> tri_votes_;  // samples behind that choice
+  std::vector<std::string> paths_;  // the inputs, folders expanded
+  std::set<std::string> sidecars_;  // metadata.xml / .prj files used
+  bool mesh_scene_ = false;
+  std::unique_ptr<CellFiles<FaceRec>> faces_;    // mesh triangles by the cells they meet
+  std::unique_ptr<CellFiles<ClaimRec>> claims_;  // chunk claims by the triangle's cell
+  std::size_t subdivided_ = 0;                   // regions processed as quarter cells
   std::vector<double> mesh_up_;  // +1 when a mesh's faces point up/out (counter-clockwise), else -1
 
   FootprintSet fp_set_;         // as read (source CRS), until load_footprints()
@@ -450,22 +683,21 @@ class Splitter {
 
 // ---------------------------------------------------------------------- pass 1
 void Splitter::pass1_headers() {
-  for (const auto& p : opt_.inputs) {
+  std::set<std::string> used;
+  for (const auto& p : paths_) {
     InputInfo in;
     in.path = p;
     in.abs = fs::absolute(p).lexically_normal().string();
     in.info = io::read_header(p);
     in.mesh = in.info.has_faces;
-    if (in.info.point_count == 0) throw IoError(p, "no points (empty file)");
+    // OBJ and text files have no header counts: their scan below decides
+    if (in.info.point_count == 0 && in.info.format != io::Format::obj &&
+        in.info.format != io::Format::xyz)
+      throw IoError(p, "no points (empty file)");
+    read_sidecars(in, used);
+    if (!opt_.offset.empty()) in.offset = *parse_triple(opt_.offset);
     inputs_.push_back(std::move(in));
   }
-  const bool any_mesh =
-      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; });
-  const bool any_points =
-      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return !i.mesh; });
-  if (any_mesh && any_points)
-    throw std::invalid_argument("mixing meshes and point clouds in one split is not supported");
-
   // Bounding boxes: the LAS header's, or streamed (also validates the file).
   const double n = static_cast<double>(inputs_.size());
   for (std::size_t i = 0; i < inputs_.size(); ++i) {
@@ -486,32 +718,55 @@ void Splitter::pass1_headers() {
       in.mesh = in.info.has_faces;
       if (in.info.point_count == 0) throw IoError(in.path, "no points (empty file)");
     }
-    for (int a = 0; a < 3; ++a)
+    for (int a = 0; a < 3; ++a) {
+      in.info.bbox.min[std::size_t(a)] += in.offset[std::size_t(a)];
+      in.info.bbox.max[std::size_t(a)] += in.offset[std::size_t(a)];
       if (!std::isfinite(in.info.bbox.min[a]) || !std::isfinite(in.info.bbox.max[a]))
         throw IoError(in.path, "bounding box is not finite");
+    }
     bbox_crs_.add(in.info.bbox);
     total_points_ += in.info.point_count;
   }
+  const bool any_mesh =
+      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; });
+  const bool any_points =
+      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return !i.mesh; });
+  if (any_mesh && any_points)
+    throw std::invalid_argument("mixing meshes and point clouds in one split is not supported");
 }
 
 // ---------------------------------------------------------------------- georeferencing
 void Splitter::georeference() {
   const std::string label = inputs_label(inputs_);
   try {
-    if (!opt_.origin.empty()) {
-      georef_.emplace(geo::Georef::local(geo::parse_origin(opt_.origin)));
-      rep_.notes.push_back("data in a local ENU frame at --origin " + opt_.origin + " (no CRS)");
+    std::string origin = opt_.origin;
+    if (origin.empty() && opt_.crs.empty()) {  // metadata.xml <SRS>ENU:lat,lon for every input
+      for (const auto& in : inputs_)
+        if (in.sidecar_origin.empty() || in.sidecar_origin != inputs_.front().sidecar_origin ||
+            !crs_spec_of(in.info).empty()) {
+          origin.clear();
+          break;
+        } else {
+          origin = in.sidecar_origin;
+        }
+    }
+    if (!origin.empty()) {
+      georef_.emplace(geo::Georef::local(geo::parse_origin(origin)));
+      rep_.notes.push_back(std::string("data in a local ENU frame at ") +
+                           (opt_.origin.empty() ? "metadata.xml ENU:" : "--origin ") + origin +
+                           " (no CRS)");
       return;
     }
     if (!opt_.crs.empty()) {
       crs_spec_ = opt_.crs;
     } else {
       for (const auto& in : inputs_) {
-        const std::string s = crs_spec_of(in.info);
+        std::string s = crs_spec_of(in.info);
+        if (s.empty()) s = in.sidecar_crs;
         if (s.empty())
-          throw IoError(
-              in.path,
-              "no CRS in the file; pass --crs EPSG:nnnn (or --origin LAT,LON,H for local data)");
+          throw IoError(in.path,
+                        "no CRS in the file (nor in a .prj or metadata.xml beside it); pass --crs "
+                        "EPSG:nnnn (or --origin LAT,LON,H for local data)");
         if (!crs_spec_.empty() && s != crs_spec_)
           throw IoError(in.path,
                         "its CRS differs from that of " + inputs_.front().path + "; pass --crs");
@@ -557,6 +812,10 @@ void Splitter::georeference() {
 // Processing a region costs about kRegionBytesPerPoint (points + attributes +
 // PCL clouds + kd-trees + labels); spilling buffers take a quarter of the budget.
 constexpr double kRegionBytesPerPoint = 400;
+// Cells are halved (the initial grid from the average density, then a region that
+// exceeds the budget processed as quarters) while larger than this: the grids of all
+// memory limits nest, so a limit that passes is passed by every higher one.
+constexpr double kMinSplitCell = 10;
 
 void Splitter::choose_cell_size() {
   region_budget_points_ =
@@ -568,8 +827,8 @@ void Splitter::choose_cell_size() {
   const double area = std::max(1.0, (bbox_crs_.max[0] - bbox_crs_.min[0]) *
                                         (bbox_crs_.max[1] - bbox_crs_.min[1]) * to_m * to_m);
   const double density = double(total_points_) / area;
-  while (cell_ > 10 && (cell_ + 2 * opt_.halo) * (cell_ + 2 * opt_.halo) * density >
-                           0.5 * double(region_budget_points_))
+  while (cell_ > kMinSplitCell && (cell_ + 2 * opt_.halo) * (cell_ + 2 * opt_.halo) * density >
+                                      0.5 * double(region_budget_points_))
     cell_ *= 0.5;
   if (cell_ != opt_.cell_size)
     rep_.notes.push_back("cell size reduced to " + fmt("%.1f", cell_) + " m to fit --memory-limit");
@@ -640,6 +899,8 @@ void Splitter::pass2_spill(Spiller& spill) {
     };
     auto to_local = [&](std::vector<Vec3d>& v) {
       if (v.empty()) return;
+      if (in.offset != Vec3d{0, 0, 0})
+        for (auto& p : v) p = {p[0] + in.offset[0], p[1] + in.offset[1], p[2] + in.offset[2]};
       for (const auto& p : v) seen_crs.add(p);
       Eigen::Map<Eigen::Matrix3Xd> m(v[0].data(), 3, static_cast<Eigen::Index>(v.size()));
       try {
@@ -649,12 +910,13 @@ void Splitter::pass2_spill(Spiller& spill) {
       }
     };
     if (in.mesh) {
-      // Meshes are split in memory: check that they fit.
+      // Each mesh file (a tile) is read whole, then streamed out: check that it fits.
       const double need = double(in.info.point_count) * 200.0 + double(in.info.face_count) * 60.0;
       if (need > 0.5 * double(opt_.memory_limit))
         throw IoError(in.path, "mesh of " + std::to_string(in.info.point_count) +
                                    " vertices needs ~" + fmt("%.0f", need / 1048576) +
-                                   " MiB (meshes are split in memory); raise --memory-limit");
+                                   " MiB (each mesh file is read whole); raise --memory-limit "
+                                   "or give the mesh as tiles (a folder of OBJ/PLY)");
       io::TriangleMesh mesh = io::read_mesh(in.path);
       to_local(mesh.vertices);
       if (has_normals_ && mesh.normals.size() != mesh.vertices.size()) has_normals_ = false;
@@ -714,12 +976,8 @@ void Splitter::pass2_spill(Spiller& spill) {
                              "reversed for the wall-to-footprint test");
       rep_.points += mesh.vertices.size();
       rep_.triangles += mesh.triangles.size();
-      tri_label_.resize(ii + 1);
-      tri_label_[ii].assign(mesh.triangles.size(), -1);
-      tri_votes_.resize(ii + 1);
-      tri_votes_[ii].assign(mesh.triangles.size(), 0);
-      meshes_.resize(ii + 1);
-      meshes_[ii] = std::move(mesh);
+      spill_faces(mesh, ii);
+      mesh_scene_ = true;
       stages_.report(a, b, 1.0, "ingest");
       continue;
     }
@@ -739,6 +997,7 @@ void Splitter::pass2_spill(Spiller& spill) {
   }
   spill.flush();
   spill.release();
+  if (faces_) faces_->flush();
   if (bbox_enu_.empty()) throw IoError(label, "no points");
 
   // A LAS header box that lies: check the area of use again with the real box.
@@ -774,6 +1033,34 @@ void Splitter::pass2_spill(Spiller& spill) {
   rep_.class_mode = class_mode_name(mode_);
   rep_.bbox = bbox_enu_;
   rep_.spill_bytes = spill.bytes();
+}
+
+// A mesh file's triangles to the face files of every cell their xy box meets (a region
+// then holds every triangle of its samples); the mesh itself is dropped after this.
+void Splitter::spill_faces(const io::TriangleMesh& mesh, std::size_t input) {
+  const bool nrm = mesh.normals.size() == mesh.vertices.size();
+  const bool rgb = mesh.colors.size() == mesh.vertices.size();
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    FaceRec f{};
+    f.id = (std::uint64_t(input) << 40) | t;
+    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::uint32_t vi = mesh.triangles[t][k];
+      f.vid[k] = (std::uint64_t(input) << 40) | vi;
+      const Vec3d& p = mesh.vertices[vi];
+      for (std::size_t a = 0; a < 3; ++a) f.v[k][a] = p[a];
+      if (nrm)
+        for (std::size_t a = 0; a < 3; ++a) f.n[k][a] = mesh.normals[vi][a];
+      if (rgb)
+        for (std::size_t a = 0; a < 3; ++a) f.rgb[k][a] = mesh.colors[vi][a];
+      x0 = std::min(x0, p[0]), x1 = std::max(x1, p[0]);
+      y0 = std::min(y0, p[1]), y1 = std::max(y1, p[1]);
+    }
+    const int i0 = int(std::floor(x0 / cell_)), i1 = int(std::floor(x1 / cell_));
+    const int j0 = int(std::floor(y0 / cell_)), j1 = int(std::floor(y1 / cell_));
+    for (int i = i0; i <= i1; ++i)
+      for (int j = j0; j <= j1; ++j) faces_->add({i, j}, f);
+  }
 }
 
 // ---------------------------------------------------------------------- footprints
@@ -935,16 +1222,13 @@ constexpr double kMeshMinShare = 0.5;      ///< share of a face's xy area inside
 constexpr double kMeshWallCos = 0.5;       ///< |n_z| below this (steeper than 60 deg): a wall
 constexpr double kMeshMinWallProbe = 0.2;  ///< m, the probe distance when the buffer is 0
 
-std::size_t Splitter::mesh_footprint_of(std::size_t mesh, std::size_t tri,
-                                        bool above_ground) const {
-  const auto& m = meshes_[mesh];
-  const auto& t = m.triangles[tri];
-  const Vec3d& p0 = m.vertices[t[0]];
-  const Vec3d& p1 = m.vertices[t[1]];
-  const Vec3d& p2 = m.vertices[t[2]];
+std::size_t Splitter::mesh_footprint_of(const FaceRec& f, bool above_ground) const {
+  const Vec3d p0{f.v[0][0], f.v[0][1], f.v[0][2]};
+  const Vec3d p1{f.v[1][0], f.v[1][1], f.v[1][2]};
+  const Vec3d p2{f.v[2][0], f.v[2][1], f.v[2][2]};
   const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
   const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
-  const Eigen::Vector3d n = e1.cross(e2) * mesh_up_[mesh];
+  const Eigen::Vector3d n = e1.cross(e2) * mesh_up_[std::size_t(f.id >> 40)];
   const double len = n.norm();
   const Vec2 c{(p0[0] + p1[0] + p2[0]) / 3, (p0[1] + p1[1] + p2[1]) / 3};
   const double buf = opt_.footprint_buffer;
@@ -1022,8 +1306,7 @@ void Splitter::mesh_footprint_members(
   for (const auto& [s, v] : samples) tris.push_back(s);
   std::sort(tris.begin(), tris.end());  // sample order in each chunk: by triangle
   for (std::uint64_t s : tris) {
-    const std::size_t m = std::size_t(s >> 40), t = std::size_t(s & ((1ull << 40) - 1));
-    const std::size_t f = mesh_footprint_of(m, t, high[s]);
+    const std::size_t f = mesh_footprint_of(pts.face(s), high[s]);
     if (f == SIZE_MAX || !mine.count(f)) continue;
     auto& dst = members[f];
     const auto& v = samples[s];
@@ -1046,7 +1329,7 @@ constexpr double kMeshPlanarAngle = 30;        ///< degrees
 constexpr double kMeshPlanarRegionArea = 6;    ///< m^2
 constexpr double kMeshMinPlanarShare = 0.2;
 
-double Splitter::mesh_planar_share(std::vector<std::uint64_t> tris) const {
+double Splitter::mesh_planar_share(std::vector<std::uint64_t> tris, const RegionPoints& pts) const {
   std::sort(tris.begin(), tris.end());
   tris.erase(std::unique(tris.begin(), tris.end()), tris.end());
   const std::size_t n = tris.size();
@@ -1059,11 +1342,10 @@ double Splitter::mesh_planar_share(std::vector<std::uint64_t> tris) const {
   std::map<std::array<long long, 3>, std::uint64_t> vid;
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> edges;  // (v0 << 32 | v1), v0 < v1
   for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t m = std::size_t(tris[i] >> 40), t = std::size_t(tris[i] & ((1ull << 40) - 1));
-    const auto& tr = meshes_[m].triangles[t];
+    const FaceRec& fr = pts.face(tris[i]);
     std::uint64_t id[3];
     for (int k = 0; k < 3; ++k) {
-      const Vec3d& p = meshes_[m].vertices[tr[std::size_t(k)]];
+      const Vec3d p{fr.v[k][0], fr.v[k][1], fr.v[k][2]};
       vtx[i][std::size_t(k)] = Eigen::Vector3d(p[0], p[1], p[2]);
       const std::array<long long, 3> q{std::llround(p[0] * 1000), std::llround(p[1] * 1000),
                                        std::llround(p[2] * 1000)};
@@ -1145,6 +1427,9 @@ double Splitter::mesh_planar_share(std::vector<std::uint64_t> tris) const {
 }
 
 // ---------------------------------------------------------------------- pass 3
+// Loads the points (mesh scenes: samples and the faces meeting the box) of a box and
+// returns how many (points + faces); when that is more than max_points it stops early
+// (nothing kept: memory stays bounded) and returns max_points + 1.
 std::size_t Splitter::load_region(const Spiller& spill, const std::array<double, 4>& box,
                                   RegionPoints& out, std::size_t max_points) {
   out = RegionPoints{};
@@ -1154,38 +1439,73 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
   const int j0 = int(std::floor(box[1] / c)), j1 = int(std::floor(box[3] / c));
   // The non-empty cells of the box, in (i, j) order; never more work than the spill
   // has cells, however large the box (issue 13: a box of ~10^9 cells).
+  const auto in_range = [&](const CellKey& k) {
+    return k.first >= i0 && k.first <= i1 && k.second >= j0 && k.second <= j1;
+  };
   std::vector<CellKey> keys;
   for (const auto& [k, n] : spill.counts())
-    if (k.first >= i0 && k.first <= i1 && k.second >= j0 && k.second <= j1) keys.push_back(k);
-  std::uint64_t upper = 0;
-  for (const auto& k : keys) upper += spill.counts().at(k);
-  if (upper > max_points) return static_cast<std::size_t>(upper);  // caller decides
+    if (in_range(k)) keys.push_back(k);
+  const auto too_many = [&]() {
+    out = RegionPoints{};
+    out.box = box;
+    return max_points + 1;
+  };
+  const auto by_id = [](std::vector<FaceRec>& v) {
+    std::sort(v.begin(), v.end(), [](const FaceRec& a, const FaceRec& b) { return a.id < b.id; });
+    v.erase(std::unique(v.begin(), v.end(),
+                        [](const FaceRec& a, const FaceRec& b) { return a.id == b.id; }),
+            v.end());
+  };
+  std::size_t n_faces = 0;
+  if (faces_) {
+    for (const auto& [k, n] : faces_->counts()) {
+      if (!in_range(k)) continue;
+      for (const FaceRec& f : faces_->read(k)) {
+        const double x0 = std::min({f.v[0][0], f.v[1][0], f.v[2][0]});
+        const double x1 = std::max({f.v[0][0], f.v[1][0], f.v[2][0]});
+        const double y0 = std::min({f.v[0][1], f.v[1][1], f.v[2][1]});
+        const double y1 = std::max({f.v[0][1], f.v[1][1], f.v[2][1]});
+        if (x1 < box[0] || x0 >= box[2] || y1 < box[1] || y0 >= box[3]) continue;
+        out.faces.push_back(f);
+      }
+      if (out.faces.size() > max_points) {  // duplicates (faces over several cells) first
+        by_id(out.faces);
+        if (out.faces.size() > max_points) return too_many();
+      }
+    }
+    by_id(out.faces);
+    n_faces = out.faces.size();
+  }
   std::vector<SpillRec> buf(8192);
   for (const auto& cell : keys) {
-    {
-      const fs::path p = spill.file(cell);
-      std::FILE* f = std::fopen(p.c_str(), "rb");
-      if (!f)
-        throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
-      std::size_t got;
-      while ((got = std::fread(buf.data(), sizeof(SpillRec), buf.size(), f)) > 0) {
-        for (std::size_t k = 0; k < got; ++k) {
-          const SpillRec& r = buf[k];
-          if (r.x < box[0] || r.x >= box[2] || r.y < box[1] || r.y >= box[3]) continue;
-          out.pos.push_back({r.x, r.y, r.z});
-          if (has_normals_) out.nrm.push_back({r.nx, r.ny, r.nz});
-          if (has_colors_) out.rgb.push_back({r.r, r.g, r.b});
-          if (has_classes_) out.cls.push_back(r.cls);
-          if (!meshes_.empty()) out.src.push_back(r.src);
+    const fs::path p = spill.file(cell);
+    std::FILE* f = std::fopen(p.c_str(), "rb");
+    if (!f)
+      throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
+    std::size_t got;
+    bool over = false;
+    while (!over && (got = std::fread(buf.data(), sizeof(SpillRec), buf.size(), f)) > 0) {
+      for (std::size_t k = 0; k < got; ++k) {
+        const SpillRec& r = buf[k];
+        if (r.x < box[0] || r.x >= box[2] || r.y < box[1] || r.y >= box[3]) continue;
+        if (out.pos.size() + n_faces >= max_points) {
+          over = true;
+          break;
         }
+        out.pos.push_back({r.x, r.y, r.z});
+        if (has_normals_) out.nrm.push_back({r.nx, r.ny, r.nz});
+        if (has_colors_) out.rgb.push_back({r.r, r.g, r.b});
+        if (has_classes_) out.cls.push_back(r.cls);
+        if (mesh_scene_) out.src.push_back(r.src);
       }
-      const bool err = std::ferror(f);
-      std::fclose(f);
-      if (err) throw IoError(p.string(), "cannot read spill file");
     }
+    const bool err = std::ferror(f);
+    std::fclose(f);
+    if (err) throw IoError(p.string(), "cannot read spill file");
+    if (over) return too_many();
   }
   rep_.max_region_points = std::max(rep_.max_region_points, out.pos.size());
-  return out.pos.size();
+  return out.pos.size() + n_faces;
 }
 
 std::string Splitter::unique_id(std::string id) {
@@ -1220,8 +1540,26 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
   rec.outline = std::move(outline);
   rec.points = members.size();
   rec.status = Status::pending;
-  if (!meshes_.empty()) {
-    for (std::uint32_t k : members) pc.mesh_refs.push_back(pts.src[k]);
+  if (mesh_scene_) {
+    // The chunk's claims (samples per triangle) go to the cell of the triangle's
+    // centroid; write_mesh_chunks() gives each triangle to the chunk with most samples.
+    std::vector<std::uint64_t> tris;
+    tris.reserve(members.size());
+    for (std::uint32_t k : members) tris.push_back(pts.src[k]);
+    std::sort(tris.begin(), tris.end());
+    const auto chunk = static_cast<std::uint32_t>(chunks_.size());
+    for (std::size_t i = 0; i < tris.size();) {
+      std::size_t j = i + 1;
+      while (j < tris.size() && tris[j] == tris[i]) ++j;
+      ClaimRec cr{};
+      cr.face = pts.face(tris[i]);
+      cr.votes = static_cast<std::uint32_t>(j - i);
+      cr.chunk = chunk;
+      const double cx = (cr.face.v[0][0] + cr.face.v[1][0] + cr.face.v[2][0]) / 3;
+      const double cy = (cr.face.v[0][1] + cr.face.v[1][1] + cr.face.v[2][1]) / 3;
+      claims_->add({int(std::floor(cx / cell_)), int(std::floor(cy / cell_))}, cr);
+      i = j;
+    }
     chunks_.push_back(std::move(pc));
     return;
   }
@@ -1243,13 +1581,37 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
   chunks_.push_back(std::move(pc));
 }
 
+// A region over the budget at the smallest cell: the error names the limit it needs.
+void Splitter::region_too_large(const CellKey& key, double size, std::size_t n,
+                                const std::string& what) const {
+  (void)n;
+  throw IoError(opt_.work_dir,
+                "cell " + std::to_string(key.first) + "," + std::to_string(key.second) + " (" +
+                    fmt("%.2f", size) + " m" + what + ", halo " + fmt("%.0f", opt_.halo) +
+                    " m) holds more than the " + std::to_string(region_budget_points_) +
+                    " points (mesh scenes: samples + faces) --memory-limit " +
+                    fmt("%.0f", double(opt_.memory_limit) / 1048576) +
+                    "M allows, even at the smallest cell (" + fmt("%.0f", kMinSplitCell) +
+                    " m): raise --memory-limit (or lower --halo)");
+}
+
+namespace {
+/// The cell of (x, y) in a grid of cells of `size` (cell_ / 2^depth: halving is exact, so
+/// a point's quarter cell lies inside its cell).
+CellKey key_at(double x, double y, double size) {
+  return {static_cast<int>(std::floor(x / size)), static_cast<int>(std::floor(y / size))};
+}
+}  // namespace
+
 // Clusters: owned by the cell holding their centroid; the halo doubles while an
-// owned building touches the edge of what was loaded (so it is never cut).
-void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, bool unmatched) {
-  const double c = cell_;
+// owned building touches the edge of what was loaded (so it is never cut). A cell whose
+// region exceeds the budget is processed as its four quarters (key_at at size / 2).
+void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, double size,
+                                     bool unmatched) {
+  const double c = size;
   const double cx0 = key.first * c, cy0 = key.second * c, cx1 = cx0 + c, cy1 = cy0 + c;
   // Exact ownership: the cell holding the cluster's anchor point.
-  auto owns = [&](const Cluster& cl) { return spill.key(cl.anchor[0], cl.anchor[1]) == key; };
+  auto owns = [&](const Cluster& cl) { return key_at(cl.anchor[0], cl.anchor[1], c) == key; };
   double halo = opt_.halo;
   RegionPoints pts;
   CellSegmentation seg;
@@ -1269,10 +1631,15 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, b
         seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, prev, true);
         break;
       }
-      throw IoError(opt_.work_dir,
-                    "cell " + std::to_string(key.first) + "," + std::to_string(key.second) +
-                        " holds " + std::to_string(n) +
-                        " points, more than --memory-limit allows; lower --cell-size");
+      // Nothing of its own to process: skip. Else quarters, down to kMinSplitCell.
+      RegionPoints own;
+      if (load_region(spill, {cx0, cy0, cx1, cy1}, own, 0) == 0) return;
+      if (!(c > kMinSplitCell)) region_too_large(key, c, n, "");
+      if (c == cell_) ++subdivided_;
+      for (int di = 0; di < 2; ++di)
+        for (int dj = 0; dj < 2; ++dj)
+          process_cell_clusters(spill, {2 * key.first + di, 2 * key.second + dj}, c / 2, unmatched);
+      return;
     }
     seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, true);
     // Does an owned building touch an edge of the region behind which there is data?
@@ -1306,11 +1673,11 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, b
   for (auto& cl : seg.clusters) {
     if (!owns(cl)) continue;
     double planar_share = -1;  // mesh scenes: share of the cluster's area in large planar faces
-    if (!meshes_.empty() && cl.building) {
+    if (mesh_scene_ && cl.building) {
       std::vector<std::uint64_t> tris;
       tris.reserve(cl.members.size());
       for (std::uint32_t k : cl.members) tris.push_back(pts.src[k]);
-      planar_share = mesh_planar_share(std::move(tris));
+      planar_share = mesh_planar_share(std::move(tris), pts);
       if (planar_share >= 0 && planar_share < kMeshMinPlanarShare) {
         cl.building = false;
         char why[160];
@@ -1348,9 +1715,9 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, b
 
 // Footprints: owned by the cell holding their centroid; a point goes to the
 // footprint containing it, else to the nearest within the buffer.
-void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
+void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key, double size,
                                        const std::vector<std::size_t>& owned) {
-  const double c = cell_;
+  const double c = size;
   std::array<double, 4> box{key.first * c - opt_.halo, key.second * c - opt_.halo,
                             (key.first + 1) * c + opt_.halo, (key.second + 1) * c + opt_.halo};
   const double margin = opt_.footprint_buffer + opt_.halo;
@@ -1361,16 +1728,26 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   }
   RegionPoints pts;
   const std::size_t n = load_region(spill, box, pts, region_budget_points_);
-  if (n > region_budget_points_)
-    throw IoError(opt_.work_dir, "cell " + std::to_string(key.first) + "," +
-                                     std::to_string(key.second) + " holds " + std::to_string(n) +
-                                     " points, more than --memory-limit allows; lower --cell-size");
+  if (n > region_budget_points_) {
+    // Quarters (the footprints by the quarter holding their centroid), down to kMinSplitCell.
+    if (!(c > kMinSplitCell))
+      region_too_large(key, c, n,
+                       owned.size() == 1 ? " with footprint '" + fps_[owned[0]].id + "'" : "");
+    if (c == cell_) ++subdivided_;
+    std::map<CellKey, std::vector<std::size_t>> parts;
+    for (std::size_t i : owned) {
+      const Vec2 ce = fps_[i].centroid();
+      parts[key_at(ce[0], ce[1], c / 2)].push_back(i);
+    }
+    for (const auto& [k, v] : parts) process_cell_footprints(spill, k, c / 2, v);
+    return;
+  }
   const CellSegmentation seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, false);
   std::map<std::size_t, std::vector<std::uint32_t>> members;
   const std::set<std::size_t> mine(owned.begin(), owned.end());
   const bool have_cls = mode_ != ClassMode::none;
-  if (!meshes_.empty()) mesh_footprint_members(pts, seg, mine, members);
-  for (std::size_t k = 0; meshes_.empty() && k < pts.pos.size(); ++k) {
+  if (mesh_scene_) mesh_footprint_members(pts, seg, mine, members);
+  for (std::size_t k = 0; !mesh_scene_ && k < pts.pos.size(); ++k) {
     if (mode_ == ClassMode::buildings) {
       if (pts.cls[k] != 6) continue;
     } else {
@@ -1424,17 +1801,20 @@ void Splitter::pass3_cells(const Spiller& spill) {
   const double total = double(cells.size() + (segment ? spill.counts().size() : 0));
   for (std::size_t i = 0; i < cells.size(); ++i) {
     if (opt_.footprints.empty())
-      process_cell_clusters(spill, cells[i], false);
+      process_cell_clusters(spill, cells[i], cell_, false);
     else
-      process_cell_footprints(spill, cells[i], fp_owned_.at(cells[i]));
+      process_cell_footprints(spill, cells[i], cell_, fp_owned_.at(cells[i]));
     stages_.report(0.5, 0.97, double(i + 1) / total, "segment");
   }
+  if (subdivided_ > 0)
+    rep_.notes.push_back(std::to_string(subdivided_) +
+                         " cells processed in quarters to fit --memory-limit");
   if (opt_.footprints.empty()) return;
   count_unmatched(spill);
   if (!segment) return;
   std::size_t i = cells.size();
   for (const auto& [k, n] : spill.counts()) {
-    process_cell_clusters(spill, k, true);
+    process_cell_clusters(spill, k, cell_, true);
     stages_.report(0.5, 0.97, double(++i) / total, "segment unmatched");
   }
 }
@@ -1495,52 +1875,56 @@ void Splitter::drop_footprint_points(RegionPoints& pts) const {
   if (!pts.src.empty()) pts.src.resize(w);
 }
 
-// Mesh scenes: a triangle goes to the chunk holding most of its samples.
+// Mesh scenes: a triangle goes to the chunk holding most of its samples (ties to the
+// first chunk). The claims are resolved cell by cell and the winners appended to a file
+// per chunk; each chunk is then written from its file alone (triangles in input order,
+// vertices in order of first use): memory holds one cell's claims or one chunk.
 void Splitter::write_mesh_chunks() {
-  for (std::size_t c = 0; c < chunks_.size(); ++c) {
-    std::unordered_map<std::uint64_t, std::uint32_t> votes;
-    for (std::uint64_t s : chunks_[c].mesh_refs) ++votes[s];
-    for (const auto& [s, n] : votes) {
-      const std::size_t m = std::size_t(s >> 40), t = std::size_t(s & ((1ull << 40) - 1));
-      if (n > tri_votes_[m][t]) {
-        tri_votes_[m][t] = n;
-        tri_label_[m][t] = static_cast<std::int32_t>(c);
-      }
-    }
+  claims_->flush();
+  CellFiles<FaceRec> won(staging_->faces(), "won_", 1u << 16);
+  for (const auto& [k, n] : claims_->counts()) {
+    std::vector<ClaimRec> cl = claims_->read(k);
+    std::sort(cl.begin(), cl.end(), [](const ClaimRec& a, const ClaimRec& b) {
+      if (a.face.id != b.face.id) return a.face.id < b.face.id;
+      if (a.votes != b.votes) return a.votes > b.votes;
+      return a.chunk < b.chunk;
+    });
+    for (std::size_t i = 0; i < cl.size(); ++i)
+      if (i == 0 || cl[i].face.id != cl[i - 1].face.id) won.add({int(cl[i].chunk), 0}, cl[i].face);
+    won.flush();
   }
-  std::vector<std::vector<std::pair<std::size_t, std::size_t>>> tris(
-      chunks_.size());  // (mesh, tri)
-  for (std::size_t m = 0; m < meshes_.size(); ++m)
-    for (std::size_t t = 0; t < tri_label_[m].size(); ++t)
-      if (tri_label_[m][t] >= 0) tris[std::size_t(tri_label_[m][t])].push_back({m, t});
   for (std::size_t c = 0; c < chunks_.size(); ++c) {
     ChunkRecord& rec = chunks_[c].rec;
     if (rec.status != Status::pending) continue;
-    if (tris[c].empty()) {
+    std::vector<FaceRec> tris = won.read({int(c), 0});
+    if (tris.empty()) {
       rec.status = Status::skipped;
       rec.reason = "no triangles assigned";
       continue;
     }
+    std::sort(tris.begin(), tris.end(),
+              [](const FaceRec& a, const FaceRec& b) { return a.id < b.id; });
     io::TriangleMesh out;
-    std::map<std::pair<std::size_t, std::uint32_t>, std::uint32_t> remap;
+    std::unordered_map<std::uint64_t, std::uint32_t> remap;
     io::BBox3 bb;
-    for (const auto& [m, t] : tris[c]) {
-      const auto& mesh = meshes_[m];
+    for (const FaceRec& f : tris) {
       std::array<std::uint32_t, 3> nt{};
-      for (int v = 0; v < 3; ++v) {
-        const std::uint32_t vi = mesh.triangles[t][std::size_t(v)];
-        auto [it, fresh] =
-            remap.emplace(std::make_pair(m, vi), static_cast<std::uint32_t>(out.vertices.size()));
+      for (std::size_t v = 0; v < 3; ++v) {
+        auto [it, fresh] = remap.emplace(f.vid[v], static_cast<std::uint32_t>(out.vertices.size()));
         if (fresh) {
-          const Vec3d& p = mesh.vertices[vi];
+          const Vec3d p{f.v[v][0], f.v[v][1], f.v[v][2]};
           bb.add(p);
           out.vertices.push_back(p);
-          if (has_normals_) out.normals.push_back(mesh.normals[vi]);
-          if (has_colors_) out.colors.push_back(mesh.colors[vi]);
+          if (has_normals_) out.normals.push_back({f.n[v][0], f.n[v][1], f.n[v][2]});
+          if (has_colors_) out.colors.push_back({f.rgb[v][0], f.rgb[v][1], f.rgb[v][2]});
         }
-        nt[std::size_t(v)] = it->second;
+        nt[v] = it->second;
       }
       out.triangles.push_back(nt);
+    }
+    {
+      std::error_code ec;
+      fs::remove(won.file({int(c), 0}), ec);
     }
     rec.bbox_min = bb.min;
     rec.bbox_max = bb.max;
@@ -1554,6 +1938,7 @@ void Splitter::write_mesh_chunks() {
     rec.content_hash = io::hash_file(path);
     ++rep_.chunks;
   }
+  staging_->drop_faces();
 }
 
 SplitReport Splitter::run() {
@@ -1563,10 +1948,15 @@ SplitReport Splitter::run() {
   // Up to date? Compare inputs (absolute paths), their sizes/mtimes and the options.
   std::vector<std::string> abs_inputs;
   std::string canonical = opt_.canonical();
-  for (const auto& p : opt_.inputs) {
+  paths_ = expand_inputs(opt_.inputs);
+  for (const auto& p : paths_) {
     abs_inputs.push_back(fs::absolute(p).lexically_normal().string());
     canonical += ";input=" + abs_inputs.back() + ":" + fingerprint(p);
+    InputInfo probe;
+    probe.path = p;
+    read_sidecars(probe, sidecars_);
   }
+  for (const auto& sc : sidecars_) canonical += ";sidecar=" + sc + ":" + fingerprint(sc);
   // A database ("PG:...") or a directory cannot be fingerprinted: never up to date.
   bool versioned = true;
   if (!opt_.footprints.empty()) {
@@ -1616,11 +2006,18 @@ SplitReport Splitter::run() {
   const double spill_bytes = std::min(0.25 * double(opt_.memory_limit), 32.0 * 1024 * 1024);
   const std::size_t spill_budget = static_cast<std::size_t>(spill_bytes / sizeof(SpillRec));
   Spiller spill(staging_->spill(), cell_, spill_budget);
+  if (std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; })) {
+    // face records and claims: 8 MiB buffers each
+    faces_ =
+        std::make_unique<CellFiles<FaceRec>>(staging_->faces(), "f_", (8u << 20) / sizeof(FaceRec));
+    claims_ = std::make_unique<CellFiles<ClaimRec>>(staging_->faces(), "c_",
+                                                    (8u << 20) / sizeof(ClaimRec));
+  }
   pass2_spill(spill);
   if (!opt_.footprints.empty()) load_footprints();
   pass3_cells(spill);
   staging_->drop_spill();
-  if (!meshes_.empty()) write_mesh_chunks();
+  if (mesh_scene_) write_mesh_chunks();
   if (!opt_.footprints.empty() && rep_.chunks == 0)
     throw IoError(fp_source_, "none of its " + std::to_string(rep_.footprints_in_scene) +
                                   " footprints over the data holds building points (all "

@@ -14,8 +14,20 @@
 //           (classes, or PCA scatter/planarity), buildings (footprints, or 2D
 //           Euclidean clusters owned by the cell holding their centroid; the halo
 //           grows while an owned cluster touches its edge), chunk files.
-// Mesh inputs are held in memory; their triangles are sampled (centroid + ~4 per m^2)
-// and the samples segmented like points. Without footprints each triangle goes to the
+// Mesh inputs are streamed too: each mesh file (a tile) is read whole, its triangles
+// are sampled (centroid + ~4 per m^2) into the point spill and written themselves
+// (positions, vertex ids) to per-cell face files, then it is dropped; a region loads
+// the faces of its cells with its samples, and the chunks' claims on triangles are
+// spilled and resolved per cell at the end. A folder input stands for the PLY / OBJ /
+// OFF / LAS / LAZ / XYZ files under it (sorted), read as one scene. Sidecars: a
+// ContextCapture metadata.xml in a file's folder or the two above it gives the CRS
+// (<SRS>: EPSG:n, WKT or ENU:lat,lon) and an offset (<SRSOrigin>) added to the
+// coordinates; FILE.prj beside a file gives its CRS. --crs / --origin / --offset win.
+// Memory: a region that exceeds the budget is processed as four quarter cells (down
+// to kMinSplitCell, 10 m, in split.cpp); only a region of that size (+ halo) that
+// still exceeds it fails, naming the limit it needs: a run that passes at one
+// --memory-limit passes at every higher one.
+// The samples are segmented like points. Without footprints each triangle goes to the
 // cluster holding most of its samples, and a cluster with less than 20 % of its area in
 // planar faces of >= 6 m^2 (its triangles grown into planar regions) is vegetation. With footprints
 // each triangle is judged whole, by its geometry, and never by a foliage test: a face no steeper
@@ -50,6 +62,9 @@ struct SplitOptions {
   std::string crs;                  ///< --crs; "" = the CRS inside the (LAS) file
   std::string origin;               ///< --origin "LAT,LON,H": data already in local ENU metres
   std::string geoid;                ///< "" or "egm96" (orthometric heights -> ellipsoidal)
+  /// --offset "X,Y[,Z]": added to every input coordinate before the CRS (tiles written in
+  /// a shifted frame); "" = none, or the <SRSOrigin> of a ContextCapture metadata.xml.
+  std::string offset;
   /// --vertical: "" or "auto" (from the CRS: geo::choose_vertical; RD New -> NAP),
   /// "ellipsoidal", "orthometric". Tilesets always carry ellipsoidal heights.
   std::string vertical;
