@@ -1375,10 +1375,11 @@ TEST_F(SplitSynthetic, MeshTilesGeoreferencedByMetadataXml) {
 // ------------------------------------------------------------------ memory budget (issue 13)
 namespace {
 /// Flat ground, `density` points per m^2 on a regular grid over [0, w) x [0, w), plus a
-/// 12 x 12 m, 9 m high block of roof and walls at the centre, and `patch` more points
-/// on the ground of [60, 80) x [60, 80).
-std::string write_ground(const fs::path& dir, double w, double density, int patch = 0) {
-  const double b0 = w / 2 - 6, b1 = w / 2 + 6;
+/// 12 x 12 m, 9 m high block of roof and walls at the centre (unless !block), and `patch`
+/// more points on the ground of [60, 80) x [60, 80).
+std::string write_ground(const fs::path& dir, double w, double density, int patch = 0,
+                         bool block = true) {
+  const double b0 = block ? w / 2 - 6 : -1, b1 = block ? w / 2 + 6 : -1;
   io::PointSet ps;
   const int side = int(std::ceil(std::sqrt(double(patch))));
   for (int k = 0; k < patch; ++k)
@@ -1392,7 +1393,7 @@ std::string write_ground(const fs::path& dir, double w, double density, int patc
       const bool roof = x >= b0 && x < b1 && y >= b0 && y < b1;
       ps.positions.push_back({x, y, roof ? 9.0 : 0.02 * std::sin(x * 1.7 + y)});
     }
-  for (double z = 0.3; z < 9; z += 0.3)
+  for (double z = 0.3; block && z < 9; z += 0.3)
     for (double t = 0; t < 12; t += 0.3) {
       ps.positions.push_back({b0 + t, b0, z});
       ps.positions.push_back({b0 + t, b1, z});
@@ -1461,12 +1462,13 @@ TEST(SplitMemory, DenseCellProcessedInQuarters) {
 // error is one line saying so (raise the limit), nothing is written.
 TEST(SplitMemory, DenseSceneNeedsTheDocumentedMinimum) {
   const fs::path dir = tmp_dir("mem_minimum");
-  const std::string in = write_ground(dir, 20, 300.0);  // 120 k points
+  const std::string in = write_ground(dir, 12, 700.0, 0, false);  // 100 k points
   SplitOptions o;
   o.inputs = {in};
   o.work_dir = (dir / "work").string();
   o.origin = "52.0,4.36,45.0";
-  o.halo = 5;  // the smallest region: (6.25 + 2 * 5)^2 m^2 = 79 k points > 75 k at 64M
+  // the first cell (6.25 m) + halo holds 11.25^2 m^2 of the data: 88 k points > 75 k at 64M
+  o.halo = 5;
   o.memory_limit = 64ull << 20;
   try {
     tiler::split_scene(o);

@@ -189,6 +189,11 @@ std::string sanitize_id(const std::string& s) {
 }
 
 using CellKey = std::pair<int, int>;
+/// The cell of (x, y) in a grid of cells of `size` (cell_ / 2^depth: halving is exact, so
+/// a point's quarter cell lies inside its cell).
+CellKey key_at(double x, double y, double size) {
+  return {static_cast<int>(std::floor(x / size)), static_cast<int>(std::floor(y / size))};
+}
 struct CellKeyHash {
   std::size_t operator()(const CellKey& k) const {
     // unsigned: shifting a negative cell index is undefined behaviour
@@ -326,6 +331,22 @@ class CellFiles {
       throw IoError(p.string(), std::string("cannot write spill file: ") + std::strerror(errno));
     counts_[k] += recs.size();
     bytes_ += recs.size() * sizeof(Rec);
+  }
+  /// Calls fn(record) for every record of a cell's file, read in blocks.
+  template <class Fn>
+  void for_each(const CellKey& k, Fn&& fn) const {
+    if (!counts_.count(k)) return;
+    const fs::path p = file(k);
+    std::FILE* f = std::fopen(p.c_str(), "rb");
+    if (!f)
+      throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
+    std::vector<Rec> buf(2048);
+    std::size_t got;
+    while ((got = std::fread(buf.data(), sizeof(Rec), buf.size(), f)) > 0)
+      for (std::size_t i = 0; i < got; ++i) fn(buf[i]);
+    const bool err = std::ferror(f);
+    std::fclose(f);
+    if (err) throw IoError(p.string(), "cannot read spill file");
   }
   /// Every record of a cell's file (empty when it has none).
   std::vector<Rec> read(const CellKey& k) const {
@@ -667,6 +688,7 @@ class Splitter {
   std::unique_ptr<CellFiles<FaceRec>> faces_;    // mesh triangles by the cells they meet
   std::unique_ptr<CellFiles<ClaimRec>> claims_;  // chunk claims by the triangle's cell
   std::size_t subdivided_ = 0;                   // regions processed as quarter cells
+  double claim_cell_ = 10;  // claims by the smallest cell of their centroid: a file stays small
   std::vector<double> mesh_up_;  // +1 when a mesh's faces point up/out (counter-clockwise), else -1
 
   FootprintSet fp_set_;         // as read (source CRS), until load_footprints()
@@ -833,6 +855,8 @@ void Splitter::choose_cell_size() {
   if (cell_ != opt_.cell_size)
     rep_.notes.push_back("cell size reduced to " + fmt("%.1f", cell_) + " m to fit --memory-limit");
   rep_.cell_size = cell_;
+  claim_cell_ = cell_;
+  while (claim_cell_ > kMinSplitCell) claim_cell_ *= 0.5;
 }
 
 // ---------------------------------------------------------------------- pass 2
@@ -1458,16 +1482,20 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
   };
   std::size_t n_faces = 0;
   if (faces_) {
+    // an upper bound: the reservation is address space, pages are touched as filled
+    std::uint64_t upper = 0;
+    for (const auto& [k, n] : faces_->counts()) upper += in_range(k) ? n : 0;
+    out.faces.reserve(std::size_t(std::min<std::uint64_t>(upper, max_points)));
     for (const auto& [k, n] : faces_->counts()) {
       if (!in_range(k)) continue;
-      for (const FaceRec& f : faces_->read(k)) {
+      faces_->for_each(k, [&](const FaceRec& f) {
         const double x0 = std::min({f.v[0][0], f.v[1][0], f.v[2][0]});
         const double x1 = std::max({f.v[0][0], f.v[1][0], f.v[2][0]});
         const double y0 = std::min({f.v[0][1], f.v[1][1], f.v[2][1]});
         const double y1 = std::max({f.v[0][1], f.v[1][1], f.v[2][1]});
-        if (x1 < box[0] || x0 >= box[2] || y1 < box[1] || y0 >= box[3]) continue;
+        if (x1 < box[0] || x0 >= box[2] || y1 < box[1] || y0 >= box[3]) return;
         out.faces.push_back(f);
-      }
+      });
       if (out.faces.size() > max_points) {  // duplicates (faces over several cells) first
         by_id(out.faces);
         if (out.faces.size() > max_points) return too_many();
@@ -1557,7 +1585,7 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
       cr.chunk = chunk;
       const double cx = (cr.face.v[0][0] + cr.face.v[1][0] + cr.face.v[2][0]) / 3;
       const double cy = (cr.face.v[0][1] + cr.face.v[1][1] + cr.face.v[2][1]) / 3;
-      claims_->add({int(std::floor(cx / cell_)), int(std::floor(cy / cell_))}, cr);
+      claims_->add(key_at(cx, cy, claim_cell_), cr);
       i = j;
     }
     chunks_.push_back(std::move(pc));
@@ -1594,14 +1622,6 @@ void Splitter::region_too_large(const CellKey& key, double size, std::size_t n,
                     "M allows, even at the smallest cell (" + fmt("%.0f", kMinSplitCell) +
                     " m): raise --memory-limit (or lower --halo)");
 }
-
-namespace {
-/// The cell of (x, y) in a grid of cells of `size` (cell_ / 2^depth: halving is exact, so
-/// a point's quarter cell lies inside its cell).
-CellKey key_at(double x, double y, double size) {
-  return {static_cast<int>(std::floor(x / size)), static_cast<int>(std::floor(y / size))};
-}
-}  // namespace
 
 // Clusters: owned by the cell holding their centroid; the halo doubles while an
 // owned building touches the edge of what was loaded (so it is never cut). A cell whose
