@@ -1609,7 +1609,8 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
   chunks_.push_back(std::move(pc));
 }
 
-// A region over the budget at the smallest cell: the error names the limit it needs.
+// A region over the budget at the smallest cell: one line with the cell, the budget and
+// what helps.
 void Splitter::region_too_large(const CellKey& key, double size, std::size_t n,
                                 const std::string& what) const {
   (void)n;
@@ -1619,8 +1620,8 @@ void Splitter::region_too_large(const CellKey& key, double size, std::size_t n,
                     " m) holds more than the " + std::to_string(region_budget_points_) +
                     " points (mesh scenes: samples + faces) --memory-limit " +
                     fmt("%.0f", double(opt_.memory_limit) / 1048576) +
-                    "M allows, even at the smallest cell (" + fmt("%.0f", kMinSplitCell) +
-                    " m): raise --memory-limit (or lower --halo)");
+                    "M allows, even at the smallest cell size: raise --memory-limit (or lower "
+                    "--halo)");
 }
 
 // Clusters: owned by the cell holding their centroid; the halo doubles while an

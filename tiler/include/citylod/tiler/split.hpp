@@ -23,9 +23,9 @@
 // ContextCapture metadata.xml in a file's folder or the two above it gives the CRS
 // (<SRS>: EPSG:n, WKT or ENU:lat,lon) and an offset (<SRSOrigin>) added to the
 // coordinates; FILE.prj beside a file gives its CRS. --crs / --origin / --offset win.
-// Memory: a region that exceeds the budget is processed as four quarter cells (down
-// to kMinSplitCell, 10 m, in split.cpp); only a region of that size (+ halo) that
-// still exceeds it fails, naming the limit it needs: a run that passes at one
+// Memory: a region that exceeds the budget is processed as four quarter cells (halved
+// while larger than kMinSplitCell, 10 m, in split.cpp); only a smallest cell whose region
+// (+ halo) still exceeds it fails, with one line saying so: a run that passes at one
 // --memory-limit passes at every higher one.
 // The samples are segmented like points. Without footprints each triangle goes to the
 // cluster holding most of its samples, and a cluster with less than 20 % of its area in
