@@ -747,7 +747,8 @@ void Splitter::pass1_headers() {
         throw IoError(in.path, "bounding box is not finite");
     }
     bbox_crs_.add(in.info.bbox);
-    total_points_ += in.info.point_count;
+    // a region holds points, or a mesh's samples (>= one a face) and faces: ~3 per face
+    total_points_ += in.mesh ? 3 * in.info.face_count : in.info.point_count;
   }
   const bool any_mesh =
       std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; });
@@ -2023,11 +2024,16 @@ SplitReport Splitter::run() {
   rep_.origin_h = o[2];
 
   staging_ = std::make_unique<Staging>(opt_.work_dir);
-  // The spill buffer only batches writes: a quarter of the budget, at most 32 MiB.
-  const double spill_bytes = std::min(0.25 * double(opt_.memory_limit), 32.0 * 1024 * 1024);
+  // The spill buffer only batches writes: a quarter of the budget, at most 32 MiB (mesh
+  // scenes 8 MiB: a tile, its face records and the regions' faces share the budget; their
+  // chunks are written by triangle, whatever the order of the samples in a cell).
+  const bool mesh =
+      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; });
+  const double spill_bytes =
+      std::min(0.25 * double(opt_.memory_limit), (mesh ? 8.0 : 32.0) * 1024 * 1024);
   const std::size_t spill_budget = static_cast<std::size_t>(spill_bytes / sizeof(SpillRec));
   Spiller spill(staging_->spill(), cell_, spill_budget);
-  if (std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; })) {
+  if (mesh) {
     // face records and claims: 8 MiB buffers each
     faces_ =
         std::make_unique<CellFiles<FaceRec>>(staging_->faces(), "f_", (8u << 20) / sizeof(FaceRec));
