@@ -19,7 +19,7 @@ shift || true
 B=${FUZZ_BUILD:-build-fuzz}
 DATA=${CITYLOD_SHARED_DATA:-$(cd .. && pwd)/shared/data}
 CITYLOD=${CITYLOD:-build/app/citylod}
-ALL=(fuzz_las fuzz_laz fuzz_ply fuzz_obj fuzz_off fuzz_xyz fuzz_geojson fuzz_glb fuzz_workdir)
+ALL=(fuzz_las fuzz_laz fuzz_ply fuzz_obj fuzz_off fuzz_xyz fuzz_geojson fuzz_glb fuzz_workdir fuzz_tileset)
 HARNESSES=("$@")
 [ ${#HARNESSES[@]} -eq 0 ] && HARNESSES=("${ALL[@]}")
 
@@ -73,7 +73,16 @@ if [ -f "$SEEDRUN/run_report.json" ]; then
   printf '\002{"buildings": {"fp-1": {"set": {"planes.epsilon": "0.2"}, "select": [0, 3]}}}' \
     >"$CORPUS/fuzz_workdir/seed-overrides"
   { printf '\003'; head -c 65536 "$SEEDRUN/run_report.json"; } >"$CORPUS/fuzz_workdir/seed-run-report"
+  seed fuzz_tileset "$SEEDRUN/tileset/tileset.json"
 fi
+# tileset.json: NUL-separated files tileset.json, a.json, b.json, sub/c.json (see fuzz_tileset.cpp)
+mkdir -p "$CORPUS/fuzz_tileset"
+printf '%s\000%s\000%s\000%s' \
+  '{"asset":{"version":"1.1"},"geometricError":64,"root":{"transform":[1,0,0,0,0,1,0,0,0,0,1,0,10,20,30,1],"geometricError":32,"refine":"REPLACE","content":{"uri":"t.glb"},"children":[{"geometricError":0,"contents":[{"uri":"a.json"},{"uri":"x/../u.glb?v=1"}]},{"geometricError":0,"content":{"url":"sub/c.json"}}]}}' \
+  '{"asset":{"version":"1.0"},"root":{"geometricError":4,"content":{"uri":"b.json"},"children":[{"content":{"uri":"a1.glb"}}]}}' \
+  '{"root":{"transform":[2,0,0,0,0,2,0,0,0,0,2,0,0,0,0,1],"content":{"uri":"b1.glb"}}}' \
+  '{"root":{"content":{"uri":"../c0.glb"},"children":[{"content":{"uri":"c1.glb"}}]}}' \
+  >"$CORPUS/fuzz_tileset/seed-external"
 
 status=0
 for h in "${HARNESSES[@]}"; do

@@ -1,5 +1,7 @@
 #include "citylod/geo/georef.hpp"
 
+#include "citylod/geo/units.hpp"
+
 namespace citylod::geo {
 
 Georef::Georef(LocalFrame frame, Eigen::Vector3d origin_crs, std::unique_ptr<Transformer> t)
@@ -17,6 +19,10 @@ Georef Georef::from_crs(const Crs& crs, const Eigen::Vector3d& origin_crs, Trans
 Georef Georef::from_crs_bbox(const Crs& crs, const Eigen::AlignedBox3d& bbox_crs,
                              TransformOptions opts, double area_margin_deg) {
   Transformer t(crs, opts);
+  // metre data under a feet CRS (or the reverse) is refused, also when it lands within the
+  // margin of the area test; when the area test fails, the unit is named as the likely cause
+  const std::string swapped = unit_swap_evidence(crs, bbox_crs);
+  if (!swapped.empty()) throw GeoError(swapped);
   t.check_in_area(bbox_crs, area_margin_deg);
   return from_crs(crs, bbox_crs.center(), opts);
 }

@@ -9,17 +9,62 @@ namespace citylod::geo {
 
 namespace {
 
-bool lands_in_area(const Crs& crs, const Eigen::AlignedBox3d& bbox) {
+bool lands_in_area(const Crs& crs, const Eigen::AlignedBox3d& bbox, double margin_deg = 1.0) {
   try {
     Transformer t(crs, {HeightMode::Ellipsoidal});
-    t.check_in_area(bbox);
+    t.check_in_area(bbox, margin_deg);
     return true;
   } catch (const GeoError&) {
     return false;
   }
 }
 
+bool is_metre(const Unit& u) {
+  return std::abs(u.to_si - 1.0) < 1e-9;
+}
+
+std::string unit_label(double to_m) {
+  if (std::abs(to_m - 1.0) < 1e-9) return "metre";
+  if (std::abs(to_m - 0.3048) < 1e-6) return "foot";
+  return detail::fmt(to_m, 10) + " m units";
+}
+
 }  // namespace
+
+std::string unit_swap_evidence(const Crs& crs, const Eigen::AlignedBox3d& bbox) {
+  if (bbox.isEmpty() || !crs.is_projected() || !crs.area_of_use()) return {};
+  const Unit& unit = crs.horizontal_unit();
+  const Unit other = is_metre(unit) ? Unit{"foot", 0.3048, false} : Unit{"metre", 1.0, false};
+  if (lands_in_area(crs, bbox, 0.0)) return {};
+  const Crs swapped = detail::with_horizontal_unit(crs, other);
+  if (!lands_in_area(swapped, bbox, 0.0)) return {};
+  return "the data lies outside the area of use of " + crs.label() + " read in " + unit.name +
+         " but inside it read in " + other.name + ": are the coordinates in " + other.name +
+         ", not " + unit.name + "? Give the CRS of the data's real unit (--crs)";
+}
+
+std::string declared_unit_conflict(const Crs& declared, const std::string& file_crs_name,
+                                   double file_unit_m, double file_vertical_unit_m) {
+  const std::string file_crs =
+      file_crs_name.empty()
+          ? std::string("the file's CRS record")
+          : "the file's CRS record (" +
+                (file_crs_name.size() > 80 ? file_crs_name.substr(0, 77) + "..." : file_crs_name) +
+                ")";
+  const Unit& hu = declared.horizontal_unit();
+  if (file_unit_m > 0 && !hu.angular && std::abs(file_unit_m - hu.to_si) > 1e-6)
+    return file_crs + " is in " + unit_label(file_unit_m) + " but --crs " + declared.label() +
+           " is in " + hu.name + ": x, y would be scaled by " +
+           detail::fmt(hu.to_si / file_unit_m, 6) +
+           "; give a --crs in the file's unit (or none: the file's CRS is used)";
+  const Unit& vu = declared.vertical_unit();
+  if (file_vertical_unit_m > 0 && std::abs(file_vertical_unit_m - vu.to_si) > 1e-6)
+    return file_crs + " has heights in " + unit_label(file_vertical_unit_m) + " but --crs " +
+           declared.label() + " has them in " + vu.name + ": z would be scaled by " +
+           detail::fmt(vu.to_si / file_vertical_unit_m, 6) +
+           "; give a --crs in the file's units (or none: the file's CRS is used)";
+  return {};
+}
 
 UnitReport check_units(const Crs& crs, const Eigen::AlignedBox3d& bbox) {
   UnitReport r;

@@ -1,5 +1,6 @@
 // Crs parsing and queries, GeoTIFF keys, units sanity.
 #include "citylod/geo/crs.hpp"
+#include "citylod/geo/georef.hpp"
 #include "citylod/geo/units.hpp"
 #include "las_scan.hpp"
 
@@ -206,4 +207,55 @@ TEST(Crs, ALongEpsgCodeIsAnErrorNotACrash) {
   EXPECT_THROW(Crs::parse("  epsg:4326+" + std::string(500000, '1') + "  "), GeoError);
   EXPECT_THROW(Crs::parse("EPSG:" + std::string(500000, ' ')), GeoError);
   EXPECT_EQ(Crs::parse(" epsg:28992 ").epsg(), 28992);
+}
+
+// Issue 13: metre data under a feet CRS (EPSG:2992, Oregon Lambert in international feet)
+// shrinks towards the false origin and landed within the 1-degree tolerance of the area test
+// (lon -124.64 against -124.6): accepted silently. Read in metres it lies well inside.
+TEST(Units, MetreDataUnderAFeetCrsIsRefused) {
+  const Crs feet = Crs::parse("EPSG:2992");
+  const Eigen::AlignedBox3d metres(Eigen::Vector3d(193850, 258760, 124),
+                                   Eigen::Vector3d(194150, 258910, 127));
+  const std::string why = unit_swap_evidence(feet, metres);
+  EXPECT_NE(why.find("are the coordinates in metre, not foot?"), std::string::npos) << why;
+  EXPECT_THROW(Georef::from_crs_bbox(feet, metres), GeoError);
+  // the same ground in feet, and the metre data under the metre CRS: consistent
+  const Eigen::AlignedBox3d in_feet(metres.min() / 0.3048, metres.max() / 0.3048);
+  EXPECT_EQ(unit_swap_evidence(feet, in_feet), "");
+  EXPECT_NO_THROW(Georef::from_crs_bbox(feet, in_feet));
+  EXPECT_EQ(unit_swap_evidence(Crs::parse("EPSG:2991"), metres), "");
+  // feet data under the metre CRS: the area test refused it already; now it names the unit
+  try {
+    Georef::from_crs_bbox(Crs::parse("EPSG:2991"), in_feet);
+    ADD_FAILURE() << "feet data accepted under a metre CRS";
+  } catch (const GeoError& e) {
+    EXPECT_NE(std::string(e.what()).find("in foot, not metre"), std::string::npos) << e.what();
+  }
+  // inside the area either way (the middle of Oregon): the test cannot tell, says nothing
+  EXPECT_EQ(unit_swap_evidence(feet, Eigen::AlignedBox3d(Eigen::Vector3d(400000, 200000, 0),
+                                                         Eigen::Vector3d(400300, 200150, 5))),
+            "");
+  // Delft in RD New (metres): nothing
+  EXPECT_EQ(unit_swap_evidence(Crs::parse("EPSG:28992"),
+                               Eigen::AlignedBox3d(Eigen::Vector3d(84800, 447400, -5),
+                                                   Eigen::Vector3d(85200, 447700, 60))),
+            "");
+}
+
+TEST(Units, DeclaredCrsAgainstTheFileRecordUnits) {
+  const Crs feet = Crs::parse("EPSG:2992"), metres = Crs::parse("EPSG:2991");
+  EXPECT_EQ(declared_unit_conflict(metres, "NAD83 / Oregon LCC (m)", 1.0, 0), "");
+  EXPECT_EQ(declared_unit_conflict(feet, "x", 0.3048, 0.3048), "");
+  EXPECT_EQ(declared_unit_conflict(feet, "x", 1200.0 / 3937.0, 0), "");  // US survey foot ~ foot
+  EXPECT_EQ(declared_unit_conflict(feet, "x", 0, 0), "");                // unknown: no opinion
+  EXPECT_EQ(declared_unit_conflict(feet, "NAD83 / Oregon LCC (m)", 1.0, 0),
+            "the file's CRS record (NAD83 / Oregon LCC (m)) is in metre but --crs EPSG:2992 is "
+            "in foot: x, y would be scaled by 0.3048; give a --crs in the file's unit (or none: "
+            "the file's CRS is used)");
+  const std::string v = declared_unit_conflict(metres, "", 1.0, 0.3048);
+  EXPECT_EQ(v.rfind("the file's CRS record has heights in foot but --crs EPSG:2991 has them in "
+                    "metre: z would be scaled by 3.28084",
+                    0),
+            0u)
+      << v;
 }

@@ -22,7 +22,8 @@ class Georef {
   static Georef from_crs(const Crs& crs, const Eigen::Vector3d& origin_crs,
                          TransformOptions options = {});
   /// Scene in `crs` with data bounding box `bbox_crs` (CRS units): checks the box against the
-  /// CRS's area of use (GeoError if outside, see Transformer::check_in_area) and puts the
+  /// CRS's area of use (GeoError if outside, see Transformer::check_in_area; also when it is
+  /// inside only read in the other unit, metre <-> foot: see unit_swap_evidence) and puts the
   /// origin at the box centre.
   static Georef from_crs_bbox(const Crs& crs, const Eigen::AlignedBox3d& bbox_crs,
                               TransformOptions options = {}, double area_margin_deg = 1.0);

@@ -24,4 +24,22 @@ struct UnitReport {
 /// Never throws for suspicious data (only for an untransformable CRS); callers decide.
 UnitReport check_units(const Crs& crs, const Eigen::AlignedBox3d& bbox);
 
+/// The decisive form of the first check above, for a projected CRS with an area of use: the
+/// data's box (CRS units; corners, edge midpoints and centre) is not entirely inside the area
+/// of use read in the CRS's horizontal unit, but entirely inside it read in the other unit
+/// (metre <-> foot), both without any margin. Returns the one-line reason ("the data lies ...
+/// are the coordinates in metre, not US survey foot?"), or "" when the data is consistent
+/// with the unit or the test cannot tell (no area of use, inside or outside both ways).
+/// Catches a metre data set given a state-plane feet CRS, which shrinks towards the false
+/// origin and can stay within the usual 1-degree tolerance of the area test.
+std::string unit_swap_evidence(const Crs& crs, const Eigen::AlignedBox3d& bbox);
+
+/// Compares a CRS given by the user (--crs) with the units of the CRS a file declares
+/// (`file_unit_m`: metres per horizontal unit, 0 = unknown; `file_vertical_unit_m`: metres per
+/// vertical unit, 0 = unknown). Returns "" when they agree (within 1e-6, so foot and US survey
+/// foot are one unit here) or are unknown, else the one-line reason: "the file's CRS record
+/// (...) is in metre but --crs EPSG:2992 is in foot: ...".
+std::string declared_unit_conflict(const Crs& declared, const std::string& file_crs_name,
+                                   double file_unit_m, double file_vertical_unit_m);
+
 }  // namespace citylod::geo
