@@ -129,7 +129,7 @@ void declare_assemble_options(ArgParser& args) {
               "... but at least M metres: leaves gather the buildings of such a block", "0");
   args.option("max-tiles-per-file", 0, "N",
               "tileset JSON files of at most about N tiles (larger subtrees: external tilesets)",
-              "5000");
+              "1000");
   args.option("min-leaf-bytes", 0, "B",
               "buildings reaching their finest model get leaves of their own (stored once) when "
               "they total >= B bytes of geometry (else they are repeated down the chain)",
