@@ -180,6 +180,15 @@ void declare_assemble_options(ArgParser& args) {
       "extent-factor", 0, "F",
       "children of a tile with error e span at most F*e metres each (0 = only the budgets split)",
       "50");
+  args.option("min-tile-extent", 0, "M",
+              "... but at least M metres: leaves gather the buildings of such a block", "0");
+  args.option("max-tiles-per-file", 0, "N",
+              "tileset JSON files of at most about N tiles (larger subtrees: external tilesets)",
+              "1000");
+  args.option("min-leaf-bytes", 0, "B",
+              "buildings reaching their finest model get leaves of their own (stored once) when "
+              "they total >= B bytes of geometry (else they are repeated down the chain)",
+              "65536");
   args.option("min-change", 0, "M",
               "keep an interpolation model only if it differs by >= M metres (Hausdorff) from its "
               "kept neighbours",
@@ -205,6 +214,13 @@ AssembleParams parse_assemble_options(const ArgParser& args) {
   p.max_tile_triangles = std::size_t(max_tris);
   p.max_tile_bytes = std::size_t(max_bytes);
   p.tile_extent_factor = args.get_double("extent-factor");
+  p.min_tile_extent_m = args.get_double("min-tile-extent");
+  const std::int64_t per_file = args.get_int("max-tiles-per-file");
+  if (per_file < 1) throw UsageError("--max-tiles-per-file must be >= 1");
+  p.max_tiles_per_file = std::size_t(per_file);
+  const std::int64_t leaf_bytes = args.get_int("min-leaf-bytes");
+  if (leaf_bytes < 0) throw UsageError("--min-leaf-bytes must be >= 0");
+  p.min_leaf_bytes = std::size_t(leaf_bytes);
   p.min_change_m = args.get_double("min-change");
   p.hausdorff_tolerance_m = args.get_double("hausdorff-tolerance");
   p.quantize = args.has("quantize");

@@ -474,9 +474,57 @@ std::string decode_meshopt(const std::string& bytes, const std::string& name, bo
   return out;
 }
 
+/// JSON -> tinygltf::Value (for a schema read from its own file).
+tinygltf::Value to_value(const nlohmann::json& j) {
+  if (j.is_object()) {
+    tinygltf::Value::Object o;
+    for (const auto& [k, v] : j.items()) o[k] = to_value(v);
+    return tinygltf::Value(std::move(o));
+  }
+  if (j.is_array()) {
+    tinygltf::Value::Array a;
+    for (const auto& v : j) a.push_back(to_value(v));
+    return tinygltf::Value(std::move(a));
+  }
+  if (j.is_string()) return tinygltf::Value(j.get<std::string>());
+  if (j.is_boolean()) return tinygltf::Value(j.get<bool>());
+  if (j.is_number_integer() && j.get<double>() == double(int(j.get<double>())))
+    return tinygltf::Value(j.get<int>());
+  if (j.is_number()) return tinygltf::Value(j.get<double>());
+  return tinygltf::Value();
+}
+
+/// The schema an EXT_structural_metadata object refers to by `schemaUri`: a
+/// relative path resolved against `dir` (the glb's directory). Null when
+/// there is no directory (bytes in memory) or the URI is absolute / has a scheme.
+tinygltf::Value external_schema(const std::string& uri, const std::string& dir,
+                                const std::string& name) {
+  if (dir.empty() || uri.empty() || uri[0] == '/' || uri.find(':') != std::string::npos)
+    return tinygltf::Value();
+  const std::string path = (std::filesystem::path(dir) / uri).string();
+  const std::uint64_t size = regular_file_size(path);
+  if (size > (std::uint64_t(64) << 20))
+    throw IoError(name, "schema " + uri + " larger than 64 MiB");
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw IoError(name, "cannot open its schema " + uri);
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  if (j.is_discarded() || !j.is_object())
+    throw IoError(name, "schema " + uri + " is not a JSON object");
+  return to_value(j);
+}
+
+GlbDocument parse_glb_in(const std::string& bytes, const std::string& name, const std::string& dir);
+
 }  // namespace
 
 GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
+  return parse_glb_in(bytes, name, "");
+}
+
+namespace {
+
+GlbDocument parse_glb_in(const std::string& bytes, const std::string& name,
+                         const std::string& dir) {
   check_container(bytes, name);
   if (bytes.size() > std::numeric_limits<unsigned int>::max())
     throw IoError(name, "glb larger than 4 GiB");
@@ -524,7 +572,9 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   // ---- property tables
   const auto meta = model.extensions.find("EXT_structural_metadata");
   if (meta != model.extensions.end()) {
-    const tinygltf::Value& schema = member(meta->second, "schema");
+    tinygltf::Value schema = member(meta->second, "schema");
+    if (!schema.IsObject())
+      schema = external_schema(string_member(meta->second, "schemaUri"), dir, name);
     const tinygltf::Value& tables = member(meta->second, "propertyTables");
     for (std::size_t i = 0; i < tables.ArrayLen(); ++i)
       doc.property_tables.push_back(read_table(rd, schema, tables.Get(int(i)), int(i)));
@@ -640,6 +690,8 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
   return doc;
 }
 
+}  // namespace
+
 GlbDocument read_glb(const std::string& path) {
   // the real size first: nothing is allocated for what the file does not hold
   const std::uint64_t size = regular_file_size(path);
@@ -649,7 +701,7 @@ GlbDocument read_glb(const std::string& path) {
   std::string bytes(std::size_t(size), '\0');
   f.read(bytes.data(), std::streamsize(size));
   if (std::uint64_t(f.gcount()) != size) throw IoError(path, "read error (file changed?)");
-  return parse_glb(bytes, path);
+  return parse_glb_in(bytes, path, std::filesystem::path(path).parent_path().string());
 }
 
 }  // namespace citylod::io

@@ -207,15 +207,26 @@ void put32(std::string& b, std::uint32_t v) {
   b.append(c, 4);
 }
 
-/// The glb tinygltf wrote, with every encoded bufferView moved onto a
-/// fallback buffer (no data) and described by its EXT_meshopt_compression
-/// object pointing at the encoded bytes in the BIN chunk.
-std::string with_meshopt_views(const std::string& glb,
-                               const std::vector<BinWriter::Meshopt>& views) {
+/// The glb tinygltf wrote, finished: the EXT_structural_metadata schema put in
+/// (`schema`, or `schemaUri` when `schema_uri` is set) and every encoded
+/// bufferView moved onto a fallback buffer (no data) and described by its
+/// EXT_meshopt_compression object pointing at the encoded bytes in the BIN chunk.
+std::string finish_glb(const std::string& glb, const std::vector<BinWriter::Meshopt>& views,
+                       const nlohmann::json& schema, const std::string& schema_uri) {
   const std::uint32_t json_len = le32(glb, 12);
   nlohmann::ordered_json j = nlohmann::ordered_json::parse(glb.substr(20, json_len));
   const std::size_t bin_at = 20 + json_len;
   const std::uint32_t bin_len = le32(glb, bin_at);
+  {
+    auto& meta = j["extensions"]["EXT_structural_metadata"];
+    nlohmann::ordered_json m;
+    if (schema_uri.empty())
+      m["schema"] = nlohmann::ordered_json::parse(schema.dump());
+    else
+      m["schemaUri"] = schema_uri;
+    for (auto& [k, v] : meta.items()) m[k] = v;
+    meta = std::move(m);
+  }
   std::size_t fallback = 0;
   for (const auto& m : views) {
     auto& bv = j["bufferViews"][size_t(m.view)];
@@ -234,18 +245,22 @@ std::string with_meshopt_views(const std::string& glb,
       bv["byteStride"] = m.stride;
     else
       bv.erase("byteStride");
+    if (ext["byteOffset"] == 0) ext.erase("byteOffset");  // the default
+    if (fallback == 0) bv.erase("byteOffset");
     bv["extensions"]["EXT_meshopt_compression"] = ext;
     fallback += m.raw_length;
   }
-  j["buffers"] = nlohmann::ordered_json::array(
-      {{{"byteLength", bin_len}},
-       {{"byteLength", fallback},
-        {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}}});
-  for (const char* key : {"extensionsUsed", "extensionsRequired"}) {
-    std::vector<std::string> e = j.value(key, std::vector<std::string>{});
-    e.push_back("EXT_meshopt_compression");
-    std::sort(e.begin(), e.end());
-    j[key] = e;
+  if (!views.empty()) {
+    j["buffers"] = nlohmann::ordered_json::array(
+        {{{"byteLength", bin_len}},
+         {{"byteLength", fallback},
+          {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}}});
+    for (const char* key : {"extensionsUsed", "extensionsRequired"}) {
+      std::vector<std::string> e = j.value(key, std::vector<std::string>{});
+      e.push_back("EXT_meshopt_compression");
+      std::sort(e.begin(), e.end());
+      j[key] = e;
+    }
   }
   std::string js = j.dump();
   while (js.size() % 4) js.push_back(' ');
@@ -261,6 +276,83 @@ std::string with_meshopt_views(const std::string& glb,
   out.append("BIN\0", 4);
   out.append(glb, bin_at + 8, bin_len);
   return out;
+}
+
+/// The EXT_structural_metadata schema: class "building" (our properties and the
+/// source attributes) and enum LodKind. Keys sorted (nlohmann::json).
+nlohmann::json schema_json(const std::vector<GlbAttribute>& attributes) {
+  using J = nlohmann::json;
+  auto prop = [](const char* type, const char* component, const char* description) {
+    J o{{"type", type}, {"description", description}};
+    if (component) o["componentType"] = component;
+    return o;
+  };
+  J props{
+      {"building_id", prop("STRING", nullptr, "building (chunk) id of the work directory")},
+      {"lod_kind",
+       {{"type", "ENUM"},
+        {"enumType", "LodKind"},
+        {"description", "anchor or interpolation model of the LOD-Tree, or the fallback outline"}}},
+      {"level", prop("SCALAR", "INT32", "LOD-Tree level set of the model")},
+      {"step", prop("SCALAR", "INT32", "traversal step that produced the model")},
+      {"model_index", prop("SCALAR", "INT32", "index in the building's kept models, 0 = coarsest")},
+      {"model_count", prop("SCALAR", "INT32", "number of kept models of the building")},
+      {"height", prop("SCALAR", "FLOAT32", "vertical extent of the model, metres")},
+      {"footprint_area",
+       prop("SCALAR", "FLOAT32", "footprint area of the building, square metres")},
+      {"geometric_error", prop("SCALAR", "FLOAT32", "distance to the finest model, metres")},
+      {"rmse",
+       {{"type", "SCALAR"},
+        {"componentType", "FLOAT32"},
+        {"noData", -1.0},
+        {"description",
+         "RMSE of the building's input points to the model, metres (-1: not measured)"}}},
+      {"valid", prop("BOOLEAN", nullptr,
+                     "the model is a valid solid: closed, oriented, no pinched vertex, one outer "
+                     "shell, no self-intersection")},
+  };
+  J values = J::array({{{"name", "anchor"}, {"value", 0}},
+                       {{"name", "interpolation"}, {"value", 1}},
+                       {{"name", "fallback"}, {"value", 2}}});
+  J enums{{"LodKind", {{"valueType", "UINT8"}, {"values", values}}}};
+  for (const GlbAttribute& a : attributes) {
+    J def{{"name", a.name}, {"description", "footprint attribute"}};
+    switch (a.type) {
+      case GlbAttribute::Type::int64:
+        def["type"] = "SCALAR";
+        def["componentType"] = "INT64";
+        break;
+      case GlbAttribute::Type::float64:
+        def["type"] = "SCALAR";
+        def["componentType"] = "FLOAT64";
+        if (a.no_data) def["noData"] = std::numeric_limits<double>::lowest();
+        break;
+      case GlbAttribute::Type::boolean:
+        def["type"] = "BOOLEAN";
+        break;
+      case GlbAttribute::Type::string:
+        if (!a.enum_values.empty()) {
+          def["type"] = "ENUM";
+          def["enumType"] = a.property;
+          J vs = J::array();
+          for (std::size_t i = 0; i < a.enum_values.size(); ++i)
+            vs.push_back({{"name", a.enum_values[i]}, {"value", i}});
+          enums[a.property] = {{"valueType", "UINT8"}, {"values", vs}};
+          if (a.no_data) def["noData"] = std::string(1, '\0');
+          break;
+        }
+        def["type"] = "STRING";
+        // A missing value is the one-character string NUL, never a source value
+        // (GDAL strings are C strings); "" would leave a column of missing
+        // values without characters, which a bufferView cannot hold.
+        if (a.no_data) def["noData"] = std::string(1, '\0');
+        break;
+    }
+    props[a.property] = std::move(def);
+  }
+  return {{"id", "citylod"},
+          {"classes", {{"building", {{"name", "Building LOD model"}, {"properties", props}}}}},
+          {"enums", enums}};
 }
 
 }  // namespace
@@ -324,6 +416,23 @@ std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann:
       a.type = GlbAttribute::Type::boolean;
     }
     a.no_data = s.null > 0;
+    if (a.type == GlbAttribute::Type::string) {
+      std::set<std::string> distinct;  // a missing value: the noData string NUL
+      for (const nlohmann::json* o : objects) {
+        const nlohmann::json* v = nullptr;
+        if (o && o->is_object()) {
+          const auto it = o->find(name);
+          if (it != o->end() && !it->is_null()) v = &*it;
+        }
+        distinct.insert(!v               ? std::string(1, '\0')
+                        : v->is_string() ? v->get<std::string>()
+                                         : v->dump());
+        if (distinct.size() > 255) break;
+      }
+      if (distinct.size() <= 255 &&
+          (distinct.size() == 1 || distinct.size() * 4 <= objects.size() * 3))
+        a.enum_values.assign(distinct.begin(), distinct.end());
+    }
     std::string id = "fp_";
     for (char c : name) id += (std::isalnum(static_cast<unsigned char>(c)) || c == '_') ? c : '_';
     std::string unique = id;
@@ -332,6 +441,10 @@ std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann:
     out.push_back(std::move(a));
   }
   return out;
+}
+
+std::string glb_schema(const GlbOptions& options) {
+  return schema_json(options.attributes).dump();
 }
 
 const char* to_string(Compression c) {
@@ -420,6 +533,47 @@ struct GlbBuilder::Impl {
       for (std::uint32_t v : n.indices[size_t(c)])
         if (map[v] != ~0u) out.indices[size_t(c)].push_back(map[v]);
     return out;
+  }
+  /// meshopt, float positions (y-up, relative): meshoptimizer's EXPONENTIAL
+  /// filter with the fewest mantissa bits (of 16, 18, ..., 24) that keep every
+  /// coordinate within `step` (exp_tolerance) and each feature's distinct
+  /// corners distinct. Returns
+  /// the bits (0: none qualifies, plain float), the filtered data and the
+  /// positions a client decodes.
+  /// Largest change of a coordinate the EXPONENTIAL filter may make: 1/256 of
+  /// the node's int16 step (about float32 precision: a coarser one, up to the
+  /// int16 step, turned a sub-step sliver of a Delft model self-intersecting).
+  static double exp_tolerance(double extent) { return extent / 32767 / 256; }
+  static int exp_filter(const Node& n, double step, std::vector<std::int32_t>& encoded,
+                        std::vector<float>& decoded) {
+    const std::size_t nv = n.rel.size();
+    std::vector<float> pos(nv * 3);
+    for (std::size_t i = 0; i < nv; ++i) {
+      const Vec3d y = to_yup(n.rel[i]);
+      for (int k = 0; k < 3; ++k) pos[i * 3 + size_t(k)] = float(y[size_t(k)]);
+    }
+    for (int bits = 16; bits <= 24; bits += 2) {
+      encoded.assign(nv * 3, 0);
+      meshopt_encodeFilterExp(encoded.data(), nv, 12, bits, pos.data());
+      std::vector<std::int32_t> copy = encoded;
+      meshopt_decodeFilterExp(copy.data(), nv, 12);
+      decoded.resize(nv * 3);
+      std::memcpy(decoded.data(), copy.data(), nv * 12);
+      bool ok = true;
+      for (std::size_t i = 0; ok && i < nv * 3; ++i)
+        ok = std::isfinite(decoded[i]) && std::fabs(double(decoded[i]) - double(pos[i])) <= step;
+      std::map<std::array<float, 4>, Vec3d> seen;
+      for (std::size_t i = 0; ok && i < nv; ++i) {
+        const std::array<float, 4> key{n.feature[i], decoded[i * 3], decoded[i * 3 + 1],
+                                       decoded[i * 3 + 2]};
+        const auto [it, added] = seen.emplace(key, n.rel[i]);
+        ok = added || it->second == n.rel[i];
+      }
+      if (ok) return bits;
+    }
+    encoded.clear();
+    decoded.clear();
+    return 0;
   }
   static bool quantizable(const Node& n) {
     const double e = quant_extent(n);
@@ -522,9 +676,31 @@ BBox3 GlbBuilder::stored_bounds() const {
     const std::set<float> bad = !q && impl_->opt.compression == Compression::meshopt
                                     ? Impl::unquantizable(node)
                                     : std::set<float>{};
+    // meshopt: the float part through the EXPONENTIAL filter (see glb())
+    std::vector<float> dec;
+    std::map<std::array<float, 4>, Vec3d> as_stored;  // (feature, float y-up) -> decoded
+    if (!q && impl_->opt.compression == Compression::meshopt) {
+      std::set<float> all(node.feature.begin(), node.feature.end());
+      // (the filter is per vertex: the codec order does not change the result)
+      const Impl::Node fpart =
+          bad.empty() || bad.size() == all.size() ? node : Impl::part(node, bad, true);
+      std::vector<std::int32_t> enc;
+      if (Impl::exp_filter(fpart, Impl::exp_tolerance(e), enc, dec) > 0)
+        for (std::size_t i = 0; i < fpart.rel.size(); ++i) {
+          const Vec3d y = to_yup(fpart.rel[i]);
+          as_stored[{fpart.feature[i], float(y[0]), float(y[1]), float(y[2])}] =
+              Vec3d{dec[i * 3], dec[i * 3 + 1], dec[i * 3 + 2]};
+        }
+    }
     for (std::size_t i = 0; i < node.rel.size(); ++i) {
       const Vec3d y = to_yup(node.rel[i]);
       const bool qi = q || (!bad.empty() && !bad.count(node.feature[i]));
+      if (!qi && !as_stored.empty()) {
+        const Vec3d& s = as_stored.at({node.feature[i], float(y[0]), float(y[1]), float(y[2])});
+        const Vec3d z = from_yup(s);
+        b.add(Vec3d{o[0] + z[0], o[1] + z[1], o[2] + z[2]});
+        continue;
+      }
       Vec3d s;
       for (int k = 0; k < 3; ++k)
         s[size_t(k)] =
@@ -640,7 +816,23 @@ std::string GlbBuilder::glb() const {
           nrm[i * 3 + size_t(k)] = ny[k];
         }
       }
-      const int pv = w.attributes(pos.data(), nv, 12, "NONE", 0);
+      std::vector<std::int32_t> exp;
+      std::vector<float> dec;
+      const int bits = mo ? Impl::exp_filter(node, Impl::exp_tolerance(extent), exp, dec) : 0;
+      int pv;
+      if (bits > 0) {  // the decoded positions are the stored ones
+        for (int k = 0; k < 3; ++k) {
+          mn[size_t(k)] = std::numeric_limits<double>::infinity();
+          mx[size_t(k)] = -mn[size_t(k)];
+        }
+        for (std::size_t i = 0; i < nv * 3; ++i) {
+          mn[i % 3] = std::min(mn[i % 3], double(dec[i]));
+          mx[i % 3] = std::max(mx[i % 3], double(dec[i]));
+        }
+        pv = w.attributes(exp.data(), nv, 12, "EXPONENTIAL", 0);
+      } else {
+        pv = w.attributes(pos.data(), nv, 12, "NONE", 0);
+      }
       pos_acc =
           w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv, false, mn, mx);
       if (mo) {
@@ -748,15 +940,27 @@ std::string GlbBuilder::glb() const {
     area.push_back(float(f.footprint_area_m2));
     error.push_back(float(f.error_m));
   }
-  if (ids.empty()) ids.push_back('\0');  // a bufferView needs byteLength >= 1
   Value::Object props;
   auto column = [&](const char* name, const void* p, std::size_t bytes) {
     props[name] = obj({{"values", Value(w.view(p, bytes, 0))}});
   };
-  props["building_id"] =
-      obj({{"values", Value(w.view(ids.data(), ids.size(), 0))},
-           {"stringOffsets", Value(w.view(offsets.data(), offsets.size() * 4, 0))},
-           {"stringOffsetType", str("UINT32")}});
+  // STRING: offsets as UINT16 when the characters allow it (UINT32 otherwise)
+  auto string_column = [&](const char* name, std::string chars,
+                           const std::vector<std::uint32_t>& offs) {
+    Value::Object o;
+    const bool small = offs.back() <= 0xFFFF;
+    if (chars.empty()) chars.push_back('\0');  // a bufferView needs byteLength >= 1
+    o["values"] = Value(w.view(chars.data(), chars.size(), 0));
+    if (small) {
+      const std::vector<std::uint16_t> o16(offs.begin(), offs.end());
+      o["stringOffsets"] = Value(w.view(o16.data(), o16.size() * 2, 0));
+      o["stringOffsetType"] = str("UINT16");
+    } else {
+      o["stringOffsets"] = Value(w.view(offs.data(), offs.size() * 4, 0));  // default UINT32
+    }
+    props[name] = obj(std::move(o));
+  };
+  string_column("building_id", ids, offsets);
   column("lod_kind", kind.data(), n);
   column("level", level.data(), n * 4);
   column("step", step.data(), n * 4);
@@ -766,14 +970,12 @@ std::string GlbBuilder::glb() const {
   column("footprint_area", area.data(), n * 4);
   column("geometric_error", error.data(), n * 4);
   // The source attributes (GlbOptions::attributes), typed.
-  Value::Object attr_props;
   for (const GlbAttribute& a : im.opt.attributes) {
     auto value_of = [&](const GlbFeature& f) -> const nlohmann::json* {
       if (!f.attributes.is_object()) return nullptr;
       const auto it = f.attributes.find(a.name);
       return it == f.attributes.end() || it->is_null() ? nullptr : &*it;
     };
-    Value::Object def{{"name", str(a.name.c_str())}, {"description", str("footprint attribute")}};
     switch (a.type) {
       case GlbAttribute::Type::int64: {
         std::vector<std::int64_t> v;
@@ -782,8 +984,6 @@ std::string GlbBuilder::glb() const {
           v.push_back(j && j->is_number_integer() ? j->get<std::int64_t>() : 0);
         }
         column(a.property.c_str(), v.data(), n * 8);
-        def["type"] = str("SCALAR");
-        def["componentType"] = str("INT64");
         break;
       }
       case GlbAttribute::Type::float64: {
@@ -794,9 +994,6 @@ std::string GlbBuilder::glb() const {
           v.push_back(j && j->is_number() ? j->get<double>() : none);
         }
         column(a.property.c_str(), v.data(), n * 8);
-        def["type"] = str("SCALAR");
-        def["componentType"] = str("FLOAT64");
-        if (a.no_data) def["noData"] = Value(none);
         break;
       }
       case GlbAttribute::Type::boolean: {
@@ -806,77 +1003,48 @@ std::string GlbBuilder::glb() const {
           if (j && j->is_boolean() && j->get<bool>()) bits[i / 8] |= std::uint8_t(1u << (i % 8));
         }
         column(a.property.c_str(), bits.data(), bits.size());
-        def["type"] = str("BOOLEAN");
         break;
       }
       case GlbAttribute::Type::string: {
+        if (!a.enum_values.empty()) {  // ENUM (UINT8): the index of the value
+          std::vector<std::uint8_t> v;
+          for (const auto& f : im.features) {
+            const nlohmann::json* j = value_of(f);
+            const std::string text = !j               ? std::string(1, '\0')
+                                     : j->is_string() ? j->get<std::string>()
+                                                      : j->dump();
+            const auto it = std::lower_bound(a.enum_values.begin(), a.enum_values.end(), text);
+            if (it == a.enum_values.end() || *it != text)
+              throw IoError(kWhere, "attribute '" + a.name + "': value '" + text +
+                                        "' is not one of the schema's");
+            v.push_back(std::uint8_t(it - a.enum_values.begin()));
+          }
+          column(a.property.c_str(), v.data(), n);
+          break;
+        }
         std::string chars;
         std::vector<std::uint32_t> offs{0};
         for (const auto& f : im.features) {
           const nlohmann::json* j = value_of(f);
-          if (j) chars += j->is_string() ? j->get<std::string>() : j->dump();
+          if (j)
+            chars += j->is_string() ? j->get<std::string>() : j->dump();
+          else
+            chars.push_back('\0');  // the noData string (see schema_json)
           offs.push_back(std::uint32_t(chars.size()));
         }
-        if (chars.empty()) chars.push_back('\0');  // a bufferView needs byteLength >= 1
-        props[a.property] = obj({{"values", Value(w.view(chars.data(), chars.size(), 0))},
-                                 {"stringOffsets", Value(w.view(offs.data(), offs.size() * 4, 0))},
-                                 {"stringOffsetType", str("UINT32")}});
-        def["type"] = str("STRING");
-        if (a.no_data) def["noData"] = str("");
+        string_column(a.property.c_str(), chars, offs);
         break;
       }
     }
-    attr_props[a.property] = obj(std::move(def));
   }
   column("rmse", rmse.data(), n * 4);
   if (valid.empty()) valid.push_back(0);
   column("valid", valid.data(), valid.size());
 
-  auto prop = [](const char* type, const char* component, const char* description) {
-    Value::Object o{{"type", str(type)}, {"description", str(description)}};
-    if (component) o["componentType"] = str(component);
-    return obj(std::move(o));
-  };
-  Value::Object class_props{
-      {"building_id", prop("STRING", nullptr, "building (chunk) id of the work directory")},
-      {"lod_kind",
-       obj({{"type", str("ENUM")},
-            {"enumType", str("LodKind")},
-            {"description",
-             str("anchor or interpolation model of the LOD-Tree, or the fallback outline")}})},
-      {"level", prop("SCALAR", "INT32", "LOD-Tree level set of the model")},
-      {"step", prop("SCALAR", "INT32", "traversal step that produced the model")},
-      {"model_index", prop("SCALAR", "INT32", "index in the building's kept models, 0 = coarsest")},
-      {"model_count", prop("SCALAR", "INT32", "number of kept models of the building")},
-      {"height", prop("SCALAR", "FLOAT32", "vertical extent of the model, metres")},
-      {"footprint_area",
-       prop("SCALAR", "FLOAT32", "footprint area of the building, square metres")},
-      {"geometric_error", prop("SCALAR", "FLOAT32", "distance to the finest model, metres")},
-      {"rmse",
-       obj({{"type", str("SCALAR")},
-            {"componentType", str("FLOAT32")},
-            {"noData", Value(-1.0)},
-            {"description",
-             str("RMSE of the building's input points to the model, metres (-1: not measured)")}})},
-      {"valid",
-       prop("BOOLEAN", nullptr,
-            "the model is a valid solid: closed, oriented, no pinched vertex, one outer shell, no "
-            "self-intersection")},
-  };
-  for (auto& [k, v] : attr_props) class_props[k] = std::move(v);
-  Value::Array enum_values{obj({{"name", str("anchor")}, {"value", Value(0)}}),
-                           obj({{"name", str("interpolation")}, {"value", Value(1)}}),
-                           obj({{"name", str("fallback")}, {"value", Value(2)}})};
-  Value::Object schema{
-      {"id", str("citylod")},
-      {"classes", obj({{"building", obj({{"name", str("Building LOD model")},
-                                         {"properties", obj(class_props)}})}})},
-      {"enums",
-       obj({{"LodKind", obj({{"valueType", str("UINT8")}, {"values", Value(enum_values)}})}})}};
   Value::Object table{
       {"class", str("building")}, {"count", Value(int(n))}, {"properties", obj(props)}};
   model.extensions["EXT_structural_metadata"] =
-      obj({{"schema", obj(schema)}, {"propertyTables", Value(Value::Array{obj(table)})}});
+      obj({{"propertyTables", Value(Value::Array{obj(table)})}});  // + schema: finish_glb
 
   while (bin.size() % 4) bin.push_back(0);
   model.buffers[0].data = std::move(bin);
@@ -885,8 +1053,7 @@ std::string GlbBuilder::glb() const {
   std::ostringstream os;
   if (!writer.WriteGltfSceneToStream(&model, os, false, true))
     throw IoError(kWhere, "tinygltf could not serialize");
-  if (compressed.empty()) return os.str();
-  return with_meshopt_views(os.str(), compressed);
+  return finish_glb(os.str(), compressed, schema_json(im.opt.attributes), im.opt.schema_uri);
 }
 
 }  // namespace citylod::io

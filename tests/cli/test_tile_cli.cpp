@@ -252,6 +252,15 @@ TEST(TileCli, DelftHeightsAreEllipsoidalAndAttributesTyped) {
   // The footprint attributes in every tile glb: typed properties of the building
   // class, and each feature's fp_gml_id is the gml_id of its building id.
   std::size_t glbs = 0, features = 0;
+  // the schema is shared by the glbs (schemaUri); attributes with few distinct
+  // strings are ENUMs
+  const nlohmann::json schema = read_json(d / "out" / "tileset" / "schema.json");
+  const auto& cls = schema.at("classes").at("building").at("properties");
+  EXPECT_EQ(cls.at("fp_gml_id").at("type"), "STRING");
+  EXPECT_EQ(cls.at("fp_identificatiebagpnd").at("componentType"), "INT64");
+  EXPECT_EQ(cls.at("fp_inonderzoek").at("type"), "BOOLEAN");
+  EXPECT_EQ(cls.at("fp_namespace").at("type"), "ENUM");
+  EXPECT_EQ(schema.at("enums").at("fp_namespace").at("values").at(0).at("name"), "NL.IMGeo");
   for (const auto& e : fs::directory_iterator(d / "out" / "tileset" / "tiles")) {
     const std::string bytes = slurp(e.path());
     ASSERT_GT(bytes.size(), 28u);
@@ -260,10 +269,7 @@ TEST(TileCli, DelftHeightsAreEllipsoidalAndAttributesTyped) {
     const nlohmann::json g = nlohmann::json::parse(bytes.substr(20, jlen));
     const std::size_t bin = 20 + jlen + 8;
     const auto& meta = g.at("extensions").at("EXT_structural_metadata");
-    const auto& cls = meta.at("schema").at("classes").at("building").at("properties");
-    EXPECT_EQ(cls.at("fp_gml_id").at("type"), "STRING");
-    EXPECT_EQ(cls.at("fp_identificatiebagpnd").at("componentType"), "INT64");
-    EXPECT_EQ(cls.at("fp_inonderzoek").at("type"), "BOOLEAN");
+    EXPECT_EQ(meta.at("schemaUri"), "../schema.json");
     const auto& table = meta.at("propertyTables").at(0);
     const std::size_t n = table.at("count").get<std::size_t>();
     auto strings = [&](const std::string& prop) {
@@ -271,9 +277,11 @@ TEST(TileCli, DelftHeightsAreEllipsoidalAndAttributesTyped) {
       const auto& vv = g.at("bufferViews").at(col.at("values").get<int>());
       const auto& ov = g.at("bufferViews").at(col.at("stringOffsets").get<int>());
       std::vector<std::string> out;
+      const std::size_t os = col.value("stringOffsetType", "UINT32") == "UINT16" ? 2 : 4;
       for (std::size_t i = 0; i < n; ++i) {
-        std::uint32_t o[2];
-        std::memcpy(o, bytes.data() + bin + ov.value("byteOffset", 0) + 4 * i, 8);
+        std::uint32_t o[2] = {0, 0};
+        std::memcpy(&o[0], bytes.data() + bin + ov.value("byteOffset", 0) + os * i, os);
+        std::memcpy(&o[1], bytes.data() + bin + ov.value("byteOffset", 0) + os * (i + 1), os);
         out.push_back(bytes.substr(bin + vv.value("byteOffset", 0) + o[0], o[1] - o[0]));
       }
       return out;

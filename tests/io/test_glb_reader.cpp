@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <functional>
 
 #include <map>
@@ -198,11 +199,20 @@ TEST(GlbReader, MeshoptKeepsOnlyTheDamagedFeaturesFloat) {
   EXPECT_NE(
       std::find(d.extensions_used.begin(), d.extensions_used.end(), "EXT_meshopt_compression"),
       d.extensions_used.end());
+  const std::string bytes = b.glb();
+  // the float part through meshopt's EXPONENTIAL filter, within 1/256 of the
+  // node's int16 step (1000 m / 32767 / 256 = 0.12 mm)
+  EXPECT_NE(bytes.find("\"EXPONENTIAL\""), std::string::npos);
   const auto tris = triangles(d);
-  double zmax = 0;
+  double zmax = 0, zmin = 1;
   for (const auto& tri : tris.at(1))
-    for (const auto& p : tri) zmax = std::max(zmax, p[2]);
-  EXPECT_NEAR(zmax, 0.004, 1e-6);  // the slab is float: it keeps its thickness
+    for (const auto& p : tri) {
+      zmax = std::max(zmax, p[2]);
+      zmin = std::min(zmin, p[2]);
+    }
+  const double tol = 1000.0 / 32767 / 256;
+  EXPECT_NEAR(zmax, 0.004, tol);  // the slab is not int16: it keeps its thickness
+  EXPECT_NEAR(zmin, 0.0, tol);
   io::BBox3 got;
   for (const auto& [f, ts] : tris)
     for (const auto& tri : ts)
@@ -214,6 +224,90 @@ TEST(GlbReader, MeshoptKeepsOnlyTheDamagedFeaturesFloat) {
   EXPECT_NEAR(got.max[0], 1000, 1000.0 / 32767);  // the far box: int16
   EXPECT_EQ(tris.at(0).size(), far.triangles.size());
   EXPECT_EQ(tris.at(1).size(), thin.triangles.size());
+}
+
+// A shared schema (GlbOptions::schema_uri): the glb refers to it, read_glb
+// reads it next to the file; a constant string attribute is an ENUM.
+TEST(GlbReader, SchemaByUriAndFewStringsAsEnums) {
+  const nlohmann::json a = {{"same", "NL"}, {"own", 1}}, b = {{"same", "NL"}, {"own", 2}};
+  io::GlbOptions opt;
+  opt.compression = io::Compression::meshopt;
+  opt.attributes = io::glb_attribute_schema({&a, &b});
+  opt.schema_uri = "../schema.json";
+  TriangleMesh box1, box2;
+  add_box(box1, 0, 0, 0, 10, 10, 5);
+  add_box(box2, 20, 0, 0, 30, 10, 8);
+  io::GlbBuilder g({0, 0, 0}, opt);
+  io::GlbFeature f1 = feature("b1", io::LodKind::anchor, 1, 0), f2 = f1;
+  f1.attributes = a;
+  f2.building_id = "b2";
+  f2.attributes = b;
+  g.add_feature(f1, box1);
+  g.add_feature(f2, box2);
+  const std::string bytes = g.glb();
+  EXPECT_NE(bytes.find("\"schemaUri\":\"../schema.json\""), std::string::npos);
+  EXPECT_EQ(bytes.find("\"classes\""), std::string::npos);  // not embedded
+  const fs::path dir = fs::path(CITYLOD_TEST_TMP) / "glb_schema_uri";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "tiles");
+  {
+    std::ofstream(dir / "schema.json") << io::glb_schema(opt);
+    std::ofstream(dir / "tiles" / "t.glb", std::ios::binary) << bytes;
+  }
+  const nlohmann::json schema = nlohmann::json::parse(io::glb_schema(opt));
+  const nlohmann::json& props = schema["classes"]["building"]["properties"];
+  EXPECT_EQ(props["fp_same"]["type"], "ENUM");
+  EXPECT_EQ(schema["enums"]["fp_same"]["values"][0]["name"], "NL");
+  EXPECT_EQ(props["fp_own"]["componentType"], "INT64");
+  const io::GlbDocument d = io::read_glb((dir / "tiles" / "t.glb").string());
+  ASSERT_EQ(d.property_tables.size(), 1u);
+  const io::GlbPropertyTable& t = d.property_tables[0];
+  EXPECT_EQ(t.strings.at("building_id"), (std::vector<std::string>{"b1", "b2"}));
+  EXPECT_EQ(t.numbers.count("fp_own"), 0u);  // INT64: not read, but present in the glb
+  EXPECT_EQ(t.strings.at("fp_same"), (std::vector<std::string>{"NL", "NL"}));
+  EXPECT_NE(bytes.find("\"fp_own\""), std::string::npos);
+  EXPECT_EQ(t.numbers.at("valid"), (std::vector<double>{1, 1}));
+  // from memory (no directory): the table has no schema, no error
+  EXPECT_NO_THROW(io::parse_glb(bytes, "mem.glb"));
+  // the embedded form is the same schema
+  opt.schema_uri.clear();
+  io::GlbBuilder e({0, 0, 0}, opt);
+  e.add_feature(f1, box1);
+  const std::string eb = e.glb();
+  std::uint32_t jl = 0;
+  std::memcpy(&jl, eb.data() + 12, 4);
+  EXPECT_EQ(
+      nlohmann::json::parse(eb.substr(20, jl))["extensions"]["EXT_structural_metadata"]["schema"],
+      schema);
+}
+
+// A STRING attribute missing in every feature of a glb: the missing values are
+// the noData string NUL, so the column still has characters (a bufferView of 0
+// bytes is not valid glTF; the 3D Tiles validator wants byteLength = last offset).
+TEST(GlbReader, MissingStringsAreTheNoDataCharacter) {
+  const nlohmann::json a = {{"g", "x"}, {"h", "1"}}, b = {{"h", "2"}};
+  io::GlbOptions opt;
+  opt.attributes = io::glb_attribute_schema({&a, &b});
+  ASSERT_EQ(opt.attributes.at(0).name, "g");
+  ASSERT_TRUE(opt.attributes.at(0).no_data);
+  TriangleMesh box1;
+  add_box(box1, 0, 0, 0, 10, 10, 5);
+  io::GlbBuilder g({0, 0, 0}, opt);
+  io::GlbFeature f = feature("b1", io::LodKind::anchor, 1, 0);
+  f.attributes = b;
+  g.add_feature(f, box1);
+  const std::string bytes = g.glb();
+  std::uint32_t jl = 0;
+  std::memcpy(&jl, bytes.data() + 12, 4);
+  const nlohmann::json j = nlohmann::json::parse(bytes.substr(20, jl));
+  const auto& meta = j["extensions"]["EXT_structural_metadata"];
+  EXPECT_EQ(meta["schema"]["classes"]["building"]["properties"]["fp_g"]["noData"],
+            std::string(1, '\0'));
+  const auto& col = meta["propertyTables"][0]["properties"]["fp_g"];
+  EXPECT_EQ(j["bufferViews"][col["values"].get<std::size_t>()]["byteLength"], 1);
+  const io::GlbDocument d = io::parse_glb(bytes, "mem.glb");
+  EXPECT_EQ(d.property_tables.at(0).strings.at("fp_g"),
+            (std::vector<std::string>{std::string(1, '\0')}));
 }
 
 }  // namespace

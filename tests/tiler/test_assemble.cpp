@@ -7,10 +7,12 @@
 
 #include <chrono>
 #include <cstdio>
+#include <functional>
 #include <map>
 
 #include "citylod/geo/georef.hpp"
 #include "citylod/io/error.hpp"
+#include "citylod/io/glb_reader.hpp"
 #include "citylod/io/gltf.hpp"
 #include "citylod/tiler/assemble.hpp"
 #include "tiler/test_work_support.hpp"
@@ -155,6 +157,17 @@ TEST(AssembleAttributes, SchemaTypesAreExactAndDeterministic) {
   const nlohmann::json c = {{"id", 9007199254740993LL}};
   const nlohmann::json d = nlohmann::json::object();
   EXPECT_EQ(io::glb_attribute_schema({&c, &d}).at(0).type, T::string);
+  // few distinct strings, none missing: an ENUM of them (sorted)
+  EXPECT_TRUE(by.at("s").enum_values.empty());  // 2 values for 2 objects
+  const nlohmann::json e1 = {{"k", "same"}, {"t", "b"}, {"u", "x"}},
+                       e2 = {{"k", "same"}, {"t", "a"}, {"u", "y"}},
+                       e3 = {{"k", "same"}, {"t", "b"}, {"u", "z"}},
+                       e4 = {{"k", "same"}, {"t", "a"}};
+  const auto k = io::glb_attribute_schema({&e1, &e2, &e3, &e4});
+  ASSERT_EQ(k.size(), 3u);  // k, t, u
+  EXPECT_EQ(k[0].enum_values, (std::vector<std::string>{"same"}));
+  EXPECT_EQ(k[1].enum_values, (std::vector<std::string>{"a", "b"}));
+  EXPECT_TRUE(k[2].enum_values.empty());  // missing in e4
 }
 
 TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
@@ -189,10 +202,10 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   const GlbFile root = read_glb(out + "/" + ts["root"]["content"]["uri"].get<std::string>());
   const auto& table = root.json["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
   EXPECT_EQ(table["count"], 50);
-  EXPECT_EQ(root.json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["building"]
-                     ["properties"]
-                         .size(),
-            11u);
+  // one schema for the tileset (schemaUri), 11 properties without footprint attributes
+  EXPECT_EQ(root.json["extensions"]["EXT_structural_metadata"]["schemaUri"], "../schema.json");
+  const auto schema = nlohmann::json::parse(read_bytes(out + "/schema.json"));
+  EXPECT_EQ(schema["classes"]["building"]["properties"].size(), 11u);
   std::set<int> features;
   for (const auto& v : glb_vertices(root)) features.insert(v.feature);
   EXPECT_EQ(features.size(), 50u);
@@ -207,9 +220,15 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
       const auto& ids = bv[pt["properties"]["building_id"]["values"].get<size_t>()];
       const auto& offs = bv[pt["properties"]["building_id"]["stringOffsets"].get<size_t>()];
       const auto& idx = bv[pt["properties"]["model_index"]["values"].get<size_t>()];
+      // UINT16 string offsets (UINT32 only for more than 64 KiB of characters)
+      EXPECT_EQ(pt["properties"]["building_id"]["stringOffsetType"], "UINT16");
+      auto off = [&](std::size_t i) {
+        const std::size_t at = offs.value("byteOffset", 0u) + 2 * i;
+        return std::uint32_t(std::uint8_t(g.bin[at])) | std::uint32_t(std::uint8_t(g.bin[at + 1]))
+                                                            << 8;
+      };
       for (std::size_t i = 0; i < n; ++i) {
-        const std::uint32_t a = u32(g.bin, offs.value("byteOffset", 0u) + 4 * i),
-                            b = u32(g.bin, offs.value("byteOffset", 0u) + 4 * i + 4);
+        const std::uint32_t a = off(i), b = off(i + 1);
         ++leaf_count[g.bin.substr(ids.value("byteOffset", 0u) + a, b - a)];
         EXPECT_EQ(u32(g.bin, idx.value("byteOffset", 0u) + 4 * i), 2u);
       }
@@ -290,7 +309,107 @@ TEST(Assemble, ChainsOfDifferentLengthsShareTheTree) {
   EXPECT_EQ(st.buildings, 16u);
   const TilesetCheck chk = check_tileset(work + ".out");
   for (const auto& pr : chk.problems) ADD_FAILURE() << pr;
-  EXPECT_EQ(chk.depth, 3);
+  EXPECT_EQ(chk.depth, 3);  // the single-model buildings are too few for leaves of their own
+  // with leaves for any finished buildings: an empty root over a leaf of the
+  // single-model buildings and the refining tiles, one level deeper
+  AssembleParams p = quiet_params();
+  p.min_leaf_bytes = 0;
+  tiler::assemble(work, work + ".out", p);
+  const TilesetCheck sep = check_tileset(work + ".out");
+  for (const auto& pr : sep.problems) ADD_FAILURE() << pr;
+  const auto ts = nlohmann::json::parse(read_bytes(work + ".out/tileset.json"));
+  EXPECT_FALSE(ts["root"].contains("content"));
+  EXPECT_EQ(sep.depth, 4);
+}
+
+// Every kept model is stored in exactly one tile (buildings that reach their
+// finest model go to leaves, the others refine on), and with a minimum tile
+// extent the leaves gather whole blocks.
+TEST(Assemble, EachModelIsStoredOnceAndLeavesGatherBuildings) {
+  const std::string work = tmp_dir("once");
+  auto city = synthetic_city(64, 4);
+  for (std::size_t i = 0; i < city.size(); i += 5) city[i].models.resize(1 + i % 4);
+  write_work(work, synthetic_manifest(), city);
+  auto count_tiles = [&](const AssembleParams& p, std::size_t& leaves) {
+    const auto st = tiler::assemble(work, work + ".out", p);
+    const TilesetCheck chk = check_tileset(work + ".out");
+    for (const auto& pr : chk.problems) ADD_FAILURE() << pr;
+    std::map<std::pair<std::string, int>, int> stored;
+    leaves = 0;
+    for (const auto& e : fs::directory_iterator(work + ".out/tiles")) {
+      const io::GlbDocument d = io::read_glb(e.path().string());
+      const io::GlbPropertyTable& t = d.property_tables.at(0);
+      bool all_finest = true;
+      for (std::size_t i = 0; i < t.count; ++i) {
+        ++stored[{t.strings.at("building_id")[i], int(t.numbers.at("model_index")[i])}];
+        all_finest = all_finest && t.numbers.at("geometric_error")[i] == 0;
+      }
+      leaves += all_finest;
+    }
+    EXPECT_EQ(stored.size(), st.models_kept);
+    for (const auto& [k, n] : stored) EXPECT_EQ(n, 1) << k.first << " model " << k.second;
+    return st.content_tiles;
+  };
+  AssembleParams p = quiet_params();
+  p.building_models = false;
+  p.min_leaf_bytes = 0;  // leaves of their own for any finished buildings
+  std::size_t leaves_factor = 0, leaves_blocks = 0;
+  const std::size_t tiles_factor = count_tiles(p, leaves_factor);
+  p.min_tile_extent_m = 1000;  // the whole synthetic city (8 x 8 buildings, 30 m apart)
+  const std::size_t tiles_blocks = count_tiles(p, leaves_blocks);
+  std::printf(
+      "[ measure  ] 64 buildings: %zu glbs (%zu leaves) -> %zu (%zu) with 1 km min extent\n",
+      tiles_factor, leaves_factor, tiles_blocks, leaves_blocks);
+  EXPECT_LT(tiles_blocks, tiles_factor);
+  EXPECT_LT(leaves_blocks, leaves_factor);
+  // at most one tile per level of refining models (chains of up to 4 models:
+  // 3) and one leaf per chain length (4)
+  EXPECT_LE(tiles_blocks, 3u + 4u);
+  EXPECT_LE(leaves_blocks, 4u);
+}
+
+// A large tree is written as external tilesets (tiles/<name>.json) of a bounded
+// number of tiles each; the tiles themselves do not change.
+TEST(Assemble, LargeTreesGoToExternalTilesets) {
+  const std::string work = tmp_dir("external");
+  write_work(work, synthetic_manifest(), synthetic_city(64, 3));
+  AssembleParams p = quiet_params();
+  p.building_models = false;
+  p.max_tile_triangles = 60;  // a few buildings per tile: a deep, wide tree
+  const auto one = tiler::assemble(work, work + ".one", p);
+  EXPECT_EQ(one.tileset_files, 1u);
+  p.max_tiles_per_file = 6;
+  const auto st = tiler::assemble(work, work + ".ext", p);
+  EXPECT_GT(st.tileset_files, 3u);
+  EXPECT_EQ(st.tiles, one.tiles);
+  const TilesetCheck chk = check_tileset(work + ".ext");
+  for (const auto& pr : chk.problems) ADD_FAILURE() << pr;
+  EXPECT_EQ(chk.tiles, int(st.tiles));
+  EXPECT_EQ(std::size_t(chk.external_files) + 1, st.tileset_files);
+  EXPECT_EQ(std::size_t(chk.content_tiles), one.content_tiles);
+  // each file: at most 6 tiles of its own plus the references to its externals
+  std::function<std::size_t(const nlohmann::json&)> count = [&](const nlohmann::json& t) {
+    std::size_t n = 1;
+    if (t.contains("children"))
+      for (const auto& c : t["children"]) n += count(c);
+    return n;
+  };
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(work + ".ext/tiles"))
+    if (e.path().extension() == ".json") {
+      ++files;
+      const auto j = nlohmann::json::parse(read_bytes(e.path().string()));
+      EXPECT_LE(count(j["root"]), 6u + 4u) << e.path();
+    }
+  EXPECT_EQ(files + 1, st.tileset_files);
+  auto glbs = [](const std::string& dir) {
+    auto all = dir_contents(dir);
+    for (auto it = all.begin(); it != all.end();)
+      it = it->first.size() > 4 && it->first.substr(it->first.size() - 4) == ".glb" ? std::next(it)
+                                                                                    : all.erase(it);
+    return all;
+  };
+  EXPECT_EQ(glbs(work + ".ext"), glbs(work + ".one"));
 }
 
 TEST(Assemble, TileBudgetSplitsTiles) {

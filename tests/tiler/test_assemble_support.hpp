@@ -338,6 +338,7 @@ inline std::vector<Eigen::Vector3d> corners(const Box& b, const Eigen::Matrix4d&
 struct TilesetCheck {
   std::vector<std::string> problems;
   int tiles = 0, content_tiles = 0, depth = 0, leaves = 0;
+  int external_files = 0;  ///< external tilesets followed
   std::vector<std::string> uris;
   std::map<int, int> tiles_per_depth;
 };
@@ -366,14 +367,18 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
   }
   if (ts["root"].value("refine", "") != "REPLACE") bad("root.refine is not REPLACE");
   const double top_error = ts.value("geometricError", 0.0);
+  // `same_tile`: the root of an external tileset, which stands for the tile that
+  // references it (same error, not counted again); `base`: its file's directory.
   std::function<void(const nlohmann::json&, const std::string&, const Eigen::Matrix4d&, const Box*,
-                     const Eigen::Matrix4d*, double, int)>
+                     const Eigen::Matrix4d*, double, int, const fs::path&, bool)>
       walk = [&](const nlohmann::json& t, const std::string& path, const Eigen::Matrix4d& parentT,
                  const Box* parent_box, const Eigen::Matrix4d* parent_boxT, double parent_error,
-                 int depth) {
-        ++r.tiles;
-        ++r.tiles_per_depth[depth];
-        r.depth = std::max(r.depth, depth);
+                 int depth, const fs::path& base, bool same_tile) {
+        if (!same_tile) {
+          ++r.tiles;
+          ++r.tiles_per_depth[depth];
+          r.depth = std::max(r.depth, depth);
+        }
         if (!t.contains("boundingVolume") || !t["boundingVolume"].contains("box")) {
           bad(path + ": no boundingVolume.box");
           return;
@@ -385,9 +390,32 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
         const double ge = t["geometricError"];
         const Eigen::Matrix4d T = parentT * matrix_of(t.value("transform", nlohmann::json()));
         const Box box = box_of(t["boundingVolume"]);
-        if (depth == 0 ? ge > parent_error : ge >= parent_error)
+        if (depth == 0 || same_tile ? ge > parent_error : ge >= parent_error)
           bad(path + ": geometricError " + std::to_string(ge) + " not below parent's " +
               std::to_string(parent_error));
+        const std::string curi = t.contains("content") ? t["content"].value("uri", "") : "";
+        const bool external = curi.size() > 5 && curi.substr(curi.size() - 5) == ".json";
+        if (external) {  // an external tileset: its root continues this tile
+          nlohmann::json ext;
+          try {
+            ext = nlohmann::json::parse(read_bytes((base / curi).string()));
+          } catch (const std::exception& e) {
+            bad(path + ": " + curi + ": " + e.what());
+            return;
+          }
+          if (!ext.contains("asset") || ext["asset"].value("version", "") != "1.1")
+            bad(curi + ": asset.version is not 1.1");
+          if (!ext.contains("root") || ext["root"].value("refine", "") != "REPLACE") {
+            bad(curi + ": no root with refine REPLACE");
+            return;
+          }
+          if (t.contains("children")) bad(path + ": external tileset and children");
+          ++r.external_files;
+          walk(ext["root"], path + ">" + curi,
+               parentT * matrix_of(t.value("transform", nlohmann::json())), parent_box, parent_boxT,
+               ge, depth, (base / curi).parent_path(), true);
+          return;
+        }
         const bool leaf = !t.contains("children") || t["children"].empty();
         if (leaf) ++r.leaves;
         if (leaf && ge != 0) bad(path + ": leaf with geometricError " + std::to_string(ge));
@@ -403,7 +431,7 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
           const auto& c = t["content"];
           const std::string uri = c.value("uri", "");
           r.uris.push_back(uri);
-          const std::string file = (fs::path(dir) / uri).string();
+          const std::string file = (base / uri).string();
           if (uri.empty() || !fs::exists(file)) bad(path + ": content '" + uri + "' missing");
           Box cbox = box;
           if (c.contains("boundingVolume")) {
@@ -432,9 +460,11 @@ inline TilesetCheck check_tileset(const std::string& dir, bool check_content = t
         }
         if (t.contains("children"))
           for (std::size_t i = 0; i < t["children"].size(); ++i)
-            walk(t["children"][i], path + "/" + std::to_string(i), T, &box, &T, ge, depth + 1);
+            walk(t["children"][i], path + "/" + std::to_string(i), T, &box, &T, ge, depth + 1, base,
+                 false);
       };
-  walk(ts["root"], "root", Eigen::Matrix4d::Identity(), nullptr, nullptr, top_error, 0);
+  walk(ts["root"], "root", Eigen::Matrix4d::Identity(), nullptr, nullptr, top_error, 0,
+       fs::path(dir), false);
   return r;
 }
 

@@ -319,6 +319,9 @@ json to_json(const AssembleParams& p) {
   return {{"max_tile_triangles", p.max_tile_triangles},
           {"max_tile_bytes", p.max_tile_bytes},
           {"tile_extent_factor", p.tile_extent_factor},
+          {"min_tile_extent_m", p.min_tile_extent_m},
+          {"max_tiles_per_file", p.max_tiles_per_file},
+          {"min_leaf_bytes", p.min_leaf_bytes},
           {"min_change_m", p.min_change_m},
           {"hausdorff_tolerance_m", p.hausdorff_tolerance_m},
           {"quantize", p.quantize},
@@ -332,6 +335,9 @@ AssembleParams assemble_params_from_json(const json& j) {
   p.max_tile_triangles = j.value("max_tile_triangles", p.max_tile_triangles);
   p.max_tile_bytes = j.value("max_tile_bytes", p.max_tile_bytes);
   p.tile_extent_factor = j.value("tile_extent_factor", p.tile_extent_factor);
+  p.min_tile_extent_m = j.value("min_tile_extent_m", p.min_tile_extent_m);
+  p.max_tiles_per_file = j.value("max_tiles_per_file", p.max_tiles_per_file);
+  p.min_leaf_bytes = j.value("min_leaf_bytes", p.min_leaf_bytes);
   p.min_change_m = j.value("min_change_m", p.min_change_m);
   p.hausdorff_tolerance_m = j.value("hausdorff_tolerance_m", p.hausdorff_tolerance_m);
   p.quantize = j.value("quantize", p.quantize);

@@ -53,6 +53,7 @@ struct KeptModel {
   bool valid = false;  // lod::check_mesh(...).valid()
   BBox3 bbox;          // scene ENU
   std::size_t triangles = 0, bytes = 0;
+  std::size_t plain_bytes = 0;  // float32 estimate: the same whatever the compression
 };
 
 struct Building {
@@ -143,6 +144,7 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
         io::glb_mesh_size(mesh, p.quantize || p.compression == io::Compression::meshopt);
     km.triangles = s.triangles;
     km.bytes = s.bytes;
+    km.plain_bytes = io::glb_mesh_size(mesh, false).bytes;
     b.bbox.add(km.bbox);
     b.models.push_back(km);
   }
@@ -186,17 +188,18 @@ class TreeBuilder {
       first.push_back({i, 0});
       tileset_error = std::max(tileset_error, bs_[i].error_none_m);
     }
-    if (fits(first)) {
+    if (fits(first) && !separate_leaves(first)) {
       make_tile(first, "r");
       return;
     }
-    // Even the coarsest models of all buildings exceed one glb: an empty root
-    // over a spatial split of them.
+    // The coarsest models of all buildings exceed one glb, or enough buildings
+    // have a single model (their finest, which a root with content would
+    // repeat in its children) for leaves of their own: an empty root over
+    // groups of them.
     tiles.emplace_back();
     tiles[0].name = "r";
     tiles[0].error = tileset_error;
-    std::vector<std::vector<Item>> groups;
-    partition(first, max_extent(tileset_error), groups);
+    const std::vector<std::vector<Item>> groups = child_groups(first, tileset_error);
     for (std::size_t k = 0; k < groups.size(); ++k) {
       const std::size_t c = make_tile(groups[k], "r_" + std::to_string(k));
       tiles[0].children.push_back(c);
@@ -206,6 +209,37 @@ class TreeBuilder {
 
  private:
   const KeptModel& model(const Item& it) const { return bs_[it.b].models[it.m]; }
+  /// The item shows its building's finest model.
+  bool finished(const Item& it) const { return it.m + 1 == bs_[it.b].models.size(); }
+
+  /// Groups of `next` for the children of a tile of error `error`: buildings
+  /// that reach their finest model go to leaf tiles of their own (error 0),
+  /// the others to tiles that refine further, so no model is stored twice
+  /// down a chain (REPLACE: the children together still show every building).
+  /// ... when they total at least AssembleParams::min_leaf_bytes (else they stay
+  /// with the refining ones).
+  std::vector<std::vector<Item>> child_groups(const std::vector<Item>& next, double error) const {
+    std::vector<std::vector<Item>> groups;
+    if (!separate_leaves(next)) {
+      partition(next, max_extent(error), groups);
+      return groups;
+    }
+    std::vector<Item> refining, done;
+    for (const auto& it : next) (finished(it) ? done : refining).push_back(it);
+    partition(refining, max_extent(error), groups);
+    partition(done, max_extent(error), groups);
+    return groups;
+  }
+  /// `items` mixes refining buildings with enough finished ones for leaves of their own.
+  bool separate_leaves(const std::vector<Item>& items) const {
+    std::size_t done = 0, bytes = 0;
+    for (const auto& it : items)
+      if (finished(it)) {
+        ++done;
+        bytes += model(it).plain_bytes;  // the same tree with or without compression
+      }
+    return done > 0 && done < items.size() && bytes >= p_.min_leaf_bytes;
+  }
 
   bool fits(const std::vector<Item>& items) const {
     std::size_t t = 0, by = 0;
@@ -248,7 +282,7 @@ class TreeBuilder {
   }
 
   double max_extent(double error) const {
-    return p_.tile_extent_factor > 0 ? p_.tile_extent_factor * error
+    return p_.tile_extent_factor > 0 ? std::max(p_.tile_extent_factor * error, p_.min_tile_extent_m)
                                      : std::numeric_limits<double>::infinity();
   }
 
@@ -256,6 +290,7 @@ class TreeBuilder {
   /// group is over the glb budget or wider than `max_extent`.
   void partition(const std::vector<Item>& items, double max_extent,
                  std::vector<std::vector<Item>>& out) const {
+    if (items.empty()) return;
     if (items.size() <= 1 || (fits(items) && extent(items) <= max_extent)) {
       out.push_back(items);
       return;
@@ -304,9 +339,8 @@ class TreeBuilder {
     if (tiles[id].error > 0) {
       std::vector<Item> next = items;
       for (auto& it : next)
-        if (it.m + 1 < bs_[it.b].models.size()) ++it.m;
-      std::vector<std::vector<Item>> groups;
-      partition(next, max_extent(tiles[id].error), groups);
+        if (!finished(it)) ++it.m;
+      const std::vector<std::vector<Item>> groups = child_groups(next, tiles[id].error);
       for (std::size_t k = 0; k < groups.size(); ++k) {
         const std::size_t c = make_tile(groups[k], name + "_" + std::to_string(k));
         tiles[id].children.push_back(c);
@@ -361,17 +395,60 @@ bool inside(const BBox3& in, const BBox3& out) {
   return true;
 }
 
-io::Tile to_tile(const std::vector<TileNode>& tiles, std::size_t id) {
-  const TileNode& n = tiles[id];
-  io::Tile t;
-  t.box = io::TileBox::from_bbox(n.box);
-  t.geometric_error = n.error;
-  if (!n.items.empty()) {
-    t.content_uri = "tiles/" + n.name + ".glb";
-    t.content_box = io::TileBox::from_bbox(n.content_box);
+/// Writes the tile tree as tileset JSON files: the file of a subtree takes its
+/// children's subtrees inline while they fit its budget of tiles
+/// (`left`, AssembleParams::max_tiles_per_file); a larger one becomes an
+/// external tileset, tiles/<name>.json (its own budget), referenced by a tile
+/// with the same box and error. `prefix`: path from the file's directory to
+/// tiles/ ("tiles/" from tileset.json, "" from an external file).
+struct TilesetWriter {
+  const std::vector<TileNode>& tiles;
+  std::size_t max_tiles;
+  std::vector<std::size_t> size;                              // tiles in the subtree of each tile
+  std::vector<std::pair<std::string, io::Tileset>> external;  // tiles/<name>.json
+
+  TilesetWriter(const std::vector<TileNode>& t, std::size_t max) : tiles(t), max_tiles(max) {
+    size.assign(t.size(), 1);
+    for (std::size_t id = t.size(); id-- > 0;)  // a child's id is larger than its parent's
+      for (std::size_t c : t[id].children) size[id] += size[c];
   }
-  for (std::size_t c : n.children) t.children.push_back(to_tile(tiles, c));
-  return t;
+
+  io::Tile tile(std::size_t id, const std::string& prefix, std::size_t& left) {
+    const TileNode& n = tiles[id];
+    io::Tile t;
+    t.box = io::TileBox::from_bbox(n.box);
+    t.geometric_error = n.error;
+    if (!n.items.empty()) {
+      t.content_uri = prefix + n.name + ".glb";
+      t.content_box = io::TileBox::from_bbox(n.content_box);
+    }
+    left = left > 0 ? left - 1 : 0;
+    for (std::size_t c : n.children) {
+      if (size[c] <= left) {
+        t.children.push_back(tile(c, prefix, left));
+        continue;
+      }
+      io::Tile ref;
+      ref.box = io::TileBox::from_bbox(tiles[c].box);
+      ref.geometric_error = tiles[c].error;
+      ref.content_uri = prefix + tiles[c].name + ".json";
+      left = left > 0 ? left - 1 : 0;
+      std::size_t fresh = max_tiles;
+      io::Tileset ext;
+      ext.geometric_error = tiles[c].error;
+      ext.root = tile(c, "", fresh);
+      ext.root.refine = "REPLACE";
+      external.emplace_back(tiles[c].name + ".json", std::move(ext));
+      t.children.push_back(std::move(ref));
+    }
+    return t;
+  }
+};
+
+int tree_depth(const std::vector<TileNode>& tiles, std::size_t id) {
+  int d = 0;
+  for (std::size_t c : tiles[id].children) d = std::max(d, 1 + tree_depth(tiles, c));
+  return d;
 }
 
 /// Replaces `out` by the staged directory. Refuses to delete a directory that
@@ -468,6 +545,9 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
     gopt.attributes = io::glb_attribute_schema(attrs);
   }
   gopt.compression = params.compression;
+  // One schema for every glb (tiles/ and buildings/ are one level below it).
+  gopt.schema_uri = "../schema.json";
+  io::atomic_write_file((stage / "schema.json").string(), io::glb_schema(gopt) + "\n");
 
   std::vector<std::size_t> glb_size(tiles.size(), 0);
   std::vector<std::string> write_errors(tiles.size());
@@ -583,14 +663,19 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   io::atomic_write_file((stage / "buildings.json").string(), index.dump(1) + "\n");
 
   io::Tileset ts;
-  ts.root = to_tile(tiles, 0);
+  TilesetWriter tw(tiles, params.max_tiles_per_file);
+  std::size_t budget = params.max_tiles_per_file;
+  ts.root = tw.tile(0, "tiles/", budget);
+  for (const auto& [name, ext] : tw.external)
+    io::write_tileset((stage / "tiles" / name).string(), ext);
+  st.tileset_files = 1 + tw.external.size();
   ts.root.refine = "REPLACE";
   ts.root.transform = root_transform;
   ts.geometric_error = std::max(tree.tileset_error, tiles[0].error);
   ts.extras = {{"citylod", {{"buildings", "buildings.json"}, {"crs", sc.crs}}}};
   io::write_tileset((stage / "tileset.json").string(), ts);  // last file of the stage
-  st.tiles = io::tile_count(ts.root);
-  st.depth = io::tile_depth(ts.root);
+  st.tiles = tiles.size();
+  st.depth = tree_depth(tiles, 0);
   st.root_error_m = tiles[0].error;
 
   // ---- 4. switch the staged directory in: fsync'd, then one atomic exchange

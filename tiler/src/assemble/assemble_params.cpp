@@ -13,6 +13,9 @@ void AssembleParams::validate() const {
   if (max_tile_bytes < 1024) throw std::invalid_argument("max_tile_bytes must be >= 1024");
   if (!(tile_extent_factor >= 0) || !std::isfinite(tile_extent_factor))
     throw std::invalid_argument("tile_extent_factor must be >= 0");
+  if (!(min_tile_extent_m >= 0) || !std::isfinite(min_tile_extent_m))
+    throw std::invalid_argument("min_tile_extent_m must be >= 0");
+  if (max_tiles_per_file < 1) throw std::invalid_argument("max_tiles_per_file must be >= 1");
   if (!(min_change_m >= 0) || !std::isfinite(min_change_m))
     throw std::invalid_argument("min_change_m must be >= 0");
   if (!(hausdorff_tolerance_m > 0) || !std::isfinite(hausdorff_tolerance_m))

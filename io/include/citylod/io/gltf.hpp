@@ -59,15 +59,23 @@ struct GlbAttribute {
   std::string name;      ///< key in GlbFeature::attributes; the property's "name"
   std::string property;  ///< property id: "fp_" + name made [A-Za-z0-9_], unique
   Type type = Type::string;
-  /// Some value is missing/null: FLOAT64 declares noData = lowest double, STRING "".
+  /// Some value is missing/null: FLOAT64 declares noData = lowest double, STRING
+  /// the one-character string NUL ("\u0000").
   bool no_data = false;
+  /// A STRING attribute with at most 255 distinct values (a missing one counts
+  /// as the noData value NUL) and at most 3 per 4 objects (e.g. a constant
+  /// source or status field): written as an ENUM (UINT8, enum id = `property`)
+  /// of these values, sorted; a client reads back the same strings, one byte
+  /// per feature.
+  std::vector<std::string> enum_values;
 };
 
 /// The attributes of many features as typed properties, sorted by name: all
 /// integers -> INT64 (FLOAT64 when some are missing and |v| <= 2^53, else
 /// STRING); numbers -> FLOAT64; all booleans, none missing -> BOOLEAN; anything
 /// else (strings, mixed types, booleans with gaps, all null) -> STRING (numbers and
-/// booleans as JSON text). Deterministic for the same set of objects.
+/// booleans as JSON text; few distinct strings: `enum_values`). Deterministic
+/// for the same set of objects.
 std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann::json*>& objects);
 
 /// Geometry compression of the glb.
@@ -92,7 +100,14 @@ struct GlbOptions {
   std::string generator = "citylod";
   /// Extra properties of the "building" class, from GlbFeature::attributes.
   std::vector<GlbAttribute> attributes;
+  /// Non-empty: EXT_structural_metadata refers to the schema by this URI
+  /// (relative to the glb; write glb_schema() there) instead of embedding it,
+  /// so the tiles of a tileset share one copy.
+  std::string schema_uri;
 };
+
+/// The EXT_structural_metadata schema (JSON text) of glbs written with `options`.
+std::string glb_schema(const GlbOptions& options);
 
 /// Surface class of a triangle, from its outward normal: roof (facing up, slope
 /// below ~70 degrees), base (facing down), wall (everything else).

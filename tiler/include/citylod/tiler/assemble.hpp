@@ -37,6 +37,20 @@ struct AssembleParams {
   /// tile (a tile is loaded from roughly 40 e away at the default SSE of 16).
   /// 0 = no extent limit (only the budgets split).
   double tile_extent_factor = 50;
+  /// ... but never less than this many metres: where errors are small (the
+  /// last refinements, the leaves) a tile gathers the buildings of a block of
+  /// about this size instead of one or two (0 = factor only).
+  double min_tile_extent_m = 0;
+  /// A tileset JSON file holds at most about this many tiles: larger subtrees
+  /// go to external tilesets (tiles/<name>.json), so that no file of a city's
+  /// tileset grows beyond a few MB (about 1.5 kB per tile: 10,017 buildings in
+  /// 2687 tiles made a 4.0 MB tileset.json).
+  std::size_t max_tiles_per_file = 1000;
+  /// Buildings that reach their finest model go to leaf tiles of their own
+  /// (stored once) when their models total at least this many geometry bytes;
+  /// a smaller group stays with the refining buildings and is repeated down
+  /// the chain: a separate leaf costs a request and ~6 kB of glb JSON.
+  std::size_t min_leaf_bytes = 64u << 10;
   /// An interpolation model is kept only if its Hausdorff distance to the
   /// previous kept model and to the next anchor are both >= this, and it is
   /// this much closer to the finest model than the previous kept one (metres).
@@ -62,6 +76,7 @@ struct AssembleStats {
   std::size_t models_kept = 0;
   std::size_t tiles = 0;          ///< tiles in tileset.json (root included)
   std::size_t content_tiles = 0;  ///< tiles with a glb
+  std::size_t tileset_files = 0;  ///< tileset.json + external tilesets (tiles/*.json)
   int depth = 0;                  ///< deepest tile (root = 0)
   std::size_t glb_bytes = 0;      ///< sum over tiles/*.glb
   std::size_t max_glb_bytes = 0;
