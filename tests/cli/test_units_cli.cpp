@@ -73,8 +73,7 @@ TEST(CrsUnits, ACrsAgainstTheFileRecordInAnotherUnitIsRefused) {
   EXPECT_NE(bad.code, -1) << "a signal: " << bad.out;
   const std::string line = error_line(bad);
   EXPECT_NE(line.find("rec.las"), std::string::npos) << bad.out;
-  EXPECT_NE(line.find("is in metre but --crs EPSG:2992 is in foot"), std::string::npos)
-      << bad.out;
+  EXPECT_NE(line.find("is in metre but --crs EPSG:2992 is in foot"), std::string::npos) << bad.out;
   // the record alone, or a --crs in the record's unit: fine
   EXPECT_EQ(run("split " + q(d / "rec.las") + " --out " + q(d / "b")).code, 0);
   EXPECT_EQ(run("split " + q(d / "rec.las") + " --crs EPSG:2991 --out " + q(d / "c")).code, 0);
