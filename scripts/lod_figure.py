@@ -141,8 +141,9 @@ def main():
         out.append(f"set object {obj[0]} rect from {ox + 3},{oy + 3} to {ox + pw - 3},{oy + ph - 3} "
                    f'back fillstyle empty border lc rgb "{frame}" lw 2')
         e2 = m.get("e2", -1)
-        label(ox + 8, oy + ph - 14, f'#{m["step"]} {m["kind"]} L{m["level"]}, '
-              f'{m["polygons"]} polygons, e2 {e2:.3f} %', 10)
+        kind = "anchor" if anchor else "interp."
+        label(ox + 8, oy + ph - 14, f'#{m["step"]} {kind} L{m["level"]}, {m["polygons"]} pol., '
+              f'e2 {e2:.3f} %', 9)
     out.append("plot NaN notitle")
     with tempfile.NamedTemporaryFile("w", suffix=".gp", delete=False) as t:
         t.write("\n".join(out) + "\n")

@@ -72,9 +72,9 @@ class Progress {
   void* user_;
 };
 
-/// The BSP's box and its first cuts. The paper partitions "the slightly
-/// enlarged bounding box" of the data; the pad only keeps the box faces off the
-/// outermost primitives. (ours) The six planes of the data's bounding box,
+/// The BSP's box and its first cuts. The paper partitions "the bounding box
+/// of the model"; (ours) the box is padded (bsp.bbox_enlarge) only to keep its
+/// faces off the outermost primitives. (ours) The six planes of the data's bounding box,
 /// kDataBoxMargin outside it, are the first cuts, so that no cell straddles
 /// the data's bounds, and the leaves beyond them are out at every level
 /// (clear_pad_leaves): nothing is there to model. With cells straddling the
