@@ -100,8 +100,7 @@ TEST(LevelSets, ThreeScalesGiveThreeLevelSetsLargestFirst) {
   // the same volumes in litres: the same level sets (the factor has no unit)
   Toy litres = t;
   for (auto& s : litres.view.structures) s.volume *= 1000;
-  EXPECT_EQ(levels(group_structures(litres.view, litres.prims, ClusterParams{}), 5),
-            levels(g, 5));
+  EXPECT_EQ(levels(group_structures(litres.view, litres.prims, ClusterParams{}), 5), levels(g, 5));
 }
 
 TEST(LevelSets, ParamsCheckTheScale) {
