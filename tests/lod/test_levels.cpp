@@ -105,7 +105,7 @@ TEST(LevelSets, ThreeScalesGiveThreeLevelSetsLargestFirst) {
 
 TEST(LevelSets, ParamsCheckTheScale) {
   LodParams p;
-  EXPECT_EQ(p.cluster.volume_scale, "ratio");
+  EXPECT_EQ(p.cluster.volume_scale, "auto");
   p.set("cluster.volume_scale", "m3");
   EXPECT_NO_THROW(p.validate());
   p.set("cluster.volume_scale", "log");
