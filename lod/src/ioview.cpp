@@ -201,38 +201,53 @@ void merge_regions(const Bsp& bsp, const std::vector<BspInterface>& interfaces, 
   }
 }
 
-/// Principal primitives: those separating the core interior from the core
-/// exterior. Returns each region's contact area per primitive.
-std::vector<std::map<int, double>> find_principal(const std::vector<BspInterface>& interfaces,
-                                                  const std::vector<int>& owner,
-                                                  const std::map<int, int>& index_of,
-                                                  size_t num_prims, const IoViewParams& p,
-                                                  IoView& v) {
+/// Each region's contact area per primitive: `plane` = the area of its
+/// boundary faces on the primitive's plane, `covered` = the part of it the
+/// primitive's alpha-shape covers.
+struct Contacts {
+  std::vector<std::map<int, double>> plane, covered;
+};
+
+/// Principal primitives: those whose alpha-shapes separate the core interior
+/// from the core exterior over at least `min_principal_area`.
+Contacts find_principal(const std::vector<BspInterface>& interfaces, const Owners& o,
+                        const std::map<int, int>& index_of, size_t num_prims, const IoViewParams& p,
+                        IoView& v) {
   std::vector<double> principal_area(num_prims, 0.0);
-  // contact[region] : primitive -> boundary area
-  std::vector<std::map<int, double>> contact(v.regions.size());
+  Contacts c;
+  c.plane.resize(v.regions.size());
+  c.covered.resize(v.regions.size());
   for (size_t k = 0; k < interfaces.size(); ++k) {
     const auto& f = interfaces[k];
-    if (owner[k] < 0) continue;
+    const int pi = o.owner[k];
+    if (pi < 0) continue;
     const int ra = v.leaf_region[size_t(index_of.at(f.a))];
     const int rb = v.leaf_region[size_t(index_of.at(f.b))];
     if (ra == rb) continue;
+    // The part of the face the primitive's alpha-shape covers (the sampled
+    // coverage estimates it): the paper's "alpha-shapes that separate V_in and
+    // V_out" (ioview.covered_only); else the whole face on its plane.
+    const double covered = f.area * o.cov[k];
     if ((ra == v.core_in && rb == v.core_out) || (ra == v.core_out && rb == v.core_in))
-      principal_area[size_t(owner[k])] += f.area;
-    contact[size_t(ra)][owner[k]] += f.area;
-    contact[size_t(rb)][owner[k]] += f.area;
+      principal_area[size_t(pi)] += p.covered_only ? covered : f.area;
+    c.plane[size_t(ra)][pi] += f.area;
+    c.plane[size_t(rb)][pi] += f.area;
+    c.covered[size_t(ra)][pi] += covered;
+    c.covered[size_t(rb)][pi] += covered;
   }
   v.principal.assign(num_prims, 0);
   for (size_t i = 0; i < num_prims; ++i)
     v.principal[i] = principal_area[i] >= p.min_principal_area ? 1 : 0;
-  return contact;
+  return c;
 }
 
 /// Secondary structures: the regions other than the cores, each with its host
-/// (the principal primitive of largest contact) and the secondary primitives
+/// (the principal primitive whose alpha-shape covers the largest part of its
+/// boundary) and the secondary primitives
 /// that bound it the most.
-void find_structures(const Bsp& bsp, const std::vector<std::map<int, double>>& contact,
-                     size_t num_prims, IoView& v) {
+void find_structures(const Bsp& bsp, const Contacts& contacts, size_t num_prims,
+                     const IoViewParams& p, IoView& v) {
+  const std::vector<std::map<int, double>>& contact = contacts.plane;
   v.primitive_structure.assign(num_prims, -1);
   std::vector<double> best_contact(num_prims, 0.0);
   std::vector<int> structure_of_region(v.regions.size(), -1);
@@ -244,7 +259,7 @@ void find_structures(const Bsp& bsp, const std::vector<std::map<int, double>>& c
     s.addon = reg.inside;
     s.volume = reg.volume;
     double host_area = 0.0;
-    for (const auto& [pi, area] : contact[r]) {
+    for (const auto& [pi, area] : (p.covered_only ? contacts.covered : contacts.plane)[r]) {
       if (v.principal[size_t(pi)]) {
         if (area > host_area) {
           host_area = area;
@@ -316,8 +331,8 @@ IoView analyse_io_view(const Bsp& bsp, const std::vector<Primitive>& prims,
   const auto interfaces = bsp.adjacency(v.leaves);
   const Owners o = interface_owners(bsp, prims, primitive_plane, interfaces);
   merge_regions(bsp, interfaces, o, index_of, p, v);
-  const auto contact = find_principal(interfaces, o.owner, index_of, prims.size(), p, v);
-  find_structures(bsp, contact, prims.size(), v);
+  const Contacts contacts = find_principal(interfaces, o, index_of, prims.size(), p, v);
+  find_structures(bsp, contacts, prims.size(), p, v);
   return v;
 }
 

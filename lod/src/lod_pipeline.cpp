@@ -72,9 +72,9 @@ class Progress {
   void* user_;
 };
 
-/// The BSP's box and its first cuts. The paper partitions "the slightly
-/// enlarged bounding box" of the data; the pad only keeps the box faces off the
-/// outermost primitives. (ours) The six planes of the data's bounding box,
+/// The BSP's box and its first cuts. The paper partitions "the bounding box
+/// of the model"; (ours) the box is padded (bsp.bbox_enlarge) only to keep its
+/// faces off the outermost primitives. (ours) The six planes of the data's bounding box,
 /// kDataBoxMargin outside it, are the first cuts, so that no cell straddles
 /// the data's bounds, and the leaves beyond them are out at every level
 /// (clear_pad_leaves): nothing is there to model. With cells straddling the
@@ -415,7 +415,9 @@ SortStep sort_step(const Samples& samples, Planes& planes, IoViewStep& io, const
   auto& st = R.stats;
   std::vector<Primitive>& prims = planes.prims;
   IoView& view = io.view;
-  Grouping grouping = group_structures(view, prims, P.cluster);
+  ClusterParams cluster = P.cluster;
+  if (cluster.volume_scale == "auto") cluster.volume_scale = planes.heights ? "m3" : "ratio";
+  Grouping grouping = group_structures(view, prims, cluster);
   if (P.regularization.enabled) {
     std::vector<int> principal;
     for (size_t i = 0; i < prims.size(); ++i)

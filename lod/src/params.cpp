@@ -97,8 +97,10 @@ void visit(P& p, F&& f) {
   f("labels.origins_per_cell", p.labels.origins_per_cell);
   f("ioview.separation_coverage", p.ioview.separation_coverage);
   f("ioview.min_principal_area", p.ioview.min_principal_area);
+  f("ioview.covered_only", p.ioview.covered_only);
   f("cluster.area_bandwidth", p.cluster.area_bandwidth);
   f("cluster.volume_bandwidth", p.cluster.volume_bandwidth);
+  f("cluster.volume_scale", p.cluster.volume_scale);
   f("regularization.enabled", p.regularization.enabled);
   f("regularization.principal_angle_deg", p.regularization.principal_angle_deg);
   f("regularization.principal_distance", p.regularization.principal_distance);
@@ -167,6 +169,11 @@ void LodParams::validate() const {
         "ioview.min_principal_area", "must be >= 0");
   check(pos(cluster.area_bandwidth), "cluster.area_bandwidth", "must be > 0");
   check(pos(cluster.volume_bandwidth), "cluster.volume_bandwidth", "must be > 0");
+  check(cluster.volume_scale == "auto" || cluster.volume_scale == "ratio" ||
+            cluster.volume_scale == "m3",
+        "cluster.volume_scale", "must be auto, ratio or m3");
+  check(cluster.volume_scale == "m3" || cluster.volume_bandwidth > 1.0, "cluster.volume_bandwidth",
+        "must be > 1 (a factor) with cluster.volume_scale = ratio");
   check(angle(regularization.principal_angle_deg), "regularization.principal_angle_deg",
         "must be in (0, 90]");
   check(std::isfinite(regularization.principal_distance) && regularization.principal_distance >= 0,

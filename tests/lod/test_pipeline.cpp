@@ -63,7 +63,7 @@ TEST(LodPipeline, ChimneyAndWindowsAreSecondary) {
   EXPECT_EQ(r.stats.principal, 6);
   EXPECT_EQ(r.stats.add_ons, 1);
   EXPECT_EQ(r.stats.cut_outs, 4);
-  // chimney (2 m^3) and windows (0.54 m^3) are within the 4 m^3 bandwidth: one level set
+  // chimney (2 m^3) and windows (0.54 m^3) are within a factor 4 (ln 4 on ln V): one level set
   EXPECT_EQ(r.stats.level_sets, 1);
   EXPECT_GE(count(r, ModelKind::Anchor), 2);
   const LodModel* coarse = first_anchor(r);

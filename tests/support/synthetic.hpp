@@ -379,4 +379,46 @@ inline SynthBuilding gable_dormer(const SynthOptions& o = {}, bool mesh = false)
   return finish(std::move(f), vol, 11, o, mesh);
 }
 
+/// Flat-roof house 14 x 10 x 6 m with two dormers (roof boxes 2.5 x 1.6 x
+/// 1.2 m = 4.8 m^3 at x 2..4.5 and 7..9.5, y 6..7.6), a chimney 0.8 x 0.8 x
+/// 1.5 m = 0.96 m^3 (x 11..11.8, y 2..2.8) and 4 recessed windows 1.2 x 1.5 m,
+/// 0.3 m deep (0.54 m^3) in the wall y = 0 (x = 1.5 + 3k, z 2..3.5). Planes:
+/// 6 + 2 x 5 + 5 + 4 x 5 = 41.
+struct DormerHouseSpec {
+  static constexpr double L = 14, W = 10, H = 6;
+  static constexpr double dx0[2] = {2, 7}, dw = 2.5, dy0 = 6, dd = 1.6, dh = 1.2;
+  static constexpr double cx0 = 11, cy0 = 2, cs = 0.8, ch = 1.5;
+  static constexpr double win_w = 1.2, win_h = 1.5, win_z = 2.0, depth = 0.3;
+  static constexpr int windows = 4;
+  static double win_x(int k) { return 1.5 + 3.0 * k; }
+};
+inline SynthBuilding dormer_house(const SynthOptions& o = {}, bool mesh = false) {
+  using S = DormerHouseSpec;
+  const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY(), Z = Vec3::UnitZ();
+  std::vector<Face> f;
+  add_box(f, Vec3(0, 0, 0), Vec3(S::L, S::W, S::H), 4 | 32);  // without front wall and roof
+  std::vector<std::array<double, 4>> holes;
+  for (int k = 0; k < S::windows; ++k)
+    holes.push_back({S::win_x(k), S::win_x(k) + S::win_w, S::win_z, S::win_z + S::win_h});
+  add_rect(f, Vec3(0, 0, 0), X, S::L, Z, S::H, holes);  // front wall (normal -y)
+  for (int k = 0; k < S::windows; ++k) {
+    const double a = S::win_x(k), b = a + S::win_w, c = S::win_z, d = c + S::win_h, dp = S::depth;
+    add_rect(f, Vec3(a, dp, c), X, S::win_w, Z, S::win_h);  // back, -y
+    add_rect(f, Vec3(a, 0, c), Y, dp, Z, S::win_h);         // side x=a, +x
+    add_rect(f, Vec3(b, 0, c), Z, S::win_h, Y, dp);         // side x=b, -x
+    add_rect(f, Vec3(a, 0, c), X, S::win_w, Y, dp);         // sill z=c, +z
+    add_rect(f, Vec3(a, 0, d), Y, dp, X, S::win_w);         // lintel z=d, -z
+  }
+  add_rect(f, Vec3(0, 0, S::H), X, S::L, Y, S::W,
+           {{S::dx0[0], S::dx0[0] + S::dw, S::dy0, S::dy0 + S::dd},
+            {S::dx0[1], S::dx0[1] + S::dw, S::dy0, S::dy0 + S::dd},
+            {S::cx0, S::cx0 + S::cs, S::cy0, S::cy0 + S::cs}});  // roof with holes
+  for (double x0 : S::dx0)
+    add_box(f, Vec3(x0, S::dy0, S::H), Vec3(x0 + S::dw, S::dy0 + S::dd, S::H + S::dh), 16);
+  add_box(f, Vec3(S::cx0, S::cy0, S::H), Vec3(S::cx0 + S::cs, S::cy0 + S::cs, S::H + S::ch), 16);
+  const double vol = S::L * S::W * S::H + 2 * S::dw * S::dd * S::dh + S::cs * S::cs * S::ch -
+                     S::windows * S::win_w * S::win_h * S::depth;
+  return finish(std::move(f), vol, 6 + 2 * 5 + 5 + 5 * S::windows, o, mesh);
+}
+
 }  // namespace citylod::test
