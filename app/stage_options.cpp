@@ -3,15 +3,8 @@
 #include "stage_options.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
-#include <optional>
 #include <stdexcept>
-
-#include "citylod/geo/crs.hpp"
-#include "citylod/geo/units.hpp"
-#include "citylod/io/error.hpp"
-#include "citylod/io/reader.hpp"
 
 namespace citylod::app {
 
@@ -20,49 +13,6 @@ std::string num(double v) {
   char b[32];
   std::snprintf(b, sizeof b, "%g", v);
   return std::string(b);
-}
-double unit_metres(const std::string& name) {  // the LAS reader's GeoTIFF unit names
-  if (name == "metre") return 1.0;
-  if (name == "foot") return 0.3048;
-  if (name == "US survey foot") return 1200.0 / 3937.0;
-  return 0;
-}
-
-/// --crs against the CRS record of each LAS/LAZ input: a unit mismatch (a feet --crs on a
-/// file whose record says metres, or the reverse) is refused naming the file. Files that cannot
-/// be read or CRSes that do not parse are left to split, which reports them.
-void check_crs_against_files(const SplitOptions& o) {
-  if (o.crs.empty() || !o.origin.empty()) return;
-  std::optional<geo::Crs> declared;
-  try {
-    declared.emplace(geo::Crs::parse(o.crs));
-  } catch (const std::exception&) {
-    return;
-  }
-  for (const auto& path : o.inputs) {
-    const std::string ext = io::extension_of(path);
-    if (ext != "las" && ext != "laz") continue;
-    io::FileInfo info;
-    try {
-      info = io::read_header(path);
-    } catch (const std::exception&) {
-      continue;
-    }
-    double unit_m = info.linear_unit_m;
-    if (unit_m <= 0 && info.epsg) {
-      try {
-        const geo::Crs c = geo::Crs::parse("EPSG:" + std::to_string(info.epsg));
-        if (c.is_projected()) unit_m = c.horizontal_unit().to_si;
-      } catch (const std::exception&) {
-      }
-    }
-    const std::string name = !info.crs_name.empty() ? info.crs_name
-                             : info.epsg            ? "EPSG:" + std::to_string(info.epsg)
-                                                    : std::string();
-    const std::string conflict =
-        geo::declared_unit_conflict(*declared, name, unit_m, unit_metres(info.vertical_unit));
-    if (!conflict.empty()) throw io::IoError(path, conflict);
-  }
 }
 }  // namespace
 
@@ -143,7 +93,6 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
           "--cell-size must be at least 10 m (the size split's automatic reduction stops at)");
     o.validate();
   });
-  check_crs_against_files(o);
   return o;
 }
 

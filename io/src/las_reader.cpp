@@ -367,7 +367,10 @@ class LasReader final : public LasRecordReader {
       info_.linear_unit_m = w.unit_m;
     }
     u = unit_name(vertical_units_, &m);
-    if (*u) info_.vertical_unit = u;
+    if (*u) {
+      info_.vertical_unit = u;
+      info_.vertical_unit_m = m;
+    }
     if (info_.crs_name.empty() && !citation_.empty()) {
       std::string c = citation_;
       auto bar = c.find('|');

@@ -620,6 +620,25 @@ void read_sidecars(InputInfo& in, std::set<std::string>& used) {
   }
 }
 
+/// --crs against the CRS record of a LAS/LAZ file: a unit mismatch (a feet --crs on a
+/// file whose record says metres, or the reverse), as geo::declared_unit_conflict words
+/// it; "" when they agree or the file says nothing.
+std::string unit_conflict(const geo::Crs& declared, const io::FileInfo& info) {
+  if (info.format != io::Format::las && info.format != io::Format::laz) return {};
+  double unit_m = info.linear_unit_m;
+  if (unit_m <= 0 && info.epsg) {
+    try {
+      const geo::Crs c = geo::Crs::parse("EPSG:" + std::to_string(info.epsg));
+      if (c.is_projected()) unit_m = c.horizontal_unit().to_si;
+    } catch (const std::exception&) {
+    }
+  }
+  const std::string name = !info.crs_name.empty() ? info.crs_name
+                           : info.epsg            ? "EPSG:" + std::to_string(info.epsg)
+                                                  : std::string();
+  return geo::declared_unit_conflict(declared, name, unit_m, info.vertical_unit_m);
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
   const auto mid = v.begin() + static_cast<long>(v.size() / 2);
@@ -798,6 +817,11 @@ void Splitter::georeference() {
     }
     crs_.emplace(geo::Crs::parse(crs_spec_));
     crs_->require_projected("to split a scene");
+    if (!opt_.crs.empty())
+      for (const auto& in : inputs_) {
+        const std::string conflict = unit_conflict(*crs_, in.info);
+        if (!conflict.empty()) throw IoError(in.path, conflict);
+      }
     if (opt_.geoid == "egm96") {  // the explicit model wins over the CRS's (implied) datum
       geo::TransformOptions to;
       to.height = geo::HeightMode::Egm96;

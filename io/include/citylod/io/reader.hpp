@@ -72,10 +72,11 @@ struct FileInfo {
   std::string crs_wkt;   ///< OGC WKT (record 2112), verbatim
   std::string crs_name;  ///< PROJCS/GEOGCS name from WKT, or GeoTIFF citation
   int epsg = 0;  ///< from GeoTIFF keys (3072 projected, else 2048 geographic) or WKT AUTHORITY
-  int vertical_epsg = 0;      ///< GeoTIFF VerticalCSTypeGeoKey 4096
-  std::string linear_unit;    ///< "metre", "foot", "US survey foot", ... ("" = unknown)
-  double linear_unit_m = 0;   ///< metres per unit (0 = unknown)
-  std::string vertical_unit;  ///< GeoTIFF VerticalUnitsGeoKey 4099
+  int vertical_epsg = 0;       ///< GeoTIFF VerticalCSTypeGeoKey 4096
+  std::string linear_unit;     ///< "metre", "foot", "US survey foot", ... ("" = unknown)
+  double linear_unit_m = 0;    ///< metres per unit (0 = unknown)
+  std::string vertical_unit;   ///< GeoTIFF VerticalUnitsGeoKey 4099
+  double vertical_unit_m = 0;  ///< metres per vertical unit (0 = unknown)
   bool has_crs() const { return !crs_wkt.empty() || epsg != 0 || !crs_name.empty(); }
 };
 
