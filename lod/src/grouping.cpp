@@ -100,7 +100,7 @@ Grouping group_structures(const IoView& view, const std::vector<Primitive>& prim
   // with bandwidth ln 4), so that the level sets do not depend on the unit
   // and a window (0.5 m^3) and a dormer (10 m^3) are not one mode.
   double bandwidth = p.volume_bandwidth;
-  if (p.volume_scale != "m3") {  // ratio (auto is resolved by the pipeline)
+  if (p.volume_scale != "m3") {  // ratio
     for (double& v : vols) v = std::log(std::max(v, kMinClusterVolume));
     bandwidth = std::log(p.volume_bandwidth);
   }

@@ -415,9 +415,7 @@ SortStep sort_step(const Samples& samples, Planes& planes, IoViewStep& io, const
   auto& st = R.stats;
   std::vector<Primitive>& prims = planes.prims;
   IoView& view = io.view;
-  ClusterParams cluster = P.cluster;
-  if (cluster.volume_scale == "auto") cluster.volume_scale = planes.heights ? "m3" : "ratio";
-  Grouping grouping = group_structures(view, prims, cluster);
+  Grouping grouping = group_structures(view, prims, P.cluster);
   if (P.regularization.enabled) {
     std::vector<int> principal;
     for (size_t i = 0; i < prims.size(); ++i)

@@ -169,9 +169,8 @@ void LodParams::validate() const {
         "ioview.min_principal_area", "must be >= 0");
   check(pos(cluster.area_bandwidth), "cluster.area_bandwidth", "must be > 0");
   check(pos(cluster.volume_bandwidth), "cluster.volume_bandwidth", "must be > 0");
-  check(cluster.volume_scale == "auto" || cluster.volume_scale == "ratio" ||
-            cluster.volume_scale == "m3",
-        "cluster.volume_scale", "must be auto, ratio or m3");
+  check(cluster.volume_scale == "ratio" || cluster.volume_scale == "m3", "cluster.volume_scale",
+        "must be ratio or m3");
   check(cluster.volume_scale == "m3" || cluster.volume_bandwidth > 1.0, "cluster.volume_bandwidth",
         "must be > 1 (a factor) with cluster.volume_scale = ratio");
   check(angle(regularization.principal_angle_deg), "regularization.principal_angle_deg",

@@ -105,9 +105,11 @@ TEST(LevelSets, ThreeScalesGiveThreeLevelSetsLargestFirst) {
 
 TEST(LevelSets, ParamsCheckTheScale) {
   LodParams p;
-  EXPECT_EQ(p.cluster.volume_scale, "auto");
+  EXPECT_EQ(p.cluster.volume_scale, "ratio");
   p.set("cluster.volume_scale", "m3");
   EXPECT_NO_THROW(p.validate());
+  p.set("cluster.volume_scale", "auto");
+  EXPECT_THROW(p.validate(), std::invalid_argument);
   p.set("cluster.volume_scale", "log");
   EXPECT_THROW(p.validate(), std::invalid_argument);
   p.set("cluster.volume_scale", "ratio");

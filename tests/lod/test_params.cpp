@@ -15,8 +15,8 @@ TEST(LodParams, DefaultsAreThePapers) {
   EXPECT_DOUBLE_EQ(p.alpha.alpha, 7.0);
   EXPECT_DOUBLE_EQ(p.cluster.area_bandwidth, 2.0);
   EXPECT_DOUBLE_EQ(p.cluster.volume_bandwidth, 4.0);
-  EXPECT_EQ(p.cluster.volume_scale, "auto");  // ours: the paper gives no unit (a factor)
-  EXPECT_FALSE(p.ioview.covered_only);        // ours: the paper's rule fails cgal's e2 target
+  EXPECT_EQ(p.cluster.volume_scale, "ratio");  // ours: the paper gives no unit (a factor)
+  EXPECT_FALSE(p.ioview.covered_only);         // ours: the paper's rule fails cgal's e2 target
   EXPECT_DOUBLE_EQ(p.regularization.principal_angle_deg, 5.0);
   EXPECT_DOUBLE_EQ(p.regularization.principal_distance, 0.01);
   EXPECT_DOUBLE_EQ(p.regularization.secondary_angle_deg, 15.0);

@@ -61,9 +61,7 @@ struct ClusterParams {
   /// mean shift on ln V with bandwidth ln 4 (mean volumes within a factor ~4
   /// share a level set); "m3": the literal reading, bandwidth 4 m^3 on V.
   double volume_bandwidth = 4.0;
-  /// auto: ratio, but m3 on airborne LiDAR (whose chain and tiling the
-  /// ratio reading changed: city tilesets lost buildings at their deepest level)
-  std::string volume_scale = "auto";  ///< auto | ratio | m3
+  std::string volume_scale = "ratio";  ///< ratio | m3
 };
 
 /// Adaptive regularization (Section 4.1).
