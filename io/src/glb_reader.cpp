@@ -488,7 +488,8 @@ tinygltf::Value to_value(const nlohmann::json& j) {
   }
   if (j.is_string()) return tinygltf::Value(j.get<std::string>());
   if (j.is_boolean()) return tinygltf::Value(j.get<bool>());
-  if (j.is_number_integer() && j.get<double>() == double(int(j.get<double>())))
+  if (j.is_number_integer() && j.get<double>() >= std::numeric_limits<int>::min() &&
+      j.get<double>() <= std::numeric_limits<int>::max())
     return tinygltf::Value(j.get<int>());
   if (j.is_number()) return tinygltf::Value(j.get<double>());
   return tinygltf::Value();

@@ -278,6 +278,12 @@ std::string finish_glb(const std::string& glb, const std::vector<BinWriter::Mesh
   return out;
 }
 
+/// A STRING attribute's text: strings as they are, other JSON values as JSON
+/// text, a missing one (nullptr) as the noData string NUL (see schema_json).
+std::string attribute_text(const nlohmann::json* v) {
+  return !v ? std::string(1, '\0') : v->is_string() ? v->get<std::string>() : v->dump();
+}
+
 /// The EXT_structural_metadata schema: class "building" (our properties and the
 /// source attributes) and enum LodKind. Keys sorted (nlohmann::json).
 nlohmann::json schema_json(const std::vector<GlbAttribute>& attributes) {
@@ -424,9 +430,7 @@ std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann:
           const auto it = o->find(name);
           if (it != o->end() && !it->is_null()) v = &*it;
         }
-        distinct.insert(!v               ? std::string(1, '\0')
-                        : v->is_string() ? v->get<std::string>()
-                                         : v->dump());
+        distinct.insert(attribute_text(v));
         if (distinct.size() > 255) break;
       }
       if (distinct.size() <= 255 &&
@@ -470,6 +474,7 @@ GlbMeshSize glb_mesh_size(const TriangleMesh& mesh, bool quantize) {
   s.triangles = f.triangles;
   // Indices counted as 4 bytes (uint16 when a node stays below 65536 vertices).
   s.bytes = s.vertices * vertex_bytes(quantize) + s.triangles * 12;
+  s.float_bytes = s.vertices * vertex_bytes(false) + s.triangles * 12;
   return s;
 }
 
@@ -1009,10 +1014,7 @@ std::string GlbBuilder::glb() const {
         if (!a.enum_values.empty()) {  // ENUM (UINT8): the index of the value
           std::vector<std::uint8_t> v;
           for (const auto& f : im.features) {
-            const nlohmann::json* j = value_of(f);
-            const std::string text = !j               ? std::string(1, '\0')
-                                     : j->is_string() ? j->get<std::string>()
-                                                      : j->dump();
+            const std::string text = attribute_text(value_of(f));
             const auto it = std::lower_bound(a.enum_values.begin(), a.enum_values.end(), text);
             if (it == a.enum_values.end() || *it != text)
               throw IoError(kWhere, "attribute '" + a.name + "': value '" + text +
@@ -1025,11 +1027,7 @@ std::string GlbBuilder::glb() const {
         std::string chars;
         std::vector<std::uint32_t> offs{0};
         for (const auto& f : im.features) {
-          const nlohmann::json* j = value_of(f);
-          if (j)
-            chars += j->is_string() ? j->get<std::string>() : j->dump();
-          else
-            chars.push_back('\0');  // the noData string (see schema_json)
+          chars += attribute_text(value_of(f));
           offs.push_back(std::uint32_t(chars.size()));
         }
         string_column(a.property.c_str(), chars, offs);

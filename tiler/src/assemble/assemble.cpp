@@ -144,7 +144,7 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
         io::glb_mesh_size(mesh, p.quantize || p.compression == io::Compression::meshopt);
     km.triangles = s.triangles;
     km.bytes = s.bytes;
-    km.plain_bytes = io::glb_mesh_size(mesh, false).bytes;
+    km.plain_bytes = s.float_bytes;
     b.bbox.add(km.bbox);
     b.models.push_back(km);
   }

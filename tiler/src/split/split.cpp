@@ -214,62 +214,6 @@ static_assert(sizeof(SpillRec) == 48, "spill record layout");
 constexpr std::uint64_t kNoSrc = ~0ull;
 constexpr double kMeshSamplesPerM2 = 4.0;  ///< triangle samples per m^2 (plus each centroid)
 
-/// Grid of cells spilled to per-cell files. Points collect in one fixed buffer;
-/// when it is full it is sorted by cell and each run is appended to its cell's file.
-class Spiller {
- public:
-  Spiller(fs::path dir, double cell, std::size_t budget_records)
-      : dir_(std::move(dir)), cell_(cell), budget_(std::max<std::size_t>(budget_records, 4096)) {
-    buf_.reserve(budget_);
-  }
-
-  CellKey key(double x, double y) const {
-    return {static_cast<int>(std::floor(x / cell_)), static_cast<int>(std::floor(y / cell_))};
-  }
-  fs::path file(const CellKey& k) const {
-    return dir_ / (std::to_string(k.first) + "_" + std::to_string(k.second) + ".bin");
-  }
-  void add(const SpillRec& r) {
-    buf_.push_back(r);
-    if (buf_.size() >= budget_) flush();
-  }
-  void flush() {
-    std::sort(buf_.begin(), buf_.end(), [this](const SpillRec& a, const SpillRec& b) {
-      return key(a.x, a.y) < key(b.x, b.y);
-    });
-    for (std::size_t i = 0; i < buf_.size();) {
-      const CellKey k = key(buf_[i].x, buf_[i].y);
-      std::size_t j = i + 1;
-      while (j < buf_.size() && key(buf_[j].x, buf_[j].y) == k) ++j;
-      const fs::path p = file(k);
-      std::FILE* f = std::fopen(p.c_str(), "ab");
-      if (!f)
-        throw IoError(p.string(), std::string("cannot open spill file: ") + std::strerror(errno));
-      const std::size_t n = std::fwrite(buf_.data() + i, sizeof(SpillRec), j - i, f);
-      const bool ok = std::fclose(f) == 0 && n == j - i;
-      if (!ok)
-        throw IoError(p.string(), std::string("cannot write spill file: ") + std::strerror(errno));
-      counts_[k] += j - i;
-      bytes_ += (j - i) * sizeof(SpillRec);
-      i = j;
-    }
-    buf_.clear();
-  }
-  /// Frees the buffer (after the last flush).
-  void release() { std::vector<SpillRec>().swap(buf_); }
-  const std::map<CellKey, std::uint64_t>& counts() const { return counts_; }
-  std::uint64_t bytes() const { return bytes_; }
-  double cell() const { return cell_; }
-
- private:
-  fs::path dir_;
-  double cell_;
-  std::size_t budget_;
-  std::vector<SpillRec> buf_;
-  std::map<CellKey, std::uint64_t> counts_;
-  std::uint64_t bytes_ = 0;
-};
-
 // One spilled mesh triangle (mesh scenes): its corners in ENU with their attributes and
 // vertex ids, so that a region, and the chunk writer at the end, need no mesh in memory.
 struct FaceRec {
@@ -315,22 +259,23 @@ class CellFiles {
       std::size_t j = i;
       run.clear();
       while (j < buf_.size() && buf_[j].first == buf_[i].first) run.push_back(buf_[j++].second);
-      append(buf_[i].first, run);
+      append(buf_[i].first, run.data(), run.size());
       i = j;
     }
     std::vector<std::pair<CellKey, Rec>>().swap(buf_);
   }
-  void append(const CellKey& k, const std::vector<Rec>& recs) {
+  /// Appends `n` records to the cell's file (unbuffered).
+  void append(const CellKey& k, const Rec* recs, std::size_t n) {
     const fs::path p = file(k);
     std::FILE* f = std::fopen(p.c_str(), "ab");
     if (!f)
       throw IoError(p.string(), std::string("cannot open spill file: ") + std::strerror(errno));
-    const std::size_t n = std::fwrite(recs.data(), sizeof(Rec), recs.size(), f);
-    const bool ok = std::fclose(f) == 0 && n == recs.size();
+    const std::size_t wrote = std::fwrite(recs, sizeof(Rec), n, f);
+    const bool ok = std::fclose(f) == 0 && wrote == n;
     if (!ok)
       throw IoError(p.string(), std::string("cannot write spill file: ") + std::strerror(errno));
-    counts_[k] += recs.size();
-    bytes_ += recs.size() * sizeof(Rec);
+    counts_[k] += n;
+    bytes_ += n * sizeof(Rec);
   }
   /// Calls fn(record) for every record of a cell's file, read in blocks.
   template <class Fn>
@@ -373,6 +318,50 @@ class CellFiles {
   std::vector<std::pair<CellKey, Rec>> buf_;
   std::map<CellKey, std::uint64_t> counts_;
   std::uint64_t bytes_ = 0;
+};
+
+/// Grid of cells spilled to per-cell files (CellFiles without its buffer). Points
+/// collect in one fixed buffer; when it is full it is sorted by cell and each run is
+/// appended to its cell's file.
+class Spiller {
+ public:
+  Spiller(fs::path dir, double cell, std::size_t budget_records)
+      : files_(std::move(dir), "", 0),
+        cell_(cell),
+        budget_(std::max<std::size_t>(budget_records, 4096)) {
+    buf_.reserve(budget_);
+  }
+
+  CellKey key(double x, double y) const { return key_at(x, y, cell_); }
+  fs::path file(const CellKey& k) const { return files_.file(k); }
+  void add(const SpillRec& r) {
+    buf_.push_back(r);
+    if (buf_.size() >= budget_) flush();
+  }
+  void flush() {
+    std::sort(buf_.begin(), buf_.end(), [this](const SpillRec& a, const SpillRec& b) {
+      return key(a.x, a.y) < key(b.x, b.y);
+    });
+    for (std::size_t i = 0; i < buf_.size();) {
+      const CellKey k = key(buf_[i].x, buf_[i].y);
+      std::size_t j = i + 1;
+      while (j < buf_.size() && key(buf_[j].x, buf_[j].y) == k) ++j;
+      files_.append(k, buf_.data() + i, j - i);
+      i = j;
+    }
+    buf_.clear();
+  }
+  /// Frees the buffer (after the last flush).
+  void release() { std::vector<SpillRec>().swap(buf_); }
+  const std::map<CellKey, std::uint64_t>& counts() const { return files_.counts(); }
+  std::uint64_t bytes() const { return files_.bytes(); }
+  double cell() const { return cell_; }
+
+ private:
+  CellFiles<SpillRec> files_;
+  double cell_;
+  std::size_t budget_;
+  std::vector<SpillRec> buf_;
 };
 
 /// Points of a cell + halo, gathered from the spill files.
@@ -672,7 +661,7 @@ class Splitter {
                               std::map<std::size_t, std::vector<std::uint32_t>>& members) const;
   void process_cell_footprints(const Spiller& spill, const CellKey& key, double size,
                                const std::vector<std::size_t>& owned);
-  [[noreturn]] void region_too_large(const CellKey& key, double size, std::size_t n,
+  [[noreturn]] void region_too_large(const CellKey& key, double size,
                                      const std::string& what) const;
   void spill_faces(const io::TriangleMesh& mesh, std::size_t input);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
@@ -701,7 +690,6 @@ class Splitter {
   double cell_ = 100;
   std::size_t region_budget_points_ = 0;
 
-  std::vector<std::string> paths_;  // the inputs, folders expanded
   std::set<std::string> sidecars_;  // metadata.xml / .prj files used
   bool mesh_scene_ = false;
   std::unique_ptr<CellFiles<FaceRec>> faces_;    // mesh triangles by the cells they meet
@@ -724,20 +712,13 @@ class Splitter {
 
 // ---------------------------------------------------------------------- pass 1
 void Splitter::pass1_headers() {
-  std::set<std::string> used;
-  for (const auto& p : paths_) {
-    InputInfo in;
-    in.path = p;
-    in.abs = fs::absolute(p).lexically_normal().string();
-    in.info = io::read_header(p);
+  for (auto& in : inputs_) {  // paths, sidecars and offsets from run()
+    in.info = io::read_header(in.path);
     in.mesh = in.info.has_faces;
     // OBJ and text files have no header counts: their scan below decides
     if (in.info.point_count == 0 && in.info.format != io::Format::obj &&
         in.info.format != io::Format::xyz)
-      throw IoError(p, "no points (empty file)");
-    read_sidecars(in, used);
-    if (!opt_.offset.empty()) in.offset = *parse_triple(opt_.offset);
-    inputs_.push_back(std::move(in));
+      throw IoError(in.path, "no points (empty file)");
   }
   // Bounding boxes: the LAS header's, or streamed (also validates the file).
   const double n = static_cast<double>(inputs_.size());
@@ -775,6 +756,7 @@ void Splitter::pass1_headers() {
       std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return !i.mesh; });
   if (any_mesh && any_points)
     throw std::invalid_argument("mixing meshes and point clouds in one split is not supported");
+  mesh_scene_ = any_mesh;
 }
 
 // ---------------------------------------------------------------------- georeferencing
@@ -1026,7 +1008,6 @@ void Splitter::pass2_spill(Spiller& spill) {
       rep_.points += mesh.vertices.size();
       rep_.triangles += mesh.triangles.size();
       spill_faces(mesh, ii);
-      mesh_scene_ = true;
       stages_.report(a, b, 1.0, "ingest");
       continue;
     }
@@ -1105,10 +1086,9 @@ void Splitter::spill_faces(const io::TriangleMesh& mesh, std::size_t input) {
       x0 = std::min(x0, p[0]), x1 = std::max(x1, p[0]);
       y0 = std::min(y0, p[1]), y1 = std::max(y1, p[1]);
     }
-    const int i0 = int(std::floor(x0 / cell_)), i1 = int(std::floor(x1 / cell_));
-    const int j0 = int(std::floor(y0 / cell_)), j1 = int(std::floor(y1 / cell_));
-    for (int i = i0; i <= i1; ++i)
-      for (int j = j0; j <= j1; ++j) faces_->add({i, j}, f);
+    const CellKey lo = key_at(x0, y0, cell_), hi = key_at(x1, y1, cell_);
+    for (int i = lo.first; i <= hi.first; ++i)
+      for (int j = lo.second; j <= hi.second; ++j) faces_->add({i, j}, f);
   }
 }
 
@@ -1636,9 +1616,7 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
 
 // A region over the budget at the smallest cell: one line with the cell, the budget and
 // what helps.
-void Splitter::region_too_large(const CellKey& key, double size, std::size_t n,
-                                const std::string& what) const {
-  (void)n;
+void Splitter::region_too_large(const CellKey& key, double size, const std::string& what) const {
   throw IoError(opt_.work_dir,
                 "cell " + std::to_string(key.first) + "," + std::to_string(key.second) + " (" +
                     fmt("%.2f", size) + " m" + what + ", halo " + fmt("%.0f", opt_.halo) +
@@ -1680,7 +1658,7 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, d
       // Nothing of its own to process: skip. Else quarters, down to kMinSplitCell.
       RegionPoints own;
       if (load_region(spill, {cx0, cy0, cx1, cy1}, own, 0) == 0) return;
-      if (!(c > kMinSplitCell)) region_too_large(key, c, n, "");
+      if (!(c > kMinSplitCell)) region_too_large(key, c, "");
       if (c == cell_) ++subdivided_;
       for (int di = 0; di < 2; ++di)
         for (int dj = 0; dj < 2; ++dj)
@@ -1777,7 +1755,7 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   if (n > region_budget_points_) {
     // Quarters (the footprints by the quarter holding their centroid), down to kMinSplitCell.
     if (!(c > kMinSplitCell))
-      region_too_large(key, c, n,
+      region_too_large(key, c,
                        owned.size() == 1 ? " with footprint '" + fps_[owned[0]].id + "'" : "");
     if (c == cell_) ++subdivided_;
     std::map<CellKey, std::vector<std::size_t>> parts;
@@ -1994,13 +1972,15 @@ SplitReport Splitter::run() {
   // Up to date? Compare inputs (absolute paths), their sizes/mtimes and the options.
   std::vector<std::string> abs_inputs;
   std::string canonical = opt_.canonical();
-  paths_ = expand_inputs(opt_.inputs);
-  for (const auto& p : paths_) {
-    abs_inputs.push_back(fs::absolute(p).lexically_normal().string());
-    canonical += ";input=" + abs_inputs.back() + ":" + fingerprint(p);
-    InputInfo probe;
-    probe.path = p;
-    read_sidecars(probe, sidecars_);
+  for (const auto& p : expand_inputs(opt_.inputs)) {
+    InputInfo in;
+    in.path = p;
+    in.abs = fs::absolute(p).lexically_normal().string();
+    abs_inputs.push_back(in.abs);
+    canonical += ";input=" + in.abs + ":" + fingerprint(p);
+    read_sidecars(in, sidecars_);
+    if (!opt_.offset.empty()) in.offset = *parse_triple(opt_.offset);
+    inputs_.push_back(std::move(in));
   }
   for (const auto& sc : sidecars_) canonical += ";sidecar=" + sc + ":" + fingerprint(sc);
   // A database ("PG:...") or a directory cannot be fingerprinted: never up to date.
@@ -2051,13 +2031,11 @@ SplitReport Splitter::run() {
   // The spill buffer only batches writes: a quarter of the budget, at most 32 MiB (mesh
   // scenes 8 MiB: a tile, its face records and the regions' faces share the budget; their
   // chunks are written by triangle, whatever the order of the samples in a cell).
-  const bool mesh =
-      std::any_of(inputs_.begin(), inputs_.end(), [](const auto& i) { return i.mesh; });
   const double spill_bytes =
-      std::min(0.25 * double(opt_.memory_limit), (mesh ? 8.0 : 32.0) * 1024 * 1024);
+      std::min(0.25 * double(opt_.memory_limit), (mesh_scene_ ? 8.0 : 32.0) * 1024 * 1024);
   const std::size_t spill_budget = static_cast<std::size_t>(spill_bytes / sizeof(SpillRec));
   Spiller spill(staging_->spill(), cell_, spill_budget);
-  if (mesh) {
+  if (mesh_scene_) {
     // face records and claims: 8 MiB buffers each
     faces_ =
         std::make_unique<CellFiles<FaceRec>>(staging_->faces(), "f_", (8u << 20) / sizeof(FaceRec));

@@ -116,9 +116,10 @@ SurfaceClass classify_normal(const Vec3d& unit_normal);
 
 /// Size of a mesh once flat-shaded the way GlbBuilder stores it.
 struct GlbMeshSize {
-  std::size_t vertices = 0;   ///< after splitting vertices per face normal
-  std::size_t triangles = 0;  ///< non-degenerate triangles
-  std::size_t bytes = 0;      ///< vertex + index data in the BIN chunk (estimate, +-4 B)
+  std::size_t vertices = 0;     ///< after splitting vertices per face normal
+  std::size_t triangles = 0;    ///< non-degenerate triangles
+  std::size_t bytes = 0;        ///< vertex + index data in the BIN chunk (estimate, +-4 B)
+  std::size_t float_bytes = 0;  ///< the same stored as float32 (whatever `quantize` says)
 };
 GlbMeshSize glb_mesh_size(const TriangleMesh& mesh, bool quantize = false);
 
