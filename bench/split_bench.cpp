@@ -8,11 +8,7 @@
 // re-executed with --child) and reports the child's peak RSS (wait4 rusage), wall
 // and CPU time and throughput. The claim checked: peak RSS grows < 1.5x from
 // N = 1 to N = 16 under the same --memory-limit.
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -23,6 +19,7 @@
 #include <vector>
 
 #include "bench_scene.hpp"
+#include "child_run.hpp"
 #include "citylod/tiler/split.hpp"
 
 namespace fs = std::filesystem;
@@ -100,39 +97,16 @@ int main(int argc, char** argv) {
     const std::string las = (fs::path(a.tmp) / ("tiled_" + std::to_string(n) + ".las")).string();
     const std::string work = (fs::path(a.tmp) / ("work_" + std::to_string(n))).string();
     const std::uint64_t pts = bench::write_tiled_las(a.input, las, n);
-    int pipefd[2];
-    if (pipe(pipefd) != 0) return 1;
-    const auto t0 = std::chrono::steady_clock::now();
-    const pid_t pid = fork();
-    if (pid == 0) {
-      dup2(pipefd[1], 1);
-      close(pipefd[0]);
-      execl("/proc/self/exe", argv[0], "--child", las.c_str(), work.c_str(), a.crs.c_str(),
-            a.memory.c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    close(pipefd[1]);
-    std::string out;
-    char buf[512];
-    ssize_t got;
-    while ((got = read(pipefd[0], buf, sizeof buf)) > 0) out.append(buf, std::size_t(got));
-    close(pipefd[0]);
-    int status = 0;
-    struct rusage ru {};
-    wait4(pid, &status, 0, &ru);
-    const double wall =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    const bench::ChildRun c = bench::run_child(argv[0], {las, work, a.crs, a.memory});
+    if (!c.ok) {
       std::fprintf(stderr, "split_bench: split failed for N=%d\n", n);
       return 1;
     }
     unsigned long long points = 0;
     std::size_t chunks = 0, cells = 0, region = 0;
     double secs = 0;
-    std::sscanf(out.c_str(), "%llu %zu %zu %lf %zu", &points, &chunks, &cells, &secs, &region);
-    const double cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
-                       1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-    const double rss = double(ru.ru_maxrss) / 1024.0;  // KiB -> MiB
+    std::sscanf(c.out.c_str(), "%llu %zu %zu %lf %zu", &points, &chunks, &cells, &secs, &region);
+    const double wall = c.wall_s, cpu = c.cpu_s, rss = c.rss_mb;
     if (rss1 == 0) rss1 = rss;
     rss_last = rss;
     std::printf("%4d %12llu %10.1f %8zu %8zu %10.2f %10.2f %12.0f %7.1f %12zu\n", n, points,

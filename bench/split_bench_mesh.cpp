@@ -11,11 +11,7 @@
 // --footprints) in a fresh process (this program re-executed with --child) and reports
 // its peak RSS (wait4 rusage), wall and CPU time. The claim checked (issue 15): peak RSS
 // of N = 16 tiles <= 1.2x that of N = 1.
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -26,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "child_run.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/io/writers.hpp"
 #include "citylod/tiler/footprints.hpp"
@@ -179,47 +176,23 @@ int main(int argc, char** argv) {
     const std::string input = write_scene(a, n, fp);
     const std::string work = (fs::path(a.tmp) / ("work_" + std::to_string(n))).string();
     const std::string crs = a.dir + "/crs_local.wkt";
-    int pipefd[2];
-    if (pipe(pipefd) != 0) return 1;
-    const auto t0 = std::chrono::steady_clock::now();
-    const pid_t pid = fork();
-    if (pid == 0) {
-      dup2(pipefd[1], 1);
-      close(pipefd[0]);
-      execl("/proc/self/exe", argv[0], "--child", input.c_str(), fp.c_str(), work.c_str(),
-            crs.c_str(), a.memory.c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    close(pipefd[1]);
-    std::string out;
-    char buf[512];
-    ssize_t got;
-    while ((got = read(pipefd[0], buf, sizeof buf)) > 0) out.append(buf, std::size_t(got));
-    close(pipefd[0]);
-    int status = 0;
-    struct rusage ru {};
-    wait4(pid, &status, 0, &ru);
-    const double wall =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    const bench::ChildRun c = bench::run_child(argv[0], {input, fp, work, crs, a.memory});
+    if (!c.ok) {
       std::fprintf(stderr, "split_bench_mesh: split failed for N=%d\n", n);
       return 1;
     }
     unsigned long long tris = 0;
     std::size_t chunks = 0, cells = 0, region = 0;
     double secs = 0;
-    std::sscanf(out.c_str(), "%llu %zu %zu %lf %zu", &tris, &chunks, &cells, &secs, &region);
-    const double cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
-                       1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-    const double rss = double(ru.ru_maxrss) / 1024.0;  // KiB -> MiB
+    std::sscanf(c.out.c_str(), "%llu %zu %zu %lf %zu", &tris, &chunks, &cells, &secs, &region);
+    const double wall = c.wall_s, cpu = c.cpu_s, rss = c.rss_mb;
     if (rss1 == 0) rss1 = rss;
     rss_last = rss;
     std::printf("%4d %12llu %8zu %8zu %10.2f %10.2f %7.1f %12zu\n", n, tris, chunks, cells, wall,
                 cpu, rss, region);
     std::fflush(stdout);
     if (!std::getenv("SPLIT_BENCH_KEEP")) {
-      fs::remove_all(fs::path(input).parent_path() == fs::path(a.tmp) ? fs::path(input)
-                                                                      : fs::path(input));
+      fs::remove_all(input);
       fs::remove_all(work);
     }
   }
