@@ -41,18 +41,23 @@ std::string error_line(const CliRun& r) {
   return r.out.substr(at, r.out.find('\n', at) - at);
 }
 
+/// A refusal: a non-zero exit (not a signal) whose error line names `file` and says `what`.
+void expect_refused(const CliRun& r, const std::string& file, const std::string& what) {
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.code, -1) << "a signal: " << r.out;
+  const std::string line = error_line(r);
+  EXPECT_NE(line.find(file), std::string::npos) << r.out;
+  EXPECT_NE(line.find(what), std::string::npos) << r.out;
+}
+
 // Oregon metre data under the feet CRS lands at lon -124.64, 0.04 degrees west of the
 // area of use (within the 1-degree tolerance of the area test): split accepted it and
 // made a scene 3.3 times too small. Read in metres it lies well inside.
 TEST(CrsUnits, MetreDataUnderAFeetCrsIsRefused) {
   const fs::path d = tmp_dir("units_metres_feet_crs");
   write_ground(d / "metres.las", 193850, 258760, 1.0, "");
-  const CliRun bad = run("split " + q(d / "metres.las") + " --crs EPSG:2992 --out " + q(d / "a"));
-  EXPECT_NE(bad.code, 0) << bad.out;
-  EXPECT_NE(bad.code, -1) << "a signal: " << bad.out;
-  const std::string line = error_line(bad);
-  EXPECT_NE(line.find("metres.las"), std::string::npos) << bad.out;
-  EXPECT_NE(line.find("in metre, not foot"), std::string::npos) << bad.out;
+  expect_refused(run("split " + q(d / "metres.las") + " --crs EPSG:2992 --out " + q(d / "a")),
+                 "metres.las", "in metre, not foot");
 
   // the same data with the metre CRS, and the same ground in feet with the feet CRS: fine
   const CliRun ok = run("split " + q(d / "metres.las") + " --crs EPSG:2991 --out " + q(d / "b"));
@@ -68,12 +73,8 @@ TEST(CrsUnits, MetreDataUnderAFeetCrsIsRefused) {
 TEST(CrsUnits, ACrsAgainstTheFileRecordInAnotherUnitIsRefused) {
   const fs::path d = tmp_dir("units_record_vs_crs");
   write_ground(d / "rec.las", 400000, 200000, 1.0, kOregonMetresWkt);
-  const CliRun bad = run("split " + q(d / "rec.las") + " --crs EPSG:2992 --out " + q(d / "a"));
-  EXPECT_NE(bad.code, 0) << bad.out;
-  EXPECT_NE(bad.code, -1) << "a signal: " << bad.out;
-  const std::string line = error_line(bad);
-  EXPECT_NE(line.find("rec.las"), std::string::npos) << bad.out;
-  EXPECT_NE(line.find("is in metre but --crs EPSG:2992 is in foot"), std::string::npos) << bad.out;
+  expect_refused(run("split " + q(d / "rec.las") + " --crs EPSG:2992 --out " + q(d / "a")),
+                 "rec.las", "is in metre but --crs EPSG:2992 is in foot");
   // the record alone, or a --crs in the record's unit: fine
   EXPECT_EQ(run("split " + q(d / "rec.las") + " --out " + q(d / "b")).code, 0);
   EXPECT_EQ(run("split " + q(d / "rec.las") + " --crs EPSG:2991 --out " + q(d / "c")).code, 0);
@@ -82,12 +83,9 @@ TEST(CrsUnits, ACrsAgainstTheFileRecordInAnotherUnitIsRefused) {
   // metre --crs is refused naming the file (before: by the area test, which did not name the unit)
   const std::string autzen = std::string(CITYLOD_SHARED_DATA) + "/las/autzen_trim.las";
   if (!fs::exists(autzen)) GTEST_SKIP() << "shared data missing: " << autzen;
-  const CliRun rev = run("split " + q(autzen) + " --crs EPSG:2991 --out " + q(d / "d"));
-  EXPECT_NE(rev.code, 0) << rev.out;
-  EXPECT_NE(error_line(rev).find("autzen_trim.las: the file's CRS record"), std::string::npos)
-      << rev.out;
-  EXPECT_NE(error_line(rev).find("is in foot but --crs EPSG:2991 is in metre"), std::string::npos)
-      << rev.out;
+  expect_refused(run("split " + q(autzen) + " --crs EPSG:2991 --out " + q(d / "d")),
+                 "autzen_trim.las: the file's CRS record",
+                 "is in foot but --crs EPSG:2991 is in metre");
 }
 
 }  // namespace

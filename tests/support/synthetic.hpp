@@ -294,20 +294,12 @@ inline SynthBuilding roof_only_box(const Vec3& lo, const Vec3& hi, const SynthOp
   return b;
 }
 
-/// Box 12 x 8 x 6 m with a 1 x 1 x 2 m chimney on the roof (x 8..9, y 5..6) and
-/// 4 recessed windows 1.2 x 1.5 m, 0.3 m deep, in the wall y = 0 (x = 1.5 + 2.5k,
-/// z 2..3.5). Planes: 6 (box) + 5 (chimney) + 4 x 5 (windows) = 31.
-struct ChimneyWindowsSpec {
-  static constexpr double L = 12, W = 8, H = 6;
-  static constexpr double win_w = 1.2, win_h = 1.5, win_z = 2.0, depth = 0.3;
-  static constexpr int windows = 4;
-  static double win_x(int k) { return 1.5 + 2.5 * k; }
-  static constexpr double cx0 = 8, cx1 = 9, cy0 = 5, cy1 = 6, ch = 2;
-};
-inline SynthBuilding chimney_windows(const SynthOptions& o = {}, bool mesh = false) {
-  using S = ChimneyWindowsSpec;
+/// The walls and floor of an S::L x S::W x S::H box whose front wall (y = 0)
+/// has S::windows windows recessed S::depth (S::win_x(k), S::win_w, S::win_z,
+/// S::win_h); the roof is the caller's.
+template <class S>
+void add_box_with_windows(std::vector<Face>& f) {
   const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY(), Z = Vec3::UnitZ();
-  std::vector<Face> f;
   add_box(f, Vec3(0, 0, 0), Vec3(S::L, S::W, S::H), 4 | 32);  // without front wall and roof
   std::vector<std::array<double, 4>> holes;
   for (int k = 0; k < S::windows; ++k)
@@ -321,6 +313,23 @@ inline SynthBuilding chimney_windows(const SynthOptions& o = {}, bool mesh = fal
     add_rect(f, Vec3(a, 0, c), X, S::win_w, Y, dp);         // sill z=c, +z
     add_rect(f, Vec3(a, 0, d), Y, dp, X, S::win_w);         // lintel z=d, -z
   }
+}
+
+/// Box 12 x 8 x 6 m with a 1 x 1 x 2 m chimney on the roof (x 8..9, y 5..6) and
+/// 4 recessed windows 1.2 x 1.5 m, 0.3 m deep, in the wall y = 0 (x = 1.5 + 2.5k,
+/// z 2..3.5). Planes: 6 (box) + 5 (chimney) + 4 x 5 (windows) = 31.
+struct ChimneyWindowsSpec {
+  static constexpr double L = 12, W = 8, H = 6;
+  static constexpr double win_w = 1.2, win_h = 1.5, win_z = 2.0, depth = 0.3;
+  static constexpr int windows = 4;
+  static double win_x(int k) { return 1.5 + 2.5 * k; }
+  static constexpr double cx0 = 8, cx1 = 9, cy0 = 5, cy1 = 6, ch = 2;
+};
+inline SynthBuilding chimney_windows(const SynthOptions& o = {}, bool mesh = false) {
+  using S = ChimneyWindowsSpec;
+  const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY();
+  std::vector<Face> f;
+  add_box_with_windows<S>(f);
   add_rect(f, Vec3(0, 0, S::H), X, S::L, Y, S::W,
            {{S::cx0, S::cx1, S::cy0, S::cy1}});  // roof with hole
   add_box(f, Vec3(S::cx0, S::cy0, S::H), Vec3(S::cx1, S::cy1, S::H + S::ch),
@@ -394,21 +403,9 @@ struct DormerHouseSpec {
 };
 inline SynthBuilding dormer_house(const SynthOptions& o = {}, bool mesh = false) {
   using S = DormerHouseSpec;
-  const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY(), Z = Vec3::UnitZ();
+  const Vec3 X = Vec3::UnitX(), Y = Vec3::UnitY();
   std::vector<Face> f;
-  add_box(f, Vec3(0, 0, 0), Vec3(S::L, S::W, S::H), 4 | 32);  // without front wall and roof
-  std::vector<std::array<double, 4>> holes;
-  for (int k = 0; k < S::windows; ++k)
-    holes.push_back({S::win_x(k), S::win_x(k) + S::win_w, S::win_z, S::win_z + S::win_h});
-  add_rect(f, Vec3(0, 0, 0), X, S::L, Z, S::H, holes);  // front wall (normal -y)
-  for (int k = 0; k < S::windows; ++k) {
-    const double a = S::win_x(k), b = a + S::win_w, c = S::win_z, d = c + S::win_h, dp = S::depth;
-    add_rect(f, Vec3(a, dp, c), X, S::win_w, Z, S::win_h);  // back, -y
-    add_rect(f, Vec3(a, 0, c), Y, dp, Z, S::win_h);         // side x=a, +x
-    add_rect(f, Vec3(b, 0, c), Z, S::win_h, Y, dp);         // side x=b, -x
-    add_rect(f, Vec3(a, 0, c), X, S::win_w, Y, dp);         // sill z=c, +z
-    add_rect(f, Vec3(a, 0, d), Y, dp, X, S::win_w);         // lintel z=d, -z
-  }
+  add_box_with_windows<S>(f);
   add_rect(f, Vec3(0, 0, S::H), X, S::L, Y, S::W,
            {{S::dx0[0], S::dx0[0] + S::dw, S::dy0, S::dy0 + S::dd},
             {S::dx0[1], S::dx0[1] + S::dw, S::dy0, S::dy0 + S::dd},

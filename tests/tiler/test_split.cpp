@@ -1404,6 +1404,16 @@ std::string write_ground(const fs::path& dir, double w, double density, int patc
   io::write_ply(p, ps);
   return p;
 }
+
+/// split_scene() of `in` (local ENU data) into dir/work_<limit> at --memory-limit `limit`.
+SplitReport split_at_limit(const std::string& in, const fs::path& dir, const char* limit) {
+  SplitOptions o;
+  o.inputs = {in};
+  o.work_dir = (dir / (std::string("work_") + limit)).string();
+  o.origin = "52.0,4.36,45.0";
+  o.memory_limit = tiler::parse_memory_size(limit);
+  return tiler::split_scene(o);
+}
 }  // namespace
 
 // The budget is honoured monotonically: a scene that the old cell choice (from the
@@ -1412,18 +1422,11 @@ std::string write_ground(const fs::path& dir, double w, double density, int patc
 TEST(SplitMemory, BudgetHonouredMonotonically) {
   const fs::path dir = tmp_dir("mem_monotone");
   const std::string in = write_ground(dir, 300, 3.0);
-  std::vector<std::size_t> chunks;
   for (const char* lim : {"64M", "128M", "256M"}) {
-    SplitOptions o;
-    o.inputs = {in};
-    o.work_dir = (dir / (std::string("work_") + lim)).string();
-    o.origin = "52.0,4.36,45.0";
-    o.memory_limit = tiler::parse_memory_size(lim);
     SplitReport r;
-    ASSERT_NO_THROW(r = tiler::split_scene(o)) << lim;
-    chunks.push_back(r.chunks);
+    ASSERT_NO_THROW(r = split_at_limit(in, dir, lim)) << lim;
+    EXPECT_EQ(r.chunks, 1u) << lim;
   }
-  for (std::size_t c : chunks) EXPECT_EQ(c, 1u);
 }
 
 // A cell whose region exceeds the budget (a dense patch in a sparse scene: the cell is
@@ -1436,13 +1439,8 @@ TEST(SplitMemory, DenseCellProcessedInQuarters) {
   const std::string in = write_ground(dir, 300, 3.0, 56000);
   std::vector<SplitReport> rs;
   for (const char* lim : {"64M", "2G"}) {
-    SplitOptions o;
-    o.inputs = {in};
-    o.work_dir = (dir / (std::string("work_") + lim)).string();
-    o.origin = "52.0,4.36,45.0";
-    o.memory_limit = tiler::parse_memory_size(lim);
     SplitReport r;
-    ASSERT_NO_THROW(r = tiler::split_scene(o)) << lim;
+    ASSERT_NO_THROW(r = split_at_limit(in, dir, lim)) << lim;
     rs.push_back(r);
   }
   EXPECT_EQ(rs[0].cell_size, 50);
