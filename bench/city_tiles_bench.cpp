@@ -28,7 +28,9 @@
 namespace fs = std::filesystem;
 using namespace citylod;
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: city_tiles_bench WORK [--buildings N] [--out DIR] [--threads T] "
@@ -145,4 +147,15 @@ int main(int argc, char** argv) {
       st.building_glb_bytes ? double(st.glb_bytes) / double(st.building_glb_bytes) : 0.0, secs,
       double(ru.ru_maxrss) / 1024.0, st.tileset_files);
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "city_tiles_bench: error: %s\n", e.what());
+    return 1;
+  }
 }
