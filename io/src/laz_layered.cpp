@@ -1,6 +1,7 @@
 // Layered LAZ chunks (LASzip compressor 3, "native LAS 1.4" compression) of
-// point formats 6-8 (and the BYTE14 extra bytes of 6-10): items POINT14,
-// RGB14, RGBNIR14 and BYTE14, versions 3 and 4 (the same bitstream).
+// point formats 6-10: items POINT14, RGB14, RGBNIR14, WAVEPACKET14 and BYTE14,
+// versions 3 and 4 (the same bitstream, except where WAVEPACKET14 v3 switches
+// back to a scanner channel it has seen before: see WavepacketDecoder).
 //
 // A chunk holds its first point raw, the number of points, the byte size of
 // every layer, then the layers. Each layer (XY + returns, Z, classification,
@@ -428,6 +429,54 @@ class ColorDecoder {
   std::uint32_t current_ = 0;
 };
 
+// WAVEPACKET14: one layer, contexts per scanner channel. Version 3 predicts
+// the point at which it switches back to an already used channel from the
+// channel it leaves (and stores the result there): LASzip 3's reader and
+// writer both do this, version 4 uses the new channel's last packet.
+class WavepacketDecoder {
+ public:
+  explicit WavepacketDecoder(std::uint16_t version) : v3_(version == 3) {}
+  bool overrun() const { return layer_.overrun(); }
+
+  void start(const unsigned char* first, std::uint32_t channel, std::uint32_t size, ByteSource& src,
+             bool more_points) {
+    layer_.start(src.take(size), more_points);
+    for (auto& c : contexts_) c.reset();
+    current_ = channel;
+    contexts_[current_] = std::make_unique<Context>(first);
+  }
+
+  void decode(unsigned char* out, std::uint32_t channel) {
+    Context* last = contexts_[current_].get();
+    if (channel != current_) {
+      current_ = channel;
+      if (!contexts_[channel]) {
+        contexts_[channel] = std::make_unique<Context>(last->last);
+        last = contexts_[channel].get();
+      } else if (!v3_) {
+        last = contexts_[channel].get();
+      }
+    }
+    if (layer_.changed) {
+      decode_wavepacket(layer_.dec, contexts_[current_]->models, last->last, out);
+      std::memcpy(last->last, out, sizeof last->last);
+    } else {  // no packet changes in this chunk: the first point's
+      std::memcpy(out, last->last, sizeof last->last);
+    }
+  }
+
+ private:
+  struct Context {
+    explicit Context(const unsigned char* from) { std::memcpy(last, from, sizeof last); }
+    unsigned char last[29];
+    WavepacketModels models;
+  };
+  bool v3_;
+  Layer layer_;
+  std::unique_ptr<Context> contexts_[4];
+  std::uint32_t current_ = 0;
+};
+
 // BYTE14: one layer per extra byte.
 class Byte14Decoder {
  public:
@@ -484,6 +533,8 @@ class LayeredChunk final : public ChunkDecoder {
       record_length_ += it.size;
       if (it.type == kRgb14 || it.type == kRgbNir14)
         color_ = std::make_unique<ColorDecoder>(it.type == kRgbNir14);
+      else if (it.type == kWavepacket14)
+        wave_ = std::make_unique<WavepacketDecoder>(it.version);
       else if (it.type == kByte14)
         bytes_ = std::make_unique<Byte14Decoder>(it.size);
     }
@@ -501,12 +552,15 @@ class LayeredChunk final : public ChunkDecoder {
       for (std::size_t k = 1; k < items_.size(); ++k) {
         if (items_[k].type == kByte14)
           bytes_->decode(dst + off, channel);
+        else if (items_[k].type == kWavepacket14)
+          wave_->decode(dst + off, channel);
         else
           color_->decode(dst + off, channel);
         off += items_[k].size;
       }
     }
-    if (point_.overrun() || (color_ && color_->overrun()) || (bytes_ && bytes_->overrun()))
+    if (point_.overrun() || (color_ && color_->overrun()) || (wave_ && wave_->overrun()) ||
+        (bytes_ && bytes_->overrun()))
       throw CorruptData("compressed data ends early");
   }
 
@@ -543,6 +597,9 @@ class LayeredChunk final : public ChunkDecoder {
       } else if (it.type == kByte14) {
         bytes_->start(dst + off, channel, sizes.data() + s, src_, more);
         s += it.size;
+      } else if (it.type == kWavepacket14) {
+        wave_->start(dst + off, channel, sizes[s], src_, more);
+        s += 1;
       } else {
         color_->start(dst + off, channel, sizes.data() + s, src_, more);
         s += color_->layers();
@@ -559,6 +616,7 @@ class LayeredChunk final : public ChunkDecoder {
   bool started_ = false;
   Point14Decoder point_;
   std::unique_ptr<ColorDecoder> color_;
+  std::unique_ptr<WavepacketDecoder> wave_;
   std::unique_ptr<Byte14Decoder> bytes_;
 };
 
