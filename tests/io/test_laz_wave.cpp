@@ -61,7 +61,8 @@ std::string vlr_payload(const std::string& s, const char* user, std::uint16_t re
   const std::uint32_t n = get<std::uint32_t>(s, 100);
   for (std::uint32_t i = 0; i < n && pos + 54 <= s.size(); ++i) {
     const std::uint16_t len = get<std::uint16_t>(s, pos + 20);
-    if (s.compare(pos + 2, std::strlen(user), user) == 0 && get<std::uint16_t>(s, pos + 18) == record)
+    if (s.compare(pos + 2, std::strlen(user), user) == 0 &&
+        get<std::uint16_t>(s, pos + 18) == record)
       return s.substr(pos + 54, len);
     pos += 54 + len;
   }
@@ -164,14 +165,16 @@ TEST_P(LazWaveTwin, SameRecordsAsTheLasTwin) {
   EXPECT_EQ(a.sha256, b.sha256);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    ExtraData, LazWaveTwin,
-    ::testing::Values(WaveTwin{"pf4", 4, 1}, WaveTwin{"pf4_tweak", 4, 1},
-                      WaveTwin{"pf5_tweak", 5, 1}, WaveTwin{"pf9_ch", 9, 3},
-                      WaveTwin{"pf9_ch_plain", 9, 3}, WaveTwin{"pf10_ch", 10, 3},
-                      WaveTwin{"pf9_v4_14", 9, 4}, WaveTwin{"pf10_ch_v4_14", 10, 4},
-                      WaveTwin{"pf6_ch", 6, 3}, WaveTwin{"pf7_ch_eb", 7, 3}),
-    [](const ::testing::TestParamInfo<WaveTwin>& i) { return std::string(i.param.name); });
+INSTANTIATE_TEST_SUITE_P(ExtraData, LazWaveTwin,
+                         ::testing::Values(WaveTwin{"pf4", 4, 1}, WaveTwin{"pf4_tweak", 4, 1},
+                                           WaveTwin{"pf5_tweak", 5, 1}, WaveTwin{"pf9_ch", 9, 3},
+                                           WaveTwin{"pf9_ch_plain", 9, 3},
+                                           WaveTwin{"pf10_ch", 10, 3}, WaveTwin{"pf9_v4_14", 9, 4},
+                                           WaveTwin{"pf10_ch_v4_14", 10, 4},
+                                           WaveTwin{"pf6_ch", 6, 3}, WaveTwin{"pf7_ch_eb", 7, 3}),
+                         [](const ::testing::TestParamInfo<WaveTwin>& i) {
+                           return std::string(i.param.name);
+                         });
 
 // fullwave.laz (laspy's test data, YellowScan, format 10, no LAS twin): the
 // packets must agree with the waveform descriptor and with the points.
