@@ -211,6 +211,11 @@ class ArithmeticDecoder {
     const std::uint32_t high = read_short();
     return (high << 16) | low;
   }
+  std::uint64_t read_int64() {
+    const std::uint64_t low = read_int();
+    const std::uint64_t high = read_int();
+    return (high << 32) | low;
+  }
 
  private:
   // (a double-precision division is exact here too, but slower on our CPUs)

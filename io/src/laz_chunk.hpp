@@ -57,12 +57,31 @@ struct RgbModels {
 void decode_rgb(ArithmeticDecoder& dec, RgbModels& m, const std::uint16_t last[3],
                 std::uint16_t out[3]);
 
-/// Point-wise chunk (compressor 2): POINT10, GPSTIME11, RGB12, BYTE items v2.
+/// The models of a waveform packet (WAVEPACKET13 v1 and WAVEPACKET14 v3/v4
+/// code the 29-byte packet alike): the descriptor index, how the data offset
+/// moved (same, + last packet size, + a 32-bit difference, or a raw 64-bit
+/// value), then size, return point and dx/dy/dz as integer differences.
+struct WavepacketModels {
+  SymbolModel packet_index{256};
+  SymbolModel offset_diff[4] = {SymbolModel(4), SymbolModel(4), SymbolModel(4), SymbolModel(4)};
+  IntegerDecompressor ic_offset_diff{32}, ic_packet_size{32}, ic_return_point{32};
+  IntegerDecompressor ic_xyz{32, 3};
+  std::int32_t last_offset_diff = 0;
+  std::uint32_t last_offset_sym = 0;
+};
+/// Decodes one packet (29 bytes: descriptor index, u64 offset, u32 size,
+/// f32 return point, f32 dx, dy, dz) predicted from `last` (the same layout).
+void decode_wavepacket(ArithmeticDecoder& dec, WavepacketModels& m, const unsigned char* last,
+                       unsigned char* out);
+
+/// Point-wise chunk (compressor 2): POINT10, GPSTIME11, RGB12, BYTE items v2
+/// and WAVEPACKET13 v1.
 /// `data` must stay alive while the decoder is used.
 std::unique_ptr<ChunkDecoder> make_pointwise_decoder(const std::vector<Item>& items,
                                                      ByteSource data);
 
-/// Layered chunk (compressor 3): POINT14, RGB14, RGBNIR14, BYTE14 items v3/v4.
+/// Layered chunk (compressor 3): POINT14, RGB14, RGBNIR14, WAVEPACKET14, BYTE14
+/// items v3/v4.
 /// `points` is the chunk's point count from the chunk table (checked against
 /// the count stored in the chunk).
 std::unique_ptr<ChunkDecoder> make_layered_decoder(const std::vector<Item>& items, ByteSource data,

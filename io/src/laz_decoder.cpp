@@ -186,17 +186,15 @@ struct LazStream::Impl {
     for (std::size_t i = 0; i < items.size(); ++i) {
       const Item& it = items[i];
       const std::string name = laz::item_name(it);
-      if (it.type == laz::kWavepacket13 || it.type == laz::kWavepacket14)
-        fail("unsupported LAZ item " + name +
-             ": waveform packets (point formats 4, 5, 9, 10) "
-             "are not decoded");
       bool ok = false;
       if (compressor == 2) {
         ok = it.version == 2 &&
              ((it.type == laz::kPoint10 && it.size == 20 && i == 0) ||
               (it.type == laz::kGpsTime11 && it.size == 8) ||
               (it.type == laz::kRgb12 && it.size == 6) || (it.type == laz::kByte && it.size > 0));
-        if (!ok && it.version == 1)
+        // waveform packets (formats 4, 5) have only the version-1 coder
+        if (it.type == laz::kWavepacket13) ok = it.version == 1 && it.size == 29;
+        if (!ok && it.version == 1 && it.type != laz::kWavepacket13)
           fail("unsupported LAZ item " + name +
                " (LASzip 1.x compression); recompress with "
                "'laszip' or 'pdal translate'");
@@ -205,6 +203,7 @@ struct LazStream::Impl {
              ((it.type == laz::kPoint14 && it.size == 30 && i == 0) ||
               (it.type == laz::kRgb14 && it.size == 6) ||
               (it.type == laz::kRgbNir14 && it.size == 8) ||
+              (it.type == laz::kWavepacket14 && it.size == 29) ||
               (it.type == laz::kByte14 && it.size > 0 && i + 1 == items.size()));
       }
       if (!ok)

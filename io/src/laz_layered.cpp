@@ -1,6 +1,14 @@
 // Layered LAZ chunks (LASzip compressor 3, "native LAS 1.4" compression) of
-// point formats 6-8 (and the BYTE14 extra bytes of 6-10): items POINT14,
-// RGB14, RGBNIR14 and BYTE14, versions 3 and 4 (the same bitstream).
+// point formats 6-10: items POINT14, RGB14, RGBNIR14, WAVEPACKET14 and BYTE14,
+// versions 3 and 4.
+//
+// Versions 3 and 4 differ only in the scanner-channel contexts of the items
+// after POINT14 (LASzip 3's reader and writer agree on both, so v3 files
+// need v3's rules): POINT14 v3 hands its channel to the other items only at
+// the point where the channel changes, at every other point they get channel
+// 0; and a v3 item that switches back to a channel it has seen before
+// predicts that one point from (and stores it in) the channel it leaves.
+// Version 4 hands the channel on always and predicts from the new channel.
 //
 // A chunk holds its first point raw, the number of points, the byte size of
 // every layer, then the layers. Each layer (XY + returns, Z, classification,
@@ -70,6 +78,22 @@ struct Layer {
     if (changed && needed) dec.init(src);
   }
 };
+
+// The scanner-channel switch of the items after POINT14: makes `channel`
+// current (a new context starts from the last values of the one left) and
+// returns the context whose last values predict this point (see the top).
+template <typename Context>
+Context* switch_channel(std::unique_ptr<Context> (&contexts)[4], std::uint32_t& current,
+                        std::uint32_t channel, bool v3) {
+  Context* last = contexts[current].get();
+  if (channel == current) return last;
+  current = channel;
+  if (!contexts[channel]) {
+    contexts[channel] = std::make_unique<Context>(last->last);
+    return contexts[channel].get();
+  }
+  return v3 ? last : contexts[channel].get();
+}
 
 template <typename T>
 T& lazy(std::unique_ptr<T>& p, std::uint32_t symbols) {
@@ -178,6 +202,9 @@ class Point14Decoder {
       if (l.overrun()) return true;
     return false;
   }
+
+  /// True when the last decoded point switched the scanner channel.
+  bool switched() const { return (changed_ & (1u << 6)) != 0; }
 
   /// Decodes the next point into out (30 bytes); returns its scanner channel.
   std::uint32_t decode(unsigned char* out) {
@@ -365,7 +392,7 @@ class Point14Decoder {
 // scanner channel.
 class ColorDecoder {
  public:
-  explicit ColorDecoder(bool nir) : nir_(nir) {}
+  ColorDecoder(bool nir, std::uint16_t version) : nir_(nir), v3_(version == 3) {}
   int layers() const { return nir_ ? 2 : 1; }
   bool overrun() const { return rgb_.overrun() || nir_layer_.overrun(); }
 
@@ -373,57 +400,87 @@ class ColorDecoder {
              ByteSource& src, bool more_points) {
     rgb_.start(src.take(sizes[0]), more_points);
     if (nir_) nir_layer_.start(src.take(sizes[1]), more_points);
-    auto c = std::make_unique<Context>();
+    std::uint16_t last[4];
     for (int i = 0; i < 4; ++i)
-      c->last[i] = i < (nir_ ? 4 : 3) ? load<std::uint16_t>(first + 2 * i) : 0;
+      last[i] = i < (nir_ ? 4 : 3) ? load<std::uint16_t>(first + 2 * i) : 0;
     current_ = channel;
-    contexts_[current_] = std::move(c);
+    contexts_[current_] = std::make_unique<Context>(last);
   }
 
   void decode(unsigned char* out, std::uint32_t channel) {
-    if (channel != current_) {
-      if (!contexts_[channel]) {
-        auto c = std::make_unique<Context>();
-        std::memcpy(c->last, contexts_[current_]->last, sizeof c->last);
-        contexts_[channel] = std::move(c);
-      }
-      current_ = channel;
-    }
+    std::uint16_t* last = switch_channel(contexts_, current_, channel, v3_)->last;
     Context& c = *contexts_[current_];
     if (rgb_.changed) {
       std::uint16_t v[3];
-      decode_rgb(rgb_.dec, c.rgb, c.last, v);
-      std::memcpy(c.last, v, sizeof v);
+      decode_rgb(rgb_.dec, c.rgb, last, v);
+      std::memcpy(last, v, sizeof v);
     }
-    for (int i = 0; i < 3; ++i) store(out + 2 * i, c.last[i]);
+    for (int i = 0; i < 3; ++i) store(out + 2 * i, last[i]);
     if (!nir_) return;
     if (nir_layer_.changed) {
       ArithmeticDecoder& d = nir_layer_.dec;
       const std::uint32_t sym = d.decode_symbol(c.nir_used);
       std::uint16_t v;
       if (sym & 1)
-        v = fold_u8(static_cast<int>(d.decode_symbol(c.nir_diff[0])) + (c.last[3] & 255));
+        v = fold_u8(static_cast<int>(d.decode_symbol(c.nir_diff[0])) + (last[3] & 255));
       else
-        v = c.last[3] & 0xFF;
+        v = last[3] & 0xFF;
       if (sym & 2)
         v |= static_cast<std::uint16_t>(
-            fold_u8(static_cast<int>(d.decode_symbol(c.nir_diff[1])) + (c.last[3] >> 8)) << 8);
+            fold_u8(static_cast<int>(d.decode_symbol(c.nir_diff[1])) + (last[3] >> 8)) << 8);
       else
-        v |= c.last[3] & 0xFF00;
-      c.last[3] = v;
+        v |= last[3] & 0xFF00;
+      last[3] = v;
     }
-    store(out + 6, c.last[3]);
+    store(out + 6, last[3]);
   }
 
  private:
   struct Context {
-    std::uint16_t last[4] = {0, 0, 0, 0};
+    explicit Context(const std::uint16_t* from) { std::memcpy(last, from, sizeof last); }
+    std::uint16_t last[4];
     RgbModels rgb;
     SymbolModel nir_used{4};
     SymbolModel nir_diff[2] = {SymbolModel(256), SymbolModel(256)};
   };
-  bool nir_;
+  bool nir_, v3_;
   Layer rgb_, nir_layer_;
+  std::unique_ptr<Context> contexts_[4];
+  std::uint32_t current_ = 0;
+};
+
+// WAVEPACKET14: one layer, contexts per scanner channel.
+class WavepacketDecoder {
+ public:
+  explicit WavepacketDecoder(std::uint16_t version) : v3_(version == 3) {}
+  bool overrun() const { return layer_.overrun(); }
+
+  void start(const unsigned char* first, std::uint32_t channel, std::uint32_t size, ByteSource& src,
+             bool more_points) {
+    layer_.start(src.take(size), more_points);
+    for (auto& c : contexts_) c.reset();
+    current_ = channel;
+    contexts_[current_] = std::make_unique<Context>(first);
+  }
+
+  void decode(unsigned char* out, std::uint32_t channel) {
+    Context* last = switch_channel(contexts_, current_, channel, v3_);
+    if (layer_.changed) {
+      decode_wavepacket(layer_.dec, contexts_[current_]->models, last->last, out);
+      std::memcpy(last->last, out, sizeof last->last);
+    } else {  // no packet changes in this chunk: the first point's
+      std::memcpy(out, last->last, sizeof last->last);
+    }
+  }
+
+ private:
+  struct Context {
+    explicit Context(const unsigned char* from) { std::memcpy(last, from, sizeof last); }
+    unsigned char last[29];
+    WavepacketModels models;
+  };
+  bool v3_;
+  Layer layer_;
   std::unique_ptr<Context> contexts_[4];
   std::uint32_t current_ = 0;
 };
@@ -431,7 +488,7 @@ class ColorDecoder {
 // BYTE14: one layer per extra byte.
 class Byte14Decoder {
  public:
-  explicit Byte14Decoder(std::size_t n) : n_(n), layers_(n) {}
+  Byte14Decoder(std::size_t n, std::uint16_t version) : n_(n), v3_(version == 3), layers_(n) {}
   int layers() const { return static_cast<int>(n_); }
   bool overrun() const {
     for (const Layer& l : layers_)
@@ -443,34 +500,30 @@ class Byte14Decoder {
              ByteSource& src, bool more_points) {
     for (std::size_t i = 0; i < n_; ++i) layers_[i].start(src.take(sizes[i]), more_points);
     current_ = channel;
-    contexts_[current_] = std::make_unique<Context>(first, n_);
+    contexts_[current_] = std::make_unique<Context>(std::vector<unsigned char>(first, first + n_));
   }
 
   void decode(unsigned char* out, std::uint32_t channel) {
-    if (channel != current_) {
-      if (!contexts_[channel])
-        contexts_[channel] = std::make_unique<Context>(contexts_[current_]->last.data(), n_);
-      current_ = channel;
-    }
+    std::vector<unsigned char>& last = switch_channel(contexts_, current_, channel, v3_)->last;
     Context& c = *contexts_[current_];
     for (std::size_t i = 0; i < n_; ++i) {
       if (layers_[i].changed)
-        c.last[i] =
-            fold_u8(c.last[i] + static_cast<int>(layers_[i].dec.decode_symbol(c.models[i])));
-      out[i] = c.last[i];
+        last[i] = fold_u8(last[i] + static_cast<int>(layers_[i].dec.decode_symbol(c.models[i])));
+      out[i] = last[i];
     }
   }
 
  private:
   struct Context {
-    Context(const unsigned char* from, std::size_t n) : last(from, from + n) {
-      models.reserve(n);
-      for (std::size_t i = 0; i < n; ++i) models.emplace_back(256);
+    explicit Context(const std::vector<unsigned char>& from) : last(from) {
+      models.reserve(last.size());
+      for (std::size_t i = 0; i < last.size(); ++i) models.emplace_back(256);
     }
     std::vector<unsigned char> last;
     std::vector<SymbolModel> models;
   };
   std::size_t n_;
+  bool v3_;
   std::vector<Layer> layers_;
   std::unique_ptr<Context> contexts_[4];
   std::uint32_t current_ = 0;
@@ -480,12 +533,15 @@ class LayeredChunk final : public ChunkDecoder {
  public:
   LayeredChunk(const std::vector<Item>& items, ByteSource data, std::uint64_t points)
       : src_(data), items_(items), points_(points) {
+    point_v3_ = !items_.empty() && items_[0].version == 3;
     for (const Item& it : items_) {
       record_length_ += it.size;
       if (it.type == kRgb14 || it.type == kRgbNir14)
-        color_ = std::make_unique<ColorDecoder>(it.type == kRgbNir14);
+        color_ = std::make_unique<ColorDecoder>(it.type == kRgbNir14, it.version);
+      else if (it.type == kWavepacket14)
+        wave_ = std::make_unique<WavepacketDecoder>(it.version);
       else if (it.type == kByte14)
-        bytes_ = std::make_unique<Byte14Decoder>(it.size);
+        bytes_ = std::make_unique<Byte14Decoder>(it.size, it.version);
     }
   }
 
@@ -496,17 +552,21 @@ class LayeredChunk final : public ChunkDecoder {
         continue;
       }
       if (++decoded_ >= points_) throw CorruptData("more points requested than the chunk holds");
-      const std::uint32_t channel = point_.decode(dst);
+      std::uint32_t channel = point_.decode(dst);
+      if (point_v3_ && !point_.switched()) channel = 0;  // see the top of the file
       std::size_t off = 30;
       for (std::size_t k = 1; k < items_.size(); ++k) {
         if (items_[k].type == kByte14)
           bytes_->decode(dst + off, channel);
+        else if (items_[k].type == kWavepacket14)
+          wave_->decode(dst + off, channel);
         else
           color_->decode(dst + off, channel);
         off += items_[k].size;
       }
     }
-    if (point_.overrun() || (color_ && color_->overrun()) || (bytes_ && bytes_->overrun()))
+    if (point_.overrun() || (color_ && color_->overrun()) || (wave_ && wave_->overrun()) ||
+        (bytes_ && bytes_->overrun()))
       throw CorruptData("compressed data ends early");
   }
 
@@ -543,6 +603,9 @@ class LayeredChunk final : public ChunkDecoder {
       } else if (it.type == kByte14) {
         bytes_->start(dst + off, channel, sizes.data() + s, src_, more);
         s += it.size;
+      } else if (it.type == kWavepacket14) {
+        wave_->start(dst + off, channel, sizes[s], src_, more);
+        s += 1;
       } else {
         color_->start(dst + off, channel, sizes.data() + s, src_, more);
         s += color_->layers();
@@ -558,7 +621,9 @@ class LayeredChunk final : public ChunkDecoder {
   std::size_t record_length_ = 0;
   bool started_ = false;
   Point14Decoder point_;
+  bool point_v3_ = false;
   std::unique_ptr<ColorDecoder> color_;
+  std::unique_ptr<WavepacketDecoder> wave_;
   std::unique_ptr<Byte14Decoder> bytes_;
 };
 

@@ -1,6 +1,7 @@
 // Point-wise LAZ chunks (LASzip compressor 2) of LAS point formats 0-5: the
-// version-2 items POINT10, GPSTIME11, RGB12 and BYTE (extra bytes), all coded
-// with one arithmetic decoder, item after item, point after point.
+// version-2 items POINT10, GPSTIME11, RGB12 and BYTE (extra bytes) and the
+// version-1 WAVEPACKET13 (formats 4 and 5), all coded with one arithmetic
+// decoder, item after item, point after point.
 #include <array>
 #include <cstring>
 
@@ -286,7 +287,51 @@ void decode_rgb(ArithmeticDecoder& dec, RgbModels& m, const std::uint16_t last[3
   }
 }
 
+void decode_wavepacket(ArithmeticDecoder& dec, WavepacketModels& m, const unsigned char* last,
+                       unsigned char* out) {
+  out[0] = static_cast<unsigned char>(dec.decode_symbol(m.packet_index));
+  const std::uint64_t last_offset = load<std::uint64_t>(last + 1);
+  const std::uint32_t last_size = load<std::uint32_t>(last + 9);
+  m.last_offset_sym = dec.decode_symbol(m.offset_diff[m.last_offset_sym]);
+  std::uint64_t offset;
+  switch (m.last_offset_sym) {
+    case 0:  // the same packet as the last point (another return of the pulse)
+      offset = last_offset;
+      break;
+    case 1:  // the packet right after the last one
+      offset = last_offset + last_size;
+      break;
+    case 2:
+      m.last_offset_diff = m.ic_offset_diff.decompress(dec, m.last_offset_diff);
+      offset =
+          last_offset + static_cast<std::uint64_t>(static_cast<std::int64_t>(m.last_offset_diff));
+      break;
+    default:
+      offset = dec.read_int64();
+      break;
+  }
+  store(out + 1, offset);
+  store(out + 9, m.ic_packet_size.decompress(dec, load<std::int32_t>(last + 9)));
+  // the floats (return point, dx, dy, dz) are predicted as the integers of their bits
+  store(out + 13, m.ic_return_point.decompress(dec, load<std::int32_t>(last + 13)));
+  for (std::uint32_t a = 0; a < 3; ++a)
+    store(out + 17 + 4 * a, m.ic_xyz.decompress(dec, load<std::int32_t>(last + 17 + 4 * a), a));
+}
+
 namespace {
+
+class Wavepacket13 final : public ItemDecoder {
+ public:
+  explicit Wavepacket13(const unsigned char* first) { std::memcpy(last_, first, sizeof last_); }
+  void decode(ArithmeticDecoder& dec, unsigned char* out) override {
+    decode_wavepacket(dec, models_, last_, out);
+    std::memcpy(last_, out, sizeof last_);
+  }
+
+ private:
+  WavepacketModels models_;
+  unsigned char last_[29];
+};
 
 class Rgb12 final : public ItemDecoder {
  public:
@@ -341,6 +386,7 @@ class PointwiseChunk final : public ChunkDecoder {
         p10_->decode(dec_, dst);
         if (gps_) gps_->decode(dec_, dst + gps_off_);
         if (rgb_) rgb_->decode(dec_, dst + rgb_off_);
+        if (wave_) wave_->decode(dec_, dst + wave_off_);
         if (bytes_) bytes_->decode(dec_, dst + bytes_off_);
         continue;
       }
@@ -377,14 +423,17 @@ class PointwiseChunk final : public ChunkDecoder {
         case kRgb12:
           decoders_.push_back(std::make_unique<Rgb12>(p));
           break;
+        case kWavepacket13:
+          decoders_.push_back(std::make_unique<Wavepacket13>(p));
+          break;
         default:
           decoders_.push_back(std::make_unique<Bytes>(p, it.size));
           break;
       }
       off += it.size;
     }
-    // POINT10 [GPSTIME11] [RGB12] [BYTE]: the item order of formats 0-3 (and
-    // every LASzip writer); anything else takes the generic loop
+    // POINT10 [GPSTIME11] [RGB12] [WAVEPACKET13] [BYTE]: the item order of
+    // formats 0-5 (and every LASzip writer); anything else takes the generic loop
     std::size_t k = 0;
     off = 0;
     Point10* p10 = nullptr;
@@ -400,6 +449,11 @@ class PointwiseChunk final : public ChunkDecoder {
     if (k < items_.size() && items_[k].type == kRgb12) {
       rgb_ = static_cast<Rgb12*>(decoders_[k].get());
       rgb_off_ = off;
+      off += items_[k++].size;
+    }
+    if (k < items_.size() && items_[k].type == kWavepacket13) {
+      wave_ = static_cast<Wavepacket13*>(decoders_[k].get());
+      wave_off_ = off;
       off += items_[k++].size;
     }
     if (k < items_.size() && items_[k].type == kByte) {
@@ -419,8 +473,9 @@ class PointwiseChunk final : public ChunkDecoder {
   Point10* p10_ = nullptr;  // set when the items are in the usual order
   GpsTime11* gps_ = nullptr;
   Rgb12* rgb_ = nullptr;
+  Wavepacket13* wave_ = nullptr;
   Bytes* bytes_ = nullptr;
-  std::size_t gps_off_ = 0, rgb_off_ = 0, bytes_off_ = 0;
+  std::size_t gps_off_ = 0, rgb_off_ = 0, wave_off_ = 0, bytes_off_ = 0;
 };
 
 }  // namespace

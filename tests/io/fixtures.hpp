@@ -32,6 +32,11 @@ inline std::string shared(const std::string& rel) {
   return std::string(CITYLOD_SHARED_DATA) + "/" + rel;
 }
 
+/// Optional local data outside shared/ (CITYLOD_EXTRA_DATA); CI has none.
+inline std::string extra(const std::string& rel) {
+  return std::string(CITYLOD_EXTRA_DATA) + "/" + rel;
+}
+
 #define CITYLOD_REQUIRE_SHARED(path) \
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data missing: " << (path)
 

@@ -332,8 +332,8 @@ TEST(LazBadInput, UnsupportedItemsAreRefusedClearly) {
   put<std::uint16_t>(t, vlr + 34 + 6 * 1 + 4, 1);  // GPSTIME11 v1
   expect_io_error([&] { read_header(write_file("v1.laz", t)); }, "GPSTIME11 v1");
   t = s;
-  put<std::uint16_t>(t, vlr + 34 + 6 * 2, 9);  // RGB12 -> WAVEPACKET13
-  expect_io_error([&] { read_header(write_file("wave.laz", t)); }, "waveform");
+  put<std::uint16_t>(t, vlr + 34 + 6 * 2, 9);  // RGB12 -> WAVEPACKET13 (v1 of 29 bytes only)
+  expect_io_error([&] { read_header(write_file("wave.laz", t)); }, "WAVEPACKET13 v2 of size 6");
   t = s;
   put<std::uint16_t>(t, vlr, 1);  // unchunked compressor
   expect_io_error([&] { read_header(write_file("pointwise.laz", t)); }, "unchunked");
