@@ -1,6 +1,6 @@
 // Internal: in/out labelling of polyhedra by ray casting against the
 // alpha-shapes of the primitives (paper, Appendix C). Implemented in
-// labelling.cpp (CGAL AABB tree inside).
+// labelling.cpp (a BVH with CGAL's ray-triangle intersection inside).
 #pragma once
 
 #include "citylod/lod/types.hpp"
