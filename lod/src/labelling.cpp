@@ -1,6 +1,8 @@
 // Ray-casting in/out labelling (Appendix C of the paper).
 #include "labelling.hpp"
 
+#include <CGAL/Cartesian_converter.h>
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/intersections.h>
 
@@ -16,6 +18,7 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Point = K::Point_3;
 using Triangle = K::Triangle_3;
 using Ray = K::Ray_3;
+using EK = CGAL::Exact_predicates_exact_constructions_kernel;
 
 /// Uniform directions on the sphere (Fibonacci lattice), slightly rotated so
 /// no direction is exactly parallel to an axis-aligned plane.
@@ -38,17 +41,22 @@ std::vector<Vec3> sphere_directions(int n) {
   return dirs;
 }
 
-// Bounding volume hierarchy over the triangles, with CGAL's decisions.
+// Bounding volume hierarchy over the triangles.
 //
-// The labels are those of CGAL's AABB_tree::first_intersection (the first
-// hit is the triangle whose exact-predicate intersection with the ray,
-// constructed by CGAL, has the smallest ray parameter), found faster: a flat
-// binary tree of padded boxes traversed near child first, and a double
-// precision Moller-Trumbore test that only rejects triangles it misses by far
-// more than its rounding error. Every triangle it cannot reject goes through
-// CGAL's intersection and ray parameter, as in the AABB tree's traversal, so
-// hits, misses and parameters are CGAL's (ties at the very same parameter go
-// to the triangle visited first, as there).
+// The first hit of a ray is defined exactly: among the triangles the ray
+// (source o, through the double point o + u, as CGAL's Ray_3 stores it)
+// meets, by exact predicates, the one whose first common point has the
+// smallest exact ray parameter; at an exactly equal parameter (a shared edge
+// or vertex, coplanar overlapping triangles, a source on two faces) the
+// triangle given first (lowest index) wins. `first_hit_exact` is that
+// definition by brute force (Epeck); the BVH finds the same hit faster: a
+// flat binary tree of padded boxes traversed near child first, a double
+// precision Moller-Trumbore test that only rejects triangles it misses by
+// far more than its rounding error, CGAL's exact-predicate Ray_3/Triangle_3
+// intersection for every other triangle, and the exact parameters (Epeck)
+// whenever two candidates' double parameters are within their error bounds.
+// (CGAL's AABB_tree::first_intersection gives an exactly first hit too, but
+// breaks exact ties by the order it happens to visit the triangles in.)
 struct Bvh {
   struct Node {
     double lo[3], hi[3];
@@ -208,6 +216,34 @@ inline double box_entry(const Bvh::Node& b, const double o[3], const double inv[
   return t0;
 }
 
+/// Exact parameter of the first point the ray shares with triangle t, in
+/// units of the ray's stored direction (0 = source, 1 = its second point);
+/// false when they do not meet. `point`: false when the ray lies in the
+/// triangle's plane (the common part is a segment).
+bool exact_param(const Ray& ray, const Triangle& t, EK::FT& param, bool& point) {
+  const CGAL::Cartesian_converter<K, EK> to_exact;
+  const EK::Ray_3 r = to_exact(ray);
+  const auto x = CGAL::intersection(r, to_exact(t));
+  if (!x) return false;
+  const EK::Vector_3 d = r.to_vector();
+  int i = 0;  // a nonzero coordinate of the direction
+  while (i < 2 && CGAL::is_zero(d.cartesian(i))) ++i;
+  const auto at = [&](const EK::Point_3& p) {
+    return (p.cartesian(i) - r.source().cartesian(i)) / d.cartesian(i);
+  };
+  if (const auto* p = boost::get<EK::Point_3>(&*x)) {
+    param = at(*p);
+    point = true;
+    return true;
+  }
+  if (const auto* s = boost::get<EK::Segment_3>(&*x)) {
+    param = CGAL::min(at(s->source()), at(s->target()));
+    point = false;
+    return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 struct RayLabeller::Impl {
@@ -218,6 +254,7 @@ struct RayLabeller::Impl {
   std::vector<Vec3> dirs;
   Bvh bvh;
   int max_level = 0;
+  bool exact_reference = false;  ///< first_hit_exact instead of the BVH
 
   struct Hit {
     int id = -1;
@@ -255,23 +292,28 @@ struct RayLabeller::Impl {
     return true;
   }
 
-  /// CGAL's first_intersection of the ray (o, u) over the triangles that
-  /// `skip` does not skip.
+  /// The first hit (see the comment on Bvh) of the ray (o, u) among the
+  /// triangles that `skip` does not skip, through the BVH.
   template <class Skip>
   Hit first_hit(const Vec3& o, const Vec3& u, const Skip& skip) const {
     Hit best;
+    if (exact_reference) return first_hit_exact(o, u, skip);
     if (nodes_empty()) return best;
     const Ray ray(Point(o.x(), o.y(), o.z()), K::Vector_3(u.x(), u.y(), u.z()));
-    int max_i = 0;  // CGAL's ray parameter: along the direction's largest coordinate
+    int max_i = 0;  // the parameter from the direction's largest coordinate
     for (int i = 1; i < 3; ++i)
       if (std::abs(u[i]) > std::abs(u[max_i])) max_i = i;
     const double od[3] = {o.x(), o.y(), o.z()};
     const double inv[3] = {1.0 / u.x(), 1.0 / u.y(), 1.0 / u.z()};
+    const double inf = std::numeric_limits<double>::infinity();
     double bt = std::numeric_limits<double>::max();
-    auto prune = [&](double entry) { return entry > bt + 1e-9 * (1.0 + std::abs(bt)); };
+    double btol = 0.0;  // error bound of bt
+    bool best_exact_known = false;
+    EK::FT best_exact;
+    auto prune = [&](double entry) { return entry > bt + btol + 1e-9 * (1.0 + std::abs(bt)); };
     int stack[128];
     int sp = 0;
-    if (box_entry(bvh.nodes[0], od, inv) < std::numeric_limits<double>::infinity()) stack[sp++] = 0;
+    if (box_entry(bvh.nodes[0], od, inv) < inf) stack[sp++] = 0;
     while (sp > 0) {
       const Bvh::Node& nd = bvh.nodes[size_t(stack[--sp])];
       if (nd.count > 0) {
@@ -281,24 +323,54 @@ struct RayLabeller::Impl {
           const auto x = CGAL::intersection(ray, tris[size_t(id)]);
           if (!x) continue;
           double param;
+          double tol;
           bool point;
           if (const Point* p = boost::get<Point>(&*x)) {
-            param = (p->cartesian(max_i) - ray.source().cartesian(max_i)) / u[max_i];
+            param = (p->cartesian(max_i) - od[max_i]) / u[max_i];
             point = true;
+            // CGAL constructs the point as the ray's line meets the
+            // triangle's plane, in double: its error grows with the
+            // coordinates' size and as the ray grazes the plane. 1e-11 is
+            // ~5e4 times the double rounding unit.
+            const double c = std::abs(normals[size_t(id)].dot(u));
+            tol = 1e-11 * (1.0 + o.norm() + tdata[size_t(id)].a.norm() + std::abs(param)) /
+                  std::max(c, 1e-300);
           } else if (const auto* s = boost::get<K::Segment_3>(&*x)) {
-            const double r1 =
-                (s->source().cartesian(max_i) - ray.source().cartesian(max_i)) / u[max_i];
-            const double r2 =
-                (s->target().cartesian(max_i) - ray.source().cartesian(max_i)) / u[max_i];
+            const double r1 = (s->source().cartesian(max_i) - od[max_i]) / u[max_i];
+            const double r2 = (s->target().cartesian(max_i) - od[max_i]) / u[max_i];
             param = std::min(r1, r2);
             point = false;
+            tol = inf;  // in the plane: always decided exactly
           } else {
             continue;
           }
-          if (param < bt) {
+          bool take = best.id < 0 || param < bt - (tol + btol);
+          if (!take && !(param > bt + tol + btol)) {  // too close to call in double
+            EK::FT e;
+            bool e_point = false;
+            if (!best_exact_known) {
+              exact_param(ray, tris[size_t(best.id)], best_exact, e_point);
+              best_exact_known = true;
+            }
+            if (exact_param(ray, tris[size_t(id)], e, e_point) &&
+                (e < best_exact || (e == best_exact && id < best.id))) {
+              take = true;
+              best_exact = e;
+            }
+            if (take) {
+              bt = param;
+              btol = tol;
+              best.id = id;
+              best.point = point;
+            }
+            continue;
+          }
+          if (take) {
             bt = param;
+            btol = tol;
             best.id = id;
             best.point = point;
+            best_exact_known = false;
           }
         }
         continue;
@@ -306,8 +378,8 @@ struct RayLabeller::Impl {
       const int a = nd.first, b = nd.first + 1;
       const double ta = box_entry(bvh.nodes[size_t(a)], od, inv);
       const double tb = box_entry(bvh.nodes[size_t(b)], od, inv);
-      const bool ha = ta < std::numeric_limits<double>::infinity() && !prune(ta);
-      const bool hb = tb < std::numeric_limits<double>::infinity() && !prune(tb);
+      const bool ha = ta < inf && !prune(ta);
+      const bool hb = tb < inf && !prune(tb);
       if (sp + 2 > 128) throw std::logic_error("RayLabeller: tree too deep");
       if (ha && hb) {  // near child on top
         if (ta <= tb) {
@@ -325,11 +397,34 @@ struct RayLabeller::Impl {
     }
     return best;
   }
+
+  /// The first hit by its definition: every triangle, exact predicates and
+  /// exact parameters, the lowest index at an exact tie (the tests' reference).
+  template <class Skip>
+  Hit first_hit_exact(const Vec3& o, const Vec3& u, const Skip& skip) const {
+    Hit best;
+    const Ray ray(Point(o.x(), o.y(), o.z()), K::Vector_3(u.x(), u.y(), u.z()));
+    EK::FT bt;
+    for (int id = 0; id < static_cast<int>(tris.size()); ++id) {
+      if (skip(id) || !CGAL::do_intersect(ray, tris[size_t(id)])) continue;
+      EK::FT e;
+      bool point = false;
+      if (!exact_param(ray, tris[size_t(id)], e, point)) continue;
+      if (best.id < 0 || e < bt) {
+        bt = e;
+        best.id = id;
+        best.point = point;
+      }
+    }
+    return best;
+  }
   bool nodes_empty() const { return bvh.nodes.empty(); }
 };
 
-RayLabeller::RayLabeller(const LevelTriangles& in, int rays) : impl_(std::make_unique<Impl>()) {
+RayLabeller::RayLabeller(const LevelTriangles& in, int rays, Method method)
+    : impl_(std::make_unique<Impl>()) {
   auto& I = *impl_;
+  I.exact_reference = method == Method::exact_brute_force;
   I.dirs = sphere_directions(std::max(1, rays));
   for (size_t i = 0; i < in.triangles.size(); ++i) {
     const auto& t = in.triangles[i];
