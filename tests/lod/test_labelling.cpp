@@ -97,8 +97,9 @@ TEST(RayLabeller, TwoLevelBoxesExactly) {
 }
 
 TEST(RayLabeller, BvhGivesTheExactFirstHits) {
-  // 300 overlapping random triangles: with CGAL's AABB_tree::first_intersection
-  // 16 of these 507 cells got other labels (ties broken by visiting order)
+  // CGAL's AABB_tree::first_intersection gives other labels than this reference
+  // in 52 (no random triangles) and 65 (300) of these 1053 cells: it breaks
+  // exact ties by the order it visits the triangles in (BENCHMARKS.md, session 7)
   for (int random : {0, 300}) {
     const LevelTriangles t = scene(random);
     const auto centres = grid();
