@@ -1,6 +1,7 @@
 // Internal: in/out labelling of polyhedra by ray casting against the
 // alpha-shapes of the primitives (paper, Appendix C). Implemented in
-// labelling.cpp (CGAL AABB tree inside).
+// labelling.cpp (a BVH with CGAL's exact-predicate ray-triangle
+// intersection and exact tie-breaks inside).
 #pragma once
 
 #include "citylod/lod/types.hpp"
@@ -20,8 +21,14 @@ struct LevelTriangles {
 
 class RayLabeller {
  public:
+  /// How the first hit of a ray is found. Both give the same hit: the
+  /// triangle the ray meets first by exact predicates and exact parameters,
+  /// the lowest index at an exact tie. `exact_brute_force` tries every
+  /// triangle with exact constructions (slow: the tests' reference).
+  enum class Method { bvh, exact_brute_force };
+
   /// `rays`: rays per cell, uniformly distributed directions (Fibonacci sphere).
-  RayLabeller(const LevelTriangles& tris, int rays);
+  RayLabeller(const LevelTriangles& tris, int rays, Method method = Method::bvh);
   ~RayLabeller();
 
   /// Labels for each centre and each level 0..num_levels-1: label k uses the
