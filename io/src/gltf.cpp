@@ -593,8 +593,10 @@ struct GlbBuilder::Impl {
     return true;
   }
   /// A node's triangles in vertex-cache order (per primitive) and its vertices
-  /// in first-use order: what meshoptimizer's codecs compress best. Same
-  /// surfaces, same features.
+  /// in first-use order, each followed by the other vertices of its corner
+  /// (same feature, same position: flat shading stores a corner once per face
+  /// normal): consecutive equal positions are what meshoptimizer's vertex
+  /// codec stores in the fewest bits. Same surfaces, same features.
   static Node codec_order(const Node& in) {
     Node out = in;
     const std::size_t nv = in.rel.size();
@@ -604,12 +606,28 @@ struct GlbBuilder::Impl {
       meshopt_optimizeVertexCache(ix.data(), ix.data(), ix.size(), nv);
       all.insert(all.end(), ix.begin(), ix.end());
     }
+    // the vertices of each corner, in first-use order (unreferenced ones last)
+    std::vector<unsigned int> use_order;
+    use_order.reserve(nv);
+    std::vector<char> seen(nv, 0);
+    for (unsigned int v : all)
+      if (!seen[v]) {
+        seen[v] = 1;
+        use_order.push_back(v);
+      }
+    for (std::size_t v = 0; v < nv; ++v)
+      if (!seen[v]) use_order.push_back(static_cast<unsigned int>(v));
+    std::map<std::array<double, 4>, std::vector<unsigned int>> corners;
+    for (unsigned int v : use_order)
+      corners[{double(in.feature[v]), in.rel[v][0], in.rel[v][1], in.rel[v][2]}].push_back(v);
     std::vector<unsigned int> remap(nv, ~0u);
-    meshopt_optimizeVertexFetchRemap(remap.data(), all.data(), all.size(), nv);
-    std::size_t next = 0;
-    for (auto& r : remap) next = r != ~0u ? std::max(next, std::size_t(r) + 1) : next;
-    for (auto& r : remap)
-      if (r == ~0u) r = static_cast<unsigned int>(next++);  // unreferenced: at the end
+    unsigned int next = 0;
+    for (unsigned int v : use_order) {
+      if (remap[v] != ~0u) continue;
+      for (unsigned int u :
+           corners.at({double(in.feature[v]), in.rel[v][0], in.rel[v][1], in.rel[v][2]}))
+        remap[u] = next++;
+    }
     for (std::size_t i = 0; i < nv; ++i) {
       out.rel[remap[i]] = in.rel[i];
       out.normals[remap[i]] = in.normals[i];
@@ -765,7 +783,7 @@ std::string GlbBuilder::glb() const {
   auto emit = [&](const Impl::Node& node, bool quantized, double extent, tinygltf::Node gn) -> int {
     const std::size_t nv = node.rel.size();
     // Vertex attributes.
-    int pos_acc, nrm_acc;
+    int pos_acc, nrm_acc, fid_acc = -1;
     // meshopt: int8 octahedral normals (meshopt's OCTAHEDRAL filter), 4 bytes each
     auto oct_normals = [&] {
       std::vector<float> n4(nv * 4, 0.0f);
@@ -797,7 +815,19 @@ std::string GlbBuilder::glb() const {
               std::int16_t(std::lround(std::clamp(n[size_t(k)], -1.0, 1.0) * 32767.0));
         }
       }
-      const int pv = w.attributes(pos.data(), nv, 8, "NONE", 8);
+      int pv;
+      if (mo) {  // one view: int16 position (and its padding), float feature id
+        std::vector<unsigned char> v(nv * 12);
+        for (std::size_t i = 0; i < nv; ++i) {
+          std::memcpy(&v[i * 12], &pos[i * 4], 8);
+          std::memcpy(&v[i * 12 + 8], &node.feature[i], 4);
+        }
+        pv = w.attributes(v.data(), nv, 12, "NONE", 12);
+        fid_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+        model.accessors[size_t(fid_acc)].byteOffset = 8;
+      } else {
+        pv = w.attributes(pos.data(), nv, 8, "NONE", 8);
+      }
       pos_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true, mn, mx);
       if (mo) {
         nrm_acc = oct_normals();
@@ -834,6 +864,27 @@ std::string GlbBuilder::glb() const {
           mn[i % 3] = std::min(mn[i % 3], double(dec[i]));
           mx[i % 3] = std::max(mx[i % 3], double(dec[i]));
         }
+      }
+      // meshopt: one view of position and feature id (the id an EXPONENTIAL
+      // word with exponent 0 and the id as mantissa: decoded exactly)
+      const bool fid_in_view =
+          mo && std::all_of(node.feature.begin(), node.feature.end(),
+                            [](float f) { return f >= 0 && f < float(1 << 23); });
+      if (fid_in_view) {
+        std::vector<std::uint32_t> v(nv * 4);
+        for (std::size_t i = 0; i < nv; ++i) {
+          if (bits > 0) {
+            std::memcpy(&v[i * 4], &exp[i * 3], 12);
+            v[i * 4 + 3] = std::uint32_t(node.feature[i]);
+          } else {
+            std::memcpy(&v[i * 4], &pos[i * 3], 12);
+            std::memcpy(&v[i * 4 + 3], &node.feature[i], 4);
+          }
+        }
+        pv = w.attributes(v.data(), nv, 16, bits > 0 ? "EXPONENTIAL" : "NONE", 16);
+        fid_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+        model.accessors[size_t(fid_acc)].byteOffset = 12;
+      } else if (bits > 0) {
         pv = w.attributes(exp.data(), nv, 12, "EXPONENTIAL", 0);
       } else {
         pv = w.attributes(pos.data(), nv, 12, "NONE", 0);
@@ -847,8 +898,10 @@ std::string GlbBuilder::glb() const {
         nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
       }
     }
-    const int fv = w.attributes(node.feature.data(), nv, 4, "NONE", 0);
-    const int fid_acc = w.accessor(fv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+    if (fid_acc < 0) {
+      const int fv = w.attributes(node.feature.data(), nv, 4, "NONE", 0);
+      fid_acc = w.accessor(fv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+    }
 
     tinygltf::Mesh mesh;
     mesh.name = node.name;
