@@ -227,6 +227,11 @@ std::string finish_glb(const std::string& glb, const std::vector<BinWriter::Mesh
     for (auto& [k, v] : meta.items()) m[k] = v;
     meta = std::move(m);
   }
+  // "mode" 4 (TRIANGLES) is the default: not written
+  if (j.contains("meshes"))
+    for (auto& mesh : j["meshes"])
+      for (auto& prim : mesh["primitives"])
+        if (prim.value("mode", 4) == 4) prim.erase("mode");
   std::size_t fallback = 0;
   for (const auto& m : views) {
     auto& bv = j["bufferViews"][size_t(m.view)];
@@ -593,23 +598,48 @@ struct GlbBuilder::Impl {
     return true;
   }
   /// A node's triangles in vertex-cache order (per primitive) and its vertices
-  /// in first-use order: what meshoptimizer's codecs compress best. Same
-  /// surfaces, same features.
-  static Node codec_order(const Node& in) {
+  /// in first-use order, each followed by the other vertices of its corner
+  /// (same feature, same position: flat shading stores a corner once per face
+  /// normal): consecutive equal positions are what meshoptimizer's vertex
+  /// codec stores in the fewest bits. Same surfaces, same features.
+  static Node codec_order(const Node& in, bool corners_together, bool strip) {
     Node out = in;
     const std::size_t nv = in.rel.size();
     std::vector<unsigned int> all;
     for (auto& ix : out.indices) {
       if (ix.empty()) continue;
-      meshopt_optimizeVertexCache(ix.data(), ix.data(), ix.size(), nv);
+      if (strip)
+        meshopt_optimizeVertexCacheStrip(ix.data(), ix.data(), ix.size(), nv);
+      else
+        meshopt_optimizeVertexCache(ix.data(), ix.data(), ix.size(), nv);
       all.insert(all.end(), ix.begin(), ix.end());
     }
+    // the vertices of each corner, in first-use order (unreferenced ones last)
+    std::vector<unsigned int> use_order;
+    use_order.reserve(nv);
+    std::vector<char> seen(nv, 0);
+    for (unsigned int v : all)
+      if (!seen[v]) {
+        seen[v] = 1;
+        use_order.push_back(v);
+      }
+    for (std::size_t v = 0; v < nv; ++v)
+      if (!seen[v]) use_order.push_back(static_cast<unsigned int>(v));
+    std::map<std::array<double, 4>, std::vector<unsigned int>> corners;
+    for (unsigned int v : use_order)
+      corners[{double(in.feature[v]), in.rel[v][0], in.rel[v][1], in.rel[v][2]}].push_back(v);
     std::vector<unsigned int> remap(nv, ~0u);
-    meshopt_optimizeVertexFetchRemap(remap.data(), all.data(), all.size(), nv);
-    std::size_t next = 0;
-    for (auto& r : remap) next = r != ~0u ? std::max(next, std::size_t(r) + 1) : next;
-    for (auto& r : remap)
-      if (r == ~0u) r = static_cast<unsigned int>(next++);  // unreferenced: at the end
+    unsigned int next = 0;
+    for (unsigned int v : use_order) {
+      if (remap[v] != ~0u) continue;
+      if (!corners_together) {
+        remap[v] = next++;
+        continue;
+      }
+      for (unsigned int u :
+           corners.at({double(in.feature[v]), in.rel[v][0], in.rel[v][1], in.rel[v][2]}))
+        remap[u] = next++;
+    }
     for (std::size_t i = 0; i < nv; ++i) {
       out.rel[remap[i]] = in.rel[i];
       out.normals[remap[i]] = in.normals[i];
@@ -762,10 +792,21 @@ std::string GlbBuilder::glb() const {
   const Vec3d oy = to_yup(im.origin);
   // One glTF node with one mesh: `part`'s vertices quantized (node scale =
   // `extent`) or float.
+  // meshopt: the normals and the triangles of every mesh in one compressed
+  // bufferView each, written after the last mesh (the accessors are slices):
+  // two compressed bufferViews in all instead of two per mesh.
+  struct Shared {
+    bool on = false;
+    std::vector<std::int8_t> normals;
+    std::vector<std::pair<int, std::size_t>> normal_accessors;  // accessor, first vertex
+    std::vector<std::uint32_t> indices;                         // each mesh's own vertices
+    std::size_t vertices = 0;                                   // of the largest mesh
+    std::vector<std::pair<int, std::size_t>> index_accessors;   // accessor, first index
+  } shared;
   auto emit = [&](const Impl::Node& node, bool quantized, double extent, tinygltf::Node gn) -> int {
     const std::size_t nv = node.rel.size();
     // Vertex attributes.
-    int pos_acc, nrm_acc;
+    int pos_acc, nrm_acc, fid_acc = -1;
     // meshopt: int8 octahedral normals (meshopt's OCTAHEDRAL filter), 4 bytes each
     auto oct_normals = [&] {
       std::vector<float> n4(nv * 4, 0.0f);
@@ -777,6 +818,12 @@ std::string GlbBuilder::glb() const {
       }
       std::vector<std::int8_t> oct(nv * 4, 0);
       meshopt_encodeFilterOct(oct.data(), nv, 4, 8, n4.data());
+      if (shared.on) {
+        const int a = w.accessor(-1, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_TYPE_VEC3, nv, true);
+        shared.normal_accessors.emplace_back(a, shared.normals.size() / 4);
+        shared.normals.insert(shared.normals.end(), oct.begin(), oct.end());
+        return a;
+      }
       const int nvw = w.attributes(oct.data(), nv, 4, "OCTAHEDRAL", 4);
       return w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_TYPE_VEC3, nv, true);
     };
@@ -797,7 +844,19 @@ std::string GlbBuilder::glb() const {
               std::int16_t(std::lround(std::clamp(n[size_t(k)], -1.0, 1.0) * 32767.0));
         }
       }
-      const int pv = w.attributes(pos.data(), nv, 8, "NONE", 8);
+      int pv;
+      if (mo) {  // one view: int16 position (and its padding), float feature id
+        std::vector<unsigned char> v(nv * 12);
+        for (std::size_t i = 0; i < nv; ++i) {
+          std::memcpy(&v[i * 12], &pos[i * 4], 8);
+          std::memcpy(&v[i * 12 + 8], &node.feature[i], 4);
+        }
+        pv = w.attributes(v.data(), nv, 12, "NONE", 12);
+        fid_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+        model.accessors[size_t(fid_acc)].byteOffset = 8;
+      } else {
+        pv = w.attributes(pos.data(), nv, 8, "NONE", 8);
+      }
       pos_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, nv, true, mn, mx);
       if (mo) {
         nrm_acc = oct_normals();
@@ -834,6 +893,27 @@ std::string GlbBuilder::glb() const {
           mn[i % 3] = std::min(mn[i % 3], double(dec[i]));
           mx[i % 3] = std::max(mx[i % 3], double(dec[i]));
         }
+      }
+      // meshopt: one view of position and feature id (the id an EXPONENTIAL
+      // word with exponent 0 and the id as mantissa: decoded exactly)
+      const bool fid_in_view =
+          mo && std::all_of(node.feature.begin(), node.feature.end(),
+                            [](float f) { return f >= 0 && f < float(1 << 23); });
+      if (fid_in_view) {
+        std::vector<std::uint32_t> v(nv * 4);
+        for (std::size_t i = 0; i < nv; ++i) {
+          if (bits > 0) {
+            std::memcpy(&v[i * 4], &exp[i * 3], 12);
+            v[i * 4 + 3] = std::uint32_t(node.feature[i]);
+          } else {
+            std::memcpy(&v[i * 4], &pos[i * 3], 12);
+            std::memcpy(&v[i * 4 + 3], &node.feature[i], 4);
+          }
+        }
+        pv = w.attributes(v.data(), nv, 16, bits > 0 ? "EXPONENTIAL" : "NONE", 16);
+        fid_acc = w.accessor(pv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+        model.accessors[size_t(fid_acc)].byteOffset = 12;
+      } else if (bits > 0) {
         pv = w.attributes(exp.data(), nv, 12, "EXPONENTIAL", 0);
       } else {
         pv = w.attributes(pos.data(), nv, 12, "NONE", 0);
@@ -847,18 +927,27 @@ std::string GlbBuilder::glb() const {
         nrm_acc = w.accessor(nvw, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
       }
     }
-    const int fv = w.attributes(node.feature.data(), nv, 4, "NONE", 0);
-    const int fid_acc = w.accessor(fv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+    if (fid_acc < 0) {
+      const int fv = w.attributes(node.feature.data(), nv, 4, "NONE", 0);
+      fid_acc = w.accessor(fv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
+    }
 
-    tinygltf::Mesh mesh;
-    mesh.name = node.name;
-    // One index bufferView per mesh: each primitive's accessor is a slice.
+    tinygltf::Mesh mesh;  // unnamed: its node carries the name
+    // One index bufferView per mesh (meshopt: per glb, see Shared): each
+    // primitive's accessor is a slice.
     const bool u16 = nv <= 65535;
     const int ct =
         u16 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
     std::vector<std::uint32_t> all_ix;
     for (const auto& ix : node.indices) all_ix.insert(all_ix.end(), ix.begin(), ix.end());
-    const int iv = w.triangles(all_ix, nv, u16);
+    const std::size_t base = shared.indices.size();
+    int iv = -1;
+    if (shared.on) {
+      shared.indices.insert(shared.indices.end(), all_ix.begin(), all_ix.end());
+      shared.vertices = std::max(shared.vertices, nv);
+    } else {
+      iv = w.triangles(all_ix, nv, u16);
+    }
     std::size_t first = 0;
     for (int c = 0; c < 3; ++c) {
       const auto& ix = node.indices[size_t(c)];
@@ -867,7 +956,10 @@ std::string GlbBuilder::glb() const {
       prim.mode = TINYGLTF_MODE_TRIANGLES;
       prim.material = c;
       prim.indices = w.accessor(iv, ct, TINYGLTF_TYPE_SCALAR, ix.size());
-      model.accessors[size_t(prim.indices)].byteOffset = first * (u16 ? 2 : 4);
+      if (shared.on)
+        shared.index_accessors.emplace_back(prim.indices, base + first);
+      else
+        model.accessors[size_t(prim.indices)].byteOffset = first * (u16 ? 2 : 4);
       first += ix.size();
       prim.attributes["POSITION"] = pos_acc;
       prim.attributes["NORMAL"] = nrm_acc;
@@ -886,10 +978,40 @@ std::string GlbBuilder::glb() const {
     model.nodes.push_back(gn);
     return int(model.nodes.size() - 1);
   };
+  // meshopt: a mesh in the order whose encoded bytes are fewer, first-use or
+  // corners together (positions against normals and triangles).
+  auto emit_best = [&](const Impl::Node& part, bool quantized, double extent,
+                       const tinygltf::Node& gn) -> int {
+    if (!mo) return emit(part, quantized, extent, gn);
+    const std::size_t accessors = model.accessors.size(), views = model.bufferViews.size(),
+                      meshes = model.meshes.size(), nodes = model.nodes.size(), bytes = bin.size(),
+                      encoded = compressed.size();
+    auto rollback = [&] {
+      model.accessors.resize(accessors);
+      model.bufferViews.resize(views);
+      model.meshes.resize(meshes);
+      model.nodes.resize(nodes);
+      bin.resize(bytes);
+      compressed.resize(encoded);
+    };
+    int chosen = 0;  // bit 0: corners together, bit 1: strip order
+    std::size_t fewest = 0;
+    for (int order = 0; order < 4; ++order) {
+      emit(Impl::codec_order(part, (order & 1) != 0, (order & 2) != 0), quantized, extent, gn);
+      if (order == 0 || bin.size() - bytes < fewest) {
+        fewest = bin.size() - bytes;
+        chosen = order;
+      }
+      rollback();
+    }
+    shared.on = true;  // the chosen order, normals and triangles into the shared views
+    const int best =
+        emit(Impl::codec_order(part, (chosen & 1) != 0, (chosen & 2) != 0), quantized, extent, gn);
+    shared.on = false;
+    return best;
+  };
   for (std::size_t ni = 0; ni < im.nodes.size(); ++ni) {
-    Impl::Node ordered;
-    if (mo) ordered = Impl::codec_order(im.nodes[ni]);
-    const auto& node = mo ? ordered : im.nodes[ni];
+    const auto& node = im.nodes[ni];
     tinygltf::Node gn;
     gn.name = node.name;
     gn.translation = {oy[0], oy[1], oy[2]};
@@ -904,7 +1026,7 @@ std::string GlbBuilder::glb() const {
     const std::set<float> bad = mo && !node_q[ni] ? Impl::unquantizable(node) : std::set<float>{};
     std::set<float> all(node.feature.begin(), node.feature.end());
     if (bad.empty() || bad.size() == all.size()) {
-      scene.nodes.push_back(emit(node, node_q[ni] != 0, extent, gn));
+      scene.nodes.push_back(emit_best(node, node_q[ni] != 0, extent, gn));
       continue;
     }
     // meshopt: the features int16 would damage stay float in a second mesh;
@@ -914,10 +1036,28 @@ std::string GlbBuilder::glb() const {
     tinygltf::Node qn = gn, fn = gn;
     qn.name = node.name + ":int16";
     fn.name = node.name + ":float";
-    parent.children.push_back(emit(Impl::part(node, bad, false), true, extent, qn));
-    parent.children.push_back(emit(Impl::part(node, bad, true), false, extent, fn));
+    parent.children.push_back(emit_best(Impl::part(node, bad, false), true, extent, qn));
+    parent.children.push_back(emit_best(Impl::part(node, bad, true), false, extent, fn));
     model.nodes.push_back(parent);
     scene.nodes.push_back(int(model.nodes.size() - 1));
+  }
+  if (!shared.normal_accessors.empty()) {
+    const int nvw =
+        w.attributes(shared.normals.data(), shared.normals.size() / 4, 4, "OCTAHEDRAL", 4);
+    for (const auto& [a, v] : shared.normal_accessors) {
+      model.accessors[size_t(a)].bufferView = nvw;
+      model.accessors[size_t(a)].byteOffset = v * 4;
+    }
+  }
+  if (!shared.index_accessors.empty()) {
+    const bool u16 = shared.vertices <= 65535;
+    const int iv = w.triangles(shared.indices, shared.vertices, u16);
+    for (const auto& [a, i] : shared.index_accessors) {
+      model.accessors[size_t(a)].bufferView = iv;
+      model.accessors[size_t(a)].byteOffset = i * (u16 ? 2 : 4);
+      model.accessors[size_t(a)].componentType =
+          u16 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    }
   }
   model.scenes.push_back(scene);
   model.defaultScene = 0;

@@ -226,6 +226,88 @@ TEST(GlbReader, MeshoptKeepsOnlyTheDamagedFeaturesFloat) {
   EXPECT_EQ(tris.at(1).size(), thin.triangles.size());
 }
 
+// meshopt: the feature id lives in its mesh's position bufferView, the normals
+// and the triangles of every mesh of the glb in one compressed bufferView each;
+// the reader gets the same models and feature ids as from the plain glb.
+TEST(GlbReader, MeshoptSharesViewsAndKeepsTheModels) {
+  TriangleMesh far, thin, house;
+  add_box(far, 900, 900, 0, 1000, 1000, 10);  // node extent 1000 m: int16
+  add_box(thin, 0, 0, 0, 10, 10, 0.004);      // 4 mm slab: stays float
+  add_house(house, 10, 8, 6, 3);
+  auto write = [&](io::Compression c) {
+    io::GlbOptions opt;
+    opt.compression = c;
+    io::GlbBuilder b({0, 0, 0}, opt);
+    b.begin_node("model_0");  // one int16 and one float mesh
+    b.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
+    b.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);
+    b.begin_node("model_1");  // one int16 mesh
+    b.add_feature(feature("house", io::LodKind::anchor, 1, 0), house);
+    return b.glb();
+  };
+  const std::string mo = write(io::Compression::meshopt), none = write(io::Compression::none);
+  std::uint32_t jlen;
+  std::memcpy(&jlen, mo.data() + 12, 4);
+  const nlohmann::json j = nlohmann::json::parse(mo.substr(20, jlen));
+  ASSERT_EQ(j["meshes"].size(), 3u);
+  std::map<std::string, int> modes;  // compressed bufferViews: mode/filter -> count
+  for (const auto& bv : j["bufferViews"])
+    if (bv.contains("extensions")) {
+      const auto& e = bv["extensions"]["EXT_meshopt_compression"];
+      ++modes[e["mode"].get<std::string>() + "/" + e.value("filter", "NONE") + "/" +
+              std::to_string(e["byteStride"].get<int>())];
+    }
+  // two int16 meshes (position, padding, float id: 12 bytes), one float
+  // mesh (EXPONENTIAL position and id: 16 bytes), the normals and the
+  // triangles of all three: 5 compressed bufferViews instead of 12
+  EXPECT_EQ(modes, (std::map<std::string, int>{{"ATTRIBUTES/NONE/12", 2},
+                                               {"ATTRIBUTES/EXPONENTIAL/16", 1},
+                                               {"ATTRIBUTES/OCTAHEDRAL/4", 1},
+                                               {"TRIANGLES/NONE/2", 1}}));
+  std::set<int> normal_views, index_views;
+  for (const auto& mesh : j["meshes"]) {
+    EXPECT_FALSE(mesh.contains("name"));  // the node carries it
+    for (const auto& p : mesh["primitives"]) {
+      EXPECT_FALSE(p.contains("mode"));  // TRIANGLES, the default
+      const auto& pos = j["accessors"][p["attributes"]["POSITION"].get<std::size_t>()];
+      const auto& fid = j["accessors"][p["attributes"]["_FEATURE_ID_0"].get<std::size_t>()];
+      EXPECT_EQ(fid["bufferView"], pos["bufferView"]);
+      EXPECT_EQ(fid["byteOffset"], pos["componentType"] == 5122 ? 8 : 12);
+      normal_views.insert(
+          j["accessors"][p["attributes"]["NORMAL"].get<std::size_t>()]["bufferView"].get<int>());
+      index_views.insert(j["accessors"][p["indices"].get<std::size_t>()]["bufferView"].get<int>());
+    }
+  }
+  EXPECT_EQ(normal_views.size(), 1u);
+  EXPECT_EQ(index_views.size(), 1u);
+
+  const io::GlbDocument dm = io::parse_glb(mo, "mo.glb"), dn = io::parse_glb(none, "none.glb");
+  const auto tm = triangles(dm), tn = triangles(dn);
+  ASSERT_EQ(tm.size(), 3u);
+  ASSERT_EQ(tn.size(), 3u);
+  EXPECT_EQ(tm.at(0).size(), far.triangles.size());
+  EXPECT_EQ(tm.at(1).size(), thin.triangles.size());
+  EXPECT_EQ(tm.at(2).size(), house.triangles.size());
+  // the same corners per feature: within the int16 step of the 1000 m node
+  // (far, house) and within 1/256 of it (the float slab)
+  const double step = 1000.0 / 32767;
+  for (std::int64_t f = 0; f < 3; ++f) {
+    std::set<std::array<double, 3>> a, b;
+    for (const auto& tri : tm.at(f))
+      for (const auto& p : tri) a.insert({p[0], p[1], p[2]});
+    for (const auto& tri : tn.at(f))
+      for (const auto& p : tri) b.insert({p[0], p[1], p[2]});
+    ASSERT_EQ(a.size(), b.size()) << "feature " << f;
+    const double tol = f == 1 ? step / 256 : step;
+    for (const auto& p : b) {
+      double best = 1e9;
+      for (const auto& q : a)
+        best = std::min(best, std::hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]));
+      EXPECT_LT(best, tol) << "feature " << f;
+    }
+  }
+}
+
 // A shared schema (GlbOptions::schema_uri): the glb refers to it, read_glb
 // reads it next to the file; a constant string attribute is an ENUM.
 TEST(GlbReader, SchemaByUriAndFewStringsAsEnums) {

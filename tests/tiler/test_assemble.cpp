@@ -459,6 +459,34 @@ TEST(Assemble, QuantizedOutputIsValidAndSmaller) {
   EXPECT_EQ(gm.json["extensionsRequired"],
             nlohmann::json({"EXT_meshopt_compression", "KHR_mesh_quantization"}));
   EXPECT_EQ(gm.json["buffers"][1]["extensions"]["EXT_meshopt_compression"]["fallback"], true);
+  // Every glb (tiles and buildings, one or many meshes): one compressed
+  // position-and-feature-id bufferView per mesh, one normal and one triangle
+  // bufferView for all of them.
+  std::size_t glbs = 0;
+  for (const char* dir : {"/tiles", "/buildings"})
+    for (const auto& e : fs::directory_iterator(work + ".meshopt" + dir)) {
+      if (e.path().extension() != ".glb") continue;
+      ++glbs;
+      const GlbFile g = read_glb(e.path().string());
+      std::map<std::string, std::size_t> modes;
+      for (const auto& bv : g.json["bufferViews"])
+        if (bv.contains("extensions")) {
+          const auto& x = bv["extensions"]["EXT_meshopt_compression"];
+          ++modes[x["mode"].get<std::string>() + "/" + x.value("filter", "NONE")];
+        }
+      const std::size_t meshes = g.json["meshes"].size();
+      EXPECT_EQ(modes["ATTRIBUTES/OCTAHEDRAL"], 1u) << e.path();
+      EXPECT_EQ(modes["TRIANGLES/NONE"], 1u) << e.path();
+      EXPECT_EQ(modes["ATTRIBUTES/NONE"] + modes["ATTRIBUTES/EXPONENTIAL"], meshes) << e.path();
+      for (const auto& mesh : g.json["meshes"])
+        for (const auto& pr : mesh["primitives"])
+          EXPECT_EQ(
+              g.json["accessors"][pr["attributes"]["_FEATURE_ID_0"].get<std::size_t>()]
+                    ["bufferView"],
+              g.json["accessors"][pr["attributes"]["POSITION"].get<std::size_t>()]["bufferView"])
+              << e.path();
+    }
+  EXPECT_GT(glbs, m.tiles);  // the building glbs too
   fs::remove_all(work + ".plain");
   fs::remove_all(work + ".meshopt");
 }
