@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <vector>
@@ -25,6 +26,19 @@ enum ItemType : std::uint16_t {
   kWavepacket14 = 13,
   kByte14 = 14,
 };
+
+/// A little-endian value at `p` (unaligned), and its write: the record
+/// layout the decoders read their predictions from and write into.
+template <typename T>
+T load(const unsigned char* p) {
+  T v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <typename T>
+void store(unsigned char* p, T v) {
+  std::memcpy(p, &v, sizeof v);
+}
 
 struct Item {
   std::uint16_t type = 0;

@@ -47,16 +47,6 @@ inline std::uint32_t return_level8(std::uint32_t n, std::uint32_t r) {
   return d < 7 ? d : 7;
 }
 
-template <typename T>
-T load(const unsigned char* p) {
-  T v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-template <typename T>
-void store(unsigned char* p, T v) {
-  std::memcpy(p, &v, sizeof v);
-}
 inline std::int32_t add_wrap(std::int32_t a, std::int32_t b) {
   return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) + static_cast<std::uint32_t>(b));
 }

@@ -22,17 +22,6 @@ constexpr std::uint8_t kReturnLevel[8][8] = {{0, 1, 2, 3, 4, 5, 6, 7}, {1, 0, 1,
                                              {4, 3, 2, 1, 0, 1, 2, 3}, {5, 4, 3, 2, 1, 0, 1, 2},
                                              {6, 5, 4, 3, 2, 1, 0, 1}, {7, 6, 5, 4, 3, 2, 1, 0}};
 
-template <typename T>
-T load(const unsigned char* p) {
-  T v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-template <typename T>
-void store(unsigned char* p, T v) {
-  std::memcpy(p, &v, sizeof v);
-}
-
 class ItemDecoder {
  public:
   virtual ~ItemDecoder() = default;

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,25 @@ inline std::string tmp_path(const std::string& name) {
   std::filesystem::path dir = std::filesystem::path(CITYLOD_TEST_TMP) / "io";
   std::filesystem::create_directories(dir);
   return (dir / name).string();
+}
+
+/// The whole file as bytes ("" when it cannot be read).
+inline std::string read_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+}
+
+/// A little-endian value at byte `off` of `s` (the tests run on x86/ARM LE).
+template <typename T>
+T get(const std::string& s, std::size_t off) {
+  T v;
+  std::memcpy(&v, s.data() + off, sizeof v);
+  return v;
+}
+/// Overwrites the value at byte `off` of `s`.
+template <typename T>
+void put(std::string& s, std::size_t off, T v) {
+  std::memcpy(&s[off], &v, sizeof v);
 }
 
 inline std::string write_file(const std::string& name, const std::string& bytes) {

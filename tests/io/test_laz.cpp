@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <fstream>
-#include <sstream>
 #include <tuple>
 
 #include "citylod/io/reader.hpp"
@@ -19,24 +18,6 @@ using namespace citylod::io::test;
 namespace laz = citylod::io::detail::laz;
 
 namespace {
-
-std::string slurp(const std::string& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-template <typename T>
-T get(const std::string& s, std::size_t off) {
-  T v;
-  std::memcpy(&v, s.data() + off, sizeof v);
-  return v;
-}
-template <typename T>
-void put(std::string& s, std::size_t off, T v) {
-  std::memcpy(&s[off], &v, sizeof v);
-}
 
 // Decodes everything; returns "" or the IoError message. Any other exception fails.
 std::string try_verify(const std::string& p) {
@@ -173,7 +154,7 @@ TEST(Laz, ParallelAndSequentialDecodingAgree) {
     FileInfo h = read_header(p);
     std::vector<unsigned char> vlr;
     // the LazStream is private: rebuild its source from the file
-    const std::string s = slurp(p);
+    const std::string s = read_file(p);
     const std::uint16_t header_size = get<std::uint16_t>(s, 94);
     const std::uint32_t offset = get<std::uint32_t>(s, 96), n_vlr = get<std::uint32_t>(s, 100);
     std::size_t pos = header_size;
@@ -212,7 +193,7 @@ TEST(LazBadInput, TruncatedFilesFailClearly) {
   for (const char* f : {"delft/ahn3_cropped_2.laz", "laz/lone-star.copc.laz", "laz/simple.laz"}) {
     const std::string p = shared(f);
     CITYLOD_REQUIRE_SHARED(p);
-    const std::string s = slurp(p);
+    const std::string s = read_file(p);
     const std::uint32_t offset = get<std::uint32_t>(s, 96);
     for (double frac : {0.0, 0.001, 0.3, 0.5, 0.9, 0.99, 0.9999}) {
       const std::size_t cut = offset + static_cast<std::size_t>(frac * (s.size() - offset));
@@ -231,7 +212,7 @@ TEST(LazBadInput, FlippedBytesInChunkDataNeverCrash) {
                         "laz/1.2-with-color.copc.laz"}) {
     const std::string p = shared(f);
     CITYLOD_REQUIRE_SHARED(p);
-    const std::string s = slurp(p);
+    const std::string s = read_file(p);
     const std::uint32_t offset = get<std::uint32_t>(s, 96);
     const std::uint64_t table = get<std::uint64_t>(s, offset);
     int detected = 0, tries = 0;
@@ -260,7 +241,7 @@ TEST(LazBadInput, FlippedBytesInChunkDataNeverCrash) {
 TEST(LazBadInput, LyingChunkTable) {
   const std::string p = shared("delft/ahn3_cropped_2.laz");
   CITYLOD_REQUIRE_SHARED(p);
-  const std::string s = slurp(p);
+  const std::string s = read_file(p);
   const std::uint32_t offset = get<std::uint32_t>(s, 96);
   const std::uint64_t table = get<std::uint64_t>(s, offset);
 
@@ -289,7 +270,7 @@ TEST(LazBadInput, LyingChunkTable) {
   // variable chunks (COPC): the point counts are in the table
   const std::string c = shared("laz/lone-star.copc.laz");
   CITYLOD_REQUIRE_SHARED(c);
-  const std::string cs = slurp(c);
+  const std::string cs = read_file(c);
   const std::uint32_t coff = get<std::uint32_t>(cs, 96);
   const std::uint64_t ctable = get<std::uint64_t>(cs, coff);
   int detected = 0;
@@ -308,7 +289,7 @@ TEST(LazBadInput, LyingChunkTable) {
 TEST(LazBadInput, LayerTableAndPointCountOfALayeredChunk) {
   const std::string p = shared("laz/lone-star.copc.laz");
   CITYLOD_REQUIRE_SHARED(p);
-  const std::string s = slurp(p);
+  const std::string s = read_file(p);
   const std::uint32_t offset = get<std::uint32_t>(s, 96);
   const std::size_t chunk0 = offset + 8;
   std::string t = s;
@@ -325,7 +306,7 @@ TEST(LazBadInput, LayerTableAndPointCountOfALayeredChunk) {
 TEST(LazBadInput, UnsupportedItemsAreRefusedClearly) {
   const std::string p = shared("laz/simple.laz");
   CITYLOD_REQUIRE_SHARED(p);
-  const std::string s = slurp(p);
+  const std::string s = read_file(p);
   const std::size_t vlr = get<std::uint16_t>(s, 94) + 54;  // the only VLR: laszip
   ASSERT_EQ(get<std::uint16_t>(s, vlr - 54 + 18), 22204);
   std::string t = s;

@@ -9,7 +9,6 @@
 #include <fstream>
 #include <map>
 #include <set>
-#include <sstream>
 
 #include "citylod/io/reader.hpp"
 #include "citylod/io/verify.hpp"
@@ -22,29 +21,6 @@ using namespace citylod::io::test;
 namespace laz = citylod::io::detail::laz;
 
 namespace {
-
-std::string slurp(const std::string& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-template <typename T>
-T get(const std::string& s, std::size_t off) {
-  T v;
-  std::memcpy(&v, s.data() + off, sizeof v);
-  return v;
-}
-template <typename T>
-T get(const unsigned char* p) {
-  T v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-template <typename T>
-void put(std::string& s, std::size_t off, T v) {
-  std::memcpy(&s[off], &v, sizeof v);
-}
 
 std::string try_verify(const std::string& p) {
   try {
@@ -72,7 +48,7 @@ std::string vlr_payload(const std::string& s, const char* user, std::uint16_t re
 // All decoded records of a LAZ file, through the private stream.
 std::vector<unsigned char> decode_all(const std::string& p, FileInfo& h) {
   h = read_header(p);
-  const std::string s = slurp(p);
+  const std::string s = read_file(p);
   const std::string v = vlr_payload(s, "laszip encoded", 22204);
   citylod::io::detail::LazSource src;
   src.path = p;
@@ -119,7 +95,7 @@ TEST(LazWave, GarbageWhereThePacketsShouldBeFailsClearly) {
   {
     const std::string p = shared("laz/simple.laz");
     CITYLOD_REQUIRE_SHARED(p);
-    std::string t = slurp(p);
+    std::string t = read_file(p);
     const std::size_t vlr = get<std::uint16_t>(t, 94) + 54;  // the only VLR: laszip
     ASSERT_EQ(get<std::uint16_t>(t, vlr - 54 + 18), 22204);
     ASSERT_EQ(get<std::uint16_t>(t, vlr + 34 + 6 * 2), 8);  // RGB12 -> WAVEPACKET13 v1
@@ -150,7 +126,7 @@ TEST_P(LazWaveTwin, SameRecordsAsTheLasTwin) {
   const std::string las_path = extra(std::string("laz/oracle/") + t.name + ".las");
   if (!std::filesystem::exists(laz_path) || !std::filesystem::exists(las_path))
     GTEST_SKIP() << "extra data missing: " << laz_path;
-  const std::string v = vlr_payload(slurp(laz_path), "laszip encoded", 22204);
+  const std::string v = vlr_payload(read_file(laz_path), "laszip encoded", 22204);
   ASSERT_GE(v.size(), 40u);
   const std::uint16_t n = get<std::uint16_t>(v, 32);
   EXPECT_EQ(get<std::uint16_t>(v, 34 + 6 * (n - 1) + 4), t.item_version);
@@ -186,7 +162,7 @@ TEST(LazWave, FullwaveLazPacketsAgreeWithDescriptorAndPoints) {
   EXPECT_EQ(d.count, 10750u);
   EXPECT_EQ(d.sha256, "b49cab16bf6befbbc8f00653bda3b288883b82c5c6ef91018252210338ab9f02");
 
-  const std::string wpd = vlr_payload(slurp(p), "LASF_Spec", 100);  // descriptor 1
+  const std::string wpd = vlr_payload(read_file(p), "LASF_Spec", 100);  // descriptor 1
   ASSERT_EQ(wpd.size(), 26u);
   const std::uint32_t packet_bytes =
       static_cast<std::uint8_t>(wpd[0]) / 8 * get<std::uint32_t>(wpd, 2);  // 16 bit x 2484
@@ -201,11 +177,12 @@ TEST(LazWave, FullwaveLazPacketsAgreeWithDescriptorAndPoints) {
     const unsigned char* q = &r[i * 67];
     const unsigned char* w = q + 38;
     ASSERT_EQ(w[0], 1) << "point " << i;  // descriptor index
-    ASSERT_EQ(get<std::uint32_t>(w + 9), packet_bytes) << "point " << i;
-    const std::uint64_t off = get<std::uint64_t>(w + 1);
+    ASSERT_EQ(laz::load<std::uint32_t>(w + 9), packet_bytes) << "point " << i;
+    const std::uint64_t off = laz::load<std::uint64_t>(w + 1);
     ASSERT_EQ((off - 60) % packet_bytes, 0u) << "point " << i;  // behind the 60-byte EVLR header
     // the direction is light's path per picosecond (about c / 2, two-way)
-    const double n = std::hypot(get<float>(w + 17), get<float>(w + 21), get<float>(w + 25));
+    const double n =
+        std::hypot(laz::load<float>(w + 17), laz::load<float>(w + 21), laz::load<float>(w + 25));
     ASSERT_GT(n, 1.40e-4) << "point " << i;
     ASSERT_LT(n, 1.52e-4) << "point " << i;
     pulses[off].points.push_back(q);
@@ -222,11 +199,12 @@ TEST(LazWave, FullwaveLazPacketsAgreeWithDescriptorAndPoints) {
       const unsigned char* q = pulse.points[k];
       returns.insert(q[14] & 15);
       if ((q[14] >> 4) != static_cast<int>(pulse.points.size())) ++incomplete;
-      EXPECT_EQ(get<double>(q + 22), get<double>(pulse.points[0] + 22)) << "pulse at " << off;
-      const float t = get<float>(q + 38 + 13);
+      EXPECT_EQ(laz::load<double>(q + 22), laz::load<double>(pulse.points[0] + 22))
+          << "pulse at " << off;
+      const float t = laz::load<float>(q + 38 + 13);
       for (int a = 0; a < 3; ++a) {
-        const double x = get<std::int32_t>(q + 4 * a) * h.scale[a] + h.offset[a] +
-                         static_cast<double>(t) * get<float>(q + 38 + 17 + 4 * a);
+        const double x = laz::load<std::int32_t>(q + 4 * a) * h.scale[a] + h.offset[a] +
+                         static_cast<double>(t) * laz::load<float>(q + 38 + 17 + 4 * a);
         if (k == 0)
           anchor0[a] = x;
         else
@@ -250,7 +228,7 @@ TEST(LazWave, TruncatedAndFlippedWaveformFilesFailClearly) {
     const std::string p = extra(f);
     if (!std::filesystem::exists(p)) continue;
     ++files;
-    const std::string s = slurp(p);
+    const std::string s = read_file(p);
     const std::uint32_t offset = get<std::uint32_t>(s, 96);
     for (double frac : {0.0, 0.3, 0.6, 0.9, 0.999}) {
       const std::size_t cut = offset + static_cast<std::size_t>(frac * (s.size() - offset));

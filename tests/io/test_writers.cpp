@@ -1,7 +1,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "citylod/io/atomic_file.hpp"
 #include "citylod/io/reader.hpp"
@@ -22,13 +21,6 @@ PointSet sample_points(bool normals, bool colors, bool classes) {
     if (classes) p.classes.push_back(static_cast<std::uint8_t>(i % 10));
   }
   return p;
-}
-
-std::string slurp(const std::string& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
 }
 
 bool no_temp_files(const std::string& dir) {
@@ -114,9 +106,9 @@ TEST(AtomicFile, WritesViaTempAndRename) {
   std::filesystem::remove_all(dir);
   std::string p = dir + "/sub/out.bin";  // parents are created
   atomic_write_file(p, "first");
-  EXPECT_EQ(slurp(p), "first");
+  EXPECT_EQ(read_file(p), "first");
   atomic_write_file(p, std::string("second\0x", 8));
-  EXPECT_EQ(slurp(p), std::string("second\0x", 8));
+  EXPECT_EQ(read_file(p), std::string("second\0x", 8));
   EXPECT_TRUE(no_temp_files(dir + "/sub"));
 
   {
@@ -125,13 +117,13 @@ TEST(AtomicFile, WritesViaTempAndRename) {
     EXPECT_TRUE(std::filesystem::exists(f.temp_path()));
     // no commit: destructor discards the temp file, the old content stays
   }
-  EXPECT_EQ(slurp(p), std::string("second\0x", 8));
+  EXPECT_EQ(read_file(p), std::string("second\0x", 8));
   EXPECT_TRUE(no_temp_files(dir + "/sub"));
 
   AtomicFile g(p);
   g.write("third");
   g.commit();
-  EXPECT_EQ(slurp(p), "third");
+  EXPECT_EQ(read_file(p), "third");
   EXPECT_THROW(g.commit(), IoError);
 
   std::filesystem::create_directories(dir + "/isdir");
