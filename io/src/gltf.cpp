@@ -37,20 +37,27 @@ inline Vec3d from_yup(const Vec3d& p) {
   return {p[0], -p[2], p[1]};
 }
 
-/// A mesh split into flat-shaded vertices (one per source vertex and face
-/// normal) and one index list per surface class.
+/// Primitive classes: the three surface classes with their fixed material,
+/// then the same three coloured (COLOR_0, white "*_rgb" material).
+constexpr int kClasses = 6;
+using Indices = std::array<std::vector<std::uint32_t>, kClasses>;
+
+/// A mesh split into flat-shaded vertices (one per source vertex, face
+/// normal and colour) and one index list per primitive class.
 struct FlatMesh {
   std::vector<Vec3d> positions;
   std::vector<Vec3f> normals;
-  std::array<std::vector<std::uint32_t>, 3> indices;
+  std::vector<Rgba8> colours;  ///< one per vertex (a = 0: none)
+  Indices indices;
   std::size_t triangles = 0;
 };
 
 struct VertexKey {
   std::uint32_t vertex;
   std::int32_t nx, ny, nz;
+  std::uint32_t rgba;
   bool operator==(const VertexKey& o) const {
-    return vertex == o.vertex && nx == o.nx && ny == o.ny && nz == o.nz;
+    return vertex == o.vertex && nx == o.nx && ny == o.ny && nz == o.nz && rgba == o.rgba;
   }
 };
 struct VertexKeyHash {
@@ -59,16 +66,22 @@ struct VertexKeyHash {
     h = h * 0x9E3779B97F4A7C15ULL ^ std::uint32_t(k.nx);
     h = h * 0x9E3779B97F4A7C15ULL ^ std::uint32_t(k.ny);
     h = h * 0x9E3779B97F4A7C15ULL ^ std::uint32_t(k.nz);
+    h = h * 0x9E3779B97F4A7C15ULL ^ k.rgba;
     return std::size_t(h ^ (h >> 29));
   }
 };
 
-FlatMesh flat_shade(const TriangleMesh& mesh) {
+FlatMesh flat_shade(const TriangleMesh& mesh, const std::vector<Rgba8>& colours = {}) {
   FlatMesh out;
+  if (!colours.empty() && colours.size() != mesh.triangles.size())
+    throw IoError(kWhere, std::to_string(colours.size()) + " triangle colours for " +
+                              std::to_string(mesh.triangles.size()) + " triangles");
   std::unordered_map<VertexKey, std::uint32_t, VertexKeyHash> index;
   index.reserve(mesh.triangles.size() * 2);
   const std::size_t nv = mesh.vertices.size();
-  for (const auto& t : mesh.triangles) {
+  for (std::size_t ti = 0; ti < mesh.triangles.size(); ++ti) {
+    const auto& t = mesh.triangles[ti];
+    const Rgba8 rgb = colours.empty() || colours[ti][3] == 0 ? Rgba8{0, 0, 0, 0} : colours[ti];
     if (t[0] >= nv || t[1] >= nv || t[2] >= nv)
       throw IoError(kWhere, "triangle refers to vertex " +
                                 std::to_string(std::max({t[0], t[1], t[2]})) + " of " +
@@ -82,24 +95,41 @@ FlatMesh flat_shade(const TriangleMesh& mesh) {
     const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (!(len > 1e-10)) continue;  // degenerate (or NaN)
     for (auto& x : n) x /= len;
-    const int cls = int(classify_normal(n));
+    const int cls = int(classify_normal(n)) + (rgb[3] ? 3 : 0);
     // Triangles of one planar face share vertices: the normal key is coarse
     // enough to absorb rounding, the first triangle's normal is kept.
     const std::int32_t nx = std::int32_t(std::lround(n[0] * 4096)),
                        ny = std::int32_t(std::lround(n[1] * 4096)),
                        nz = std::int32_t(std::lround(n[2] * 4096));
     for (int k = 0; k < 3; ++k) {
-      const VertexKey key{t[size_t(k)], nx, ny, nz};
+      const std::uint32_t packed = std::uint32_t(rgb[0]) | std::uint32_t(rgb[1]) << 8 |
+                                   std::uint32_t(rgb[2]) << 16 | std::uint32_t(rgb[3]) << 24;
+      const VertexKey key{t[size_t(k)], nx, ny, nz, packed};
       auto [it, fresh] = index.emplace(key, std::uint32_t(out.positions.size()));
       if (fresh) {
         out.positions.push_back(mesh.vertices[t[size_t(k)]]);
         out.normals.push_back({float(n[0]), float(n[1]), float(n[2])});
+        out.colours.push_back(rgb);
       }
       out.indices[size_t(cls)].push_back(it->second);
     }
     ++out.triangles;
   }
   return out;
+}
+
+/// An 8-bit sRGB value as an 8-bit linear one (glTF's vertex colours are linear).
+std::uint8_t srgb_to_linear_u8(std::uint8_t v) {
+  static const std::array<std::uint8_t, 256> table = [] {
+    std::array<std::uint8_t, 256> t{};
+    for (int i = 0; i < 256; ++i) {
+      const double c = i / 255.0;
+      const double l = c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+      t[size_t(i)] = std::uint8_t(std::lround(l * 255.0));
+    }
+    return t;
+  }();
+  return table[v];
 }
 
 std::size_t vertex_bytes(bool quantize) {
@@ -490,7 +520,13 @@ struct GlbBuilder::Impl {
     std::vector<Vec3d> rel;  // z-up, relative to origin
     std::vector<Vec3f> normals;
     std::vector<float> feature;
-    std::array<std::vector<std::uint32_t>, 3> indices;
+    std::vector<Rgba8> colours;  // one per vertex (a = 0: none)
+    Indices indices;
+    bool coloured() const {
+      for (int c = 3; c < kClasses; ++c)
+        if (!indices[size_t(c)].empty()) return true;
+      return false;
+    }
   };
   Vec3d origin;
   GlbOptions opt;
@@ -538,8 +574,9 @@ struct GlbBuilder::Impl {
         out.rel.push_back(n.rel[i]);
         out.normals.push_back(n.normals[i]);
         out.feature.push_back(n.feature[i]);
+        out.colours.push_back(n.colours[i]);
       }
-    for (int c = 0; c < 3; ++c)
+    for (int c = 0; c < kClasses; ++c)
       for (std::uint32_t v : n.indices[size_t(c)])
         if (map[v] != ~0u) out.indices[size_t(c)].push_back(map[v]);
     return out;
@@ -644,6 +681,7 @@ struct GlbBuilder::Impl {
       out.rel[remap[i]] = in.rel[i];
       out.normals[remap[i]] = in.normals[i];
       out.feature[remap[i]] = in.feature[i];
+      out.colours[remap[i]] = in.colours[i];
     }
     for (auto& ix : out.indices)
       for (auto& v : ix) v = remap[v];
@@ -667,14 +705,15 @@ void GlbBuilder::begin_node(const std::string& name) {
   impl_->nodes.back().name = name;
 }
 
-std::uint32_t GlbBuilder::add_feature(const GlbFeature& meta, const TriangleMesh& mesh) {
+std::uint32_t GlbBuilder::add_feature(const GlbFeature& meta, const TriangleMesh& mesh,
+                                      const std::vector<Rgba8>& colours) {
   if (impl_->nodes.empty()) begin_node("content");
   auto& node = impl_->nodes.back();
   const std::uint32_t fid = std::uint32_t(impl_->features.size());
   if (fid >= (1u << 24))
     throw IoError(kWhere, "more than 2^24 features in one glb (float feature ids)");
   impl_->features.push_back(meta);
-  const FlatMesh f = flat_shade(mesh);
+  const FlatMesh f = flat_shade(mesh, colours);
   const std::uint32_t base = std::uint32_t(node.rel.size());
   const Vec3d& o = impl_->origin;
   for (std::size_t i = 0; i < f.positions.size(); ++i) {
@@ -682,8 +721,9 @@ std::uint32_t GlbBuilder::add_feature(const GlbFeature& meta, const TriangleMesh
     node.rel.push_back({p[0] - o[0], p[1] - o[1], p[2] - o[2]});
     node.normals.push_back(f.normals[i]);
     node.feature.push_back(float(fid));
+    node.colours.push_back(f.colours[i]);
   }
-  for (int c = 0; c < 3; ++c)
+  for (int c = 0; c < kClasses; ++c)
     for (std::uint32_t i : f.indices[size_t(c)]) node.indices[size_t(c)].push_back(base + i);
   impl_->triangles += f.triangles;
   return fid;
@@ -772,6 +812,19 @@ std::string GlbBuilder::glb() const {
     mat.pbrMetallicRoughness.roughnessFactor = m.roughness;
     model.materials.push_back(mat);
   }
+  // Coloured triangles: white materials (COLOR_0 carries the colour), only
+  // when some triangle is coloured (the glb of an input without colours is
+  // unchanged).
+  if (std::any_of(im.nodes.begin(), im.nodes.end(),
+                  [](const Impl::Node& n) { return n.coloured(); }))
+    for (const auto& m : kMaterials) {
+      tinygltf::Material mat;
+      mat.name = std::string(m.name) + "_rgb";
+      mat.pbrMetallicRoughness.baseColorFactor = {1.0, 1.0, 1.0, 1.0};
+      mat.pbrMetallicRoughness.metallicFactor = 0.0;
+      mat.pbrMetallicRoughness.roughnessFactor = m.roughness;
+      model.materials.push_back(mat);
+    }
 
   model.buffers.emplace_back();
   std::vector<unsigned char> bin;
@@ -931,6 +984,18 @@ std::string GlbBuilder::glb() const {
       const int fv = w.attributes(node.feature.data(), nv, 4, "NONE", 0);
       fid_acc = w.accessor(fv, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, nv);
     }
+    // COLOR_0: normalized u8 RGBA in linear space (glTF), from the sRGB input
+    int col_acc = -1;
+    if (node.coloured()) {
+      std::vector<std::uint8_t> rgba(nv * 4, 0);
+      for (std::size_t i = 0; i < nv; ++i) {
+        for (int k = 0; k < 3; ++k)
+          rgba[i * 4 + size_t(k)] = srgb_to_linear_u8(node.colours[i][size_t(k)]);
+        rgba[i * 4 + 3] = 255;
+      }
+      const int cv = w.attributes(rgba.data(), nv, 4, "NONE", 4);
+      col_acc = w.accessor(cv, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC4, nv, true);
+    }
 
     tinygltf::Mesh mesh;  // unnamed: its node carries the name
     // One index bufferView per mesh (meshopt: per glb, see Shared): each
@@ -949,7 +1014,7 @@ std::string GlbBuilder::glb() const {
       iv = w.triangles(all_ix, nv, u16);
     }
     std::size_t first = 0;
-    for (int c = 0; c < 3; ++c) {
+    for (int c = 0; c < kClasses; ++c) {
       const auto& ix = node.indices[size_t(c)];
       if (ix.empty()) continue;
       tinygltf::Primitive prim;
@@ -964,6 +1029,7 @@ std::string GlbBuilder::glb() const {
       prim.attributes["POSITION"] = pos_acc;
       prim.attributes["NORMAL"] = nrm_acc;
       prim.attributes["_FEATURE_ID_0"] = fid_acc;
+      if (c >= 3) prim.attributes["COLOR_0"] = col_acc;
       std::set<float> distinct;
       for (std::uint32_t i : ix) distinct.insert(node.feature[i]);
       Value::Object fid{{"featureCount", Value(int(distinct.size()))},

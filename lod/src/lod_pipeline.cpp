@@ -4,13 +4,14 @@
 //   labels -> regions, principal/secondary structures -> two-stage clustering
 //   -> adaptive regularization (+ window templates) -> scale-sorted S ->
 //   LOD-Tree BSP + per-level labels -> LOD-nodes -> traversal -> mesh per
-//   candidate -> fidelity metrics.
+//   candidate -> fidelity metrics -> input colours on the faces.
 //
 // Any failure inside gives the fallback model with the reason recorded.
 #include "airborne.hpp"
 #include "bsp.hpp"
 #include "citylod/lod/lod.hpp"
 #include "closure.hpp"
+#include "colour.hpp"
 #include "fallback.hpp"
 #include "fidelity.hpp"
 #include "grouping.hpp"
@@ -656,6 +657,8 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
     m.hausdorff = f.hausdorff;
     if (m.volume == 0.0) m.volume = mesh_volume(m.mesh);
   }
+  // The input's colours (if any) onto the faces of every model.
+  colour_models(in, samples, params.colour, R.models, params.threads);
   R.stats.t_metrics = seconds_since(tm);
   progress(1.0, "done");
   return R;

@@ -138,6 +138,10 @@ void visit(P& p, F&& f) {
   f("orient.offset", p.orient.offset);
   f("orient.margin", p.orient.margin);
   f("metrics.samples", p.metrics.samples);
+  f("colour.enabled", p.colour.enabled);
+  f("colour.distance", p.colour.distance);
+  f("colour.min_points", p.colour.min_points);
+  f("colour.max_angle_deg", p.colour.max_angle_deg);
   f("threads", p.threads);
 }
 
@@ -214,6 +218,10 @@ void LodParams::validate() const {
   check(pos(orient.offset), "orient.offset", "must be > 0");
   check(orient.margin >= 0 && orient.margin < 1, "orient.margin", "must be in [0, 1)");
   check(metrics.samples >= 1, "metrics.samples", "must be >= 1");
+  check(colour.distance >= 0, "colour.distance", "must be >= 0");
+  check(colour.min_points >= 1, "colour.min_points", "must be >= 1");
+  check(colour.max_angle_deg >= 0 && colour.max_angle_deg <= 90, "colour.max_angle_deg",
+        "must be in [0, 90]");
   check(threads >= 0, "threads", "must be >= 0 (0 = all cores)");
 }
 

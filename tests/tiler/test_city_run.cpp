@@ -126,6 +126,42 @@ TEST(WorkDir, LodReportRoundTripsByteForByte) {
   EXPECT_EQ(slurp(path), bytes);
 }
 
+TEST(WorkDir, FaceColoursRoundTripAsRuns) {
+  const fs::path d = fresh_dir("report_colours");
+  LodReport r;
+  r.status = Status::ok;
+  ModelRecord m;
+  m.file = "model_00_anchor_L0.ply";
+  m.polygons = 4;
+  m.triangles = 6;
+  const FaceColour red{200, 10, 10, 255}, none{0, 0, 0, 0};
+  m.polygon_colours = {red, red, none, FaceColour{1, 2, 3, 255}};
+  m.triangle_colours = {none, none, red, red, red, none};
+  r.models = {m};
+  const std::string path = (d / "report.json").string();
+  write_lod_report(path, r);
+  const nlohmann::json j = nlohmann::json::parse(slurp(path));
+  EXPECT_EQ(j["models"][0]["colours"]["polygons"].dump(), "[[2,200,10,10],[1],[1,1,2,3]]");
+  EXPECT_EQ(j["models"][0]["colours"]["triangles"].dump(), "[[2],[3,200,10,10],[1]]");
+  const LodReport back = read_lod_report(path);
+  EXPECT_EQ(back.models[0].polygon_colours, m.polygon_colours);
+  EXPECT_EQ(back.models[0].triangle_colours, m.triangle_colours);
+  // runs that do not add up to the faces, or values beyond a byte: one error naming the file
+  for (const char* bad :
+       {R"([[3,1,2,3]])", R"([[4,1,2,300]])", R"([[2],[2,1,2]])", R"([[0],[4]])"}) {
+    nlohmann::json k = j;
+    k["models"][0]["colours"]["polygons"] = nlohmann::json::parse(bad);
+    std::ofstream(path, std::ios::trunc) << k.dump();
+    try {
+      read_lod_report(path);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const citylod::io::IoError& e) {
+      EXPECT_NE(std::string(e.what()).find("report.json"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("colours"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(WorkDir, DefaultsOfAbsentFieldsAreTheDocumentedOnes) {
   const fs::path d = fresh_dir("report_defaults");
   const fs::path path = d / "report.json";

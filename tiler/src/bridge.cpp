@@ -80,12 +80,14 @@ lod::BuildingInput to_building_input(const BuildingFile& f, const io::Vec3d& o,
       in.points.emplace_back(v[0] - o[0], v[1] - o[1], v[2] - o[2]);
     for (const auto& t : f.mesh.triangles)
       in.triangles.push_back({int(t[0]), int(t[1]), int(t[2])});
+    if (f.mesh.colors.size() == f.mesh.vertices.size()) in.colors = f.mesh.colors;
   } else {
     in.points.reserve(f.points.size());
     for (const auto& v : f.points.positions)
       in.points.emplace_back(v[0] - o[0], v[1] - o[1], v[2] - o[2]);
     if (f.points.has_normals())
       for (const auto& n : f.points.normals) in.normals.emplace_back(n[0], n[1], n[2]);
+    if (f.points.has_colors()) in.colors = f.points.colors;
   }
   check_building_input(in, path);
   return in;
@@ -228,6 +230,8 @@ LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p,
     e.e1 = m.e1;
     e.e2 = m.e2;
     e.hausdorff_m = m.hausdorff;
+    e.polygon_colours = m.polygon_colours;
+    e.triangle_colours = m.triangle_colours;
     j.models.push_back(e);
   }
   return j;

@@ -170,19 +170,64 @@ ChunkRecord chunk_from_json(const json& o) {
 }
 
 // ------------------------------------------------------------ report.json
+/// Face colours as runs of equal values: [n, r, g, b], or [n] without colour.
+json colour_runs(const std::vector<FaceColour>& c) {
+  json runs = json::array();
+  for (size_t i = 0; i < c.size();) {
+    size_t j = i + 1;
+    while (j < c.size() && (c[j] == c[i] || (c[j][3] == 0 && c[i][3] == 0))) ++j;
+    if (c[i][3] == 0)
+      runs.push_back({j - i});
+    else
+      runs.push_back({j - i, c[i][0], c[i][1], c[i][2]});
+    i = j;
+  }
+  return runs;
+}
+
+std::vector<FaceColour> colours_from_runs(const json& runs, std::uint64_t expected,
+                                          const std::string& path, const std::string& what) {
+  auto bad = [&](const std::string& why) { return io::IoError(path, what + " colours: " + why); };
+  if (!runs.is_array()) throw bad("not an array of runs");
+  std::vector<FaceColour> out;
+  for (const auto& r : runs) {
+    if (!r.is_array() || (r.size() != 1 && r.size() != 4))
+      throw bad("a run is not [n] or [n, r, g, b]");
+    for (const auto& v : r)
+      if (!v.is_number_unsigned()) throw bad("a run holds something other than a count or 0-255");
+    const std::uint64_t n = r[0].get<std::uint64_t>();
+    if (n == 0 || n > expected - out.size()) throw bad("the runs do not add up to the faces");
+    FaceColour c{0, 0, 0, 0};
+    if (r.size() == 4) {
+      for (size_t k = 1; k < 4; ++k) {
+        if (r[k].get<std::uint64_t>() > 255) throw bad("a colour value exceeds 255");
+        c[k - 1] = std::uint8_t(r[k].get<std::uint64_t>());
+      }
+      c[3] = 255;
+    }
+    out.insert(out.end(), size_t(n), c);
+  }
+  if (out.size() != expected) throw bad("the runs do not add up to the faces");
+  return out;
+}
+
 json to_json(const ModelRecord& m) {
-  return {{"file", m.file},
-          {"kind", io::to_string(m.kind)},
-          {"level", m.level},
-          {"step", m.step},
-          {"cuts", m.cuts},
-          {"diff_sum", m.diff_sum},
-          {"polygons", m.polygons},
-          {"triangles", m.triangles},
-          {"volume", m.volume},
-          {"e1", m.e1},
-          {"e2", m.e2},
-          {"hausdorff_m", m.hausdorff_m}};
+  json j = {{"file", m.file},
+            {"kind", io::to_string(m.kind)},
+            {"level", m.level},
+            {"step", m.step},
+            {"cuts", m.cuts},
+            {"diff_sum", m.diff_sum},
+            {"polygons", m.polygons},
+            {"triangles", m.triangles},
+            {"volume", m.volume},
+            {"e1", m.e1},
+            {"e2", m.e2},
+            {"hausdorff_m", m.hausdorff_m}};
+  if (!m.polygon_colours.empty() || !m.triangle_colours.empty())
+    j["colours"] = {{"polygons", colour_runs(m.polygon_colours)},
+                    {"triangles", colour_runs(m.triangle_colours)}};
+  return j;
 }
 
 std::vector<ModelRecord> models_from_json(const json& arr, const std::string& path) {
@@ -214,6 +259,14 @@ std::vector<ModelRecord> models_from_json(const json& arr, const std::string& pa
     r.e1 = number(m, "e1", -1);
     r.e2 = number(m, "e2", -1);
     r.hausdorff_m = number(m, "hausdorff_m", -1);
+    if (m.contains("colours")) {
+      const json& c = m["colours"];
+      const std::string what = "model " + std::to_string(index);
+      if (!c.is_object() || !c.contains("polygons") || !c.contains("triangles"))
+        throw io::IoError(path, what + ": \"colours\" is not {\"polygons\", \"triangles\"}");
+      r.polygon_colours = colours_from_runs(c["polygons"], r.polygons, path, what + " polygon");
+      r.triangle_colours = colours_from_runs(c["triangles"], r.triangles, path, what + " triangle");
+    }
     out.push_back(r);
     ++index;
   }

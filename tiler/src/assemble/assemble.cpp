@@ -45,7 +45,8 @@ double seconds_since(Clock::time_point t) {
 
 // ------------------------------------------------------------ buildings
 struct KeptModel {
-  std::string file;  // PLY path
+  std::string file;                // PLY path
+  std::vector<io::Rgba8> colours;  // per PLY triangle (report.json), or empty
   io::LodKind kind = io::LodKind::anchor;
   int level = 0, step = 0;
   double error_m = 0, hausdorff_m = 0, height_m = 0;
@@ -129,6 +130,8 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     const io::TriangleMesh& mesh = meshes[k];
     KeptModel km;
     km.file = entries[k].file;
+    km.colours = rep.models[k].triangle_colours;
+    if (km.colours.size() != mesh.triangles.size()) km.colours.clear();  // a PLY edited since
     km.kind = entries[k].kind;
     km.level = entries[k].level;
     km.step = entries[k].step;
@@ -560,7 +563,8 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
       io::GlbBuilder g(rounded_centre(t.content_box), gopt);
       for (const auto& it : t.items) {
         const Building& b = buildings[it.b];
-        g.add_feature(feature_of(b, it.m), read_model(b.models[it.m].file, b.origin));
+        g.add_feature(feature_of(b, it.m), read_model(b.models[it.m].file, b.origin),
+                      b.models[it.m].colours);
       }
       if (!inside(g.stored_bounds(), t.content_box))
         throw std::logic_error("tile " + t.name + ": stored positions leave the content box");
@@ -614,7 +618,8 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
         io::GlbBuilder g(rounded_centre(b.bbox), gopt);
         for (std::size_t m = 0; m < b.models.size(); ++m) {
           g.begin_node("model_" + std::to_string(m));
-          g.add_feature(feature_of(b, m), read_model(b.models[m].file, b.origin));
+          g.add_feature(feature_of(b, m), read_model(b.models[m].file, b.origin),
+                        b.models[m].colours);
         }
         const std::string bytes = g.glb();
         io::atomic_write_file((stage / "buildings" / (b.file_stem + ".glb")).string(), bytes);

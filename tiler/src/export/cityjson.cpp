@@ -77,6 +77,8 @@ constexpr double kGroundTolerance = 0.5;
 constexpr long kSnapSteps[] = {1, 2, 4, 8};
 
 enum Semantic : int { kRoof = 0, kWall = 1, kGround = 2, kCeiling = 3 };
+/// The appearance theme of the input's colours.
+constexpr const char* kColourTheme = "rgb";
 const char* const kSemanticType[] = {"RoofSurface", "WallSurface", "GroundSurface",
                                      "OuterCeilingSurface"};
 
@@ -198,6 +200,7 @@ io::PolygonMesh model_polygons(const std::string& ply, const io::TriangleMesh& m
 struct Geometry {
   std::vector<std::vector<std::uint32_t>> faces;  // feature vertex indices
   std::vector<int> semantic;                      // per face
+  std::vector<io::Rgba8> colour;                  // per face (a = 0: none)
   std::string lod;
   json attributes;
   bool valid = false, full_semantics = false, from_obj = false;
@@ -208,6 +211,7 @@ struct Feature {
   std::string id;
   std::string line;  // the JSON text, no newline
   std::size_t geometries = 0, invalid = 0, triangulated = 0, vertices = 0;
+  std::size_t coloured = 0;  // geometries with a material
   bool full_semantics = false;
   io::BBox3 bbox;  // CRS
   std::vector<std::string> warnings;
@@ -426,6 +430,10 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       to_pool[used[j]] = pool.add({pts(0, long(j)), pts(1, long(j)), pts(2, long(j))});
     std::size_t dropped = 0;
     std::set<int> classes;
+    // the input's colours of these faces (report.json), when they match
+    const std::vector<io::Rgba8>& face_colours =
+        g.from_obj ? mr.polygon_colours : mr.triangle_colours;
+    const bool coloured = face_colours.size() == pm.faces.size();
     for (std::size_t fi = 0; fi < pm.faces.size(); ++fi) {
       std::vector<std::uint32_t> ring;
       for (auto i : pm.faces[fi]) {
@@ -439,6 +447,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       }
       g.faces.push_back(std::move(ring));
       g.semantic.push_back(sem[fi]);
+      g.colour.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
       classes.insert(sem[fi]);
     }
     g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
@@ -473,6 +482,8 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
         if (!c2.valid()) continue;
         g.faces.clear();
         g.semantic.clear();
+        g.colour.clear();
+        const bool tri_coloured = mr.triangle_colours.size() == meshes[k].triangles.size();
         for (std::size_t i = 0; i < snapped.size(); ++i) {
           const auto& t = meshes[k].triangles[from[i]];
           const Vec3d n = newell(meshes[k].vertices, {t[0], t[1], t[2]});
@@ -480,6 +491,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
           double fz = -std::numeric_limits<double>::infinity();
           for (auto v : t) fz = std::max(fz, meshes[k].vertices[v][2]);
           g.faces.push_back({snapped[i][0], snapped[i][1], snapped[i][2]});
+          g.colour.push_back(tri_coloured ? mr.triangle_colours[from[i]] : io::Rgba8{0, 0, 0, 0});
           g.semantic.push_back(c == io::SurfaceClass::roof     ? kRoof
                                : c == io::SurfaceClass::wall   ? kWall
                                : fz <= zmin + kGroundTolerance ? kGround
@@ -551,6 +563,20 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   for (Geometry& g : geoms)
     for (auto& f : g.faces)
       for (auto& i : f) i = renum[i];
+  // the input's colours: one X3D material per distinct colour (first use
+  // order), theme "rgb" (docs/cityjson.md)
+  std::map<io::Rgba8, int> material_of;
+  json materials = json::array();
+  for (const Geometry& g : geoms)
+    for (const io::Rgba8& c : g.colour)
+      if (c[3] && material_of.emplace(c, int(materials.size())).second) {
+        char name[16];
+        std::snprintf(name, sizeof name, "rgb_%02x%02x%02x", c[0], c[1], c[2]);
+        materials.push_back({{"name", name},
+                             {"diffuseColor",
+                              {round_to(c[0] / 255.0, 1e-4), round_to(c[1] / 255.0, 1e-4),
+                               round_to(c[2] / 255.0, 1e-4)}}});
+      }
   json geometry = json::array();
   out.full_semantics = true;
   for (const Geometry& g : geoms) {
@@ -573,6 +599,13 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     geo["lod"] = g.lod;
     geo["boundaries"] = boundaries;
     geo["semantics"] = {{"surfaces", surfaces}, {"values", values}};
+    if (std::any_of(g.colour.begin(), g.colour.end(), [](const io::Rgba8& c) { return c[3]; })) {
+      json shell_values = json::array();
+      for (const io::Rgba8& c : g.colour)
+        shell_values.push_back(c[3] ? json(material_of.at(c)) : json(nullptr));
+      geo["material"] = {{kColourTheme, {{"values", json::array({shell_values})}}}};
+      ++out.coloured;
+    }
     geometry.push_back(geo);
     ++out.geometries;
     out.invalid += !g.valid;
@@ -591,6 +624,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   feat["id"] = object_id;
   feat["CityObjects"] = {{object_id, obj}};
   feat["vertices"] = verts;
+  if (!materials.empty()) feat["appearance"] = {{"materials", materials}};
   out.line = feat.dump();
   return out;
 }
@@ -676,6 +710,7 @@ CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out
       st.geometries += f.geometries;
       st.invalid += f.invalid;
       st.triangulated += f.triangulated;
+      st.coloured += f.coloured;
       st.vertices += f.vertices;
       st.multi_lod += f.geometries >= 2;
       st.full_semantics += f.full_semantics;

@@ -30,7 +30,7 @@ namespace citylod::tiler {
 namespace fs = std::filesystem;
 
 namespace {
-constexpr const char* kEngineVersion = "citylod-lod-8";
+constexpr const char* kEngineVersion = "citylod-lod-9";
 }  // namespace
 
 // ------------------------------------------------------------ parameters

@@ -1,5 +1,6 @@
 // Binary glTF (glb) output for 3D Tiles content: per-building triangle meshes
-// with flat normals, roof / wall / base materials, EXT_mesh_features feature
+// with flat normals, roof / wall / base materials (+ white "*_rgb" ones for
+// triangles coloured from the input, COLOR_0), EXT_mesh_features feature
 // ids and an EXT_structural_metadata property table (one row per feature).
 //
 //   io::GlbBuilder b(tile_centre_enu);            // node translation
@@ -138,8 +139,12 @@ class GlbBuilder {
 
   /// Adds one feature (a building's model) to the current node: triangles are
   /// flat-shaded (vertices split per face normal), degenerate ones dropped.
-  /// Returns its feature id (row in the property table).
-  std::uint32_t add_feature(const GlbFeature& meta, const TriangleMesh& mesh);
+  /// `colours` (empty, or one per triangle): a coloured triangle (a = 255)
+  /// gets its colour as COLOR_0 (linear, from the sRGB input) and a white
+  /// material of its surface class ("roof_rgb", ...); the others keep the
+  /// fixed material. Returns its feature id (row in the property table).
+  std::uint32_t add_feature(const GlbFeature& meta, const TriangleMesh& mesh,
+                            const std::vector<Rgba8>& colours = {});
 
   std::size_t feature_count() const;
   std::size_t triangle_count() const;

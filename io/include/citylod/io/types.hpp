@@ -14,6 +14,8 @@ namespace citylod::io {
 using Vec3d = std::array<double, 3>;
 using Vec3f = std::array<float, 3>;
 using Rgb8 = std::array<std::uint8_t, 3>;
+/// A face colour: rgb (sRGB, 8 bit) + a (255 = coloured, 0 = no colour).
+using Rgba8 = std::array<std::uint8_t, 4>;
 
 /// Axis-aligned box; empty() until the first add().
 struct BBox3 {

@@ -38,6 +38,10 @@ struct LodModel {
   double e1 = -1.0;         ///< RMSE model->input, % of bbox diagonal (-1: not computed)
   double e2 = -1.0;         ///< RMSE input->model, % of bbox diagonal
   double hausdorff = -1.0;  ///< m, symmetric Hausdorff estimate (sampled)
+  /// Input colours on the faces (colour.cpp: colour_model): one per face of
+  /// `polygons` and one per triangle of `mesh`, or both empty (input without
+  /// colours). a = 0: no colour (too few points on the face's plane region).
+  std::vector<Rgba8> polygon_colours, triangle_colours;
 };
 
 /// A planar primitive as reported (for --dump-planes and reports).

@@ -162,6 +162,20 @@ struct MetricParams {
                        ///< at least 250); at most this many input samples for e2
 };
 
+/// Input colours onto the models' faces (ours; the paper has no colour): each
+/// input point goes to the nearest face within `distance` whose plane is
+/// within `max_angle_deg` of the point's normal (so a coarse model's roof, a
+/// little above or below the roof points, takes their colour too, and a wall
+/// does not take the colour of the roof edge's returns); a plane region
+/// (coplanar faces sharing edges) with at least `min_points` points gets
+/// their per-channel median colour.
+struct ColourParams {
+  bool enabled = true;        ///< only acts on inputs with colours
+  double distance = 1.0;      ///< m, point to face
+  double max_angle_deg = 60;  ///< point normal to face normal (either side)
+  int min_points = 5;
+};
+
 struct LodParams {
   NormalParams normals;
   PlaneParams planes;
@@ -177,6 +191,7 @@ struct LodParams {
   AirborneParams airborne;
   OrientParams orient;
   MetricParams metrics;
+  ColourParams colour;
   int threads = 1;  ///< OpenMP threads inside one building (results do not depend on it)
 
   /// Throws std::invalid_argument naming the offending parameter.

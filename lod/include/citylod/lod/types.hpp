@@ -13,6 +13,10 @@ namespace citylod::lod {
 
 using Vec3 = Eigen::Vector3d;
 using Vec2 = Eigen::Vector2d;
+/// 8-bit colour (sRGB as the input stores it).
+using Rgb8 = std::array<std::uint8_t, 3>;
+/// A face's colour: rgb + a (255 = coloured, 0 = no colour: the fixed material).
+using Rgba8 = std::array<std::uint8_t, 4>;
 
 /// One building as the LOD engine sees it, in a local metric frame (metres,
 /// z up, coordinates small: the caller has moved the origin near the data).
@@ -22,6 +26,7 @@ struct BuildingInput {
   std::vector<Vec3> points;
   std::vector<Vec3> normals;                  ///< empty, or one per point
   std::vector<std::array<int, 3>> triangles;  ///< empty for point clouds
+  std::vector<Rgb8> colors;                   ///< empty, or one per point (LAS RGB, PLY colours)
   std::vector<Vec2> footprint;                ///< optional outline (xy, CCW) of the building
   double ground_z = 0.0;  ///< ground height (used with footprint / LiDAR closure)
   bool has_ground_z = false;

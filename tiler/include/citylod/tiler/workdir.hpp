@@ -138,6 +138,10 @@ std::string lod_report_path(const std::string& work_dir, const std::string& id);
 
 // ------------------------------------------------------------ lod/<id>/report.json
 
+/// A face's colour from the input: rgb (sRGB, as the input stores it) + a
+/// (255 = coloured, 0 = none: the fixed material).
+using FaceColour = io::Rgba8;
+
 /// One candidate model of a building.
 struct ModelRecord {
   std::string file;  ///< PLY, a plain file name in the report's directory
@@ -149,6 +153,11 @@ struct ModelRecord {
   double volume = 0;
   double e1 = -1, e2 = -1;  ///< % of the bbox diagonal (-1: not computed)
   double hausdorff_m = -1;
+  /// Input colours (lod colour.cpp): one per face of the OBJ's polygons and one
+  /// per triangle of the PLY, in file order, or both empty (no colours). In
+  /// report.json as runs: "colours": {"polygons": [[n, r, g, b] | [n], ...],
+  /// "triangles": [...]} ([n]: n faces without colour).
+  std::vector<FaceColour> polygon_colours, triangle_colours;
 };
 
 /// The LOD outcome of one building (written by the LOD stage and `citylod lod`).

@@ -1,0 +1,114 @@
+// Input colours through the whole chain on real LiDAR with RGB
+// (autzen_trim.laz): report.json face colours -> tile glbs (COLOR_0 with the
+// white "*_rgb" materials) and CityJSON (appearance, theme "rgb");
+// `--set colour.enabled=false` gives neither.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <set>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "support/cli_run.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using namespace citylod::test;
+using nlohmann::json;
+
+/// The JSON chunk of a glb.
+json glb_json(const fs::path& p) {
+  const std::string b = slurp(p);
+  if (b.size() < 20) return json();
+  std::uint32_t len = 0;
+  std::memcpy(&len, b.data() + 12, 4);
+  return json::parse(b.substr(20, len));
+}
+
+struct Seen {
+  int glbs = 0, coloured_primitives = 0, rgb_materials_without_colour = 0;
+  int features = 0, coloured_features = 0, bad_material_values = 0;
+};
+
+Seen scan(const fs::path& out) {
+  Seen s;
+  for (const auto& e : fs::directory_iterator(out / "tileset" / "tiles")) {
+    if (e.path().extension() != ".glb") continue;
+    ++s.glbs;
+    const json g = glb_json(e.path());
+    for (const auto& mesh : g["meshes"])
+      for (const auto& prim : mesh["primitives"]) {
+        const std::string mat = g["materials"][prim["material"].get<int>()]["name"];
+        const bool rgb = mat.size() > 4 && mat.substr(mat.size() - 4) == "_rgb";
+        if (prim["attributes"].contains("COLOR_0")) {
+          ++s.coloured_primitives;
+          const json& acc = g["accessors"][prim["attributes"]["COLOR_0"].get<int>()];
+          EXPECT_EQ(acc["type"], "VEC4");
+          EXPECT_EQ(acc["componentType"], 5121);  // UNSIGNED_BYTE
+          EXPECT_TRUE(acc.value("normalized", false));
+          EXPECT_TRUE(rgb) << mat;
+        } else if (rgb) {
+          ++s.rgb_materials_without_colour;
+        }
+      }
+  }
+  const std::string text = slurp(out / "buildings.city.jsonl");
+  std::size_t at = text.find('\n') + 1;  // after the header line
+  while (at < text.size()) {
+    const std::size_t end = text.find('\n', at);
+    const json f = json::parse(text.substr(at, end - at));
+    at = end + 1;
+    ++s.features;
+    const std::size_t materials =
+        f.contains("appearance") ? f["appearance"]["materials"].size() : std::size_t(0);
+    s.coloured_features += materials > 0;
+    for (const auto& [id, obj] : f["CityObjects"].items())
+      for (const auto& geo : obj["geometry"]) {
+        if (!geo.contains("material")) continue;
+        const json& v = geo["material"]["rgb"]["values"];
+        // one value per surface of the Solid's shell: a material index or null
+        if (v.size() != 1 || v[0].size() != geo["boundaries"][0].size()) ++s.bad_material_values;
+        for (const auto& x : v[0])
+          if (!x.is_null() && (!x.is_number_unsigned() || x.get<std::size_t>() >= materials))
+            ++s.bad_material_values;
+      }
+  }
+  return s;
+}
+
+}  // namespace
+
+TEST(ColourCli, LasRgbReachesTilesAndCityJson) {
+  const fs::path las = fs::path(CITYLOD_SHARED_DATA) / "laz" / "autzen_trim.laz";
+  if (!fs::exists(las)) GTEST_SKIP() << "shared data not found: " << las;
+  const fs::path d = tmp_dir("colour_cli");
+  const CliRun t = run("tile " + q(las) + " --threads 2 -q --out " + q(d / "on"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  // report.json: the finest model of every building has coloured roof faces
+  int coloured_reports = 0;
+  for (const auto& e : fs::directory_iterator(d / "on" / "work" / "lod")) {
+    const json r = json::parse(slurp(e.path() / "report.json"));
+    const json& fin = r["models"].back();
+    if (fin.contains("colours") && fin["colours"]["triangles"].dump().find(",") != std::string::npos)
+      ++coloured_reports;
+  }
+  EXPECT_GE(coloured_reports, 1);
+  const Seen on = scan(d / "on");
+  EXPECT_GE(on.coloured_primitives, 1);
+  EXPECT_EQ(on.rgb_materials_without_colour, 0);
+  EXPECT_EQ(on.coloured_features, on.features);
+  EXPECT_EQ(on.bad_material_values, 0);
+
+  const CliRun off = run("tile " + q(las) + " --threads 2 -q --set colour.enabled=false --out " +
+                         q(d / "off"));
+  ASSERT_EQ(off.code, 0) << off.out;
+  const Seen none = scan(d / "off");
+  EXPECT_EQ(none.glbs, on.glbs);
+  EXPECT_EQ(none.coloured_primitives, 0);
+  EXPECT_EQ(none.coloured_features, 0);
+}
