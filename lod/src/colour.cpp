@@ -153,7 +153,7 @@ std::vector<Rgba8> ColourSource::faces(const std::vector<Vec3>& vertices,
             const Vec3& q = points_[size_t(i)];
             const double plane = std::fabs(P.n.dot(q) + P.d);
             if (plane > eps || plane > best[size_t(i)]) continue;
-            if (std::fabs(normals_[size_t(i)].dot(P.n)) < min_cos) continue;
+            if (normals_[size_t(i)].dot(P.n) < min_cos) continue;
             const Vec2 q2(q.dot(P.u), q.dot(P.v));
             double dist = plane;
             if (!poly2::point_in_ring(P.ring, q2)) {
@@ -161,8 +161,7 @@ std::vector<Rgba8> ColourSource::faces(const std::vector<Vec3>& vertices,
               dist = std::sqrt(plane * plane + e * e);
             }
             const size_t k = size_t(i);
-            if (dist > eps || dist > best[k] ||
-                (dist == best[k] && plane >= best_plane[k]))
+            if (dist > eps || dist > best[k] || (dist == best[k] && plane >= best_plane[k]))
               continue;
             best[k] = dist;
             best_plane[k] = plane;

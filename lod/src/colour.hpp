@@ -12,7 +12,7 @@ namespace citylod::lod::detail {
 /// building, shared by every model.
 class ColourSource {
  public:
-  /// points, their unit normals (either orientation; zero: fits no face) and colours.
+  /// points, their unit outward normals (zero: fits no face) and colours.
   ColourSource(const std::vector<Vec3>& points, const std::vector<Vec3>& normals,
                const std::vector<Rgb8>& colours, const ColourParams& p);
   bool empty() const { return points_.empty(); }
@@ -20,9 +20,9 @@ class ColourSource {
   /// One colour per face (faces: polygons, each a CCW loop of `vertices`).
   /// A point goes to the nearest face within ColourParams::distance (point
   /// to polygon) whose normal is within max_angle_deg of the point's (at a
-  /// tie the face with the nearer plane, then the lower index). Coplanar faces sharing an edge form a plane
-  /// region; a region with >= min_points points gets their per-channel median,
-  /// a = 255; the other faces a = 0.
+  /// tie the face with the nearer plane, then the lower index). Coplanar faces sharing an edge form
+  /// a plane region; a region with >= min_points points gets their per-channel median, a = 255; the
+  /// other faces a = 0.
   std::vector<Rgba8> faces(const std::vector<Vec3>& vertices,
                            const std::vector<std::vector<int>>& faces) const;
 

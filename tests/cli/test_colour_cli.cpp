@@ -94,7 +94,8 @@ TEST(ColourCli, LasRgbReachesTilesAndCityJson) {
   for (const auto& e : fs::directory_iterator(d / "on" / "work" / "lod")) {
     const json r = json::parse(slurp(e.path() / "report.json"));
     const json& fin = r["models"].back();
-    if (fin.contains("colours") && fin["colours"]["triangles"].dump().find(",") != std::string::npos)
+    if (fin.contains("colours") &&
+        fin["colours"]["triangles"].dump().find(",") != std::string::npos)
       ++coloured_reports;
   }
   EXPECT_GE(coloured_reports, 1);
@@ -104,8 +105,8 @@ TEST(ColourCli, LasRgbReachesTilesAndCityJson) {
   EXPECT_EQ(on.coloured_features, on.features);
   EXPECT_EQ(on.bad_material_values, 0);
 
-  const CliRun off = run("tile " + q(las) + " --threads 2 -q --set colour.enabled=false --out " +
-                         q(d / "off"));
+  const CliRun off =
+      run("tile " + q(las) + " --threads 2 -q --set colour.enabled=false --out " + q(d / "off"));
   ASSERT_EQ(off.code, 0) << off.out;
   const Seen none = scan(d / "off");
   EXPECT_EQ(none.glbs, on.glbs);

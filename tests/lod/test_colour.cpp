@@ -21,9 +21,8 @@ const Rgba8 kNone{0, 0, 0, 0};
 /// separate roof square at z = 3 (x 6..8: same plane, no shared edge) and a
 /// wall square (x = 0, y 0..2, z 0..2), as four faces.
 struct Faces {
-  std::vector<Vec3> v{{0, 0, 3}, {2, 0, 3}, {2, 2, 3}, {0, 2, 3}, {4, 0, 3},
-                      {4, 2, 3}, {6, 0, 3}, {8, 0, 3}, {8, 2, 3}, {6, 2, 3},
-                      {0, 0, 0}, {0, 2, 0}, {0, 2, 2}, {0, 0, 2}};
+  std::vector<Vec3> v{{0, 0, 3}, {2, 0, 3}, {2, 2, 3}, {0, 2, 3}, {4, 0, 3}, {4, 2, 3}, {6, 0, 3},
+                      {8, 0, 3}, {8, 2, 3}, {6, 2, 3}, {0, 0, 0}, {0, 2, 0}, {0, 2, 2}, {0, 0, 2}};
   std::vector<std::vector<int>> f{{0, 1, 2, 3}, {1, 4, 5, 2}, {6, 7, 8, 9}, {10, 13, 12, 11}};
 };
 
@@ -92,13 +91,15 @@ TEST(Colour, AFaceTakesOnlyPointsWhoseNormalsAgree) {
   // (nearest face, but 90 degrees off); points facing -x are
   const std::vector<Vec3> v{{0, 0, 0}, {0, 2, 0}, {0, 2, 2}, {0, 0, 2}};
   const std::vector<std::vector<int>> f{{0, 3, 2, 1}};
-  Cloud up, side;
+  Cloud up, side, back;
   for (int i = 0; i < 8; ++i) {
     add(up, Vec3(-0.05, 0.125 + 0.25 * i, 1.9), {0, 0, 255});
     add(side, Vec3(-0.05, 0.125 + 0.25 * i, 1.9), {0, 0, 255}, -Vec3::UnitX());
+    add(back, Vec3(-0.05, 0.125 + 0.25 * i, 1.9), {0, 0, 255}, Vec3::UnitX());
   }
   EXPECT_EQ(up.faces(v, f)[0], kNone);
   EXPECT_EQ(side.faces(v, f)[0], (Rgba8{0, 0, 255, 255}));
+  EXPECT_EQ(back.faces(v, f)[0], kNone);  // facing the other way (the inside of a wall)
   ColourParams any;
   any.max_angle_deg = 90;
   EXPECT_EQ(up.faces(v, f, any)[0], (Rgba8{0, 0, 255, 255}));

@@ -172,7 +172,7 @@ struct MetricParams {
 struct ColourParams {
   bool enabled = true;        ///< only acts on inputs with colours
   double distance = 1.0;      ///< m, point to face
-  double max_angle_deg = 60;  ///< point normal to face normal (either side)
+  double max_angle_deg = 60;  ///< the point's (outward) normal to the face's outward normal
   int min_points = 5;
 };
 
