@@ -53,10 +53,21 @@ struct PlaneRegions {
   std::array<std::vector<std::vector<EvPt>>, 2> loops;
 };
 
+/// Exact coordinates of BSP vertices and of crossing points (by their plane
+/// triple), and the vertices' 2D projections per dropped axis: computed once
+/// per pass, or once per cache when there is one (the values are exact, so
+/// reusing them changes nothing).
+struct Coords {
+  std::unordered_map<int, std::array<FT, 3>> exact;
+  std::map<std::array<int, 3>, std::array<FT, 3>> crossing;
+  std::unordered_map<int, K::Point_2> proj[3];
+};
+
 }  // namespace bspx
 
 struct ExtractCache::Impl {
   std::unordered_map<int, bspx::PlaneRegions> byplane;
+  bspx::Coords coords;
 };
 ExtractCache::ExtractCache() : impl(std::make_unique<Impl>()) {}
 ExtractCache::~ExtractCache() = default;
@@ -566,19 +577,29 @@ std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int 
   return out;
 }
 
-/// Exact coordinates of the BSP vertices one extraction pass uses, computed
-/// once per pass, and their 2D projections per dropped axis.
+/// Exact coordinates of the BSP vertices and crossing points one extraction
+/// pass uses (kept in the cache when there is one), and the vertices' 2D
+/// projections per dropped axis.
 struct PassCoords {
   const BspData& I;
-  std::unordered_map<int, std::array<FT, 3>> exact;
-  std::unordered_map<int, Point2> proj[3];
-  explicit PassCoords(const BspData& bsp) : I(bsp) {}
+  bspx::Coords own;
+  bspx::Coords& c;
+  std::unordered_map<int, Point2> (&proj)[3];
+  PassCoords(const BspData& bsp, ExtractCache* cache)
+      : I(bsp), c(cache ? cache->impl->coords : own), proj(c.proj) {}
   const std::array<FT, 3>& coords(int v) {
-    auto it = exact.find(v);
-    if (it != exact.end()) return it->second;
-    std::array<FT, 3> c;
-    I.exact_coords(v, c.data());
-    return exact.emplace(v, std::move(c)).first->second;
+    auto it = c.exact.find(v);
+    if (it != c.exact.end()) return it->second;
+    std::array<FT, 3> x;
+    I.exact_coords(v, x.data());
+    return c.exact.emplace(v, std::move(x)).first->second;
+  }
+  const std::array<FT, 3>& crossing(const std::array<int, 3>& def) {
+    auto it = c.crossing.find(def);
+    if (it != c.crossing.end()) return it->second;
+    std::array<FT, 3> x;
+    if (!I.exact_coords_of(def, x.data())) throw std::logic_error("Bsp::extract: bad crossing");
+    return c.crossing.emplace(def, std::move(x)).first->second;
   }
 };
 
@@ -695,8 +716,7 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
             const auto& c = pc.coords(ep.vid);
             id = gid(Point3(c[0], c[1], c[2]));
           } else {
-            FT c[3];
-            if (!I.exact_coords_of(ep.def, c)) throw std::logic_error("Bsp::extract: bad crossing");
+            const auto& c = pc.crossing(ep.def);
             id = gid(Point3(c[0], c[1], c[2]));
           }
           G.p2.emplace(id, ep.p);
@@ -870,7 +890,7 @@ void triangulate_group(const BspData& I, const std::vector<Point3>& pts, Group& 
 // One extraction pass: the boundary of the union of the cells `in_nodes`.
 Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, ExtractCache* cache) {
   Extracted X;
-  PassCoords pc(I);
+  PassCoords pc(I, cache);
   std::map<int, std::vector<F2>> byplane = gather_faces(I, in_nodes, pc);
   plane_regions(I, byplane, cache, pc, X);
   insert_tjunctions(X);
