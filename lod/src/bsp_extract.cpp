@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <exception>
 #include <map>
 #include <stdexcept>
 #include <unordered_map>
@@ -664,7 +665,7 @@ std::vector<F2> cancel_opposite_faces(std::vector<F2>& faces0) {
 /// cache when the plane's faces are unchanged), lifted to 3D and welded into
 /// X.pts; one Group per plane side.
 void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, ExtractCache* cache,
-                   PassCoords& pc, Extracted& X) {
+                   PassCoords& pc, int threads, Extracted& X) {
   Welder<Point3, 3> weld;
   auto gid = [&](const Point3& p) {
     int id = weld.find(p, X.pts);
@@ -675,7 +676,16 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
     return id;
   };
 
-  Scratch scratch;
+  // The planes whose loops are not cached, computed on `threads` threads
+  // (independent of each other), then lifted in plane order.
+  struct Todo {
+    int pl;
+    std::vector<F2> F;
+    bspx::PlaneRegions* out;
+  };
+  std::vector<Todo> todo;
+  std::vector<std::pair<int, const bspx::PlaneRegions*>> planes;
+  std::deque<bspx::PlaneRegions> fresh;
   for (auto& [pl, faces0] : byplane) {
     std::vector<F2> F = cancel_opposite_faces(faces0);
     if (F.empty()) continue;
@@ -687,18 +697,38 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
       key.insert(key.end(), f.vid.begin(), f.vid.end());
       key.insert(key.end(), f.ep.begin(), f.ep.end());
     }
-    bspx::PlaneRegions* cached = nullptr;
+    bspx::PlaneRegions* e = nullptr;
     if (cache) {
-      auto& e = cache->impl->byplane[pl];
-      if (e.key != key) {
-        e.key = std::move(key);
-        e.loops = plane_loops(I, pl, F, scratch);
+      e = &cache->impl->byplane[pl];
+      if (e->key != key) {
+        e->key = std::move(key);
+        todo.push_back({pl, std::move(F), e});
       }
-      cached = &e;
+    } else {
+      e = &fresh.emplace_back();
+      todo.push_back({pl, std::move(F), e});
     }
-    bspx::PlaneRegions fresh;
-    if (!cached) fresh.loops = plane_loops(I, pl, F, scratch);
-    const auto& loops = cached ? cached->loops : fresh.loops;
+    planes.emplace_back(pl, e);
+  }
+  std::vector<std::exception_ptr> errors(todo.size());
+  const long nt = long(todo.size());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (nt > 1 && threads > 1)
+  for (long t = 0; t < nt; ++t) {
+    try {
+      Scratch scratch;
+      Todo& d = todo[size_t(t)];
+      d.out->loops = plane_loops(I, d.pl, d.F, scratch);
+    } catch (...) {
+      errors[size_t(t)] = std::current_exception();
+    }
+  }
+  for (const auto& e : errors)
+    if (e) {
+      if (cache) cache->impl->byplane.clear();  // entries of the failed pass are unfinished
+      std::rethrow_exception(e);
+    }
+  for (const auto& [pl, regions] : planes) {
+    const auto& loops = regions->loops;
     const int k = dominant_axis(I.dplanes[pl]);
     // loops per side; lift to 3D
     for (int si = 0; si < 2; ++si) {
@@ -892,9 +922,22 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
   Extracted X;
   PassCoords pc(I, cache);
   std::map<int, std::vector<F2>> byplane = gather_faces(I, in_nodes, pc);
-  plane_regions(I, byplane, cache, pc, X);
+  const int threads = cache ? std::max(1, cache->threads) : 1;
+  plane_regions(I, byplane, cache, pc, threads, X);
   insert_tjunctions(X);
-  for (Group& G : X.groups) triangulate_group(I, X.pts, G);
+  // the plane sides are triangulated independently
+  std::vector<std::exception_ptr> errors(X.groups.size());
+  const long ng = long(X.groups.size());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (ng > 1 && threads > 1)
+  for (long g = 0; g < ng; ++g) {
+    try {
+      triangulate_group(I, X.pts, X.groups[size_t(g)]);
+    } catch (...) {
+      errors[size_t(g)] = std::current_exception();
+    }
+  }
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
   return X;
 }
 

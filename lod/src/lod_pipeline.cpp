@@ -495,6 +495,7 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
   std::set<int> repaired;
   int split_interpolations = 0;
   ExtractCache extract_cache;  // planes whose faces did not change are not recomputed
+  extract_cache.threads = P.threads;
   for (size_t i = 0; i < candidates.size(); ++i) {
     progress(0.6 + 0.3 * double(i) / double(candidates.size()), "extraction");
     budget.check("extraction");
