@@ -291,6 +291,7 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
   std::vector<Primitive>& prims = out.prims;
   const bool airborne = airborne_input(in, samples, P);
   PlaneParams plane_params = P.planes;
+  plane_params.threads = P.threads;
   if (airborne)
     plane_params.min_region_size =
         std::min(plane_params.min_region_size, P.airborne.min_region_size);
