@@ -55,6 +55,9 @@ class ExtractCache {
   ~ExtractCache();
   ExtractCache(const ExtractCache&) = delete;
   ExtractCache& operator=(const ExtractCache&) = delete;
+  /// Threads inside one extraction (the planes' regions and triangulations
+  /// in parallel; the result does not depend on it).
+  int threads = 1;
   struct Impl;
   std::unique_ptr<Impl> impl;
 };

@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <exception>
 #include <map>
 #include <stdexcept>
 #include <unordered_map>
@@ -53,10 +54,21 @@ struct PlaneRegions {
   std::array<std::vector<std::vector<EvPt>>, 2> loops;
 };
 
+/// Exact coordinates of BSP vertices and of crossing points (by their plane
+/// triple), and the vertices' 2D projections per dropped axis: computed once
+/// per pass, or once per cache when there is one (the values are exact, so
+/// reusing them changes nothing).
+struct Coords {
+  std::unordered_map<int, std::array<FT, 3>> exact;
+  std::map<std::array<int, 3>, std::array<FT, 3>> crossing;
+  std::unordered_map<int, K::Point_2> proj[3];
+};
+
 }  // namespace bspx
 
 struct ExtractCache::Impl {
   std::unordered_map<int, bspx::PlaneRegions> byplane;
+  bspx::Coords coords;
 };
 ExtractCache::ExtractCache() : impl(std::make_unique<Impl>()) {}
 ExtractCache::~ExtractCache() = default;
@@ -566,19 +578,29 @@ std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int 
   return out;
 }
 
-/// Exact coordinates of the BSP vertices one extraction pass uses, computed
-/// once per pass, and their 2D projections per dropped axis.
+/// Exact coordinates of the BSP vertices and crossing points one extraction
+/// pass uses (kept in the cache when there is one), and the vertices' 2D
+/// projections per dropped axis.
 struct PassCoords {
   const BspData& I;
-  std::unordered_map<int, std::array<FT, 3>> exact;
-  std::unordered_map<int, Point2> proj[3];
-  explicit PassCoords(const BspData& bsp) : I(bsp) {}
+  bspx::Coords own;
+  bspx::Coords& c;
+  std::unordered_map<int, Point2> (&proj)[3];
+  PassCoords(const BspData& bsp, ExtractCache* cache)
+      : I(bsp), c(cache ? cache->impl->coords : own), proj(c.proj) {}
   const std::array<FT, 3>& coords(int v) {
-    auto it = exact.find(v);
-    if (it != exact.end()) return it->second;
-    std::array<FT, 3> c;
-    I.exact_coords(v, c.data());
-    return exact.emplace(v, std::move(c)).first->second;
+    auto it = c.exact.find(v);
+    if (it != c.exact.end()) return it->second;
+    std::array<FT, 3> x;
+    I.exact_coords(v, x.data());
+    return c.exact.emplace(v, std::move(x)).first->second;
+  }
+  const std::array<FT, 3>& crossing(const std::array<int, 3>& def) {
+    auto it = c.crossing.find(def);
+    if (it != c.crossing.end()) return it->second;
+    std::array<FT, 3> x;
+    if (!I.exact_coords_of(def, x.data())) throw std::logic_error("Bsp::extract: bad crossing");
+    return c.crossing.emplace(def, std::move(x)).first->second;
   }
 };
 
@@ -643,7 +665,7 @@ std::vector<F2> cancel_opposite_faces(std::vector<F2>& faces0) {
 /// cache when the plane's faces are unchanged), lifted to 3D and welded into
 /// X.pts; one Group per plane side.
 void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, ExtractCache* cache,
-                   PassCoords& pc, Extracted& X) {
+                   PassCoords& pc, int threads, Extracted& X) {
   Welder<Point3, 3> weld;
   auto gid = [&](const Point3& p) {
     int id = weld.find(p, X.pts);
@@ -654,7 +676,16 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
     return id;
   };
 
-  Scratch scratch;
+  // The planes whose loops are not cached, computed on `threads` threads
+  // (independent of each other), then lifted in plane order.
+  struct Todo {
+    int pl;
+    std::vector<F2> F;
+    bspx::PlaneRegions* out;
+  };
+  std::vector<Todo> todo;
+  std::vector<std::pair<int, const bspx::PlaneRegions*>> planes;
+  std::deque<bspx::PlaneRegions> fresh;
   for (auto& [pl, faces0] : byplane) {
     std::vector<F2> F = cancel_opposite_faces(faces0);
     if (F.empty()) continue;
@@ -666,18 +697,38 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
       key.insert(key.end(), f.vid.begin(), f.vid.end());
       key.insert(key.end(), f.ep.begin(), f.ep.end());
     }
-    bspx::PlaneRegions* cached = nullptr;
+    bspx::PlaneRegions* e = nullptr;
     if (cache) {
-      auto& e = cache->impl->byplane[pl];
-      if (e.key != key) {
-        e.key = std::move(key);
-        e.loops = plane_loops(I, pl, F, scratch);
+      e = &cache->impl->byplane[pl];
+      if (e->key != key) {
+        e->key = std::move(key);
+        todo.push_back({pl, std::move(F), e});
       }
-      cached = &e;
+    } else {
+      e = &fresh.emplace_back();
+      todo.push_back({pl, std::move(F), e});
     }
-    bspx::PlaneRegions fresh;
-    if (!cached) fresh.loops = plane_loops(I, pl, F, scratch);
-    const auto& loops = cached ? cached->loops : fresh.loops;
+    planes.emplace_back(pl, e);
+  }
+  std::vector<std::exception_ptr> errors(todo.size());
+  const long nt = long(todo.size());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (nt > 1 && threads > 1)
+  for (long t = 0; t < nt; ++t) {
+    try {
+      Scratch scratch;
+      Todo& d = todo[size_t(t)];
+      d.out->loops = plane_loops(I, d.pl, d.F, scratch);
+    } catch (...) {
+      errors[size_t(t)] = std::current_exception();
+    }
+  }
+  for (const auto& e : errors)
+    if (e) {
+      if (cache) cache->impl->byplane.clear();  // entries of the failed pass are unfinished
+      std::rethrow_exception(e);
+    }
+  for (const auto& [pl, regions] : planes) {
+    const auto& loops = regions->loops;
     const int k = dominant_axis(I.dplanes[pl]);
     // loops per side; lift to 3D
     for (int si = 0; si < 2; ++si) {
@@ -695,8 +746,7 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
             const auto& c = pc.coords(ep.vid);
             id = gid(Point3(c[0], c[1], c[2]));
           } else {
-            FT c[3];
-            if (!I.exact_coords_of(ep.def, c)) throw std::logic_error("Bsp::extract: bad crossing");
+            const auto& c = pc.crossing(ep.def);
             id = gid(Point3(c[0], c[1], c[2]));
           }
           G.p2.emplace(id, ep.p);
@@ -870,11 +920,24 @@ void triangulate_group(const BspData& I, const std::vector<Point3>& pts, Group& 
 // One extraction pass: the boundary of the union of the cells `in_nodes`.
 Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, ExtractCache* cache) {
   Extracted X;
-  PassCoords pc(I);
+  PassCoords pc(I, cache);
   std::map<int, std::vector<F2>> byplane = gather_faces(I, in_nodes, pc);
-  plane_regions(I, byplane, cache, pc, X);
+  const int threads = cache ? std::max(1, cache->threads) : 1;
+  plane_regions(I, byplane, cache, pc, threads, X);
   insert_tjunctions(X);
-  for (Group& G : X.groups) triangulate_group(I, X.pts, G);
+  // the plane sides are triangulated independently
+  std::vector<std::exception_ptr> errors(X.groups.size());
+  const long ng = long(X.groups.size());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (ng > 1 && threads > 1)
+  for (long g = 0; g < ng; ++g) {
+    try {
+      triangulate_group(I, X.pts, X.groups[size_t(g)]);
+    } catch (...) {
+      errors[size_t(g)] = std::current_exception();
+    }
+  }
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
   return X;
 }
 

@@ -292,6 +292,7 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
   std::vector<Primitive>& prims = out.prims;
   const bool airborne = airborne_input(in, samples, P);
   PlaneParams plane_params = P.planes;
+  plane_params.threads = P.threads;
   if (airborne)
     plane_params.min_region_size =
         std::min(plane_params.min_region_size, P.airborne.min_region_size);
@@ -496,6 +497,7 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
   std::set<int> repaired;
   int split_interpolations = 0;
   ExtractCache extract_cache;  // planes whose faces did not change are not recomputed
+  extract_cache.threads = P.threads;
   for (size_t i = 0; i < candidates.size(); ++i) {
     progress(0.6 + 0.3 * double(i) / double(candidates.size()), "extraction");
     budget.check("extraction");

@@ -71,16 +71,36 @@ using PMap = CGAL::First_of_pair_property_map<Pwn>;
 using NMap = CGAL::Second_of_pair_property_map<Pwn>;
 namespace SD = CGAL::Shape_detection;
 
+/// CGAL's k-nearest-neighbour query, answered from lists computed once for
+/// every point (on `threads` threads): the seed sorting and the region
+/// growing both query each point, and get the same lists.
+class Cached_neighbor_query {
+ public:
+  template <class Query>
+  Cached_neighbor_query(const Query& q, std::size_t n, int threads) : lists_(n) {
+    const long nl = long(n);
+#pragma omp parallel for schedule(static) num_threads(std::max(1, threads)) if (threads > 1)
+    for (long i = 0; i < nl; ++i) q(std::size_t(i), lists_[std::size_t(i)]);
+  }
+  void operator()(std::size_t i, std::vector<std::size_t>& neighbors) const {
+    neighbors = lists_[i];
+  }
+
+ private:
+  std::vector<std::vector<std::size_t>> lists_;
+};
+
 std::vector<std::vector<std::size_t>> regions_on_points(const Samples& s, const PlaneParams& p) {
   PwnVec pts;
   pts.reserve(s.points.size());
   for (std::size_t i = 0; i < s.points.size(); ++i)
     pts.emplace_back(toP(s.points[i]), V3(s.normals[i].x(), s.normals[i].y(), s.normals[i].z()));
-  using NQ = SD::Point_set::K_neighbor_query<K, PwnVec, PMap>;
+  using KNQ = SD::Point_set::K_neighbor_query<K, PwnVec, PMap>;
+  using NQ = Cached_neighbor_query;
   using RT = SD::Point_set::Least_squares_plane_fit_region<K, PwnVec, PMap, NMap>;
   using Sorting = SD::Point_set::Least_squares_plane_fit_sorting<K, PwnVec, NQ, PMap>;
   using RG = SD::Region_growing<PwnVec, NQ, RT, Sorting::Seed_map>;
-  NQ nq(pts, static_cast<std::size_t>(std::max(3, p.k_neighbors)));
+  NQ nq(KNQ(pts, static_cast<std::size_t>(std::max(3, p.k_neighbors))), pts.size(), p.threads);
   RT rt(pts, p.epsilon, std::min(90.0, p.max_angle_deg),
         static_cast<std::size_t>(std::max(3, p.min_region_size)));
   Sorting sorting(pts, nq);

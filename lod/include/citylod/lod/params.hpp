@@ -19,6 +19,7 @@ struct PlaneParams {
   int min_region_size = 15;     ///< points (or faces) per plane
   int k_neighbors = 12;         ///< neighbourhood for point clouds
   int max_planes = 400;         ///< cap: the largest planes are kept, the rest dropped (recorded)
+  int threads = 1;              ///< set from LodParams::threads
 };
 
 /// Alpha-shapes of the planar primitives (paper: alpha = 7 m).
