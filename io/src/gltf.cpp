@@ -1013,6 +1013,10 @@ std::string GlbBuilder::glb() const {
     } else {
       iv = w.triangles(all_ix, nv, u16);
     }
+    // featureCount: the distinct ids of the attribute (the whole accessor,
+    // which the primitives share), not only those a primitive's triangles use
+    // (a building without coloured faces has none in the coloured primitive)
+    const std::set<float> distinct(node.feature.begin(), node.feature.end());
     std::size_t first = 0;
     for (int c = 0; c < kClasses; ++c) {
       const auto& ix = node.indices[size_t(c)];
@@ -1030,8 +1034,6 @@ std::string GlbBuilder::glb() const {
       prim.attributes["NORMAL"] = nrm_acc;
       prim.attributes["_FEATURE_ID_0"] = fid_acc;
       if (c >= 3) prim.attributes["COLOR_0"] = col_acc;
-      std::set<float> distinct;
-      for (std::uint32_t i : ix) distinct.insert(node.feature[i]);
       Value::Object fid{{"featureCount", Value(int(distinct.size()))},
                         {"attribute", Value(0)},
                         {"propertyTable", Value(0)}};
