@@ -48,6 +48,8 @@ int cmd_cityjson(ArgParser& args) {
       std::to_string(st.geometries) + " solids (" + std::to_string(st.invalid) + " invalid), " +
       std::to_string(st.multi_lod) + " with >= 2 LODs, " + std::to_string(st.full_semantics) +
       " with roof/wall/ground on every solid" +
+      (st.coloured ? ", " + std::to_string(st.coloured) + " with the input's colours"
+                   : std::string()) +
       (st.skipped ? ", " + std::to_string(st.skipped) + " skipped" : std::string()) + "; " +
       (st.reference_system.empty() ? std::string("no reference system") : st.reference_system) +
       "; " + strf("%.1f", st.seconds) + " s");

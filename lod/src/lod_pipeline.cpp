@@ -659,9 +659,11 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
     m.hausdorff = f.hausdorff;
     if (m.volume == 0.0) m.volume = mesh_volume(m.mesh);
   }
-  // The input's colours (if any) onto the faces of every model.
-  colour_models(in, samples, params.colour, R.models, params.threads);
   R.stats.t_metrics = seconds_since(tm);
+  // The input's colours (if any) onto the faces of every model.
+  const auto tc = Clock::now();
+  colour_models(in, samples, params.colour, R.models, params.threads);
+  R.stats.t_colour = seconds_since(tc);
   progress(1.0, "done");
   return R;
 }

@@ -117,16 +117,19 @@ TEST(ColourCli, LasRgbReachesTilesAndCityJson) {
   const fs::path las = fs::path(CITYLOD_SHARED_DATA) / "laz" / "autzen_trim.laz";
   if (!fs::exists(las)) GTEST_SKIP() << "shared data not found: " << las;
   const fs::path d = tmp_dir("colour_cli");
-  const CliRun t = run("tile " + q(las) + " --threads 2 -q --out " + q(d / "on"));
+  const CliRun t = run("tile " + q(las) + " --threads 2 --out " + q(d / "on"));
   ASSERT_EQ(t.code, 0) << t.out;
-  // report.json: the finest model of every building has coloured roof faces
+  EXPECT_NE(t.out.find("with the input's colours)"), std::string::npos) << t.out;
+  // report.json: the finest model of some building has a coloured run [n, r, g, b]
   int coloured_reports = 0;
   for (const auto& e : fs::directory_iterator(d / "on" / "work" / "lod")) {
     const json r = json::parse(slurp(e.path() / "report.json"));
     const json& fin = r["models"].back();
-    if (fin.contains("colours") &&
-        fin["colours"]["triangles"].dump().find(",") != std::string::npos)
-      ++coloured_reports;
+    if (!fin.contains("colours")) continue;
+    bool coloured = false;
+    for (const auto& run : fin["colours"]["triangles"]) coloured = coloured || run.size() == 4;
+    coloured_reports += coloured;
+    EXPECT_GE(r["timings_s"]["colour"].get<double>(), 0.0);
   }
   EXPECT_GE(coloured_reports, 1);
   const Seen on = scan(d / "on");

@@ -214,7 +214,8 @@ LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p,
   j.timings_s = {{"T1_ioview", s.t_ioview},
                  {"T2_tree", s.t_tree},
                  {"T3_traversal", s.t_traversal},
-                 {"metrics", s.t_metrics}};
+                 {"metrics", s.t_metrics},
+                 {"colour", s.t_colour}};
   j.notes = s.notes;
   for (const auto& m : r.models) {
     ModelRecord e;

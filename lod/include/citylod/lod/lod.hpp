@@ -80,6 +80,7 @@ struct LodStats {
   double t_tree = 0.0;       ///< T2 s
   double t_traversal = 0.0;  ///< T3 s (incl. mesh extraction)
   double t_metrics = 0.0;
+  double t_colour = 0.0;           ///< s, input colours onto the faces (0: no colours)
   std::vector<std::string> notes;  ///< caps hit, fallbacks, estimations
 };
 
