@@ -522,6 +522,8 @@ struct GlbBuilder::Impl {
     std::vector<float> feature;
     std::vector<Rgba8> colours;  // one per vertex (a = 0: none)
     Indices indices;
+    /// features stored with float positions (set by Impl::snapped)
+    std::set<float> float_features;
     bool coloured() const {
       for (int c = 3; c < kClasses; ++c)
         if (!indices[size_t(c)].empty()) return true;
@@ -583,57 +585,269 @@ struct GlbBuilder::Impl {
   }
   /// meshopt, float positions (y-up, relative): meshoptimizer's EXPONENTIAL
   /// filter with the fewest mantissa bits (of 16, 18, ..., 24) that keep every
-  /// coordinate within `step` (exp_tolerance) and each feature's distinct
-  /// corners distinct. Returns
-  /// the bits (0: none qualifies, plain float), the filtered data and the
-  /// positions a client decodes.
-  /// Largest change of a coordinate the EXPONENTIAL filter may make: 1/256 of
-  /// the node's int16 step (about float32 precision: a coarser one, up to the
-  /// int16 step, turned a sub-step sliver of a Delft model self-intersecting).
-  static double exp_tolerance(double extent) { return extent / 32767 / 256; }
-  static int exp_filter(const Node& n, double step, std::vector<std::int32_t>& encoded,
-                        std::vector<float>& decoded) {
+  /// coordinate within the tolerance and each feature's distinct corners
+  /// distinct. With `opt.snapped_is_valid` the tolerance is the node's int16
+  /// step and every valid feature must be a valid solid as decoded at those
+  /// bits; otherwise (or failing that) the tolerance is 1/256 of the step
+  /// (about float32 precision: up to the int16 step, unchecked, turned a
+  /// sub-step sliver of a Delft model self-intersecting). Returns the bits
+  /// (0: none qualifies, plain float).
+  int exp_bits(const Node& n, double extent) const {
+    std::vector<std::int32_t> encoded;
+    std::vector<float> decoded;
+    // checked: the int16 step, and the solids checked at the fewest bits
+    // within it; failing that (or unchecked) 1/256 of the step
+    for (const bool checked : {bool(opt.snapped_is_valid), false}) {
+      const double step = checked ? extent / 32767 : extent / 32767 / 256;
+      for (int bits = 16; bits <= 24; bits += 2) {
+        exp_encode(n, bits, encoded, decoded);
+        bool ok = true;
+        for (std::size_t i = 0; ok && i < n.rel.size(); ++i) {
+          const Vec3d y = to_yup(n.rel[i]);
+          for (int k = 0; ok && k < 3; ++k) {
+            const float d = decoded[i * 3 + size_t(k)];
+            ok = std::isfinite(d) && std::fabs(double(d) - double(float(y[size_t(k)]))) <= step;
+          }
+        }
+        std::map<std::array<float, 4>, Vec3d> seen;
+        for (std::size_t i = 0; ok && i < n.rel.size(); ++i) {
+          const std::array<float, 4> key{n.feature[i], decoded[i * 3], decoded[i * 3 + 1],
+                                         decoded[i * 3 + 2]};
+          const auto [it, added] = seen.emplace(key, n.rel[i]);
+          ok = added || it->second == n.rel[i];
+        }
+        if (!ok) continue;
+        if (checked && !decoded_solids_valid(n, decoded)) break;
+        return bits;
+      }
+      if (!checked) break;
+    }
+    return 0;
+  }
+  /// The float positions of `n` (y-up) through the EXPONENTIAL filter with
+  /// `bits`: the filtered words and what a client decodes.
+  static void exp_encode(const Node& n, int bits, std::vector<std::int32_t>& encoded,
+                         std::vector<float>& decoded) {
     const std::size_t nv = n.rel.size();
     std::vector<float> pos(nv * 3);
     for (std::size_t i = 0; i < nv; ++i) {
       const Vec3d y = to_yup(n.rel[i]);
       for (int k = 0; k < 3; ++k) pos[i * 3 + size_t(k)] = float(y[size_t(k)]);
     }
-    for (int bits = 16; bits <= 24; bits += 2) {
-      encoded.assign(nv * 3, 0);
-      meshopt_encodeFilterExp(encoded.data(), nv, 12, bits, pos.data());
-      std::vector<std::int32_t> copy = encoded;
-      meshopt_decodeFilterExp(copy.data(), nv, 12);
-      decoded.resize(nv * 3);
-      std::memcpy(decoded.data(), copy.data(), nv * 12);
-      bool ok = true;
-      for (std::size_t i = 0; ok && i < nv * 3; ++i)
-        ok = std::isfinite(decoded[i]) && std::fabs(double(decoded[i]) - double(pos[i])) <= step;
-      std::map<std::array<float, 4>, Vec3d> seen;
-      for (std::size_t i = 0; ok && i < nv; ++i) {
-        const std::array<float, 4> key{n.feature[i], decoded[i * 3], decoded[i * 3 + 1],
-                                       decoded[i * 3 + 2]};
-        const auto [it, added] = seen.emplace(key, n.rel[i]);
-        ok = added || it->second == n.rel[i];
-      }
-      if (ok) return bits;
-    }
-    encoded.clear();
-    decoded.clear();
-    return 0;
+    encoded.assign(nv * 3, 0);
+    meshopt_encodeFilterExp(encoded.data(), nv, 12, bits, pos.data());
+    std::vector<std::int32_t> copy = encoded;
+    meshopt_decodeFilterExp(copy.data(), nv, 12);
+    decoded.resize(nv * 3);
+    std::memcpy(decoded.data(), copy.data(), nv * 12);
   }
-  static bool quantizable(const Node& n) {
-    const double e = quant_extent(n);
-    std::map<std::array<std::int64_t, 4>, Vec3d> seen;
-    for (std::size_t i = 0; i < n.rel.size(); ++i) {
-      const Vec3d y = to_yup(n.rel[i]);
-      const std::array<std::int64_t, 4> key{std::int64_t(n.feature[i]), quant(y[0], e),
-                                            quant(y[1], e), quant(y[2], e)};
-      const auto [it, added] = seen.emplace(key, n.rel[i]);
-      if (!added && it->second != n.rel[i]) return false;
-    }
+  /// exp_bits of the float part `fpart` of stored node `ni`, computed once
+  /// (the filter is per vertex: the codec order does not change it).
+  int float_bits(std::size_t ni, const Node& fpart, double extent) const {
+    const auto it = float_bits_of.find(ni);
+    if (it != float_bits_of.end()) return it->second;
+    return float_bits_of[ni] = exp_bits(fpart, extent);
+  }
+  mutable std::map<std::size_t, int> float_bits_of;
+  /// Whether every valid feature of `n` is a valid solid with the positions
+  /// `decoded` (y-up, 3 floats a vertex; corners welded by position).
+  bool decoded_solids_valid(const Node& n, const std::vector<float>& decoded) const {
+    std::map<float, TriangleMesh> meshes;
+    std::map<std::array<float, 4>, std::uint32_t> vid;
+    auto vertex = [&](std::uint32_t i) {
+      const std::array<float, 4> key{n.feature[i], decoded[i * 3], decoded[i * 3 + 1],
+                                     decoded[i * 3 + 2]};
+      TriangleMesh& m = meshes[n.feature[i]];
+      const auto [it, fresh] = vid.emplace(key, std::uint32_t(m.vertices.size()));
+      if (fresh)
+        m.vertices.push_back(
+            from_yup(Vec3d{decoded[i * 3], decoded[i * 3 + 1], decoded[i * 3 + 2]}));
+      return it->second;
+    };
+    for (const auto& ix : n.indices)
+      for (std::size_t t = 0; t + 2 < ix.size(); t += 3) {
+        if (!features.at(std::size_t(n.feature[ix[t]])).valid) continue;
+        const std::array<std::uint32_t, 3> tri{vertex(ix[t]), vertex(ix[t + 1]), vertex(ix[t + 2])};
+        meshes[n.feature[ix[t]]].triangles.push_back(tri);
+      }
+    for (const auto& [f, m] : meshes)
+      if (!opt.snapped_is_valid(m)) return false;
     return true;
   }
+  /// The node as stored, and which of its features keep float positions.
+  /// Without `opt.snapped_is_valid`: the features whose distinct corners
+  /// int16 would merge (unquantizable) stay float. With it, a valid feature
+  /// that int16 could damage -- two distinct corners within 2 int16 steps per
+  /// axis, or a triangle less than 4 steps high -- is checked as int16 stores
+  /// it (corners welded) and, when that is not a valid solid, snapped: its
+  /// int16 corners within r steps per axis (transitively; r = 1, 2) welded
+  /// into the smallest, collapsed triangles and pairs of opposite triangles
+  /// (zero-volume fins) dropped; the first r the check accepts is stored
+  /// (each vertex at its welded int16 position), else the feature stays
+  /// float. Invalid features: as without the check.
+  Node snapped(const Node& in) const {
+    Node n = in;
+    n.float_features.clear();
+    if (!(opt.quantize || opt.compression == Compression::meshopt)) return n;
+    const std::set<float> bad = unquantizable(in);
+    if (!opt.snapped_is_valid) {
+      n.float_features = bad;
+      return n;
+    }
+    const double e = quant_extent(n);
+    const double step = e / 32767;
+    using Key = std::array<std::int16_t, 3>;
+    auto key_of = [&](const Vec3d& rel) {
+      const Vec3d y = to_yup(rel);
+      return Key{quant(y[0], e), quant(y[1], e), quant(y[2], e)};
+    };
+    auto at = [&](const Key& k) {
+      return from_yup(Vec3d{double(k[0]) / 32767.0 * e, double(k[1]) / 32767.0 * e,
+                            double(k[2]) / 32767.0 * e});
+    };
+    auto canonical = [](std::array<std::uint32_t, 3> t) {
+      while (t[0] > t[1] || t[0] > t[2]) t = {t[1], t[2], t[0]};
+      return t;
+    };
+    // each feature's vertices and triangles (class, first index)
+    std::map<float, std::vector<std::uint32_t>> vertices_of;
+    for (std::uint32_t i = 0; i < n.rel.size(); ++i) vertices_of[n.feature[i]].push_back(i);
+    std::map<float, std::vector<std::pair<int, std::size_t>>> triangles_of;
+    for (int c = 0; c < kClasses; ++c)
+      for (std::size_t t = 0; t + 2 < n.indices[size_t(c)].size(); t += 3)
+        triangles_of[n.feature[n.indices[size_t(c)][t]]].emplace_back(c, t);
+    std::array<std::vector<char>, kClasses> drop;  // per class, per triangle
+    for (int c = 0; c < kClasses; ++c) drop[size_t(c)].assign(n.indices[size_t(c)].size() / 3, 0);
+    for (const auto& [f, vs] : vertices_of) {
+      if (!features.at(std::size_t(f)).valid) {
+        if (bad.count(f)) n.float_features.insert(f);
+        continue;
+      }
+      const auto& tris = triangles_of[f];
+      // the feature's corners as int16 cells; pairs of cells within 2 steps
+      std::vector<Key> cells;
+      std::map<Key, std::uint32_t> cell_id;
+      std::unordered_map<std::uint32_t, std::uint32_t> cell_of;  // node vertex -> cell
+      for (const std::uint32_t v : vs) {
+        const auto [it, fresh] = cell_id.emplace(key_of(n.rel[v]), std::uint32_t(cells.size()));
+        if (fresh) cells.push_back(it->first);
+        cell_of[v] = it->second;
+      }
+      std::vector<std::array<std::uint32_t, 3>> near;  // cells a, b, Chebyshev distance
+      for (auto i = cell_id.begin(); i != cell_id.end(); ++i)
+        for (auto j = std::next(i); j != cell_id.end() && j->first[0] - i->first[0] <= 2; ++j) {
+          const long dy = std::labs(long(j->first[1]) - long(i->first[1])),
+                     dz = std::labs(long(j->first[2]) - long(i->first[2]));
+          if (dy <= 2 && dz <= 2)
+            near.push_back({i->second, j->second,
+                            std::uint32_t(std::max({long(j->first[0] - i->first[0]), dy, dz}))});
+        }
+      bool damageable = bad.count(f) || !near.empty();
+      for (std::size_t k = 0; !damageable && k < tris.size(); ++k) {
+        const auto& ix = n.indices[size_t(tris[k].first)];
+        const Vec3d& p = n.rel[ix[tris[k].second]];
+        const Vec3d& q = n.rel[ix[tris[k].second + 1]];
+        const Vec3d& r = n.rel[ix[tris[k].second + 2]];
+        const Vec3d u{q[0] - p[0], q[1] - p[1], q[2] - p[2]},
+            w{r[0] - p[0], r[1] - p[1], r[2] - p[2]}, x{r[0] - q[0], r[1] - q[1], r[2] - q[2]};
+        const Vec3d cr{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                       u[0] * w[1] - u[1] * w[0]};
+        const double area2 = std::sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
+        const double longest = std::sqrt(std::max({u[0] * u[0] + u[1] * u[1] + u[2] * u[2],
+                                                   w[0] * w[0] + w[1] * w[1] + w[2] * w[2],
+                                                   x[0] * x[0] + x[1] * x[1] + x[2] * x[2]}));
+        damageable = area2 < 4 * step * longest;  // smallest height < 4 steps
+      }
+      if (!damageable) continue;  // int16 as it is
+      bool stored_int16 = false;
+      for (const std::uint32_t r : {0u, 1u, 2u}) {
+        // cells within r steps per axis, transitively -> the smallest cell
+        std::vector<std::uint32_t> parent(cells.size());
+        for (std::uint32_t i = 0; i < parent.size(); ++i) parent[i] = i;
+        std::function<std::uint32_t(std::uint32_t)> find = [&](std::uint32_t x) {
+          return parent[x] == x ? x : parent[x] = find(parent[x]);
+        };
+        for (const auto& [a, b, d] : near)
+          if (d <= r) {
+            const std::uint32_t x = find(a), y = find(b);
+            if (x != y) {
+              const std::uint32_t lo = cells[x] < cells[y] ? x : y;
+              parent[lo == x ? y : x] = lo;
+            }
+          }
+        if (r > 0 &&
+            std::none_of(near.begin(), near.end(), [&](const auto& p) { return p[2] == r; }))
+          continue;  // nothing new to weld
+        // the model as stored: welded vertices (cells in first-use order)
+        TriangleMesh m;
+        std::vector<std::uint32_t> vid(cells.size(), ~0u);
+        auto vertex = [&](std::uint32_t node_vertex) {
+          const std::uint32_t root = find(cell_of.at(node_vertex));
+          if (vid[root] == ~0u) {
+            vid[root] = std::uint32_t(m.vertices.size());
+            m.vertices.push_back(at(cells[root]));
+          }
+          return vid[root];
+        };
+        std::vector<std::pair<int, std::size_t>> source, dropped;  // class, first index
+        std::map<std::array<std::uint32_t, 3>, std::size_t> seen;
+        std::vector<char> dead;
+        for (const auto& [c, t] : tris) {
+          const auto& ix = n.indices[size_t(c)];
+          const std::array<std::uint32_t, 3> w{vertex(ix[t]), vertex(ix[t + 1]), vertex(ix[t + 2])};
+          if (w[0] == w[1] || w[1] == w[2] || w[0] == w[2]) {
+            dropped.emplace_back(c, t);
+            continue;
+          }
+          const auto opp = seen.find(canonical({w[0], w[2], w[1]}));
+          if (opp != seen.end() && !dead[opp->second]) {
+            dead[opp->second] = 1;  // a fin: both go
+            seen.erase(opp);
+            dropped.emplace_back(c, t);
+            continue;
+          }
+          seen[canonical(w)] = m.triangles.size();
+          m.triangles.push_back(w);
+          source.emplace_back(c, t);
+          dead.push_back(0);
+        }
+        TriangleMesh kept;
+        kept.vertices = m.vertices;
+        for (std::size_t i = 0; i < m.triangles.size(); ++i) {
+          if (dead[i])
+            dropped.push_back(source[i]);
+          else
+            kept.triangles.push_back(m.triangles[i]);
+        }
+        if (!opt.snapped_is_valid(kept)) continue;
+        stored_int16 = true;
+        if (r == 0 && !bad.count(f)) break;  // int16 as it is
+        for (const std::uint32_t v : vs) n.rel[v] = at(cells[find(cell_of.at(v))]);
+        for (const auto& [c, t] : dropped) drop[size_t(c)][t / 3] = 1;
+        break;
+      }
+      if (!stored_int16) n.float_features.insert(f);
+    }
+    for (int c = 0; c < kClasses; ++c) {
+      auto& ix = n.indices[size_t(c)];
+      std::vector<std::uint32_t> out;
+      out.reserve(ix.size());
+      for (std::size_t t = 0; t + 2 < ix.size(); t += 3)
+        if (!drop[size_t(c)][t / 3])
+          out.insert(out.end(), ix.begin() + long(t), ix.begin() + long(t) + 3);
+      ix = std::move(out);
+    }
+    return n;
+  }
+  /// The nodes as stored (see snapped), computed once.
+  const std::vector<Node>& stored_nodes() const {
+    if (!stored) {
+      stored = std::make_unique<std::vector<Node>>();
+      for (const auto& node : nodes) stored->push_back(snapped(node));
+    }
+    return *stored;
+  }
+  mutable std::unique_ptr<std::vector<Node>> stored;
   /// A node's triangles in vertex-cache order (per primitive) and its vertices
   /// in first-use order, each followed by the other vertices of its corner
   /// (same feature, same position: flat shading stores a corner once per face
@@ -688,7 +902,7 @@ struct GlbBuilder::Impl {
     return out;
   }
   bool quantized(const Node& n) const {
-    return (opt.quantize || opt.compression == Compression::meshopt) && quantizable(n);
+    return (opt.quantize || opt.compression == Compression::meshopt) && n.float_features.empty();
   }
 };
 
@@ -703,12 +917,16 @@ GlbBuilder& GlbBuilder::operator=(GlbBuilder&&) noexcept = default;
 void GlbBuilder::begin_node(const std::string& name) {
   impl_->nodes.emplace_back();
   impl_->nodes.back().name = name;
+  impl_->stored.reset();
+  impl_->float_bits_of.clear();
 }
 
 std::uint32_t GlbBuilder::add_feature(const GlbFeature& meta, const TriangleMesh& mesh,
                                       const std::vector<Rgba8>& colours) {
   if (impl_->nodes.empty()) begin_node("content");
   auto& node = impl_->nodes.back();
+  impl_->stored.reset();
+  impl_->float_bits_of.clear();
   const std::uint32_t fid = std::uint32_t(impl_->features.size());
   if (fid >= (1u << 24))
     throw IoError(kWhere, "more than 2^24 features in one glb (float feature ids)");
@@ -744,12 +962,14 @@ std::size_t GlbBuilder::vertex_count() const {
 BBox3 GlbBuilder::stored_bounds() const {
   BBox3 b;
   const Vec3d& o = impl_->origin;
-  for (const auto& node : impl_->nodes) {
+  const std::vector<Impl::Node>& nodes = impl_->stored_nodes();
+  for (std::size_t ni = 0; ni < nodes.size(); ++ni) {
+    const Impl::Node& node = nodes[ni];
     const double e = Impl::quant_extent(node);
     const bool q = impl_->quantized(node);
     // meshopt: the features int16 would damage stay float (see glb())
     const std::set<float> bad = !q && impl_->opt.compression == Compression::meshopt
-                                    ? Impl::unquantizable(node)
+                                    ? node.float_features
                                     : std::set<float>{};
     // meshopt: the float part through the EXPONENTIAL filter (see glb())
     std::vector<float> dec;
@@ -760,7 +980,9 @@ BBox3 GlbBuilder::stored_bounds() const {
       const Impl::Node fpart =
           bad.empty() || bad.size() == all.size() ? node : Impl::part(node, bad, true);
       std::vector<std::int32_t> enc;
-      if (Impl::exp_filter(fpart, Impl::exp_tolerance(e), enc, dec) > 0)
+      const int bits = impl_->float_bits(ni, fpart, e);
+      if (bits > 0) Impl::exp_encode(fpart, bits, enc, dec);
+      if (bits > 0)
         for (std::size_t i = 0; i < fpart.rel.size(); ++i) {
           const Vec3d y = to_yup(fpart.rel[i]);
           as_stored[{fpart.feature[i], float(y[0]), float(y[1]), float(y[2])}] =
@@ -791,7 +1013,8 @@ std::string GlbBuilder::glb() const {
   const Impl& im = *impl_;
   if (im.features.empty()) throw IoError(kWhere, "no features to write");
   std::vector<char> node_q;  // per node: int16 positions (see Impl::quantizable)
-  for (const auto& node : im.nodes) node_q.push_back(im.quantized(node) ? 1 : 0);
+  const std::vector<Impl::Node>& nodes = im.stored_nodes();
+  for (const auto& node : nodes) node_q.push_back(im.quantized(node) ? 1 : 0);
   const bool q = std::find(node_q.begin(), node_q.end(), 1) != node_q.end();
 
   tinygltf::Model model;
@@ -815,8 +1038,7 @@ std::string GlbBuilder::glb() const {
   // Coloured triangles: white materials (COLOR_0 carries the colour), only
   // when some triangle is coloured (the glb of an input without colours is
   // unchanged).
-  if (std::any_of(im.nodes.begin(), im.nodes.end(),
-                  [](const Impl::Node& n) { return n.coloured(); }))
+  if (std::any_of(nodes.begin(), nodes.end(), [](const Impl::Node& n) { return n.coloured(); }))
     for (const auto& m : kMaterials) {
       tinygltf::Material mat;
       mat.name = std::string(m.name) + "_rgb";
@@ -856,6 +1078,7 @@ std::string GlbBuilder::glb() const {
     std::size_t vertices = 0;                                   // of the largest mesh
     std::vector<std::pair<int, std::size_t>> index_accessors;   // accessor, first index
   } shared;
+  int part_bits = 0;  // meshopt, float part being written: its EXPONENTIAL bits
   auto emit = [&](const Impl::Node& node, bool quantized, double extent, tinygltf::Node gn) -> int {
     const std::size_t nv = node.rel.size();
     // Vertex attributes.
@@ -935,7 +1158,8 @@ std::string GlbBuilder::glb() const {
       }
       std::vector<std::int32_t> exp;
       std::vector<float> dec;
-      const int bits = mo ? Impl::exp_filter(node, Impl::exp_tolerance(extent), exp, dec) : 0;
+      const int bits = mo ? part_bits : 0;
+      if (bits > 0) Impl::exp_encode(node, bits, exp, dec);
       int pv;
       if (bits > 0) {  // the decoded positions are the stored ones
         for (int k = 0; k < 3; ++k) {
@@ -1078,8 +1302,8 @@ std::string GlbBuilder::glb() const {
     shared.on = false;
     return best;
   };
-  for (std::size_t ni = 0; ni < im.nodes.size(); ++ni) {
-    const auto& node = im.nodes[ni];
+  for (std::size_t ni = 0; ni < nodes.size(); ++ni) {
+    const auto& node = nodes[ni];
     tinygltf::Node gn;
     gn.name = node.name;
     gn.translation = {oy[0], oy[1], oy[2]};
@@ -1091,9 +1315,10 @@ std::string GlbBuilder::glb() const {
       continue;
     }
     const double extent = Impl::quant_extent(node);
-    const std::set<float> bad = mo && !node_q[ni] ? Impl::unquantizable(node) : std::set<float>{};
+    const std::set<float> bad = mo && !node_q[ni] ? node.float_features : std::set<float>{};
     std::set<float> all(node.feature.begin(), node.feature.end());
     if (bad.empty() || bad.size() == all.size()) {
+      part_bits = mo && !node_q[ni] ? im.float_bits(ni, node, extent) : 0;
       scene.nodes.push_back(emit_best(node, node_q[ni] != 0, extent, gn));
       continue;
     }
@@ -1104,8 +1329,11 @@ std::string GlbBuilder::glb() const {
     tinygltf::Node qn = gn, fn = gn;
     qn.name = node.name + ":int16";
     fn.name = node.name + ":float";
+    part_bits = 0;
     parent.children.push_back(emit_best(Impl::part(node, bad, false), true, extent, qn));
-    parent.children.push_back(emit_best(Impl::part(node, bad, true), false, extent, fn));
+    const Impl::Node fpart = Impl::part(node, bad, true);
+    part_bits = im.float_bits(ni, fpart, extent);
+    parent.children.push_back(emit_best(fpart, false, extent, fn));
     model.nodes.push_back(parent);
     scene.nodes.push_back(int(model.nodes.size() - 1));
   }

@@ -226,6 +226,90 @@ TEST(GlbReader, MeshoptKeepsOnlyTheDamagedFeaturesFloat) {
   EXPECT_EQ(tris.at(1).size(), thin.triangles.size());
 }
 
+/// A 10 m cube whose bottom front edge has an extra vertex 1 mm from a corner
+/// (both faces at that edge use it): int16 at a 3 cm step merges the two.
+TriangleMesh cube_with_close_corners() {
+  TriangleMesh m;
+  m.vertices = {{0, 0, 0},   {10, 0, 0},   {10, 10, 0}, {0, 10, 0},   {0, 0, 10},
+                {10, 0, 10}, {10, 10, 10}, {0, 10, 10}, {0.001, 0, 0}};
+  m.triangles = {{3, 2, 1}, {3, 1, 8}, {3, 8, 0}, {4, 0, 8}, {4, 8, 1}, {4, 1, 5}, {3, 7, 6},
+                 {3, 6, 2}, {4, 5, 6}, {4, 6, 7}, {0, 4, 7}, {0, 7, 3}, {1, 2, 6}, {1, 6, 5}};
+  return m;
+}
+
+/// Closed and oriented by exact incidence: every directed edge once, with its
+/// reverse once; not empty.
+bool closed_and_oriented(const io::TriangleMesh& m) {
+  std::map<std::pair<std::uint32_t, std::uint32_t>, int> edges;
+  for (const auto& t : m.triangles)
+    for (int k = 0; k < 3; ++k) ++edges[{t[size_t(k)], t[size_t((k + 1) % 3)]}];
+  for (const auto& [e, n] : edges)
+    if (n != 1 || edges.count({e.second, e.first}) == 0) return false;
+  return !m.triangles.empty();
+}
+
+// With a check of the stored solid (GlbOptions::snapped_is_valid), a model
+// whose corners int16 merges is snapped and stored int16 when the check
+// accepts it (the collapsed triangles dropped), and stays float when it does
+// not (the 4 mm slab flattens: nothing closed is left).
+TEST(GlbReader, MeshoptSnapsAModelWhenTheCheckAcceptsIt) {
+  TriangleMesh far, cube = cube_with_close_corners(), thin;
+  add_box(far, 900, 900, 0, 1000, 1000, 10);  // node extent 1000 m: int16 step ~3 cm
+  add_box(thin, 0, 0, 0, 10, 10, 0.004);
+  std::vector<std::size_t> checked;  // triangles of each mesh the check saw
+  io::GlbOptions opt;
+  opt.compression = io::Compression::meshopt;
+  opt.snapped_is_valid = [&](const io::TriangleMesh& m) {
+    checked.push_back(m.triangles.size());
+    return closed_and_oriented(m);
+  };
+  {
+    io::GlbBuilder b({0, 0, 0}, opt);
+    b.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
+    b.add_feature(feature("cube", io::LodKind::anchor, 1, 0), cube);
+    const std::string bytes = b.glb();
+    EXPECT_EQ(bytes.find("\"EXPONENTIAL\""), std::string::npos);  // no float part
+    const auto tris = triangles(io::parse_glb(bytes, "mem.glb"));
+    ASSERT_EQ(tris.at(1).size(), 12u);  // the two slivers at the merged corner dropped
+    io::TriangleMesh back;
+    std::map<std::array<double, 3>, std::uint32_t> ids;
+    for (const auto& tri : tris.at(1)) {
+      std::array<std::uint32_t, 3> t{};
+      for (int k = 0; k < 3; ++k) {
+        const Vec3d& p = tri[size_t(k)];
+        EXPECT_TRUE(std::fabs(p[0]) < 0.04 || std::fabs(p[0] - 10) < 0.04) << p[0];
+        const auto [it, fresh] =
+            ids.emplace(std::array<double, 3>{p[0], p[1], p[2]}, std::uint32_t(ids.size()));
+        if (fresh) back.vertices.push_back(p);
+        t[size_t(k)] = it->second;
+      }
+      back.triangles.push_back(t);
+    }
+    EXPECT_EQ(back.vertices.size(), 8u);
+    EXPECT_TRUE(closed_and_oriented(back));
+    const io::BBox3 stored = b.stored_bounds();
+    EXPECT_NEAR(stored.min[0], 0, 1000.0 / 32767);
+  }
+  // only the cube could be damaged (two corners within 2 steps): checked once
+  EXPECT_EQ(checked, (std::vector<std::size_t>{12}));
+  checked.clear();
+  {
+    io::GlbBuilder b({0, 0, 0}, opt);
+    b.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
+    b.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);
+    const std::string bytes = b.glb();
+    EXPECT_NE(bytes.find("\"EXPONENTIAL\""), std::string::npos);  // the slab stays float
+    const auto tris = triangles(io::parse_glb(bytes, "mem.glb"));
+    double zmax = 0;
+    for (const auto& tri : tris.at(1))
+      for (const auto& p : tri) zmax = std::max(zmax, p[2]);
+    EXPECT_NEAR(zmax, 0.004, 1000.0 / 32767);
+    EXPECT_EQ(tris.at(1).size(), thin.triangles.size());
+  }
+  // the slab flattened (nothing left), then as EXPONENTIAL floats: valid
+  EXPECT_EQ(checked, (std::vector<std::size_t>{0, 12}));
+}
+
 // meshopt: the feature id lives in its mesh's position bufferView, the normals
 // and the triangles of every mesh of the glb in one compressed bufferView each;
 // the reader gets the same models and feature ids as from the plain glb.

@@ -548,6 +548,11 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
     gopt.attributes = io::glb_attribute_schema(attrs);
   }
   gopt.compression = params.compression;
+  // quantized models are checked as stored: one that int16 damages is snapped
+  // (or kept float) so that every valid model stays a valid solid in the tiles
+  gopt.snapped_is_valid = [](const io::TriangleMesh& m) {
+    return lod::check_mesh(to_lod_mesh(m)).valid();
+  };
   // One schema for every glb (tiles/ and buildings/ are one level below it).
   gopt.schema_uri = "../schema.json";
   io::atomic_write_file((stage / "schema.json").string(), io::glb_schema(gopt) + "\n");

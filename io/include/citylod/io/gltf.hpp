@@ -17,6 +17,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -98,6 +99,16 @@ struct GlbOptions {
   bool quantize = false;
   /// meshopt implies quantized positions (with the same float fallback).
   Compression compression = Compression::none;
+  /// Quantized output: says whether a model, as int16 would store it, is a
+  /// valid solid (vertices relative to the glb's origin, corners welded).
+  /// Set, a valid model int16 could damage (corners within 2 steps, or a
+  /// triangle under 4 steps high) is checked as stored, snapped when needed
+  /// (its corners within 1-2 steps welded, collapsed triangles and
+  /// zero-volume fins dropped) and kept float only when no snapped version
+  /// passes; its float positions go through the EXPONENTIAL filter at the
+  /// int16 step when they pass too (docs/3dtiles.md). Empty: a model whose
+  /// distinct corners int16 would merge keeps float positions.
+  std::function<bool(const TriangleMesh&)> snapped_is_valid;
   std::string generator = "citylod";
   /// Extra properties of the "building" class, from GlbFeature::attributes.
   std::vector<GlbAttribute> attributes;
