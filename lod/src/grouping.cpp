@@ -149,4 +149,29 @@ SortedPrimitives sort_primitives(const std::vector<Primitive>& prims, const IoVi
   return s;
 }
 
+int place_uncovered(const std::vector<Primitive>& prims, const IoView& view,
+                    const std::string& rule, SortedPrimitives& sorted) {
+  if (rule == "noise") return 0;
+  std::vector<int> add;
+  for (size_t i = 0; i < view.on_surface.size() && i < prims.size(); ++i)
+    if (view.on_surface[i] && !view.principal[i] && sorted.level_of[i] < 0) add.push_back(int(i));
+  std::stable_sort(add.begin(), add.end(), [&](int a, int b) {
+    return prims[size_t(a)].alpha_area > prims[size_t(b)].alpha_area;
+  });
+  if (add.empty()) return 0;
+  if (rule == "s0") {
+    size_t at = 0;
+    while (at < sorted.order.size() && sorted.level_of[size_t(sorted.order[at])] == 0) ++at;
+    sorted.order.insert(sorted.order.begin() + std::ptrdiff_t(at), add.begin(), add.end());
+    for (int i : add) sorted.level_of[size_t(i)] = 0;
+  } else {
+    for (int i : add) {
+      sorted.order.push_back(i);
+      sorted.level_of[size_t(i)] = sorted.num_levels;
+    }
+    ++sorted.num_levels;
+  }
+  return int(add.size());
+}
+
 }  // namespace citylod::lod::detail

@@ -213,7 +213,7 @@ struct Contacts {
 Contacts find_principal(const std::vector<BspInterface>& interfaces, const Owners& o,
                         const std::map<int, int>& index_of, size_t num_prims, const IoViewParams& p,
                         IoView& v) {
-  std::vector<double> principal_area(num_prims, 0.0);
+  std::vector<double> principal_area(num_prims, 0.0), plane_area(num_prims, 0.0);
   Contacts c;
   c.plane.resize(v.regions.size());
   c.covered.resize(v.regions.size());
@@ -228,16 +228,21 @@ Contacts find_principal(const std::vector<BspInterface>& interfaces, const Owner
     // coverage estimates it): the paper's "alpha-shapes that separate V_in and
     // V_out" (ioview.covered_only); else the whole face on its plane.
     const double covered = f.area * o.cov[k];
-    if ((ra == v.core_in && rb == v.core_out) || (ra == v.core_out && rb == v.core_in))
+    if ((ra == v.core_in && rb == v.core_out) || (ra == v.core_out && rb == v.core_in)) {
       principal_area[size_t(pi)] += p.covered_only ? covered : f.area;
+      plane_area[size_t(pi)] += f.area;
+    }
     c.plane[size_t(ra)][pi] += f.area;
     c.plane[size_t(rb)][pi] += f.area;
     c.covered[size_t(ra)][pi] += covered;
     c.covered[size_t(rb)][pi] += covered;
   }
   v.principal.assign(num_prims, 0);
-  for (size_t i = 0; i < num_prims; ++i)
+  v.on_surface.assign(num_prims, 0);
+  for (size_t i = 0; i < num_prims; ++i) {
     v.principal[i] = principal_area[i] >= p.min_principal_area ? 1 : 0;
+    v.on_surface[i] = plane_area[i] >= p.min_principal_area ? 1 : 0;
+  }
   return c;
 }
 

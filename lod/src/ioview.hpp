@@ -36,6 +36,9 @@ struct IoView {
   std::vector<Region> regions;
   int core_in = -1, core_out = -1;
   std::vector<char> principal;  ///< per primitive
+  /// per primitive: the V_in/V_out interface lies on its plane (whole faces
+  /// counted) over min_principal_area
+  std::vector<char> on_surface;
   std::vector<Structure> structures;
   std::vector<int> primitive_structure;  ///< per primitive, -1 when none
 };

@@ -431,6 +431,10 @@ SortStep sort_step(const Samples& samples, Planes& planes, IoViewStep& io, const
   }
   view.principal.resize(prims.size(), 0);  // template primitives are secondary
   SortedPrimitives sorted = sort_primitives(prims, view, grouping);
+  const int uncovered = place_uncovered(prims, view, P.ioview.uncovered, sorted);
+  if (uncovered > 0)
+    st.notes.push_back(std::to_string(uncovered) + " uncovered surface primitives placed (" +
+                       P.ioview.uncovered + ")");
   if (planes.heights && P.airborne.detail_level) {
     const int added = append_detail_level(prims, sorted);
     if (added > 0)

@@ -98,6 +98,7 @@ void visit(P& p, F&& f) {
   f("ioview.separation_coverage", p.ioview.separation_coverage);
   f("ioview.min_principal_area", p.ioview.min_principal_area);
   f("ioview.covered_only", p.ioview.covered_only);
+  f("ioview.uncovered", p.ioview.uncovered);
   f("cluster.area_bandwidth", p.cluster.area_bandwidth);
   f("cluster.volume_bandwidth", p.cluster.volume_bandwidth);
   f("cluster.volume_scale", p.cluster.volume_scale);
@@ -173,6 +174,8 @@ void LodParams::validate() const {
         "ioview.min_principal_area", "must be >= 0");
   check(pos(cluster.area_bandwidth), "cluster.area_bandwidth", "must be > 0");
   check(pos(cluster.volume_bandwidth), "cluster.volume_bandwidth", "must be > 0");
+  check(ioview.uncovered == "noise" || ioview.uncovered == "s0" || ioview.uncovered == "last",
+        "ioview.uncovered", "must be noise, s0 or last");
   check(cluster.volume_scale == "ratio" || cluster.volume_scale == "m3", "cluster.volume_scale",
         "must be ratio or m3");
   check(cluster.volume_scale == "m3" || cluster.volume_bandwidth > 1.0, "cluster.volume_bandwidth",

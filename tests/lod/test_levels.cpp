@@ -169,9 +169,42 @@ TEST(LevelSets, PrincipalOnlyWhereTheAlphaShapeCovers) {
   IoViewParams p;
   const IoView plane_rule = analyse_io_view(bsp, prims, planes, inside, p);
   EXPECT_EQ(plane_rule.principal, (std::vector<char>{1, 1, 1, 1, 1, 1}));
+  EXPECT_EQ(plane_rule.on_surface, (std::vector<char>{1, 1, 1, 1, 1, 1}));
   p.covered_only = true;
   const IoView paper_rule = analyse_io_view(bsp, prims, planes, inside, p);
   EXPECT_EQ(paper_rule.principal, (std::vector<char>{1, 1, 1, 1, 1, 0}));
+  // the interface still lies on the top face's plane
+  EXPECT_EQ(paper_rule.on_surface, (std::vector<char>{1, 1, 1, 1, 1, 1}));
+}
+
+// ioview.uncovered: primitives on the V_in/V_out interface that the paper's
+// rule does not make principal and that are in no level set (1 and 4; 2 is in
+// S1, 3 is not on the interface) stay out of S, go to S0 after the principal
+// primitives, or form a last level set, larger alpha-shape first.
+TEST(LevelSets, UncoveredSurfacePrimitivesArePlacedByRule) {
+  std::vector<Primitive> prims(5);
+  const double areas[5] = {10, 1, 3, 2, 5};
+  for (size_t i = 0; i < prims.size(); ++i) prims[i].alpha_area = areas[i];
+  IoView view;
+  view.principal = {1, 0, 0, 0, 0};
+  view.on_surface = {1, 1, 1, 0, 1};
+  SortedPrimitives start;
+  start.order = {0, 2};
+  start.level_of = {0, -1, 1, -1, -1};
+  start.cluster_of = {-1, -1, 0, -1, -1};
+  start.num_levels = 2;
+  SortedPrimitives noise = start, s0 = start, last = start;
+  EXPECT_EQ(place_uncovered(prims, view, "noise", noise), 0);
+  EXPECT_EQ(noise.order, start.order);
+  EXPECT_EQ(noise.level_of, start.level_of);
+  EXPECT_EQ(place_uncovered(prims, view, "s0", s0), 2);
+  EXPECT_EQ(s0.order, (std::vector<int>{0, 4, 1, 2}));
+  EXPECT_EQ(s0.level_of, (std::vector<int>{0, 0, 1, -1, 0}));
+  EXPECT_EQ(s0.num_levels, 2);
+  EXPECT_EQ(place_uncovered(prims, view, "last", last), 2);
+  EXPECT_EQ(last.order, (std::vector<int>{0, 2, 4, 1}));
+  EXPECT_EQ(last.level_of, (std::vector<int>{0, 2, 1, -1, 2}));
+  EXPECT_EQ(last.num_levels, 3);
 }
 
 // The house of test::dormer_house: the main body, then the dormers, then the

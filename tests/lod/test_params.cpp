@@ -17,6 +17,7 @@ TEST(LodParams, DefaultsAreThePapers) {
   EXPECT_DOUBLE_EQ(p.cluster.volume_bandwidth, 4.0);
   EXPECT_EQ(p.cluster.volume_scale, "ratio");  // ours: the paper gives no unit (a factor)
   EXPECT_FALSE(p.ioview.covered_only);         // ours: the paper's rule fails cgal's e2 target
+  EXPECT_EQ(p.ioview.uncovered, "noise");      // ours: used with covered_only only
   EXPECT_DOUBLE_EQ(p.regularization.principal_angle_deg, 5.0);
   EXPECT_DOUBLE_EQ(p.regularization.principal_distance, 0.01);
   EXPECT_DOUBLE_EQ(p.regularization.secondary_angle_deg, 15.0);
@@ -87,6 +88,7 @@ TEST(LodParams, ValidateNamesTheParameter) {
   expect_bad("closure.outline_alpha", "-2");
   expect_bad("closure.terrain", "keep");
   expect_bad("closure.plinth_depth", "0");
+  expect_bad("ioview.uncovered", "drop");
 }
 
 TEST(LodParams, ItemsRoundTrip) {
@@ -117,7 +119,7 @@ TEST(LodParams, ItemsRoundTrip) {
                         "colour.max_angle_deg",
                         "colour.min_points"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 60u);  // one per field of every parameter struct
+  EXPECT_EQ(items.size(), 61u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");

@@ -53,6 +53,13 @@ struct IoViewParams {
   /// rule takes 82 of cgal_building's 193 principal planes out of S0 and its
   /// finest e2 from 0.497 to 0.637 %, over the 0.5 % target).
   bool covered_only = false;
+  /// With covered_only: the primitives on whose plane the V_in/V_out
+  /// interface lies (over min_principal_area) but whose alpha-shapes cover too
+  /// little of it to be principal, and which bound no secondary structure.
+  /// "noise": left out of S; "s0": in S0 after the principal primitives;
+  /// "last": one more, last level set. Not the default: with covered_only,
+  /// cgal_building's finest e2 is 0.637 / 0.718 / 0.708 % (BENCHMARKS.md).
+  std::string uncovered = "noise";
 };
 
 /// Two-stage mean-shift clustering (Section 4.1).
