@@ -25,7 +25,8 @@ fi
 stamp=node_modules/.citylod-lock.sha256
 want=$(sha256sum package-lock.json | cut -d' ' -f1)
 if ((force == 0)) && [[ -f $stamp && "$(cat "$stamp")" == "$want" ]] &&
-   [[ -d node_modules/gltf-validator && -d node_modules/playwright-core && -f node_modules/cesium/Build/Cesium/Cesium.js ]]; then
+   [[ -d node_modules/gltf-validator && -d node_modules/playwright-core && -f node_modules/cesium/Build/Cesium/Cesium.js &&
+   -f node_modules/three/build/three.module.js && -d node_modules/3d-tiles-renderer ]]; then
   echo "install-node-tools: tests/node/node_modules is up to date"
   exit 0
 fi

@@ -284,5 +284,23 @@ TEST(ViewerCli, HeadlessChromiumLoadsAndRefinesTiles) {
   std::printf("screenshots: %s\n", shots.c_str());
 }
 
+// The second viewer: NASA-AMMOS 3DTilesRendererJS (three.js) with its meshopt
+// decoder and EXT_mesh_features / EXT_structural_metadata plugins.
+TEST(ViewerCli, ThreeDTilesRendererLoadsAndRefinesTiles) {
+  REQUIRE_NODE_TOOLS();
+  if (!fs::exists("/usr/bin/chromium"))
+    GTEST_SKIP() << "chromium is not installed (/usr/bin/chromium; apt-get install chromium): "
+                    "browser test skipped";
+  const std::string out = city_tileset("renderer_city");
+  const std::string shots = (fs::path(CITYLOD_TEST_TMP) / "assemble_cli" / "renderer").string();
+  fs::remove_all(shots);
+  const Proc r = run("node " + q((kNode / "renderer-test.mjs").string()) + " --tileset " + q(out) +
+                     " --out " + q(shots) + " --timeout-ms 300000");
+  std::printf("%s", r.output.c_str());
+  if (r.code == 77) GTEST_SKIP() << r.output;
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(shots + "/r2-zoomed.png"));
+}
+
 }  // namespace
 }  // namespace citylod::test
