@@ -663,7 +663,15 @@ class Splitter {
                                const std::vector<std::size_t>& owned);
   [[noreturn]] void region_too_large(const CellKey& key, double size,
                                      const std::string& what) const;
-  void spill_faces(const io::TriangleMesh& mesh, std::size_t input);
+  /// A streamed mesh file's vertices: ENU positions, the file's own coordinates (kept
+  /// only when it has polygons to triangulate), the attributes the split uses.
+  struct MeshVertices {
+    std::vector<Vec3d> pos, file;
+    std::vector<io::Vec3f> normals;
+    std::vector<io::Rgb8> colors;
+  };
+  void spill_face(const std::array<std::uint32_t, 3>& tri, std::uint64_t t, std::size_t input,
+                  const MeshVertices& mv);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
                           std::size_t max_points);
   void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
@@ -941,17 +949,43 @@ void Splitter::pass2_spill(Spiller& spill) {
       }
     };
     if (in.mesh) {
-      // Each mesh file (a tile) is read whole, then streamed out: check that it fits.
-      const double need = double(in.info.point_count) * 200.0 + double(in.info.face_count) * 60.0;
+      // A mesh file is streamed: its vertices are kept (ENU doubles, plus the file's own
+      // coordinates when it has polygons to triangulate, plus the attributes the split
+      // uses), its faces are read in batches, sampled and spilled to their cells.
+      const bool polygons = in.info.max_face_corners > 3;
+      const double vertex_bytes =
+          (polygons ? 48.0 : 24.0) + (has_normals_ ? 12.0 : 0.0) + (has_colors_ ? 3.0 : 0.0);
+      const double need = double(in.info.point_count) * vertex_bytes;
       if (need > 0.5 * double(opt_.memory_limit))
         throw IoError(in.path, "mesh of " + std::to_string(in.info.point_count) +
                                    " vertices needs ~" + fmt("%.0f", need / 1048576) +
-                                   " MiB (each mesh file is read whole); raise --memory-limit "
-                                   "or give the mesh as tiles (a folder of OBJ/PLY)");
-      io::TriangleMesh mesh = io::read_mesh(in.path);
-      to_local(mesh.vertices);
-      if (has_normals_ && mesh.normals.size() != mesh.vertices.size()) has_normals_ = false;
-      if (has_colors_ && mesh.colors.size() != mesh.vertices.size()) has_colors_ = false;
+                                   " MiB for its vertices (kept in memory while its faces "
+                                   "stream); raise --memory-limit or give the mesh as tiles (a "
+                                   "folder of OBJ/PLY)");
+      auto reader = io::MeshReader::open(in.path);
+      MeshVertices mv;
+      {
+        io::PointSet vb;
+        bool all_normals = true, all_colors = true;
+        mv.pos.reserve(in.info.point_count);  // counted by the scan of pass 1
+        if (has_normals_) mv.normals.reserve(in.info.point_count);
+        if (has_colors_) mv.colors.reserve(in.info.point_count);
+        while (reader->read_vertices(vb, 1 << 16) > 0) {
+          mv.pos.insert(mv.pos.end(), vb.positions.begin(), vb.positions.end());
+          all_normals = all_normals && vb.has_normals();
+          all_colors = all_colors && vb.has_colors();
+          if (has_normals_ && all_normals)
+            mv.normals.insert(mv.normals.end(), vb.normals.begin(), vb.normals.end());
+          if (has_colors_ && all_colors)
+            mv.colors.insert(mv.colors.end(), vb.colors.begin(), vb.colors.end());
+        }
+        if (!all_normals) has_normals_ = false;
+        if (!all_colors) has_colors_ = false;
+        if (!has_normals_) std::vector<io::Vec3f>().swap(mv.normals);
+        if (!has_colors_) std::vector<io::Rgb8>().swap(mv.colors);
+      }
+      if (polygons) mv.file = mv.pos;  // triangulated in the file's coordinates, as read_mesh()
+      to_local(mv.pos);
       // Triangles are sampled (centroid + ~kMeshSamplesPerM2 per m^2): the samples are
       // segmented like points and vote for their triangle's building.
       io::PointSet ps;
@@ -961,53 +995,63 @@ void Splitter::pass2_spill(Spiller& spill) {
         rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
         return double(rng >> 11) / double(1ull << 53);
       };
-      for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-        const auto& tri = mesh.triangles[t];
-        const Vec3d& p0 = mesh.vertices[tri[0]];
-        const Vec3d& p1 = mesh.vertices[tri[1]];
-        const Vec3d& p2 = mesh.vertices[tri[2]];
-        const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
-        const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
-        const double area = 0.5 * e1.cross(e2).norm();
-        const std::size_t n = 1 + static_cast<std::size_t>(std::min(1e6, area * kMeshSamplesPerM2));
-        for (std::size_t k = 0; k < n; ++k) {
-          double u = 1.0 / 3, v = 1.0 / 3;
-          if (k > 0) {
-            u = uni();
-            v = uni();
-            if (u + v > 1) u = 1 - u, v = 1 - v;
-          }
-          ps.positions.push_back({p0[0] + u * e1[0] + v * e2[0], p0[1] + u * e1[1] + v * e2[1],
-                                  p0[2] + u * e1[2] + v * e2[2]});
-          if (has_normals_) ps.normals.push_back(mesh.normals[tri[0]]);
-          if (has_colors_) ps.colors.push_back(mesh.colors[tri[0]]);
-          tri_of.push_back(t);
-        }
-        if (ps.size() >= (1u << 16)) {
-          push_refs(ps, tri_of, ii);
-          tri_of.clear();
-        }
-      }
-      if (!ps.empty()) push_refs(ps, tri_of, ii);
       // Orientation of the whole mesh: the signed xy area of a city surface (terrain and
       // roofs seen from above) is positive when its faces point up/out. The wall rule of
       // mesh_footprint_of() needs the outward side of each face.
       double up = 0;
-      for (const auto& tri : mesh.triangles) {
-        const Vec3d& p0 = mesh.vertices[tri[0]];
-        const Vec3d& p1 = mesh.vertices[tri[1]];
-        const Vec3d& p2 = mesh.vertices[tri[2]];
-        up += (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0]);
+      std::uint64_t t = 0;  // triangle index in the file (after triangulation)
+      io::FaceBatch fb;
+      std::vector<std::array<std::uint32_t, 3>> tris;
+      const std::vector<Vec3d>& tri_coords = polygons ? mv.file : mv.pos;
+      std::uint64_t faces_read = 0;
+      while (reader->read_faces(fb, 1 << 16) > 0) {
+        faces_read += fb.size();
+        tris.clear();
+        for (std::size_t f = 0; f < fb.size(); ++f)
+          io::triangulate_face(tri_coords, fb.face(f), fb.face_size(f), tris);
+        for (const auto& tri : tris) {
+          const Vec3d& p0 = mv.pos[tri[0]];
+          const Vec3d& p1 = mv.pos[tri[1]];
+          const Vec3d& p2 = mv.pos[tri[2]];
+          const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
+          const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
+          const double area = 0.5 * e1.cross(e2).norm();
+          const std::size_t n =
+              1 + static_cast<std::size_t>(std::min(1e6, area * kMeshSamplesPerM2));
+          for (std::size_t k = 0; k < n; ++k) {
+            double u = 1.0 / 3, v = 1.0 / 3;
+            if (k > 0) {
+              u = uni();
+              v = uni();
+              if (u + v > 1) u = 1 - u, v = 1 - v;
+            }
+            ps.positions.push_back({p0[0] + u * e1[0] + v * e2[0], p0[1] + u * e1[1] + v * e2[1],
+                                    p0[2] + u * e1[2] + v * e2[2]});
+            if (has_normals_) ps.normals.push_back(mv.normals[tri[0]]);
+            if (has_colors_) ps.colors.push_back(mv.colors[tri[0]]);
+            tri_of.push_back(t);
+          }
+          if (ps.size() >= (1u << 16)) {
+            push_refs(ps, tri_of, ii);
+            tri_of.clear();
+          }
+          up += (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0]);
+          spill_face(tri, t, ii, mv);
+          ++t;
+        }
+        stages_.report(a, b,
+                       double(faces_read) / double(std::max<std::uint64_t>(1, in.info.face_count)),
+                       "ingest");
       }
+      if (!ps.empty()) push_refs(ps, tri_of, ii);
       mesh_up_.resize(ii + 1);
       mesh_up_[ii] = up < 0 ? -1.0 : 1.0;
       if (up < 0 && !opt_.footprints.empty())
         rep_.notes.push_back(in.path +
                              ": faces point down (clockwise seen from above); taken as "
                              "reversed for the wall-to-footprint test");
-      rep_.points += mesh.vertices.size();
-      rep_.triangles += mesh.triangles.size();
-      spill_faces(mesh, ii);
+      rep_.points += mv.pos.size();
+      rep_.triangles += t;
       stages_.report(a, b, 1.0, "ingest");
       continue;
     }
@@ -1065,31 +1109,28 @@ void Splitter::pass2_spill(Spiller& spill) {
   rep_.spill_bytes = spill.bytes();
 }
 
-// A mesh file's triangles to the face files of every cell their xy box meets (a region
-// then holds every triangle of its samples); the mesh itself is dropped after this.
-void Splitter::spill_faces(const io::TriangleMesh& mesh, std::size_t input) {
-  const bool nrm = mesh.normals.size() == mesh.vertices.size();
-  const bool rgb = mesh.colors.size() == mesh.vertices.size();
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-    FaceRec f{};
-    f.id = (std::uint64_t(input) << 40) | t;
-    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-    for (std::size_t k = 0; k < 3; ++k) {
-      const std::uint32_t vi = mesh.triangles[t][k];
-      f.vid[k] = (std::uint64_t(input) << 40) | vi;
-      const Vec3d& p = mesh.vertices[vi];
-      for (std::size_t a = 0; a < 3; ++a) f.v[k][a] = p[a];
-      if (nrm)
-        for (std::size_t a = 0; a < 3; ++a) f.n[k][a] = mesh.normals[vi][a];
-      if (rgb)
-        for (std::size_t a = 0; a < 3; ++a) f.rgb[k][a] = mesh.colors[vi][a];
-      x0 = std::min(x0, p[0]), x1 = std::max(x1, p[0]);
-      y0 = std::min(y0, p[1]), y1 = std::max(y1, p[1]);
-    }
-    const CellKey lo = key_at(x0, y0, cell_), hi = key_at(x1, y1, cell_);
-    for (int i = lo.first; i <= hi.first; ++i)
-      for (int j = lo.second; j <= hi.second; ++j) faces_->add({i, j}, f);
+// A mesh triangle to the face files of every cell its xy box meets (a region then holds
+// every triangle of its samples).
+void Splitter::spill_face(const std::array<std::uint32_t, 3>& tri, std::uint64_t t,
+                          std::size_t input, const MeshVertices& mv) {
+  FaceRec f{};
+  f.id = (std::uint64_t(input) << 40) | t;
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (std::size_t k = 0; k < 3; ++k) {
+    const std::uint32_t vi = tri[k];
+    f.vid[k] = (std::uint64_t(input) << 40) | vi;
+    const Vec3d& p = mv.pos[vi];
+    for (std::size_t a = 0; a < 3; ++a) f.v[k][a] = p[a];
+    if (!mv.normals.empty())
+      for (std::size_t a = 0; a < 3; ++a) f.n[k][a] = mv.normals[vi][a];
+    if (!mv.colors.empty())
+      for (std::size_t a = 0; a < 3; ++a) f.rgb[k][a] = mv.colors[vi][a];
+    x0 = std::min(x0, p[0]), x1 = std::max(x1, p[0]);
+    y0 = std::min(y0, p[1]), y1 = std::max(y1, p[1]);
   }
+  const CellKey lo = key_at(x0, y0, cell_), hi = key_at(x1, y1, cell_);
+  for (int i = lo.first; i <= hi.first; ++i)
+    for (int j = lo.second; j <= hi.second; ++j) faces_->add({i, j}, f);
 }
 
 // ---------------------------------------------------------------------- footprints
