@@ -109,11 +109,12 @@ TriangleMesh triangulate_fan(const PolygonMesh& mesh) {
 TriangleMesh triangulate_polygons(const PolygonMesh& mesh) {
   TriangleMesh t;
   t.vertices = mesh.vertices;
-  for (const auto& f : mesh.faces) triangulate_face(mesh.vertices, f.data(), f.size(), t.triangles);
+  for (const auto& f : mesh.faces)
+    triangulate_face(mesh.vertices.data(), f.data(), f.size(), t.triangles);
   return t;
 }
 
-void triangulate_face(const std::vector<Vec3d>& vertices, const std::uint32_t* f, std::size_t n,
+void triangulate_face(const Vec3d* vertices, const std::uint32_t* f, std::size_t n,
                       std::vector<std::array<std::uint32_t, 3>>& out) {
   if (n < 3) return;
   if (n == 3) {

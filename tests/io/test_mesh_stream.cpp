@@ -93,7 +93,8 @@ Streamed stream(const std::string& path, std::size_t vertex_batch, std::size_t f
 
 std::vector<std::array<std::uint32_t, 3>> triangulate(const Streamed& s) {
   std::vector<std::array<std::uint32_t, 3>> out;
-  for (const auto& f : s.faces) triangulate_face(s.vertices.positions, f.data(), f.size(), out);
+  for (const auto& f : s.faces)
+    triangulate_face(s.vertices.positions.data(), f.data(), f.size(), out);
   return out;
 }
 
@@ -106,9 +107,9 @@ TEST(MeshReader, PlyInBatchesEqualsTheWholeReadInEveryEncoding) {
   const std::vector<std::vector<std::uint32_t>> faces{
       {0, 1, 5}, {1, 2, 6, 5}, {2, 3, 7, 6, 10, 9}, {4, 5, 9, 8, 0}};
   // the L (2 3 7 6 10 9) is not convex: ear clipping, not a fan
-  const std::vector<std::array<std::uint32_t, 3>> tris{
-      {0, 1, 5}, {1, 2, 6}, {1, 6, 5}, {2, 3, 7}, {2, 7, 6},
-      {9, 2, 6}, {6, 10, 9}, {4, 5, 9}, {4, 9, 8}, {4, 8, 0}};
+  const std::vector<std::array<std::uint32_t, 3>> tris{{0, 1, 5}, {1, 2, 6}, {1, 6, 5},  {2, 3, 7},
+                                                       {2, 7, 6}, {9, 2, 6}, {6, 10, 9}, {4, 5, 9},
+                                                       {4, 9, 8}, {4, 8, 0}};
   for (const auto& p : paths) {
     const TriangleMesh whole = read_mesh(p);
     EXPECT_EQ(whole.triangles, tris) << p;
@@ -121,8 +122,9 @@ TEST(MeshReader, PlyInBatchesEqualsTheWholeReadInEveryEncoding) {
       EXPECT_EQ(s.vertices.colors, whole.colors) << p;
       EXPECT_EQ(triangulate(s), whole.triangles) << p;
       const std::vector<std::size_t> sizes =
-          fbatch == 1 ? std::vector<std::size_t>{1, 1, 1, 1}
-                      : (fbatch == 3 ? std::vector<std::size_t>{3, 1} : std::vector<std::size_t>{4});
+          fbatch == 1
+              ? std::vector<std::size_t>{1, 1, 1, 1}
+              : (fbatch == 3 ? std::vector<std::size_t>{3, 1} : std::vector<std::size_t>{4});
       EXPECT_EQ(s.batch_sizes, sizes) << p;
     }
     EXPECT_EQ(scan_file(p).max_face_corners, 6u) << p;
@@ -203,8 +205,9 @@ TEST(MeshReader, DefectsGiveOneLineNamingTheFile) {
   cut_ascii.resize(cut_ascii.find("5 4 5 9 8 0"));
   expect_io_error([&] { drain(write_file("stream_cut_ascii.ply", cut_ascii)); },
                   "truncated: header declares 4 faces but the file holds only 3");
-  expect_io_error([&] { drain(write_file("stream_trailing.ply", std::string(kAsciiPolygons) + "3 0 1 2\n")); },
-                  "trailing data after the elements the header declares");
+  expect_io_error(
+      [&] { drain(write_file("stream_trailing.ply", std::string(kAsciiPolygons) + "3 0 1 2\n")); },
+      "trailing data after the elements the header declares");
 
   expect_io_error([&] { drain(write_file("stream_bad.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\n")); },
                   "references vertex 3 but the file has only 2 vertices");

@@ -2,7 +2,12 @@
 // See split.hpp for the passes; this file reads top to bottom in that order.
 #include "citylod/tiler/split.hpp"
 
+#include <sys/mman.h>
 #include <unistd.h>
+
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <cerrno>
@@ -15,6 +20,8 @@
 #include <limits>
 #include <locale>
 #include <memory>
+#include <new>
+#include <numeric>
 #include <optional>
 #include <regex>
 #include <set>
@@ -248,19 +255,27 @@ class CellFiles {
     return dir_ / (prefix_ + std::to_string(k.first) + "_" + std::to_string(k.second) + ".bin");
   }
   void add(const CellKey& k, const Rec& r) {
+    if (buf_.capacity() < budget_) buf_.reserve(budget_);  // once: no growth by copies
     buf_.push_back({k, r});
     if (buf_.size() >= budget_) flush();
   }
+  /// Writes the buffer out by cell, each cell's records in arrival order (a stable sort
+  /// through an index: no sorted or per-cell copy of the buffer, pieces of kPiece).
   void flush() {
-    std::stable_sort(buf_.begin(), buf_.end(),
-                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<std::uint32_t> order(buf_.size());
+    std::iota(order.begin(), order.end(), 0u);
+    std::sort(order.begin(), order.end(), [this](std::uint32_t a, std::uint32_t b) {
+      return buf_[a].first != buf_[b].first ? buf_[a].first < buf_[b].first : a < b;
+    });
+    constexpr std::size_t kPiece = 4096;
     std::vector<Rec> run;
-    for (std::size_t i = 0; i < buf_.size();) {
-      std::size_t j = i;
+    run.reserve(std::min(kPiece, order.size()));
+    for (std::size_t j = 0; j < order.size();) {
+      const CellKey k = buf_[order[j]].first;
       run.clear();
-      while (j < buf_.size() && buf_[j].first == buf_[i].first) run.push_back(buf_[j++].second);
-      append(buf_[i].first, run.data(), run.size());
-      i = j;
+      while (j < order.size() && buf_[order[j]].first == k && run.size() < kPiece)
+        run.push_back(buf_[order[j++]].second);
+      append(k, run.data(), run.size());
     }
     std::vector<std::pair<CellKey, Rec>>().swap(buf_);
   }
@@ -636,6 +651,35 @@ double median(std::vector<double> v) {
 }
 
 // ====================================================================== the splitter
+/// Allocates from anonymous mappings of its own, not from malloc. For a streamed mesh
+/// file's vertex arrays (tens of MB, freed after ingest): glibc raises its mmap and trim
+/// thresholds to the size of a freed mapped block, so one 21 MB vertex array freed made
+/// the heap keep ~35 MB of the cell pass's freed memory (peak RSS of mesh_city 16x as one
+/// file 180 MB instead of 145 MB, BENCHMARKS issue 15 item 1).
+template <class T>
+struct MappedAllocator {
+  using value_type = T;
+  MappedAllocator() = default;
+  template <class U>
+  MappedAllocator(const MappedAllocator<U>&) {}
+  T* allocate(std::size_t n) {
+    if (n == 0) n = 1;
+    void* p =
+        ::mmap(nullptr, n * sizeof(T), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    return static_cast<T*>(p);
+  }
+  void deallocate(T* p, std::size_t n) { ::munmap(p, (n == 0 ? 1 : n) * sizeof(T)); }
+  template <class U>
+  bool operator==(const MappedAllocator<U>&) const {
+    return true;
+  }
+  template <class U>
+  bool operator!=(const MappedAllocator<U>&) const {
+    return false;
+  }
+};
+
 class Splitter {
  public:
   Splitter(const SplitOptions& o, const ProgressFn& progress) : opt_(o), stages_(progress) {}
@@ -665,10 +709,11 @@ class Splitter {
                                      const std::string& what) const;
   /// A streamed mesh file's vertices: ENU positions, the file's own coordinates (kept
   /// only when it has polygons to triangulate), the attributes the split uses.
+  /// (Their own mappings: see MappedAllocator.)
   struct MeshVertices {
-    std::vector<Vec3d> pos, file;
-    std::vector<io::Vec3f> normals;
-    std::vector<io::Rgb8> colors;
+    std::vector<Vec3d, MappedAllocator<Vec3d>> pos, file;
+    std::vector<io::Vec3f, MappedAllocator<io::Vec3f>> normals;
+    std::vector<io::Rgb8, MappedAllocator<io::Rgb8>> colors;
   };
   void spill_face(const std::array<std::uint32_t, 3>& tri, std::uint64_t t, std::size_t input,
                   const MeshVertices& mv);
@@ -936,7 +981,7 @@ void Splitter::pass2_spill(Spiller& spill) {
       }
       batch.clear();
     };
-    auto to_local = [&](std::vector<Vec3d>& v) {
+    auto to_local = [&](auto& v) {
       if (v.empty()) return;
       if (in.offset != Vec3d{0, 0, 0})
         for (auto& p : v) p = {p[0] + in.offset[0], p[1] + in.offset[1], p[2] + in.offset[2]};
@@ -981,8 +1026,8 @@ void Splitter::pass2_spill(Spiller& spill) {
         }
         if (!all_normals) has_normals_ = false;
         if (!all_colors) has_colors_ = false;
-        if (!has_normals_) std::vector<io::Vec3f>().swap(mv.normals);
-        if (!has_colors_) std::vector<io::Rgb8>().swap(mv.colors);
+        if (!has_normals_) decltype(mv.normals)().swap(mv.normals);
+        if (!has_colors_) decltype(mv.colors)().swap(mv.colors);
       }
       if (polygons) mv.file = mv.pos;  // triangulated in the file's coordinates, as read_mesh()
       to_local(mv.pos);
@@ -1002,13 +1047,13 @@ void Splitter::pass2_spill(Spiller& spill) {
       std::uint64_t t = 0;  // triangle index in the file (after triangulation)
       io::FaceBatch fb;
       std::vector<std::array<std::uint32_t, 3>> tris;
-      const std::vector<Vec3d>& tri_coords = polygons ? mv.file : mv.pos;
+      const auto& tri_coords = polygons ? mv.file : mv.pos;
       std::uint64_t faces_read = 0;
       while (reader->read_faces(fb, 1 << 16) > 0) {
         faces_read += fb.size();
         tris.clear();
         for (std::size_t f = 0; f < fb.size(); ++f)
-          io::triangulate_face(tri_coords, fb.face(f), fb.face_size(f), tris);
+          io::triangulate_face(tri_coords.data(), fb.face(f), fb.face_size(f), tris);
         for (const auto& tri : tris) {
           const Vec3d& p0 = mv.pos[tri[0]];
           const Vec3d& p1 = mv.pos[tri[1]];
@@ -1853,6 +1898,15 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   }
 }
 
+// Hands the heap's free memory back to the system between cells: glibc keeps up to its
+// trim threshold free, and that threshold grows with the largest block freed so far (the
+// ingest's batches), so a cell's freed regions stayed resident through the next cells.
+void release_free_memory() {
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
+}
+
 void Splitter::pass3_cells(const Spiller& spill) {
   std::vector<CellKey> cells;
   if (opt_.footprints.empty()) {
@@ -1870,6 +1924,7 @@ void Splitter::pass3_cells(const Spiller& spill) {
     else
       process_cell_footprints(spill, cells[i], cell_, fp_owned_.at(cells[i]));
     stages_.report(0.5, 0.97, double(i + 1) / total, "segment");
+    release_free_memory();
   }
   if (subdivided_ > 0)
     rep_.notes.push_back(std::to_string(subdivided_) +

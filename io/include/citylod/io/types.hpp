@@ -105,9 +105,9 @@ TriangleMesh triangulate_fan(const PolygonMesh& mesh);
 /// degenerate) has its remainder fanned.
 TriangleMesh triangulate_polygons(const PolygonMesh& mesh);
 
-/// One face of triangulate_polygons(): the `n` vertex indices `face` into `vertices`,
+/// One face of triangulate_polygons(): the `n` vertex indices `face` into `vertices` (in range),
 /// its triangles appended to `out` (none when n < 3; vertices are read only when n > 3).
-void triangulate_face(const std::vector<Vec3d>& vertices, const std::uint32_t* face, std::size_t n,
+void triangulate_face(const Vec3d* vertices, const std::uint32_t* face, std::size_t n,
                       std::vector<std::array<std::uint32_t, 3>>& out);
 
 }  // namespace citylod::io
