@@ -2,7 +2,6 @@
 // See split.hpp for the passes; this file reads top to bottom in that order.
 #include "citylod/tiler/split.hpp"
 
-#include <sys/mman.h>
 #include <unistd.h>
 
 #ifdef __GLIBC__
@@ -20,7 +19,6 @@
 #include <limits>
 #include <locale>
 #include <memory>
-#include <new>
 #include <numeric>
 #include <optional>
 #include <regex>
@@ -651,35 +649,6 @@ double median(std::vector<double> v) {
 }
 
 // ====================================================================== the splitter
-/// Allocates from anonymous mappings of its own, not from malloc. For a streamed mesh
-/// file's vertex arrays (tens of MB, freed after ingest): glibc raises its mmap and trim
-/// thresholds to the size of a freed mapped block, so one 21 MB vertex array freed made
-/// the heap keep ~35 MB of the cell pass's freed memory (peak RSS of mesh_city 16x as one
-/// file 180 MB instead of 145 MB, BENCHMARKS issue 15 item 1).
-template <class T>
-struct MappedAllocator {
-  using value_type = T;
-  MappedAllocator() = default;
-  template <class U>
-  MappedAllocator(const MappedAllocator<U>&) {}
-  T* allocate(std::size_t n) {
-    if (n == 0) n = 1;
-    void* p =
-        ::mmap(nullptr, n * sizeof(T), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
-    return static_cast<T*>(p);
-  }
-  void deallocate(T* p, std::size_t n) { ::munmap(p, (n == 0 ? 1 : n) * sizeof(T)); }
-  template <class U>
-  bool operator==(const MappedAllocator<U>&) const {
-    return true;
-  }
-  template <class U>
-  bool operator!=(const MappedAllocator<U>&) const {
-    return false;
-  }
-};
-
 class Splitter {
  public:
   Splitter(const SplitOptions& o, const ProgressFn& progress) : opt_(o), stages_(progress) {}
@@ -709,11 +678,10 @@ class Splitter {
                                      const std::string& what) const;
   /// A streamed mesh file's vertices: ENU positions, the file's own coordinates (kept
   /// only when it has polygons to triangulate), the attributes the split uses.
-  /// (Their own mappings: see MappedAllocator.)
   struct MeshVertices {
-    std::vector<Vec3d, MappedAllocator<Vec3d>> pos, file;
-    std::vector<io::Vec3f, MappedAllocator<io::Vec3f>> normals;
-    std::vector<io::Rgb8, MappedAllocator<io::Rgb8>> colors;
+    std::vector<Vec3d> pos, file;
+    std::vector<io::Vec3f> normals;
+    std::vector<io::Rgb8> colors;
   };
   void spill_face(const std::array<std::uint32_t, 3>& tri, std::uint64_t t, std::size_t input,
                   const MeshVertices& mv);
