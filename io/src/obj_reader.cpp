@@ -73,6 +73,7 @@ class ObjReader final : public ReaderBase {
         ++vertices_;
       } else if (tok_[0] == "f") {
         ++faces_;
+        max_corners_ = std::max<std::uint64_t>(max_corners_, tok_.size() - 1);
         for (std::size_t k = 1; k < tok_.size(); ++k) {
           std::int64_t v, vn;
           if (!parse_corner(tok_[k], v, vn))
@@ -117,6 +118,7 @@ class ObjReader final : public ReaderBase {
           " (OBJ indices start at 1)");
     info_.point_count = vertices_;
     info_.face_count = faces_;
+    info_.max_face_corners = static_cast<std::uint32_t>(std::min<std::uint64_t>(max_corners_, ~0u));
     info_.has_faces = faces_ > 0;
     info_.has_colors = colors_;
   }
@@ -124,6 +126,7 @@ class ObjReader final : public ReaderBase {
   InputFile in_;
   std::vector<std::string_view> tok_;
   std::uint64_t line_no_ = 0, vertices_ = 0, faces_ = 0, max_index_ = 0, max_index_face_ = 0;
+  std::uint64_t max_corners_ = 0;
   bool colors_ = false, finished_ = false;
 };
 
@@ -131,6 +134,42 @@ class ObjReader final : public ReaderBase {
 
 std::unique_ptr<ReaderBase> open_obj(const std::string& path) {
   return std::make_unique<ObjReader>(path);
+}
+
+ObjFaceStream::ObjFaceStream(const std::string& path, std::uint64_t vertex_count)
+    : in_(path), total_(vertex_count) {}
+
+std::size_t ObjFaceStream::read(FaceBatch& out, std::size_t max_faces) {
+  out.clear();
+  std::size_t got = 0;
+  while (got < max_faces && in_.getline(line_)) {
+    ++line_no_;
+    split_tokens(line_, tok_);
+    if (tok_.empty()) continue;
+    if (tok_[0] == "v") {
+      ++seen_;
+      continue;
+    }
+    if (tok_[0] != "f") continue;
+    const std::uint64_t face = faces_++;
+    for (std::size_t k = 1; k < tok_.size(); ++k) {
+      std::int64_t v, n;
+      if (!parse_corner(tok_[k], v, n)) in_.fail("bad face at line " + std::to_string(line_no_));
+      if (v < 0) {
+        if (static_cast<std::uint64_t>(-v) > seen_) in_.fail(bad_index_message(face, v, seen_));
+        v = static_cast<std::int64_t>(seen_) + v;
+      } else if (v == 0 || static_cast<std::uint64_t>(v) > total_) {
+        in_.fail(bad_index_message(face, v, total_) + " (OBJ indices start at 1)");
+      } else {
+        v -= 1;
+      }
+      if (v > 0xFFFFFFFFll) in_.fail(bad_index_message(face, v, total_));
+      out.corners.push_back(static_cast<std::uint32_t>(v));
+    }
+    out.offsets.push_back(out.corners.size());
+    ++got;
+  }
+  return got;
 }
 
 void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals) {

@@ -99,10 +99,13 @@ class OffReader final : public ReaderBase {
                              static_cast<double>(span));
   }
 
-  void check_tail() override { faces(nullptr); }
-  void read_faces(std::vector<std::vector<std::uint32_t>>& f) override {
+  void check_tail() override {
+    while (faces(nullptr, std::size_t(1) << 16) > 0) {
+    }
+  }
+  std::size_t read_faces(FaceBatch* out, std::size_t max_faces) override {
     if (info_.face_count == 0) in_.fail("OFF file has no faces (a point cloud, not a mesh)");
-    faces(&f);
+    return faces(out, max_faces);
   }
 
  private:
@@ -121,14 +124,18 @@ class OffReader final : public ReaderBase {
              " points but the file holds only " + std::to_string(holds));
   }
 
-  void faces(std::vector<std::vector<std::uint32_t>>* out) {
+  // The next up to `max_faces` faces (validated; stored in `out` unless null), after the
+  // rest of the vertices. Returns how many, 0 at the end.
+  std::size_t faces(FaceBatch* out, std::size_t max_faces) {
+    if (out) out->clear();
     PointSet sink;
     while (read(sink, 1 << 16) > 0) {
     }
     const std::uint64_t nv = info_.point_count;
     std::string line;
-    std::vector<std::uint32_t> poly;
-    for (std::uint64_t f = 0; f < info_.face_count; ++f) {
+    std::size_t got = 0;
+    for (; face_next_ < info_.face_count && got < max_faces; ++face_next_, ++got) {
+      const std::uint64_t f = face_next_;
       if (!next_line(line))
         in_.fail("truncated: header declares " + std::to_string(info_.face_count) +
                  " faces but the file holds only " + std::to_string(f));
@@ -136,21 +143,22 @@ class OffReader final : public ReaderBase {
       std::uint64_t n = 0;
       if (tok_.empty() || !parse_u64(tok_[0], n) || n + 1 > tok_.size())
         in_.fail("bad face #" + std::to_string(f) + ": '" + line.substr(0, 60) + "'");
-      poly.clear();
+      if (n > info_.max_face_corners) info_.max_face_corners = static_cast<std::uint32_t>(n);
       for (std::uint64_t k = 1; k <= n; ++k) {
         std::int64_t idx;
         if (!parse_i64(tok_[k], idx)) in_.fail("bad vertex index in face #" + std::to_string(f));
         if (idx < 0 || static_cast<std::uint64_t>(idx) >= nv)
           in_.fail(bad_index_message(f, idx, nv));
-        poly.push_back(static_cast<std::uint32_t>(idx));
+        if (out) out->corners.push_back(static_cast<std::uint32_t>(idx));
       }
-      if (out) out->push_back(poly);
+      if (out) out->offsets.push_back(out->corners.size());
     }
+    return got;
   }
 
   InputFile in_;
   bool normals_ = false, colors_ = false, texcoords_ = false;
-  std::uint64_t data_start_ = 0;
+  std::uint64_t data_start_ = 0, face_next_ = 0;
   std::vector<std::string_view> tok_;
 };
 

@@ -162,11 +162,14 @@ class PlyReader final : public ReaderBase {
     return std::min(1.0, static_cast<double>(done) / static_cast<double>(span));
   }
 
-  void check_tail() override { process_tail(nullptr); }
+  void check_tail() override {
+    while (tail_batch(nullptr, std::size_t(1) << 16) > 0) {
+    }
+  }
 
-  void read_faces(std::vector<std::vector<std::uint32_t>>& faces) override {
+  std::size_t read_faces(FaceBatch* out, std::size_t max_faces) override {
     if (face_el_ < 0) in_.fail("PLY file has no face element (a point cloud, not a mesh)");
-    process_tail(&faces);
+    return tail_batch(out, max_faces);
   }
 
  private:
@@ -421,27 +424,30 @@ class PlyReader final : public ReaderBase {
     }
   }
 
-  // Reads every element after the vertex element; validates faces.
-  void process_tail(std::vector<std::vector<std::uint32_t>>* faces) {
-    if (tail_done_) in_.fail("internal: faces already read");
-    tail_done_ = true;
-    if (points_read_ != elements_[vertex_el_].count) {
-      PointSet sink;
-      while (read(sink, 1 << 16) > 0) {
+  // The elements after the vertex element, in steps: the first call reads the rest of the
+  // vertices and skips the elements before the faces; each call then reads up to
+  // `max_faces` faces (validated; stored in `out` unless null); after the last face the
+  // elements behind it are skipped and trailing data refused. Returns the faces read, 0 at
+  // the end.
+  std::size_t tail_batch(FaceBatch* out, std::size_t max_faces) {
+    if (out) out->clear();
+    if (tail_done_) return 0;
+    if (!tail_started_) {
+      tail_started_ = true;
+      if (points_read_ != elements_[vertex_el_].count) {
+        PointSet sink;
+        while (read(sink, 1 << 16) > 0) {
+        }
       }
+      const int stop = face_el_ >= 0 ? face_el_ : static_cast<int>(elements_.size());
+      for (int i = vertex_el_ + 1; i < stop; ++i) skip_element(elements_[std::size_t(i)]);
     }
-    const std::uint64_t nv = elements_[vertex_el_].count;
-    for (std::size_t i = static_cast<std::size_t>(vertex_el_) + 1; i < elements_.size(); ++i) {
-      const auto& e = elements_[i];
-      if (static_cast<int>(i) != face_el_) {
-        skip_element(e);
-        continue;
-      }
-      if (faces)
-        faces->reserve(
-            std::min<std::uint64_t>(e.count, in_.size() / std::max<std::size_t>(1, e.min_size)));
-      std::vector<std::uint32_t> poly;
-      for (std::uint64_t r = 0; r < e.count; ++r) {
+    std::size_t got = 0;
+    if (face_el_ >= 0) {
+      const auto& e = elements_[std::size_t(face_el_)];
+      const std::uint64_t nv = elements_[vertex_el_].count;
+      for (; face_next_ < e.count && got < max_faces; ++face_next_, ++got) {
+        const std::uint64_t r = face_next_;
         for (std::size_t k = 0; k < e.props.size(); ++k) {
           const auto& p = e.props[k];
           if (!p.is_list) {
@@ -453,17 +459,21 @@ class PlyReader final : public ReaderBase {
             for (std::uint64_t j = 0; j < n; ++j) read_scalar(p.type, e, r);
             continue;
           }
-          poly.clear();
+          if (n > info_.max_face_corners) info_.max_face_corners = static_cast<std::uint32_t>(n);
           for (std::uint64_t j = 0; j < n; ++j) {
             double v = read_scalar(p.type, e, r);
             if (!(v >= 0) || v >= static_cast<double>(nv) || v != std::floor(v))
               in_.fail(bad_index_message(r, static_cast<std::int64_t>(v), nv));
-            poly.push_back(static_cast<std::uint32_t>(v));
+            if (out) out->corners.push_back(static_cast<std::uint32_t>(v));
           }
-          if (faces) faces->push_back(poly);
+          if (out) out->offsets.push_back(out->corners.size());
         }
       }
+      if (face_next_ < e.count) return got;
+      for (std::size_t i = std::size_t(face_el_) + 1; i < elements_.size(); ++i)
+        skip_element(elements_[i]);
     }
+    tail_done_ = true;
     // Trailing data: the header's counts understate the file.
     if (enc_ == Encoding::ascii) {
       if (tok_i_ < toks_.size())
@@ -481,6 +491,7 @@ class PlyReader final : public ReaderBase {
         in_.fail("trailing data: " + std::to_string(extra) +
                  " bytes after the elements the header declares (header counts lie)");
     }
+    return got;
   }
 
   InputFile in_;
@@ -492,7 +503,8 @@ class PlyReader final : public ReaderBase {
   std::array<int, 3> xyz_{}, nrm_{}, rgb_{};
   bool has_normals_ = false, has_colors_ = false;
   int class_ = -1;
-  bool tail_done_ = false;
+  bool tail_started_ = false, tail_done_ = false;
+  std::uint64_t face_next_ = 0;
   std::vector<unsigned char> buf_;
   std::vector<double> vals_;
   std::string line_;

@@ -109,77 +109,85 @@ TriangleMesh triangulate_fan(const PolygonMesh& mesh) {
 TriangleMesh triangulate_polygons(const PolygonMesh& mesh) {
   TriangleMesh t;
   t.vertices = mesh.vertices;
-  std::vector<std::array<double, 2>> q;
-  std::vector<std::size_t> ring;
-  for (const auto& f : mesh.faces) {
-    const std::size_t n = f.size();
-    if (n < 3) continue;
-    if (n == 3) {
-      t.triangles.push_back({f[0], f[1], f[2]});
-      continue;
-    }
-    // Newell normal; project along its dominant axis, CCW about it.
-    double nx = 0, ny = 0, nz = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const Vec3d& a = mesh.vertices[f[i]];
-      const Vec3d& b = mesh.vertices[f[(i + 1) % n]];
-      nx += (a[1] - b[1]) * (a[2] + b[2]);
-      ny += (a[2] - b[2]) * (a[0] + b[0]);
-      nz += (a[0] - b[0]) * (a[1] + b[1]);
-    }
-    const double an[3] = {std::fabs(nx), std::fabs(ny), std::fabs(nz)};
-    const int k = an[0] >= an[1] && an[0] >= an[2] ? 0 : (an[1] >= an[2] ? 1 : 2);
-    const double sign = (k == 0 ? nx : k == 1 ? ny : nz) < 0 ? -1.0 : 1.0;
-    const int u = (k + 1) % 3, w = (k + 2) % 3;
-    q.resize(n);
-    for (std::size_t i = 0; i < n; ++i)
-      q[i] = {mesh.vertices[f[i]][size_t(u)], sign * mesh.vertices[f[i]][size_t(w)]};
-    auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
-      return (q[b][0] - q[a][0]) * (q[c][1] - q[a][1]) - (q[b][1] - q[a][1]) * (q[c][0] - q[a][0]);
-    };
-    bool convex = true;
-    for (std::size_t i = 0; i < n && convex; ++i)
-      convex = cross((i + n - 1) % n, i, (i + 1) % n) >= 0;
-    if (convex) {  // the fan from the first vertex, as for any convex face
-      for (std::size_t i = 1; i + 1 < n; ++i) t.triangles.push_back({f[0], f[i], f[i + 1]});
-      continue;
-    }
-    ring.resize(n);
-    for (std::size_t i = 0; i < n; ++i) ring[i] = i;
-    while (ring.size() > 3) {
-      bool clipped = false;
-      for (std::size_t i = 0; i < ring.size() && !clipped; ++i) {
-        const std::size_t a = ring[(i + ring.size() - 1) % ring.size()], b = ring[i],
-                          c = ring[(i + 1) % ring.size()];
-        if (!(cross(a, b, c) > 0)) continue;  // reflex or flat corner
-        bool empty = true;
-        for (std::size_t j : ring) {
-          if (j == a || j == b || j == c || q[j] == q[a] || q[j] == q[b] || q[j] == q[c]) continue;
-          // inside or on the ear's boundary: a vertex on the diagonal c-a (a
-          // thin sliver of the polygon running along it) forbids the ear too
-          if (cross(a, b, j) >= 0 && cross(b, c, j) >= 0 && cross(c, a, j) >= 0) {
-            empty = false;  // another vertex inside the ear
-            break;
-          }
-        }
-        if (!empty) continue;
-        t.triangles.push_back({f[a], f[b], f[c]});
-        ring.erase(ring.begin() + std::ptrdiff_t(i));
-        clipped = true;
-      }
-      if (!clipped) break;
-    }
-    for (std::size_t i = 1; i + 1 < ring.size(); ++i)
-      t.triangles.push_back({f[ring[0]], f[ring[i]], f[ring[i + 1]]});
-  }
+  for (const auto& f : mesh.faces)
+    triangulate_face(mesh.vertices.data(), f.data(), f.size(), t.triangles);
   return t;
+}
+
+void triangulate_face(const Vec3d* vertices, const std::uint32_t* f, std::size_t n,
+                      std::vector<std::array<std::uint32_t, 3>>& out) {
+  if (n < 3) return;
+  if (n == 3) {
+    out.push_back({f[0], f[1], f[2]});
+    return;
+  }
+  // Newell normal; project along its dominant axis, CCW about it.
+  double nx = 0, ny = 0, nz = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3d& a = vertices[f[i]];
+    const Vec3d& b = vertices[f[(i + 1) % n]];
+    nx += (a[1] - b[1]) * (a[2] + b[2]);
+    ny += (a[2] - b[2]) * (a[0] + b[0]);
+    nz += (a[0] - b[0]) * (a[1] + b[1]);
+  }
+  const double an[3] = {std::fabs(nx), std::fabs(ny), std::fabs(nz)};
+  const int k = an[0] >= an[1] && an[0] >= an[2] ? 0 : (an[1] >= an[2] ? 1 : 2);
+  const double sign = (k == 0 ? nx : k == 1 ? ny : nz) < 0 ? -1.0 : 1.0;
+  const int u = (k + 1) % 3, w = (k + 2) % 3;
+  std::vector<std::array<double, 2>> q(n);
+  for (std::size_t i = 0; i < n; ++i)
+    q[i] = {vertices[f[i]][size_t(u)], sign * vertices[f[i]][size_t(w)]};
+  auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
+    return (q[b][0] - q[a][0]) * (q[c][1] - q[a][1]) - (q[b][1] - q[a][1]) * (q[c][0] - q[a][0]);
+  };
+  bool convex = true;
+  for (std::size_t i = 0; i < n && convex; ++i)
+    convex = cross((i + n - 1) % n, i, (i + 1) % n) >= 0;
+  if (convex) {  // the fan from the first vertex, as for any convex face
+    for (std::size_t i = 1; i + 1 < n; ++i) out.push_back({f[0], f[i], f[i + 1]});
+    return;
+  }
+  std::vector<std::size_t> ring(n);
+  for (std::size_t i = 0; i < n; ++i) ring[i] = i;
+  while (ring.size() > 3) {
+    bool clipped = false;
+    for (std::size_t i = 0; i < ring.size() && !clipped; ++i) {
+      const std::size_t a = ring[(i + ring.size() - 1) % ring.size()], b = ring[i],
+                        c = ring[(i + 1) % ring.size()];
+      if (!(cross(a, b, c) > 0)) continue;  // reflex or flat corner
+      bool empty = true;
+      for (std::size_t j : ring) {
+        if (j == a || j == b || j == c || q[j] == q[a] || q[j] == q[b] || q[j] == q[c]) continue;
+        // inside or on the ear's boundary: a vertex on the diagonal c-a (a
+        // thin sliver of the polygon running along it) forbids the ear too
+        if (cross(a, b, j) >= 0 && cross(b, c, j) >= 0 && cross(c, a, j) >= 0) {
+          empty = false;  // another vertex inside the ear
+          break;
+        }
+      }
+      if (!empty) continue;
+      out.push_back({f[a], f[b], f[c]});
+      ring.erase(ring.begin() + std::ptrdiff_t(i));
+      clipped = true;
+    }
+    if (!clipped) break;
+  }
+  for (std::size_t i = 1; i + 1 < ring.size(); ++i)
+    out.push_back({f[ring[0]], f[ring[i]], f[ring[i + 1]]});
 }
 
 namespace detail {
 
-void ReaderBase::read_faces(std::vector<std::vector<std::uint32_t>>&) {
+std::size_t ReaderBase::read_faces(FaceBatch*, std::size_t) {
   throw IoError(info_.path,
                 std::string(info_.format_name) + " file has no faces (a point cloud, not a mesh)");
+}
+
+void ReaderBase::read_all_faces(std::vector<std::vector<std::uint32_t>>& faces) {
+  FaceBatch b;
+  while (read_faces(&b, std::size_t(1) << 16) > 0)
+    for (std::size_t i = 0; i < b.size(); ++i)
+      faces.emplace_back(b.face(i), b.face(i) + b.face_size(i));
 }
 
 std::string bad_index_message(std::uint64_t face, std::int64_t index, std::uint64_t vertex_count) {
@@ -325,6 +333,7 @@ FileInfo scan_file(const std::string& path, ProgressFn progress, void* user) {
   const FileInfo& after = r->info();  // text formats learn their counts while streaming
   info.point_count = n;
   info.face_count = after.face_count;
+  info.max_face_corners = after.max_face_corners;
   info.has_faces = after.has_faces;
   info.has_colors = after.has_colors;
   info.bbox = box;
@@ -364,7 +373,7 @@ void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3
                             " files hold no faces (a point cloud, not a mesh)");
   PointSet all, batch;
   while (r->read(batch, 1 << 20) > 0) all.append(batch);
-  r->read_faces(mesh.faces);
+  r->read_all_faces(mesh.faces);
   check_finite(all.positions, 0, path);
   mesh.vertices = std::move(all.positions);
   normals = std::move(all.normals);
@@ -379,6 +388,66 @@ PolygonMesh read_polygon_mesh(const std::string& path) {
   std::vector<Rgb8> c;
   read_mesh_impl(path, m, n, c);
   return m;
+}
+
+struct MeshReader::Impl {
+  std::string path;
+  std::unique_ptr<detail::ReaderBase> reader;        // vertices; PLY/OFF faces too
+  std::unique_ptr<detail::ObjFaceStream> obj_faces;  // OBJ faces (second pass)
+  bool obj = false;
+  std::uint64_t vertices = 0;
+};
+
+MeshReader::MeshReader() : impl_(std::make_unique<Impl>()) {}
+MeshReader::~MeshReader() = default;
+
+std::unique_ptr<MeshReader> MeshReader::open(const std::string& path) {
+  const Format f = detect_format(path);
+  std::unique_ptr<MeshReader> m(new MeshReader());
+  m->impl_->path = path;
+  m->impl_->obj = f == Format::obj;
+  m->impl_->reader = detail::open_reader(path);
+  if (f != Format::ply && f != Format::off && f != Format::obj)
+    throw IoError(path, std::string(format_name(m->impl_->reader->info().format)) +
+                            " files hold no faces (a point cloud, not a mesh)");
+  m->info_ = m->impl_->reader->info();
+  return m;
+}
+
+std::size_t MeshReader::read_vertices(PointSet& batch, std::size_t max_vertices) {
+  Impl& m = *impl_;
+  if (m.obj_faces) {
+    batch.clear();
+    return 0;
+  }
+  const std::size_t n = m.reader->read(batch, max_vertices);
+  check_finite(batch.positions, m.vertices, m.path);
+  m.vertices += n;
+  if (m.obj) {  // as read_mesh(): OBJ colours are not kept, vn belong to face corners
+    batch.colors.clear();
+    batch.normals.clear();
+  }
+  return n;
+}
+
+std::size_t MeshReader::read_faces(FaceBatch& batch, std::size_t max_faces) {
+  Impl& m = *impl_;
+  if (!m.obj) {
+    const std::size_t n = m.reader->read_faces(&batch, max_faces);
+    info_.max_face_corners = m.reader->info().max_face_corners;
+    return n;
+  }
+  if (!m.obj_faces) {
+    PointSet sink;
+    while (read_vertices(sink, std::size_t(1) << 16) > 0) {
+    }
+    info_ = m.reader->info();  // OBJ learns its counts while streaming (and checks the indices)
+    if (info_.face_count == 0)
+      throw IoError(m.path, "OBJ file has no faces (a point cloud, not a mesh)");
+    m.obj_faces = std::make_unique<detail::ObjFaceStream>(m.path, m.vertices);
+    m.reader.reset();
+  }
+  return m.obj_faces->read(batch, max_faces);
 }
 
 TriangleMesh read_mesh(const std::string& path) {

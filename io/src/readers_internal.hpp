@@ -17,9 +17,13 @@ class ReaderBase : public PointReader {
   /// After read() returned 0: reads and validates what follows the points
   /// (faces: index range; trailing data) and completes info().face_count.
   virtual void check_tail() {}
-  /// After read() returned 0: reads the faces (polygons, 0-based indices,
-  /// validated against the vertex count). Throws if the file has no faces.
-  virtual void read_faces(std::vector<std::vector<std::uint32_t>>& faces);
+  /// The next up to `max_faces` faces (polygons, 0-based indices, validated against the
+  /// vertex count) into `out` (cleared first; null: validated only), after the rest of the
+  /// points. Returns how many; 0 at the end (the data behind the faces then checked).
+  /// Throws if the file has no faces.
+  virtual std::size_t read_faces(FaceBatch* out, std::size_t max_faces);
+  /// Every face (read_faces() to the end), appended to `faces`.
+  void read_all_faces(std::vector<std::vector<std::uint32_t>>& faces);
   FileInfo& mutable_info() { return info_; }
 };
 
@@ -42,6 +46,21 @@ std::unique_ptr<ReaderBase> open_reader(const std::string& path);
 
 /// OBJ meshes are read in one pass (vn are referenced by faces, not by vertices).
 void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals);
+
+/// The faces of an OBJ file, streamed (a second pass over the file, after its vertices:
+/// `vertex_count` of them). Relative indices count the "v" lines before their face.
+class ObjFaceStream {
+ public:
+  ObjFaceStream(const std::string& path, std::uint64_t vertex_count);
+  /// Clears `out` and fills it with up to `max_faces` next faces; 0 at the end.
+  std::size_t read(FaceBatch& out, std::size_t max_faces);
+
+ private:
+  InputFile in_;
+  std::uint64_t total_ = 0, seen_ = 0, faces_ = 0, line_no_ = 0;
+  std::string line_;
+  std::vector<std::string_view> tok_;
+};
 
 /// Error text for an out-of-range face index.
 std::string bad_index_message(std::uint64_t face, std::int64_t index, std::uint64_t vertex_count);

@@ -1,7 +1,8 @@
 // libFuzzer harness of one point cloud / mesh reader (CITYLOD_FUZZ_EXT: las, laz,
 // ply, obj, off, xyz): the bytes become a file with that extension, streamed
 // by scan_file (header checks, every point, faces), read again as points and,
-// for mesh formats, as a mesh; LAS/LAZ records are also verified.
+// for mesh formats, as a mesh (whole and through MeshReader in small batches);
+// LAS/LAZ records are also verified.
 #include <cstdint>
 #include <string>
 
@@ -21,7 +22,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     const io::FileInfo info = io::scan_file(path);
     if (ext == "ply" || ext == "obj" || ext == "off") {
-      if (info.has_faces) io::read_mesh(path);
+      if (info.has_faces) {
+        io::read_mesh(path);
+        // streamed as the splitter reads a mesh file: vertices, then faces in batches
+        auto m = io::MeshReader::open(path);
+        io::PointSet vb;
+        while (m->read_vertices(vb, 7) > 0) {
+        }
+        io::FaceBatch fb;
+        while (m->read_faces(fb, 5) > 0) {
+        }
+      }
     } else {
       io::read_points(path);
     }

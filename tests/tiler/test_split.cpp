@@ -5,11 +5,13 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <set>
 #include <sstream>
@@ -1307,6 +1309,96 @@ TEST_F(SplitSynthetic, MeshChunksDoNotDependOnTheCellGrid) {
   for (std::size_t i = 0; i < mb.chunks.size(); ++i) {
     EXPECT_EQ(ms.chunks[i].id, mb.chunks[i].id);
     EXPECT_EQ(ms.chunks[i].content_hash, mb.chunks[i].content_hash) << mb.chunks[i].id;
+  }
+}
+
+namespace {
+
+/// A binary little-endian PLY of double xyz and "list uchar int" faces as big endian.
+std::string ply_to_big_endian(const std::string& le) {
+  const std::string head_end = "end_header\n";
+  const std::size_t body = le.find(head_end) + head_end.size();
+  std::string header = le.substr(0, body);
+  EXPECT_NE(header.find("property list uchar int vertex_indices"), std::string::npos);
+  EXPECT_EQ(header.find("property float"), std::string::npos);
+  const std::size_t at = header.find("binary_little_endian");
+  header.replace(at, 20, "binary_big_endian");
+  auto count = [&](const std::string& el) {
+    const std::size_t k = header.find("element " + el + " ") + 9 + el.size();
+    return std::stoull(header.substr(k, header.find('\n', k) - k));
+  };
+  std::string b = le.substr(body);
+  std::size_t o = 0;
+  for (unsigned long long v = 0; v < 3 * count("vertex"); ++v, o += 8)
+    std::reverse(b.begin() + std::ptrdiff_t(o), b.begin() + std::ptrdiff_t(o + 8));
+  for (unsigned long long f = 0; f < count("face"); ++f) {
+    const std::size_t n = static_cast<unsigned char>(b[o++]);
+    for (std::size_t k = 0; k < n; ++k, o += 4)
+      std::reverse(b.begin() + std::ptrdiff_t(o), b.begin() + std::ptrdiff_t(o + 4));
+  }
+  EXPECT_EQ(o, b.size());
+  return header + b;
+}
+
+}  // namespace
+
+// One mesh file is streamed (its vertices kept, its faces read in batches, sampled and
+// spilled): the chunks are those of its whole read's triangles (read_mesh), whatever the
+// encoding (binary little/big endian, ASCII, OBJ) and with polygons triangulated as
+// read_mesh does.
+TEST_F(SplitSynthetic, OneMeshFileStreamsToTheChunksOfItsWholeRead) {
+  const fs::path dir = tmp_dir("mesh_stream");
+  const io::TriangleMesh mesh = test::make_city_mesh(city);
+  // the generator's triangle pairs (a b d) (a d c) as quads (a b d c)
+  io::PolygonMesh quads;
+  quads.vertices = mesh.vertices;
+  for (std::size_t t = 0; t + 1 < mesh.triangles.size(); t += 2) {
+    const auto &t0 = mesh.triangles[t], &t1 = mesh.triangles[t + 1];
+    ASSERT_EQ(t1[0], t0[0]);
+    ASSERT_EQ(t1[1], t0[2]);
+    quads.faces.push_back({t0[0], t0[1], t0[2], t1[2]});
+  }
+  const std::string le = (dir / "quads_le.ply").string();
+  io::write_ply(le, quads);
+  const std::string be = (dir / "quads_be.ply").string();
+  {
+    std::ifstream f(le, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    std::ofstream(be, std::ios::binary) << ply_to_big_endian(bytes);
+  }
+  const std::string ascii = (dir / "quads_ascii.ply").string();
+  io::PlyWriteOptions text;
+  text.binary = false;
+  io::write_ply(ascii, quads, text);
+  const std::string obj = (dir / "quads.obj").string();
+  io::write_obj(obj, quads);
+  // the reference: the triangles of the whole read (the generator's, exactly)
+  const io::TriangleMesh whole = io::read_mesh(le);
+  ASSERT_EQ(whole.triangles, mesh.triangles);
+  const std::string tri = (dir / "whole_read.ply").string();
+  io::write_ply(tri, whole);
+
+  const std::string fp = (dir / "fp.geojson").string();
+  std::ofstream(fp) << test::city_footprints_geojson(city);
+  auto split = [&](const std::string& in, const std::string& name) {
+    SplitOptions o = local_options(in, dir / name);
+    o.footprints = fp;
+    const SplitReport r = tiler::split_scene(o);
+    EXPECT_EQ(r.triangles, mesh.triangles.size()) << in;
+    return tiler::read_manifest(o.work_dir);
+  };
+  const tiler::Manifest ref = split(tri, "work_ref");
+  ASSERT_EQ(ref.chunks.size(), city.boxes.size());
+  for (const auto& [in, name] : std::vector<std::pair<std::string, std::string>>{
+           {le, "work_le"}, {be, "work_be"}, {ascii, "work_ascii"}, {obj, "work_obj"}}) {
+    const tiler::Manifest m = split(in, name);
+    ASSERT_EQ(m.chunks.size(), ref.chunks.size()) << in;
+    for (std::size_t i = 0; i < ref.chunks.size(); ++i) {
+      EXPECT_EQ(m.chunks[i].id, ref.chunks[i].id) << in;
+      EXPECT_EQ(m.chunks[i].triangles, ref.chunks[i].triangles) << in;
+      EXPECT_EQ(m.chunks[i].content_hash, ref.chunks[i].content_hash)
+          << in << " " << m.chunks[i].id;
+    }
   }
 }
 

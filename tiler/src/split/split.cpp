@@ -4,6 +4,10 @@
 
 #include <unistd.h>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
@@ -15,6 +19,7 @@
 #include <limits>
 #include <locale>
 #include <memory>
+#include <numeric>
 #include <optional>
 #include <regex>
 #include <set>
@@ -248,19 +253,27 @@ class CellFiles {
     return dir_ / (prefix_ + std::to_string(k.first) + "_" + std::to_string(k.second) + ".bin");
   }
   void add(const CellKey& k, const Rec& r) {
+    if (buf_.capacity() < budget_) buf_.reserve(budget_);  // once: no growth by copies
     buf_.push_back({k, r});
     if (buf_.size() >= budget_) flush();
   }
+  /// Writes the buffer out by cell, each cell's records in arrival order (a stable sort
+  /// through an index: no sorted or per-cell copy of the buffer, pieces of kPiece).
   void flush() {
-    std::stable_sort(buf_.begin(), buf_.end(),
-                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<std::uint32_t> order(buf_.size());
+    std::iota(order.begin(), order.end(), 0u);
+    std::sort(order.begin(), order.end(), [this](std::uint32_t a, std::uint32_t b) {
+      return buf_[a].first != buf_[b].first ? buf_[a].first < buf_[b].first : a < b;
+    });
+    constexpr std::size_t kPiece = 4096;
     std::vector<Rec> run;
-    for (std::size_t i = 0; i < buf_.size();) {
-      std::size_t j = i;
+    run.reserve(std::min(kPiece, order.size()));
+    for (std::size_t j = 0; j < order.size();) {
+      const CellKey k = buf_[order[j]].first;
       run.clear();
-      while (j < buf_.size() && buf_[j].first == buf_[i].first) run.push_back(buf_[j++].second);
-      append(buf_[i].first, run.data(), run.size());
-      i = j;
+      while (j < order.size() && buf_[order[j]].first == k && run.size() < kPiece)
+        run.push_back(buf_[order[j++]].second);
+      append(k, run.data(), run.size());
     }
     std::vector<std::pair<CellKey, Rec>>().swap(buf_);
   }
@@ -663,7 +676,15 @@ class Splitter {
                                const std::vector<std::size_t>& owned);
   [[noreturn]] void region_too_large(const CellKey& key, double size,
                                      const std::string& what) const;
-  void spill_faces(const io::TriangleMesh& mesh, std::size_t input);
+  /// A streamed mesh file's vertices: ENU positions, the file's own coordinates (kept
+  /// only when it has polygons to triangulate), the attributes the split uses.
+  struct MeshVertices {
+    std::vector<Vec3d> pos, file;
+    std::vector<io::Vec3f> normals;
+    std::vector<io::Rgb8> colors;
+  };
+  void spill_face(const std::array<std::uint32_t, 3>& tri, std::uint64_t t, std::size_t input,
+                  const MeshVertices& mv);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
                           std::size_t max_points);
   void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
@@ -928,7 +949,7 @@ void Splitter::pass2_spill(Spiller& spill) {
       }
       batch.clear();
     };
-    auto to_local = [&](std::vector<Vec3d>& v) {
+    auto to_local = [&](auto& v) {
       if (v.empty()) return;
       if (in.offset != Vec3d{0, 0, 0})
         for (auto& p : v) p = {p[0] + in.offset[0], p[1] + in.offset[1], p[2] + in.offset[2]};
@@ -941,17 +962,43 @@ void Splitter::pass2_spill(Spiller& spill) {
       }
     };
     if (in.mesh) {
-      // Each mesh file (a tile) is read whole, then streamed out: check that it fits.
-      const double need = double(in.info.point_count) * 200.0 + double(in.info.face_count) * 60.0;
+      // A mesh file is streamed: its vertices are kept (ENU doubles, plus the file's own
+      // coordinates when it has polygons to triangulate, plus the attributes the split
+      // uses), its faces are read in batches, sampled and spilled to their cells.
+      const bool polygons = in.info.max_face_corners > 3;
+      const double vertex_bytes =
+          (polygons ? 48.0 : 24.0) + (has_normals_ ? 12.0 : 0.0) + (has_colors_ ? 3.0 : 0.0);
+      const double need = double(in.info.point_count) * vertex_bytes;
       if (need > 0.5 * double(opt_.memory_limit))
         throw IoError(in.path, "mesh of " + std::to_string(in.info.point_count) +
                                    " vertices needs ~" + fmt("%.0f", need / 1048576) +
-                                   " MiB (each mesh file is read whole); raise --memory-limit "
-                                   "or give the mesh as tiles (a folder of OBJ/PLY)");
-      io::TriangleMesh mesh = io::read_mesh(in.path);
-      to_local(mesh.vertices);
-      if (has_normals_ && mesh.normals.size() != mesh.vertices.size()) has_normals_ = false;
-      if (has_colors_ && mesh.colors.size() != mesh.vertices.size()) has_colors_ = false;
+                                   " MiB for its vertices (kept in memory while its faces "
+                                   "stream); raise --memory-limit or give the mesh as tiles (a "
+                                   "folder of OBJ/PLY)");
+      auto reader = io::MeshReader::open(in.path);
+      MeshVertices mv;
+      {
+        io::PointSet vb;
+        bool all_normals = true, all_colors = true;
+        mv.pos.reserve(in.info.point_count);  // counted by the scan of pass 1
+        if (has_normals_) mv.normals.reserve(in.info.point_count);
+        if (has_colors_) mv.colors.reserve(in.info.point_count);
+        while (reader->read_vertices(vb, 1 << 16) > 0) {
+          mv.pos.insert(mv.pos.end(), vb.positions.begin(), vb.positions.end());
+          all_normals = all_normals && vb.has_normals();
+          all_colors = all_colors && vb.has_colors();
+          if (has_normals_ && all_normals)
+            mv.normals.insert(mv.normals.end(), vb.normals.begin(), vb.normals.end());
+          if (has_colors_ && all_colors)
+            mv.colors.insert(mv.colors.end(), vb.colors.begin(), vb.colors.end());
+        }
+        if (!all_normals) has_normals_ = false;
+        if (!all_colors) has_colors_ = false;
+        if (!has_normals_) decltype(mv.normals)().swap(mv.normals);
+        if (!has_colors_) decltype(mv.colors)().swap(mv.colors);
+      }
+      if (polygons) mv.file = mv.pos;  // triangulated in the file's coordinates, as read_mesh()
+      to_local(mv.pos);
       // Triangles are sampled (centroid + ~kMeshSamplesPerM2 per m^2): the samples are
       // segmented like points and vote for their triangle's building.
       io::PointSet ps;
@@ -961,53 +1008,63 @@ void Splitter::pass2_spill(Spiller& spill) {
         rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
         return double(rng >> 11) / double(1ull << 53);
       };
-      for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-        const auto& tri = mesh.triangles[t];
-        const Vec3d& p0 = mesh.vertices[tri[0]];
-        const Vec3d& p1 = mesh.vertices[tri[1]];
-        const Vec3d& p2 = mesh.vertices[tri[2]];
-        const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
-        const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
-        const double area = 0.5 * e1.cross(e2).norm();
-        const std::size_t n = 1 + static_cast<std::size_t>(std::min(1e6, area * kMeshSamplesPerM2));
-        for (std::size_t k = 0; k < n; ++k) {
-          double u = 1.0 / 3, v = 1.0 / 3;
-          if (k > 0) {
-            u = uni();
-            v = uni();
-            if (u + v > 1) u = 1 - u, v = 1 - v;
-          }
-          ps.positions.push_back({p0[0] + u * e1[0] + v * e2[0], p0[1] + u * e1[1] + v * e2[1],
-                                  p0[2] + u * e1[2] + v * e2[2]});
-          if (has_normals_) ps.normals.push_back(mesh.normals[tri[0]]);
-          if (has_colors_) ps.colors.push_back(mesh.colors[tri[0]]);
-          tri_of.push_back(t);
-        }
-        if (ps.size() >= (1u << 16)) {
-          push_refs(ps, tri_of, ii);
-          tri_of.clear();
-        }
-      }
-      if (!ps.empty()) push_refs(ps, tri_of, ii);
       // Orientation of the whole mesh: the signed xy area of a city surface (terrain and
       // roofs seen from above) is positive when its faces point up/out. The wall rule of
       // mesh_footprint_of() needs the outward side of each face.
       double up = 0;
-      for (const auto& tri : mesh.triangles) {
-        const Vec3d& p0 = mesh.vertices[tri[0]];
-        const Vec3d& p1 = mesh.vertices[tri[1]];
-        const Vec3d& p2 = mesh.vertices[tri[2]];
-        up += (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0]);
+      std::uint64_t t = 0;  // triangle index in the file (after triangulation)
+      io::FaceBatch fb;
+      std::vector<std::array<std::uint32_t, 3>> tris;
+      const auto& tri_coords = polygons ? mv.file : mv.pos;
+      std::uint64_t faces_read = 0;
+      while (reader->read_faces(fb, 1 << 16) > 0) {
+        faces_read += fb.size();
+        tris.clear();
+        for (std::size_t f = 0; f < fb.size(); ++f)
+          io::triangulate_face(tri_coords.data(), fb.face(f), fb.face_size(f), tris);
+        for (const auto& tri : tris) {
+          const Vec3d& p0 = mv.pos[tri[0]];
+          const Vec3d& p1 = mv.pos[tri[1]];
+          const Vec3d& p2 = mv.pos[tri[2]];
+          const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
+          const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
+          const double area = 0.5 * e1.cross(e2).norm();
+          const std::size_t n =
+              1 + static_cast<std::size_t>(std::min(1e6, area * kMeshSamplesPerM2));
+          for (std::size_t k = 0; k < n; ++k) {
+            double u = 1.0 / 3, v = 1.0 / 3;
+            if (k > 0) {
+              u = uni();
+              v = uni();
+              if (u + v > 1) u = 1 - u, v = 1 - v;
+            }
+            ps.positions.push_back({p0[0] + u * e1[0] + v * e2[0], p0[1] + u * e1[1] + v * e2[1],
+                                    p0[2] + u * e1[2] + v * e2[2]});
+            if (has_normals_) ps.normals.push_back(mv.normals[tri[0]]);
+            if (has_colors_) ps.colors.push_back(mv.colors[tri[0]]);
+            tri_of.push_back(t);
+          }
+          if (ps.size() >= (1u << 16)) {
+            push_refs(ps, tri_of, ii);
+            tri_of.clear();
+          }
+          up += (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0]);
+          spill_face(tri, t, ii, mv);
+          ++t;
+        }
+        stages_.report(a, b,
+                       double(faces_read) / double(std::max<std::uint64_t>(1, in.info.face_count)),
+                       "ingest");
       }
+      if (!ps.empty()) push_refs(ps, tri_of, ii);
       mesh_up_.resize(ii + 1);
       mesh_up_[ii] = up < 0 ? -1.0 : 1.0;
       if (up < 0 && !opt_.footprints.empty())
         rep_.notes.push_back(in.path +
                              ": faces point down (clockwise seen from above); taken as "
                              "reversed for the wall-to-footprint test");
-      rep_.points += mesh.vertices.size();
-      rep_.triangles += mesh.triangles.size();
-      spill_faces(mesh, ii);
+      rep_.points += mv.pos.size();
+      rep_.triangles += t;
       stages_.report(a, b, 1.0, "ingest");
       continue;
     }
@@ -1065,31 +1122,28 @@ void Splitter::pass2_spill(Spiller& spill) {
   rep_.spill_bytes = spill.bytes();
 }
 
-// A mesh file's triangles to the face files of every cell their xy box meets (a region
-// then holds every triangle of its samples); the mesh itself is dropped after this.
-void Splitter::spill_faces(const io::TriangleMesh& mesh, std::size_t input) {
-  const bool nrm = mesh.normals.size() == mesh.vertices.size();
-  const bool rgb = mesh.colors.size() == mesh.vertices.size();
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-    FaceRec f{};
-    f.id = (std::uint64_t(input) << 40) | t;
-    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-    for (std::size_t k = 0; k < 3; ++k) {
-      const std::uint32_t vi = mesh.triangles[t][k];
-      f.vid[k] = (std::uint64_t(input) << 40) | vi;
-      const Vec3d& p = mesh.vertices[vi];
-      for (std::size_t a = 0; a < 3; ++a) f.v[k][a] = p[a];
-      if (nrm)
-        for (std::size_t a = 0; a < 3; ++a) f.n[k][a] = mesh.normals[vi][a];
-      if (rgb)
-        for (std::size_t a = 0; a < 3; ++a) f.rgb[k][a] = mesh.colors[vi][a];
-      x0 = std::min(x0, p[0]), x1 = std::max(x1, p[0]);
-      y0 = std::min(y0, p[1]), y1 = std::max(y1, p[1]);
-    }
-    const CellKey lo = key_at(x0, y0, cell_), hi = key_at(x1, y1, cell_);
-    for (int i = lo.first; i <= hi.first; ++i)
-      for (int j = lo.second; j <= hi.second; ++j) faces_->add({i, j}, f);
+// A mesh triangle to the face files of every cell its xy box meets (a region then holds
+// every triangle of its samples).
+void Splitter::spill_face(const std::array<std::uint32_t, 3>& tri, std::uint64_t t,
+                          std::size_t input, const MeshVertices& mv) {
+  FaceRec f{};
+  f.id = (std::uint64_t(input) << 40) | t;
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (std::size_t k = 0; k < 3; ++k) {
+    const std::uint32_t vi = tri[k];
+    f.vid[k] = (std::uint64_t(input) << 40) | vi;
+    const Vec3d& p = mv.pos[vi];
+    for (std::size_t a = 0; a < 3; ++a) f.v[k][a] = p[a];
+    if (!mv.normals.empty())
+      for (std::size_t a = 0; a < 3; ++a) f.n[k][a] = mv.normals[vi][a];
+    if (!mv.colors.empty())
+      for (std::size_t a = 0; a < 3; ++a) f.rgb[k][a] = mv.colors[vi][a];
+    x0 = std::min(x0, p[0]), x1 = std::max(x1, p[0]);
+    y0 = std::min(y0, p[1]), y1 = std::max(y1, p[1]);
   }
+  const CellKey lo = key_at(x0, y0, cell_), hi = key_at(x1, y1, cell_);
+  for (int i = lo.first; i <= hi.first; ++i)
+    for (int j = lo.second; j <= hi.second; ++j) faces_->add({i, j}, f);
 }
 
 // ---------------------------------------------------------------------- footprints
@@ -1812,6 +1866,15 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   }
 }
 
+// Hands the heap's free memory back to the system between cells: glibc keeps up to its
+// trim threshold free, and that threshold grows with the largest block freed so far (the
+// ingest's batches), so a cell's freed regions stayed resident through the next cells.
+void release_free_memory() {
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
+}
+
 void Splitter::pass3_cells(const Spiller& spill) {
   std::vector<CellKey> cells;
   if (opt_.footprints.empty()) {
@@ -1829,6 +1892,7 @@ void Splitter::pass3_cells(const Spiller& spill) {
     else
       process_cell_footprints(spill, cells[i], cell_, fp_owned_.at(cells[i]));
     stages_.report(0.5, 0.97, double(i + 1) / total, "segment");
+    release_free_memory();
   }
   if (subdivided_ > 0)
     rep_.notes.push_back(std::to_string(subdivided_) +

@@ -44,9 +44,10 @@ struct FileInfo {
   std::string format_name;  ///< "PLY", "LAS", ...
   std::string version;      ///< "1.2" for LAS, "1.0" for PLY, "" if none
   std::string encoding;     ///< PLY: "ascii", "binary_little_endian", ...; text/binary otherwise
-  std::uint64_t point_count = 0;  ///< points (point clouds) or vertices (meshes)
-  std::uint64_t face_count = 0;   ///< faces as stored (polygons, not triangles)
-  bool has_faces = false;         ///< the file has a face element / face records
+  std::uint64_t point_count = 0;       ///< points (point clouds) or vertices (meshes)
+  std::uint64_t face_count = 0;        ///< faces as stored (polygons, not triangles)
+  bool has_faces = false;              ///< the file has a face element / face records
+  std::uint32_t max_face_corners = 0;  ///< most vertices of a face (once the faces were read)
 
   BBox3 bbox;                     ///< computed by streaming (scan_file) or taken from the header
   bool bbox_from_header = false;  ///< true when bbox comes from the LAS header (not scanned)
@@ -129,8 +130,41 @@ PointSet read_points(const std::string& path);
 /// vertices. Throws IoError if the file has no faces or an index is out of range.
 PolygonMesh read_polygon_mesh(const std::string& path);
 
-/// Same, with polygons fan-triangulated. Per-vertex normals/colours are kept
-/// when the file has them (PLY/OFF vertex attributes; OBJ vn referenced by faces).
+/// Streams a mesh (PLY with a face element, OFF, OBJ) with bounded memory: its vertices
+/// in batches, then its faces in batches, in file order (a caller keeps what it needs):
+///
+///   auto m = citylod::io::MeshReader::open("scene.ply");
+///   while (m->read_vertices(batch, 1 << 16) > 0) { ... }
+///   while (m->read_faces(faces, 1 << 16) > 0) { ... }   // triangulate_face() per face
+///
+/// The same vertices, attributes and faces as read_mesh() before triangulation (OBJ:
+/// positions only; its faces come from a second pass over the file). Every defect
+/// throws IoError("<file>: <reason>") as the whole-file readers do.
+class MeshReader {
+ public:
+  static std::unique_ptr<MeshReader> open(const std::string& path);
+  ~MeshReader();
+  MeshReader(const MeshReader&) = delete;
+  MeshReader& operator=(const MeshReader&) = delete;
+
+  /// Header information (OBJ: counts known once read_faces() started).
+  const FileInfo& info() const { return info_; }
+  /// Clears `batch` and fills it with up to `max_vertices` next vertices; 0 at the end.
+  std::size_t read_vertices(PointSet& batch, std::size_t max_vertices);
+  /// Clears `batch` and fills it with up to `max_faces` next faces (validated 0-based
+  /// indices); 0 at the end. Reads (and drops) the vertices not yet read first.
+  std::size_t read_faces(FaceBatch& batch, std::size_t max_faces);
+
+ private:
+  MeshReader();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  FileInfo info_;
+};
+
+/// Like read_polygon_mesh(), with polygons triangulated (triangulate_polygons). Per-vertex
+/// normals/colours are kept when the file has them (PLY/OFF vertex attributes; OBJ vn referenced by
+/// faces).
 TriangleMesh read_mesh(const std::string& path);
 
 }  // namespace citylod::io

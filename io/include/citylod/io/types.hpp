@@ -81,6 +81,21 @@ struct PolygonMesh {
   std::vector<std::vector<std::uint32_t>> faces;
 };
 
+/// Faces of any number of vertices in one flat layout: face i has the vertex indices
+/// corners[offsets[i]] .. corners[offsets[i + 1] - 1]. A batch of a streamed mesh.
+struct FaceBatch {
+  std::vector<std::uint32_t> corners;
+  std::vector<std::size_t> offsets{0};
+
+  std::size_t size() const { return offsets.size() - 1; }
+  const std::uint32_t* face(std::size_t i) const { return corners.data() + offsets[i]; }
+  std::size_t face_size(std::size_t i) const { return offsets[i + 1] - offsets[i]; }
+  void clear() {
+    corners.clear();
+    offsets.assign(1, 0);
+  }
+};
+
 /// Fan-triangulates every face (exact for convex faces).
 TriangleMesh triangulate_fan(const PolygonMesh& mesh);
 
@@ -89,5 +104,10 @@ TriangleMesh triangulate_fan(const PolygonMesh& mesh);
 /// models, building outlines). A face with no ear left (self-touching,
 /// degenerate) has its remainder fanned.
 TriangleMesh triangulate_polygons(const PolygonMesh& mesh);
+
+/// One face of triangulate_polygons(): the `n` vertex indices `face` into `vertices` (in range),
+/// its triangles appended to `out` (none when n < 3; vertices are read only when n > 3).
+void triangulate_face(const Vec3d* vertices, const std::uint32_t* face, std::size_t n,
+                      std::vector<std::array<std::uint32_t, 3>>& out);
 
 }  // namespace citylod::io
