@@ -17,14 +17,11 @@
 //   node tests/node/renderer-test.mjs --tileset DIR --out DIR [--chromium /usr/bin/chromium]
 //        [--timeout-ms 180000]
 import fs from 'node:fs';
-import os from 'node:os';
 import path from 'node:path';
-import http from 'node:http';
 import { fileURLToPath } from 'node:url';
-import { createRequire } from 'node:module';
+import { serveStatic, launch, run } from './browser.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
-const require = createRequire(import.meta.url);
 
 const opts = { chromium: '/usr/bin/chromium', timeoutMs: 180000 };
 const argv = process.argv.slice(2);
@@ -136,37 +133,13 @@ try {
 </script></body></html>`;
 
 // ------------------------------------------------------------ server
-const mime = { '.html': 'text/html', '.js': 'text/javascript', '.json': 'application/json',
-  '.glb': 'model/gltf-binary', '.wasm': 'application/wasm' };
-function serve() {
-  const roots = [['/tileset/', path.resolve(opts.tileset)],
-    ['/node_modules/three/', path.join(modules, 'three')],
-    ['/node_modules/3d-tiles-renderer/', path.join(modules, '3d-tiles-renderer')]];
-  const server = http.createServer((req, res) => {
-    const p = decodeURIComponent(new URL(req.url, 'http://x').pathname);
-    if (p === '/' || p === '/index.html') {
-      res.writeHead(200, { 'Content-Type': 'text/html' });
-      res.end(page);
-      return;
-    }
-    for (const [prefix, dir] of roots) {
-      if (!p.startsWith(prefix)) continue;
-      const file = path.resolve(dir, '.' + p.slice(prefix.length - 1));
-      if (!file.startsWith(dir) || !fs.existsSync(file) || !fs.statSync(file).isFile()) break;
-      res.writeHead(200, { 'Content-Type': mime[path.extname(file)] || 'application/octet-stream' });
-      fs.createReadStream(file).pipe(res);
-      return;
-    }
-    res.writeHead(404);
-    res.end('not found');
-  });
-  return new Promise((resolve) => server.listen(0, '127.0.0.1', () => resolve({
-    url: `http://127.0.0.1:${server.address().port}/`, stop: () => server.close() })));
-}
+const serve = () => serveStatic([['/tileset/', path.resolve(opts.tileset)],
+  ['/node_modules/three/', path.join(modules, 'three')],
+  ['/node_modules/3d-tiles-renderer/', path.join(modules, '3d-tiles-renderer')]], { '/': page, '/index.html': page });
 
 // ------------------------------------------------------------ browser
 const result = { ok: false, checks: {}, external_requests: [], console_errors: [], screenshots: [] };
-let server, context, userDataDir;
+const state = {};
 async function settle(pg) {  // the page placed its camera and nothing is queued for a while
   await pg.waitForFunction(() => window.r3 && (window.r3.error || (window.r3.ready && window.r3.loaded > 0)),
     null, { timeout: opts.timeoutMs, polling: 250 });
@@ -178,34 +151,15 @@ async function settle(pg) {  // the page placed its camera and nothing is queued
   }
 }
 async function main() {
-  server = await serve();
-  log('server', server.url);
-  const { chromium } = require('playwright-core');
-  userDataDir = fs.mkdtempSync(path.join(os.tmpdir(), 'citylod-chromium-'));
-  context = await chromium.launchPersistentContext(userDataDir, {
-    executablePath: opts.chromium,
-    headless: true,
-    viewport: { width: 800, height: 600 },
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-      '--disable-background-networking', '--disable-component-update', '--disable-sync',
-      '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
-  });
-  await context.route('**/*', (route) => {
-    const u = new URL(route.request().url());
-    if (u.hostname === '127.0.0.1' || u.protocol === 'data:' || u.protocol === 'blob:') return route.continue();
-    result.external_requests.push(u.href);
-    return route.abort();
-  });
-  const pg = context.pages()[0] || (await context.newPage());
-  pg.on('console', (m) => {
-    if (m.type() === 'error') result.console_errors.push(m.text());
-  });
-  pg.on('pageerror', (e) => result.console_errors.push('pageerror: ' + e.message));
-  await pg.goto(server.url, { waitUntil: 'load' });
+  state.server = await serve();
+  log('server', state.server.url);
+  Object.assign(state, await launch(opts.chromium, { width: 800, height: 600 }, result));
+  const pg = state.page;
+  await pg.goto(state.server.url, { waitUntil: 'load' });
   await settle(pg);
-  const state = () => pg.evaluate(() => ({ error: window.r3.error, loaded: window.r3.loaded,
+  const probe = () => pg.evaluate(() => ({ error: window.r3.error, loaded: window.r3.loaded,
     depth: window.r3.maxDepth, failed: window.r3.failed, feature: window.r3.feature }));
-  const s0 = await state();
+  const s0 = await probe();
   if (s0.error) throw new Error('page error: ' + s0.error);
   result.checks.initial = s0;
   log('initial view:', JSON.stringify(s0));
@@ -213,7 +167,7 @@ async function main() {
   await pg.evaluate(() => window.r3.place(0.6));
   await pg.waitForTimeout(500);
   await settle(pg);
-  const s1 = await state();
+  const s1 = await probe();
   result.checks.zoomed = s1;
   log('zoomed in:', JSON.stringify(s1));
   await shot(pg, 'r2-zoomed.png');
@@ -234,18 +188,4 @@ async function shot(pg, name) {
   result.screenshots.push(file);
 }
 
-let code = 1;
-try {
-  await main();
-  code = 0;
-} catch (e) {
-  result.error = String(e && e.stack ? e.stack : e);
-  console.error('[renderer-test] FAIL: ' + result.error);
-} finally {
-  try { if (context) await context.close(); } catch (e) { /* ignore */ }
-  try { if (server) server.stop(); } catch (e) { /* ignore */ }
-  if (userDataDir) fs.rmSync(userDataDir, { recursive: true, force: true });
-  fs.writeFileSync(path.join(opts.out, 'result.json'), JSON.stringify(result, null, 1));
-  log(result.ok ? 'PASS' : 'FAIL', 'result in', path.join(opts.out, 'result.json'));
-}
-process.exit(code);
+await run('renderer-test', opts.out, result, state, main);

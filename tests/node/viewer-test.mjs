@@ -14,16 +14,13 @@
 //   node tests/node/viewer-test.mjs --tileset DIR --out DIR [--citylod BIN | --node-server]
 //        [--chromium /usr/bin/chromium] [--timeout-ms 120000] [--building ID]
 import fs from 'node:fs';
-import os from 'node:os';
 import path from 'node:path';
-import http from 'node:http';
 import { spawn } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
-import { createRequire } from 'node:module';
+import { serveStatic, launch, run } from './browser.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const repo = path.resolve(here, '..', '..');
-const require = createRequire(import.meta.url);
 
 const opts = { chromium: '/usr/bin/chromium', timeoutMs: 180000, viewer: path.join(repo, 'examples', 'viewer') };
 const argv = process.argv.slice(2);
@@ -55,28 +52,7 @@ const cesiumDir = path.join(here, 'node_modules', 'cesium', 'Build', 'Cesium');
 const log = (...a) => console.log('[viewer-test]', ...a);
 
 // ------------------------------------------------------------ server
-const mime = { '.html': 'text/html', '.js': 'text/javascript', '.css': 'text/css', '.json': 'application/json',
-  '.glb': 'model/gltf-binary', '.png': 'image/png', '.jpg': 'image/jpeg', '.svg': 'image/svg+xml',
-  '.wasm': 'application/wasm', '.xml': 'application/xml' };
-function nodeServer() {
-  const roots = [['/tileset/', path.resolve(opts.tileset)], ['/cesium/', cesiumDir], ['/', opts.viewer]];
-  const server = http.createServer((req, res) => {
-    let p = decodeURIComponent(new URL(req.url, 'http://x').pathname);
-    if (p === '/') p = '/index.html';
-    for (const [prefix, dir] of roots) {
-      if (!p.startsWith(prefix)) continue;
-      const file = path.resolve(dir, '.' + p.slice(prefix.length - 1));
-      if (!file.startsWith(dir) || !fs.existsSync(file) || !fs.statSync(file).isFile()) break;
-      res.writeHead(200, { 'Content-Type': mime[path.extname(file)] || 'application/octet-stream' });
-      fs.createReadStream(file).pipe(res);
-      return;
-    }
-    res.writeHead(404);
-    res.end('not found');
-  });
-  return new Promise((resolve) => server.listen(0, '127.0.0.1', () => resolve({
-    url: `http://127.0.0.1:${server.address().port}/`, stop: () => server.close() })));
-}
+const nodeServer = () => serveStatic([['/tileset/', path.resolve(opts.tileset)], ['/cesium/', cesiumDir], ['/', opts.viewer]]);
 function citylodServer() {
   return new Promise((resolve, reject) => {
     const child = spawn(opts.citylod, ['serve', opts.tileset, '--port', '0', '--viewer', opts.viewer,
@@ -98,34 +74,15 @@ function citylodServer() {
 
 // ------------------------------------------------------------ browser
 const result = { ok: false, checks: {}, external_requests: [], console_errors: [], screenshots: [] };
-let server, context, userDataDir;
+const state = {};
 async function main() {
-  server = opts.nodeServer ? await nodeServer() : await citylodServer();
-  log('server', server.url);
-  const { chromium } = require('playwright-core');
-  userDataDir = fs.mkdtempSync(path.join(os.tmpdir(), 'citylod-chromium-'));
-  context = await chromium.launchPersistentContext(userDataDir, {
-    executablePath: opts.chromium,
-    headless: true,
-    viewport: { width: 1024, height: 768 },
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-      '--disable-background-networking', '--disable-component-update', '--disable-sync',
-      '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
-  });
-  await context.route('**/*', (route) => {
-    const u = new URL(route.request().url());
-    if (u.hostname === '127.0.0.1' || u.protocol === 'data:' || u.protocol === 'blob:') return route.continue();
-    result.external_requests.push(u.href);
-    return route.abort();
-  });
-  const page = context.pages()[0] || (await context.newPage());
-  page.on('console', (m) => {
-    if (m.type() === 'error') result.console_errors.push(m.text());
-  });
-  page.on('pageerror', (e) => result.console_errors.push('pageerror: ' + e.message));
+  state.server = opts.nodeServer ? await nodeServer() : await citylodServer();
+  log('server', state.server.url);
+  Object.assign(state, await launch(opts.chromium, { width: 1024, height: 768 }, result));
+  const page = state.page;
 
   const t0 = Date.now();
-  await page.goto(server.url, { waitUntil: 'load' });
+  await page.goto(state.server.url, { waitUntil: 'load' });
   await page.waitForFunction(() => window.citylod && (window.citylod.ready || window.citylod.error),
     null, { timeout: opts.timeoutMs, polling: 250 });
   const s0 = await page.evaluate(() => ({ error: window.citylod.error, loaded: window.citylod.loadedTiles,
@@ -186,18 +143,4 @@ async function shot(page, name) {
   result.screenshots.push(file);
 }
 
-let code = 1;
-try {
-  await main();
-  code = 0;
-} catch (e) {
-  result.error = String(e && e.stack ? e.stack : e);
-  console.error('[viewer-test] FAIL: ' + result.error);
-} finally {
-  try { if (context) await context.close(); } catch (e) { /* ignore */ }
-  try { if (server) server.stop(); } catch (e) { /* ignore */ }
-  if (userDataDir) fs.rmSync(userDataDir, { recursive: true, force: true });
-  fs.writeFileSync(path.join(opts.out, 'result.json'), JSON.stringify(result, null, 1));
-  log(result.ok ? 'PASS' : 'FAIL', 'result in', path.join(opts.out, 'result.json'));
-}
-process.exit(code);
+await run('viewer-test', opts.out, result, state, main);
