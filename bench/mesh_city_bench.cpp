@@ -17,7 +17,8 @@
 // (and LOD output in WORK/lod) also the finest model's RMSE against truth/<id>.obj,
 // model -> truth and truth -> model, in metres.
 // MESH_CITY_BENCH_DUMP=1 also prints every lost face (scene index, kind, where it went,
-// its vertices in the local frame) to stderr.
+// its vertices in the local frame) to stderr. MESH_CITY_BENCH_KEEP=1 keeps the finest
+// models and truth lattices it measures (TMP/mesh_city_bench_[ref_]ID.ply, local frame).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -248,8 +249,10 @@ int main(int argc, char** argv) {
                 fs::temp_directory_path() / ("mesh_city_bench_ref_" + c.id + ".ply");
             io::write_ply(tref.string(), ref);
             const auto ev = tiler::evaluate_models({tmp.string()}, tref.string(), 20000);
-            fs::remove(tmp);
-            fs::remove(tref);
+            if (!std::getenv("MESH_CITY_BENCH_KEEP")) {
+              fs::remove(tmp);
+              fs::remove(tref);
+            }
             const double e1 = ev[0].e.e1 * ev[0].e.diagonal / 100;
             const double e2 = ev[0].e.e2 * ev[0].e.diagonal / 100;
             e1_all.push_back(e1);

@@ -385,12 +385,59 @@ Primitive ground_plane(const std::vector<Vec2>& outline, double gz) {
   return g;
 }
 
+/// (ours) The top of an inferred wall along the outline edge a -> b, sampled
+/// in bins of about 0.5 m: per bin the highest sample within 1 m of the edge,
+/// roof samples (normal.z >= 0.3) taken down or up their own slope to the
+/// edge line (a gable wall gets its gable, an eave wall stops at the eave).
+/// Empty bins are interpolated; empty when no sample is near the edge.
+std::vector<double> wall_profile(const Samples& s, const Vec2& a, const Vec2& b) {
+  const Vec2 e = b - a;
+  const double len = e.norm();
+  const Vec2 dir = e / len, out(dir.y(), -dir.x());  // outward = right of a -> b
+  const int nb = std::max(1, int(std::lround(len / 0.5)));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> top(size_t(nb), nan);
+  for (std::size_t k = 0; k < s.points.size(); ++k) {
+    const Vec3& q = s.points[k];
+    const Vec2 r = Vec2(q.x(), q.y()) - a;
+    const double t = r.dot(dir), o = r.dot(out);
+    if (std::abs(o) > 1.0 || t < -0.25 || t > len + 0.25) continue;
+    if (seg_dist(Vec2(q.x(), q.y()), a, b) > 1.0) continue;
+    const Vec3& n = s.normals[k];
+    double z = q.z();
+    if (n.z() >= 0.3) z += o * (n.x() * out.x() + n.y() * out.y()) / n.z();
+    const int bin = std::clamp(int(t / len * nb), 0, nb - 1);
+    if (std::isnan(top[size_t(bin)]) || z > top[size_t(bin)]) top[size_t(bin)] = z;
+  }
+  std::vector<int> filled;
+  for (int i = 0; i < nb; ++i)
+    if (!std::isnan(top[size_t(i)])) filled.push_back(i);
+  if (filled.empty()) return {};
+  for (int i = 0; i < nb; ++i) {
+    if (!std::isnan(top[size_t(i)])) continue;
+    const auto hi = std::upper_bound(filled.begin(), filled.end(), i);
+    if (hi == filled.begin()) {
+      top[size_t(i)] = top[size_t(filled.front())];
+    } else if (hi == filled.end()) {
+      top[size_t(i)] = top[size_t(filled.back())];
+    } else {
+      const int i0 = *(hi - 1), i1 = *hi;
+      const double w = double(i - i0) / double(i1 - i0);
+      top[size_t(i)] = (1 - w) * top[size_t(i0)] + w * top[size_t(i1)];
+    }
+  }
+  return top;
+}
+
 /// Phase 6, the walls: one per outline edge, outward = right of the CCW edge
 /// direction. Plinth walls reach up to the terrain along the scene's edge
 /// (plinth implies on_terrain: on_low_up is set); building walls to the
-/// highest sample near the outline edge. Returns the number of walls added.
+/// highest sample near the outline edge, or (profile: inputs labelled by
+/// rays) up to the roof's profile along the edge (wall_profile), so that a
+/// gable or eave wall the scan missed does not stand above the roof and turn
+/// the cells over the roof inside. Returns the number of walls added.
 int add_outline_walls(const Samples& s, const ClosureParams& p, const std::vector<Vec2>& outline,
-                      double gz, const Coverage& cov, bool plinth,
+                      double gz, const Coverage& cov, bool plinth, bool profile,
                       const std::vector<char>& on_low_up, std::vector<Primitive>& prims) {
   const double zmin = cov.zmin, zmax = cov.zmax;
   int added = 0;
@@ -407,7 +454,9 @@ int add_outline_walls(const Samples& s, const ClosureParams& p, const std::vecto
         top = std::max(top, q.z());
     }
     if (!std::isfinite(top)) top = plinth ? zmin : zmax;
-    top = std::max(top, gz + (plinth ? p.plinth_depth : 1.0));
+    const double min_top = gz + (plinth ? p.plinth_depth : 1.0);
+    top = std::max(top, min_top);
+    std::vector<double> prof = profile && !plinth ? wall_profile(s, a, b) : std::vector<double>{};
     Primitive w;
     w.inferred = true;
     w.normal = Vec3(e.y() / len, -e.x() / len, 0.0);
@@ -418,9 +467,32 @@ int add_outline_walls(const Samples& s, const ClosureParams& p, const std::vecto
     const Vec3 A0(a.x(), a.y(), gz), B0(b.x(), b.y(), gz), A1(a.x(), a.y(), top),
         B1(b.x(), b.y(), top);
     w.hull = {A0, B0, B1, A1};
-    w.alpha_tris = {{A0, B0, B1}, {A0, B1, A1}};
-    w.hull_area = w.alpha_area = len * (top - gz);
+    w.hull_area = len * (top - gz);
     w.centroid = 0.25 * (A0 + B0 + A1 + B1);
+    if (prof.empty()) {
+      w.alpha_tris = {{A0, B0, B1}, {A0, B1, A1}};
+      w.alpha_area = w.hull_area;
+    } else {
+      // The profile's points: the ends and the bin centres, each clamped to
+      // [min_top, top]; quads between them, CCW about the outward normal.
+      const int nb = int(prof.size());
+      std::vector<std::pair<double, double>> pts;  // (t, height)
+      const auto h = [&](int bin) { return std::clamp(prof[size_t(bin)], min_top, top); };
+      pts.emplace_back(0.0, h(0));
+      for (int k = 0; k < nb; ++k) pts.emplace_back((k + 0.5) * len / nb, h(k));
+      pts.emplace_back(len, h(nb - 1));
+      w.alpha_area = 0;
+      for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
+        const Vec2 pa = a + e * (pts[k].first / len), pb = a + e * (pts[k + 1].first / len);
+        const Vec3 P0(pa.x(), pa.y(), gz), Q0(pb.x(), pb.y(), gz),
+            P1(pa.x(), pa.y(), pts[k].second), Q1(pb.x(), pb.y(), pts[k + 1].second);
+        if (pts[k + 1].first - pts[k].first <= 0) continue;
+        w.alpha_tris.push_back({P0, Q0, Q1});
+        w.alpha_tris.push_back({P0, Q1, P1});
+        w.alpha_area +=
+            0.5 * (pts[k + 1].first - pts[k].first) * (pts[k].second + pts[k + 1].second - 2 * gz);
+      }
+    }
     prims.push_back(std::move(w));
     ++added;
   }
@@ -428,6 +500,50 @@ int add_outline_walls(const Samples& s, const ClosureParams& p, const std::vecto
 }
 
 }  // namespace
+
+int snap_inferred_walls(std::vector<Primitive>& prims) {
+  const double max_sin = std::sin(3.0 * M_PI / 180.0), max_off = 0.15;
+  // References: scanned vertical planes, largest first, then inferred walls,
+  // longest first (index order breaks ties: deterministic).
+  std::vector<int> refs;
+  for (std::size_t i = 0; i < prims.size(); ++i)
+    if (std::abs(prims[i].normal.z()) < 0.05 && !prims[i].from_template) refs.push_back(int(i));
+  std::stable_sort(refs.begin(), refs.end(), [&](int a, int b) {
+    const Primitive& A = prims[size_t(a)];
+    const Primitive& B = prims[size_t(b)];
+    if (A.inferred != B.inferred) return !A.inferred;
+    return A.alpha_area > B.alpha_area;
+  });
+  // Walls in that order: a wall's candidates are the scanned planes and the
+  // inferred walls before it (whose equations are final).
+  int count = 0;
+  for (std::size_t k = 0; k < refs.size(); ++k) {
+    Primitive& w = prims[size_t(refs[k])];
+    if (!w.inferred || w.hull.size() != 4) continue;
+    for (std::size_t j = 0; j < refs.size(); ++j) {
+      const Primitive& q = prims[size_t(refs[j])];
+      if (j == k || (q.inferred && j > k)) continue;
+      if (q.normal.cross(w.normal).norm() > max_sin || q.normal.dot(w.normal) < 0) continue;
+      bool near = true;
+      for (const Vec3& h : w.hull) near = near && std::abs(q.normal.dot(h) + q.d) <= max_off;
+      if (!near) continue;
+      const Vec3 n = q.normal;
+      const double d = q.d;
+      const auto project = [&](Vec3& x) { x -= (n.dot(x) + d) * n; };
+      w.normal = n;
+      w.d = d;
+      for (auto& h : w.hull) project(h);
+      for (auto& t : w.alpha_tris)
+        for (auto& x : t) project(x);
+      project(w.centroid);
+      w.u = Vec3::UnitZ().cross(n).normalized();
+      w.v = n.cross(w.u);
+      ++count;
+      break;
+    }
+  }
+  return count;
+}
 
 Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
                        std::vector<Primitive>& prims) {
@@ -459,7 +575,7 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
   res.what = plinth ? Closure::Plinth : Closure::Base;
   if (!cov.walls_missing && !plinth) return res;  // walls were scanned: only the base was missing
 
-  res.added += add_outline_walls(s, p, outline, gz, cov, plinth, t.on_low_up, prims);
+  res.added += add_outline_walls(s, p, outline, gz, cov, plinth, in.is_mesh(), t.on_low_up, prims);
   if (!plinth) res.what = cov.walls_unscanned ? Closure::Walls : Closure::FootprintWalls;
   return res;
 }

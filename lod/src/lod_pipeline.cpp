@@ -280,6 +280,9 @@ int append_detail_level(const std::vector<Primitive>& prims, SortedPrimitives& s
 struct Planes {
   std::vector<Primitive> prims;
   std::optional<HeightField> heights;
+  /// Inferred walls take the equation of a plane they nearly coincide with
+  /// (meshes: scanned walls along a footprint edge), again after regularization.
+  bool snap_walls = false;
 };
 
 /// 1. Planar primitives (region growing on the oriented samples); airborne
@@ -316,6 +319,13 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
     if (c.what == Closure::FootprintWalls)
       st.notes.push_back("walls along the footprint: " + n +
                          " closure planes inferred (ground + walls; scanned walls kept)");
+    if (in.is_mesh() && (c.what == Closure::Walls || c.what == Closure::FootprintWalls)) {
+      out.snap_walls = true;
+      const int snapped = snap_inferred_walls(prims);
+      if (snapped > 0)
+        st.notes.push_back(std::to_string(snapped) +
+                           " inferred walls on the plane of a wall they nearly coincide with");
+    }
     if (c.what == Closure::Plinth)
       st.notes.push_back(
           "terrain sheet kept as a plinth: " + n +
@@ -425,6 +435,7 @@ SortStep sort_step(const Samples& samples, Planes& planes, IoViewStep& io, const
     regularize_principal(prims, principal, samples, P.regularization, P.alpha);
     const int templates =
         regularize_secondary(prims, grouping, view, io.bsp, samples, P.regularization, P.alpha);
+    if (planes.snap_walls) snap_inferred_walls(prims);  // onto the regularized planes
     if (templates > 0)
       st.notes.push_back(std::to_string(templates) +
                          " window cut-outs replaced by cuboid templates");

@@ -30,7 +30,7 @@ namespace citylod::tiler {
 namespace fs = std::filesystem;
 
 namespace {
-constexpr const char* kEngineVersion = "citylod-lod-9";
+constexpr const char* kEngineVersion = "citylod-lod-10";
 }  // namespace
 
 // ------------------------------------------------------------ parameters
