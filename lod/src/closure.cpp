@@ -533,8 +533,6 @@ int snap_inferred_walls(std::vector<Primitive>& prims) {
       w.normal = n;
       w.d = d;
       for (auto& h : w.hull) project(h);
-      for (auto& t : w.alpha_tris)
-        for (auto& x : t) project(x);
       project(w.centroid);
       w.u = Vec3::UnitZ().cross(n).normalized();
       w.v = n.cross(w.u);

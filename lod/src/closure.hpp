@@ -31,9 +31,12 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
 /// vertical plane -- a scanned wall along the same footprint edge (within 3
 /// degrees, its edge within 0.15 m of that plane), or another inferred wall
 /// on a collinear footprint edge -- takes that plane's exact equation (the
-/// largest scanned one first), its shapes projected onto it: the exact BSP
+/// largest scanned one first), its hull projected onto it: the exact BSP
 /// then cuts along one plane instead of two a few millimetres apart, whose
-/// sliver cells turn into sub-millimetre faces. Returns the walls snapped.
+/// sliver cells turn into sub-millimetre faces. Its alpha triangles stay
+/// where they were: coplanar overlapping triangles of two primitives send the
+/// ray labelling to exact arithmetic (mesh_city: IO-View 0.7 -> 6 s).
+/// Returns the walls snapped.
 int snap_inferred_walls(std::vector<Primitive>& prims);
 
 /// Largest outer boundary loop (CCW) of the 2D alpha-shape of the points.
