@@ -573,7 +573,9 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
   res.what = plinth ? Closure::Plinth : Closure::Base;
   if (!cov.walls_missing && !plinth) return res;  // walls were scanned: only the base was missing
 
-  res.added += add_outline_walls(s, p, outline, gz, cov, plinth, in.is_mesh(), t.on_low_up, prims);
+  // Walls under the roof's profile: meshes (labelled by rays) on a footprint.
+  const bool profile = in.is_mesh() && in.footprint.size() >= 3 && !terrain;
+  res.added += add_outline_walls(s, p, outline, gz, cov, plinth, profile, t.on_low_up, prims);
   if (!plinth) res.what = cov.walls_unscanned ? Closure::Walls : Closure::FootprintWalls;
   return res;
 }

@@ -319,7 +319,8 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
     if (c.what == Closure::FootprintWalls)
       st.notes.push_back("walls along the footprint: " + n +
                          " closure planes inferred (ground + walls; scanned walls kept)");
-    if (in.is_mesh() && (c.what == Closure::Walls || c.what == Closure::FootprintWalls)) {
+    if (in.is_mesh() && in.footprint.size() >= 3 &&
+        (c.what == Closure::Walls || c.what == Closure::FootprintWalls)) {
       out.snap_walls = true;
       const int snapped = snap_inferred_walls(prims);
       if (snapped > 0)
