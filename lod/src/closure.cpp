@@ -432,10 +432,11 @@ std::vector<double> wall_profile(const Samples& s, const Vec2& a, const Vec2& b)
 /// Phase 6, the walls: one per outline edge, outward = right of the CCW edge
 /// direction. Plinth walls reach up to the terrain along the scene's edge
 /// (plinth implies on_terrain: on_low_up is set); building walls to the
-/// highest sample near the outline edge, or (profile: inputs labelled by
-/// rays) up to the roof's profile along the edge (wall_profile), so that a
-/// gable or eave wall the scan missed does not stand above the roof and turn
-/// the cells over the roof inside. Returns the number of walls added.
+/// highest sample near the outline edge, or (profile: meshes on a
+/// footprint, labelled by rays) up to the roof's profile along the edge
+/// (wall_profile), so that a gable or eave wall the scan missed does not
+/// stand above the roof and turn the cells over the roof inside. Returns the
+/// number of walls added.
 int add_outline_walls(const Samples& s, const ClosureParams& p, const std::vector<Vec2>& outline,
                       double gz, const Coverage& cov, bool plinth, bool profile,
                       const std::vector<char>& on_low_up, std::vector<Primitive>& prims) {
@@ -501,8 +502,8 @@ int add_outline_walls(const Samples& s, const ClosureParams& p, const std::vecto
 
 }  // namespace
 
-int snap_inferred_walls(std::vector<Primitive>& prims) {
-  const double max_sin = std::sin(3.0 * M_PI / 180.0), max_off = 0.15;
+int snap_inferred_walls(std::vector<Primitive>& prims, double max_off) {
+  const double max_sin = std::sin(3.0 * M_PI / 180.0);
   // References: scanned vertical planes, largest first, then inferred walls,
   // longest first (index order breaks ties: deterministic).
   std::vector<int> refs;
@@ -574,7 +575,7 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
   if (!cov.walls_missing && !plinth) return res;  // walls were scanned: only the base was missing
 
   // Walls under the roof's profile: meshes (labelled by rays) on a footprint.
-  const bool profile = in.is_mesh() && in.footprint.size() >= 3 && !terrain;
+  const bool profile = p.wall_profile && in.is_mesh() && in.footprint.size() >= 3 && !terrain;
   res.added += add_outline_walls(s, p, outline, gz, cov, plinth, profile, t.on_low_up, prims);
   if (!plinth) res.what = cov.walls_unscanned ? Closure::Walls : Closure::FootprintWalls;
   return res;

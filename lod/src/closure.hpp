@@ -29,7 +29,7 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
 
 /// (ours) An inferred outline wall that (nearly) coincides with another
 /// vertical plane -- a scanned wall along the same footprint edge (within 3
-/// degrees, its edge within 0.15 m of that plane), or another inferred wall
+/// degrees, its edge within max_off of that plane), or another inferred wall
 /// on a collinear footprint edge -- takes that plane's exact equation (the
 /// largest scanned one first), its hull projected onto it: the exact BSP
 /// then cuts along one plane instead of two a few millimetres apart, whose
@@ -37,7 +37,7 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
 /// where they were: coplanar overlapping triangles of two primitives send the
 /// ray labelling to exact arithmetic (mesh_city: IO-View 0.7 -> 6 s).
 /// Returns the walls snapped.
-int snap_inferred_walls(std::vector<Primitive>& prims);
+int snap_inferred_walls(std::vector<Primitive>& prims, double max_off);
 
 /// Largest outer boundary loop (CCW) of the 2D alpha-shape of the points.
 std::vector<Vec2> alpha_outline(const std::vector<Vec2>& xy, double alpha);

@@ -319,10 +319,10 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
     if (c.what == Closure::FootprintWalls)
       st.notes.push_back("walls along the footprint: " + n +
                          " closure planes inferred (ground + walls; scanned walls kept)");
-    if (in.is_mesh() && in.footprint.size() >= 3 &&
+    if (P.closure.wall_snap > 0 && in.is_mesh() && in.footprint.size() >= 3 &&
         (c.what == Closure::Walls || c.what == Closure::FootprintWalls)) {
       out.snap_walls = true;
-      const int snapped = snap_inferred_walls(prims);
+      const int snapped = snap_inferred_walls(prims, P.closure.wall_snap);
       if (snapped > 0)
         st.notes.push_back(std::to_string(snapped) +
                            " inferred walls on the plane of a wall they nearly coincide with");
@@ -436,7 +436,8 @@ SortStep sort_step(const Samples& samples, Planes& planes, IoViewStep& io, const
     regularize_principal(prims, principal, samples, P.regularization, P.alpha);
     const int templates =
         regularize_secondary(prims, grouping, view, io.bsp, samples, P.regularization, P.alpha);
-    if (planes.snap_walls) snap_inferred_walls(prims);  // onto the regularized planes
+    if (planes.snap_walls)  // onto the regularized planes
+      snap_inferred_walls(prims, P.closure.wall_snap);
     if (templates > 0)
       st.notes.push_back(std::to_string(templates) +
                          " window cut-outs replaced by cuboid templates");

@@ -120,6 +120,8 @@ void visit(P& p, F&& f) {
   f("closure.terrain", p.closure.terrain);
   f("closure.plinth_depth", p.closure.plinth_depth);
   f("closure.footprint_walls", p.closure.footprint_walls);
+  f("closure.wall_profile", p.closure.wall_profile);
+  f("closure.wall_snap", p.closure.wall_snap);
   f("airborne.mode", p.airborne.mode);
   f("airborne.cell", p.airborne.cell);
   f("airborne.fill_radius", p.airborne.fill_radius);
@@ -205,6 +207,8 @@ void LodParams::validate() const {
   check(closure.terrain == "plinth" || closure.terrain == "cut", "closure.terrain",
         "must be 'plinth' or 'cut'");
   check(pos(closure.plinth_depth), "closure.plinth_depth", "must be > 0");
+  check(closure.wall_snap >= 0 && std::isfinite(closure.wall_snap), "closure.wall_snap",
+        "must be >= 0");
   check(airborne.mode == "auto" || airborne.mode == "on" || airborne.mode == "off", "airborne.mode",
         "must be 'auto', 'on' or 'off'");
   check(pos(airborne.cell), "airborne.cell", "must be > 0");

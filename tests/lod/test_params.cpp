@@ -88,6 +88,7 @@ TEST(LodParams, ValidateNamesTheParameter) {
   expect_bad("closure.outline_alpha", "-2");
   expect_bad("closure.terrain", "keep");
   expect_bad("closure.plinth_depth", "0");
+  expect_bad("closure.wall_snap", "-0.1");
   expect_bad("ioview.uncovered", "drop");
 }
 
@@ -117,9 +118,11 @@ TEST(LodParams, ItemsRoundTrip) {
                         "colour.enabled",
                         "colour.distance",
                         "colour.max_angle_deg",
+                        "closure.wall_profile",
+                        "closure.wall_snap",
                         "colour.min_points"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 61u);  // one per field of every parameter struct
+  EXPECT_EQ(items.size(), 63u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");

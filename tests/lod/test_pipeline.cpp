@@ -499,4 +499,11 @@ TEST(LodPipeline, MeshAnnexIsNotFilledUpToTheMainRoof) {
   expect_valid_models(r);
   ASSERT_NE(last_anchor(r), nullptr);
   EXPECT_NEAR(last_anchor(r)->volume, 240.0, 0.01 * 240.0);
+  // The rectangle walls of before (closure.wall_profile = false): the annex
+  // filled up to the main roof, 10 x 4 x 9 = 360 m3.
+  p.closure.wall_profile = false;
+  const LodResult q = build_lod_tree(b.input, p);
+  expect_valid_models(q);
+  ASSERT_NE(last_anchor(q), nullptr);
+  EXPECT_NEAR(last_anchor(q)->volume, 360.0, 0.01 * 360.0);
 }

@@ -119,6 +119,15 @@ struct ClosureParams {
   /// building's scan without a footprint is unaffected.
   bool footprint_walls = false;
   double plinth_depth = 0.5;  ///< m, plinth bottom below the lowest sample
+  /// (ours) Meshes on a footprint (city mesh chunks, labelled by rays): the
+  /// inferred walls stand under the roof's profile along their edge, not up
+  /// to the highest sample within 1 m (whose back votes the cells over a low
+  /// wing or a gable's slopes inside).
+  bool wall_profile = true;
+  /// (ours) Meshes on a footprint: an inferred wall within this distance
+  /// (m, and 3 degrees) of a seen vertical plane takes its plane, so the BSP
+  /// cuts no sliver cells between them; 0 = never.
+  double wall_snap = 0.15;
 };
 
 /// (ours) Airborne LiDAR (a point cloud whose walls the closure inferred) is
