@@ -1402,6 +1402,59 @@ TEST_F(SplitSynthetic, OneMeshFileStreamsToTheChunksOfItsWholeRead) {
   }
 }
 
+// A mesh file whose vertices exceed their budget (SplitOptions::mesh_vertex_budget, by
+// default half of --memory-limit) has them paged from a file in the work directory
+// through a cache of that size: the same chunks, bit for bit, as with them in memory
+// (quads: polygons triangulated in the file's coordinates read back; PLY and OBJ), a
+// note says so, and nothing is left behind in the work directory.
+TEST_F(SplitSynthetic, MeshVerticesOverTheirBudgetArePagedToTheSameChunks) {
+  const fs::path dir = tmp_dir("mesh_paged");
+  const io::TriangleMesh mesh = test::make_city_mesh(city);
+  ASSERT_GT(mesh.vertices.size(), 3u * 1024u);  // more blocks than the cache below holds
+  io::PolygonMesh quads;
+  quads.vertices = mesh.vertices;
+  for (std::size_t t = 0; t + 1 < mesh.triangles.size(); t += 2) {
+    const auto &t0 = mesh.triangles[t], &t1 = mesh.triangles[t + 1];
+    quads.faces.push_back({t0[0], t0[1], t0[2], t1[2]});
+  }
+  const std::string ply = (dir / "quads.ply").string();
+  io::write_ply(ply, quads);
+  const std::string obj = (dir / "quads.obj").string();
+  io::write_obj(obj, quads);
+  const std::string fp = (dir / "fp.geojson").string();
+  std::ofstream(fp) << test::city_footprints_geojson(city);
+  for (const std::string& in : {ply, obj}) {
+    SCOPED_TRACE(in);
+    auto split = [&](std::uint64_t budget, const std::string& name, bool& paged) {
+      SplitOptions o = local_options(in, dir / name);
+      o.footprints = fp;
+      o.mesh_vertex_budget = budget;
+      const SplitReport r = tiler::split_scene(o);
+      EXPECT_EQ(r.points, mesh.vertices.size());
+      paged = false;
+      for (const auto& n : r.notes)
+        paged = paged || n.find("paged from the work") != std::string::npos;
+      for (const auto& e : fs::recursive_directory_iterator(dir / name))
+        EXPECT_EQ(e.path().filename().string().rfind("vertices_", 0), std::string::npos)
+            << e.path();
+      return tiler::read_manifest(o.work_dir);
+    };
+    bool paged_ref = true, paged = false;
+    const tiler::Manifest ref =
+        split(0, "ref_" + fs::path(in).extension().string().substr(1), paged_ref);
+    const tiler::Manifest m =
+        split(1, "paged_" + fs::path(in).extension().string().substr(1), paged);
+    EXPECT_FALSE(paged_ref);
+    EXPECT_TRUE(paged);
+    ASSERT_EQ(ref.chunks.size(), city.boxes.size());
+    ASSERT_EQ(m.chunks.size(), ref.chunks.size());
+    for (std::size_t i = 0; i < ref.chunks.size(); ++i) {
+      EXPECT_EQ(m.chunks[i].id, ref.chunks[i].id);
+      EXPECT_EQ(m.chunks[i].content_hash, ref.chunks[i].content_hash) << m.chunks[i].id;
+    }
+  }
+}
+
 // ContextCapture layout: metadata.xml (<SRS>, <SRSOrigin>) at the production root, tiles
 // in Data/: the same scene as the shifted-back file given with --crs, and --offset does
 // the same; a broken metadata.xml is one error naming it.

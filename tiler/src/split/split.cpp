@@ -38,6 +38,7 @@
 #include "citylod/io/reader.hpp"
 #include "citylod/io/writers.hpp"
 #include "citylod/tiler/workdir.hpp"
+#include "vertex_store.hpp"
 
 namespace citylod::tiler {
 
@@ -678,13 +679,8 @@ class Splitter {
                                      const std::string& what) const;
   /// A streamed mesh file's vertices: ENU positions, the file's own coordinates (kept
   /// only when it has polygons to triangulate), the attributes the split uses.
-  struct MeshVertices {
-    std::vector<Vec3d> pos, file;
-    std::vector<io::Vec3f> normals;
-    std::vector<io::Rgb8> colors;
-  };
-  void spill_face(const std::array<std::uint32_t, 3>& tri, std::uint64_t t, std::size_t input,
-                  const MeshVertices& mv);
+  void spill_face(const std::array<std::uint32_t, 3>& tri,
+                  const std::array<VertexStore::Vertex, 3>& v, std::uint64_t t, std::size_t input);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
                           std::size_t max_points);
   void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
@@ -964,41 +960,37 @@ void Splitter::pass2_spill(Spiller& spill) {
     if (in.mesh) {
       // A mesh file is streamed: its vertices are kept (ENU doubles, plus the file's own
       // coordinates when it has polygons to triangulate, plus the attributes the split
-      // uses), its faces are read in batches, sampled and spilled to their cells.
+      // uses; in memory up to half of --memory-limit, else paged from a file through a
+      // cache of that size), its faces are read in batches, sampled and spilled to their
+      // cells.
       const bool polygons = in.info.max_face_corners > 3;
-      const double vertex_bytes =
-          (polygons ? 48.0 : 24.0) + (has_normals_ ? 12.0 : 0.0) + (has_colors_ ? 3.0 : 0.0);
-      const double need = double(in.info.point_count) * vertex_bytes;
-      if (need > 0.5 * double(opt_.memory_limit))
-        throw IoError(in.path, "mesh of " + std::to_string(in.info.point_count) +
-                                   " vertices needs ~" + fmt("%.0f", need / 1048576) +
-                                   " MiB for its vertices (kept in memory while its faces "
-                                   "stream); raise --memory-limit or give the mesh as tiles (a "
-                                   "folder of OBJ/PLY)");
+      const std::uint64_t vertex_budget =
+          opt_.mesh_vertex_budget > 0 ? opt_.mesh_vertex_budget : opt_.memory_limit / 2;
       auto reader = io::MeshReader::open(in.path);
-      MeshVertices mv;
+      VertexStore mv(
+          {polygons, has_normals_, has_colors_}, in.info.point_count, vertex_budget,
+          (staging_->spill().parent_path() / ("vertices_" + std::to_string(ii))).string());
       {
         io::PointSet vb;
+        std::vector<Vec3d> file;
         bool all_normals = true, all_colors = true;
-        mv.pos.reserve(in.info.point_count);  // counted by the scan of pass 1
-        if (has_normals_) mv.normals.reserve(in.info.point_count);
-        if (has_colors_) mv.colors.reserve(in.info.point_count);
         while (reader->read_vertices(vb, 1 << 16) > 0) {
-          mv.pos.insert(mv.pos.end(), vb.positions.begin(), vb.positions.end());
           all_normals = all_normals && vb.has_normals();
           all_colors = all_colors && vb.has_colors();
-          if (has_normals_ && all_normals)
-            mv.normals.insert(mv.normals.end(), vb.normals.begin(), vb.normals.end());
-          if (has_colors_ && all_colors)
-            mv.colors.insert(mv.colors.end(), vb.colors.begin(), vb.colors.end());
+          if (polygons) file = vb.positions;  // triangulated in these, as read_mesh()
+          to_local(vb.positions);
+          mv.append(vb.positions.data(), polygons ? file.data() : nullptr,
+                    all_normals && vb.has_normals() ? vb.normals.data() : nullptr,
+                    all_colors && vb.has_colors() ? vb.colors.data() : nullptr, vb.size());
         }
+        mv.finish();
         if (!all_normals) has_normals_ = false;
         if (!all_colors) has_colors_ = false;
-        if (!has_normals_) decltype(mv.normals)().swap(mv.normals);
-        if (!has_colors_) decltype(mv.colors)().swap(mv.colors);
       }
-      if (polygons) mv.file = mv.pos;  // triangulated in the file's coordinates, as read_mesh()
-      to_local(mv.pos);
+      if (mv.paged())
+        rep_.notes.push_back(in.path + ": " + std::to_string(mv.size()) + " vertices (" +
+                             fmt("%.0f", double(mv.size() * mv.record_bytes()) / 1048576) +
+                             " MiB) paged from the work directory while the faces stream");
       // Triangles are sampled (centroid + ~kMeshSamplesPerM2 per m^2): the samples are
       // segmented like points and vote for their triangle's building.
       io::PointSet ps;
@@ -1015,17 +1007,37 @@ void Splitter::pass2_spill(Spiller& spill) {
       std::uint64_t t = 0;  // triangle index in the file (after triangulation)
       io::FaceBatch fb;
       std::vector<std::array<std::uint32_t, 3>> tris;
-      const auto& tri_coords = polygons ? mv.file : mv.pos;
+      std::vector<Vec3d> corners;  // a polygon's corners (file coordinates)
+      std::vector<std::uint32_t> local;
+      std::vector<std::array<std::uint32_t, 3>> local_tris;
       std::uint64_t faces_read = 0;
       while (reader->read_faces(fb, 1 << 16) > 0) {
         faces_read += fb.size();
         tris.clear();
-        for (std::size_t f = 0; f < fb.size(); ++f)
-          io::triangulate_face(tri_coords.data(), fb.face(f), fb.face_size(f), tris);
+        for (std::size_t f = 0; f < fb.size(); ++f) {
+          const std::uint32_t* face = fb.face(f);
+          const std::size_t n = fb.face_size(f);
+          if (n <= 3) {  // read as is (triangulate_face reads no vertex)
+            io::triangulate_face(nullptr, face, n, tris);
+            continue;
+          }
+          corners.resize(n);
+          local.resize(n);
+          for (std::size_t k = 0; k < n; ++k) {
+            const VertexStore::Vertex c = mv.get(face[k]);
+            corners[k] = polygons ? c.file : c.pos;
+            local[k] = std::uint32_t(k);
+          }
+          local_tris.clear();
+          io::triangulate_face(corners.data(), local.data(), n, local_tris);
+          for (const auto& lt : local_tris) tris.push_back({face[lt[0]], face[lt[1]], face[lt[2]]});
+        }
         for (const auto& tri : tris) {
-          const Vec3d& p0 = mv.pos[tri[0]];
-          const Vec3d& p1 = mv.pos[tri[1]];
-          const Vec3d& p2 = mv.pos[tri[2]];
+          const std::array<VertexStore::Vertex, 3> v{mv.get(tri[0]), mv.get(tri[1]),
+                                                     mv.get(tri[2])};
+          const Vec3d& p0 = v[0].pos;
+          const Vec3d& p1 = v[1].pos;
+          const Vec3d& p2 = v[2].pos;
           const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
           const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
           const double area = 0.5 * e1.cross(e2).norm();
@@ -1040,8 +1052,8 @@ void Splitter::pass2_spill(Spiller& spill) {
             }
             ps.positions.push_back({p0[0] + u * e1[0] + v * e2[0], p0[1] + u * e1[1] + v * e2[1],
                                     p0[2] + u * e1[2] + v * e2[2]});
-            if (has_normals_) ps.normals.push_back(mv.normals[tri[0]]);
-            if (has_colors_) ps.colors.push_back(mv.colors[tri[0]]);
+            if (has_normals_) ps.normals.push_back(v[0].normal);
+            if (has_colors_) ps.colors.push_back(v[0].color);
             tri_of.push_back(t);
           }
           if (ps.size() >= (1u << 16)) {
@@ -1049,7 +1061,7 @@ void Splitter::pass2_spill(Spiller& spill) {
             tri_of.clear();
           }
           up += (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0]);
-          spill_face(tri, t, ii, mv);
+          spill_face(tri, v, t, ii);
           ++t;
         }
         stages_.report(a, b,
@@ -1063,7 +1075,7 @@ void Splitter::pass2_spill(Spiller& spill) {
         rep_.notes.push_back(in.path +
                              ": faces point down (clockwise seen from above); taken as "
                              "reversed for the wall-to-footprint test");
-      rep_.points += mv.pos.size();
+      rep_.points += mv.size();
       rep_.triangles += t;
       stages_.report(a, b, 1.0, "ingest");
       continue;
@@ -1124,20 +1136,21 @@ void Splitter::pass2_spill(Spiller& spill) {
 
 // A mesh triangle to the face files of every cell its xy box meets (a region then holds
 // every triangle of its samples).
-void Splitter::spill_face(const std::array<std::uint32_t, 3>& tri, std::uint64_t t,
-                          std::size_t input, const MeshVertices& mv) {
+void Splitter::spill_face(const std::array<std::uint32_t, 3>& tri,
+                          const std::array<VertexStore::Vertex, 3>& v, std::uint64_t t,
+                          std::size_t input) {
   FaceRec f{};
   f.id = (std::uint64_t(input) << 40) | t;
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (std::size_t k = 0; k < 3; ++k) {
     const std::uint32_t vi = tri[k];
     f.vid[k] = (std::uint64_t(input) << 40) | vi;
-    const Vec3d& p = mv.pos[vi];
+    const Vec3d& p = v[k].pos;
     for (std::size_t a = 0; a < 3; ++a) f.v[k][a] = p[a];
-    if (!mv.normals.empty())
-      for (std::size_t a = 0; a < 3; ++a) f.n[k][a] = mv.normals[vi][a];
-    if (!mv.colors.empty())
-      for (std::size_t a = 0; a < 3; ++a) f.rgb[k][a] = mv.colors[vi][a];
+    if (has_normals_)
+      for (std::size_t a = 0; a < 3; ++a) f.n[k][a] = v[k].normal[a];
+    if (has_colors_)
+      for (std::size_t a = 0; a < 3; ++a) f.rgb[k][a] = v[k].color[a];
     x0 = std::min(x0, p[0]), x1 = std::max(x1, p[0]);
     y0 = std::min(y0, p[1]), y1 = std::max(y1, p[1]);
   }

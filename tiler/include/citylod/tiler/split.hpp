@@ -79,12 +79,16 @@ struct SplitOptions {
   double footprint_buffer =
       0.5;  ///< m, points (mesh faces: centroids) this close outside a footprint belong to it
   std::uint64_t memory_limit = 2ull << 30;  ///< bytes
-  double cell_size = 100;                   ///< m (reduced automatically when the density needs it)
-  double halo = 20;                         ///< m around each cell
-  double max_halo = 120;                    ///< m, growth limit for buildings larger than the halo
-  bool ignore_classes = false;              ///< segment as if the input had no LAS classes
-  bool force = false;                       ///< re-split even when up to date
-  int min_footprint_points = 10;            ///< fewer -> the footprint's record is "skipped"
+  /// Bytes for one mesh file's vertices while its faces stream (0: half of memory_limit);
+  /// more are paged from a file in the work directory through a cache of this size.
+  /// The chunks do not depend on it (a manifest note says when the vertices were paged).
+  std::uint64_t mesh_vertex_budget = 0;
+  double cell_size = 100;         ///< m (reduced automatically when the density needs it)
+  double halo = 20;               ///< m around each cell
+  double max_halo = 120;          ///< m, growth limit for buildings larger than the halo
+  bool ignore_classes = false;    ///< segment as if the input had no LAS classes
+  bool force = false;             ///< re-split even when up to date
+  int min_footprint_points = 10;  ///< fewer -> the footprint's record is "skipped"
   SegmentParams seg;
 
   /// Throws std::invalid_argument naming the option.
