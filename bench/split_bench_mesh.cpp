@@ -1,7 +1,7 @@
 // split_bench_mesh: out-of-core behaviour of `citylod split` on a photogrammetry mesh.
 //
 //   split_bench_mesh [--dir ../shared/data/mesh_city] [--memory-limit 2G] [--copies 1,16]
-//                    [--layout tiles|file] [--tmp DIR]
+//                    [--layout tiles|file] [--tmp DIR] [--vertex-budget MB]
 //
 // For each N, writes N shifted copies of DIR/scene.ply on a ceil(sqrt(N))-wide grid
 // (copy c at column c % side, row c / side, 20 m apart) with N copies of
@@ -10,7 +10,9 @@
 // PLY (layout file), then runs split_scene() (--crs "$(cat DIR/crs_local.wkt)",
 // --footprints) in a fresh process (this program re-executed with --child) and reports
 // its peak RSS (wait4 rusage), wall and CPU time. The claim checked (issue 15): peak RSS
-// of N = 16 tiles <= 1.2x that of N = 1.
+// of N = 16 tiles <= 1.2x that of N = 1. --vertex-budget MB sets
+// SplitOptions::mesh_vertex_budget (default: half the memory limit): a mesh file's vertices
+// over it are paged from a file through a cache of that size.
 
 #include <cmath>
 #include <cstdio>
@@ -37,6 +39,7 @@ namespace {
 struct Args {
   std::string dir = std::string(CITYLOD_SHARED_DATA) + "/mesh_city";
   std::string memory = "2G";
+  std::string vertex_budget_mb = "0";
   std::vector<int> copies{1, 16};
   std::string layout = "tiles";
   std::string tmp = (fs::temp_directory_path() / "citylod_split_bench_mesh").string();
@@ -50,7 +53,7 @@ std::string slurp(const std::string& p) {
 }
 
 int child(const std::string& input, const std::string& fp, const std::string& work,
-          const std::string& crs_file, const std::string& mem) {
+          const std::string& crs_file, const std::string& mem, const std::string& vertex_mb) {
   tiler::SplitOptions o;
   o.inputs = {input};
   o.work_dir = work;
@@ -58,6 +61,7 @@ int child(const std::string& input, const std::string& fp, const std::string& wo
   o.footprints = fp;
   o.memory_limit = tiler::parse_memory_size(mem);
   o.force = true;
+  o.mesh_vertex_budget = std::uint64_t(std::stod(vertex_mb) * 1048576.0);
   try {
     const tiler::SplitReport r = tiler::split_scene(o);
     std::printf("%llu %zu %zu %.3f %zu\n", static_cast<unsigned long long>(r.triangles), r.chunks,
@@ -135,8 +139,8 @@ std::string write_scene(const Args& a, int n, const std::string& fp_out) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc == 7 && std::string(argv[1]) == "--child")
-    return child(argv[2], argv[3], argv[4], argv[5], argv[6]);
+  if (argc == 8 && std::string(argv[1]) == "--child")
+    return child(argv[2], argv[3], argv[4], argv[5], argv[6], argv[7]);
   Args a;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string k = argv[i], v = argv[i + 1];
@@ -148,6 +152,8 @@ int main(int argc, char** argv) {
       a.layout = v;
     else if (k == "--tmp")
       a.tmp = v;
+    else if (k == "--vertex-budget")
+      a.vertex_budget_mb = v;
     else if (k == "--copies") {
       a.copies.clear();
       std::stringstream ss(v);
@@ -156,7 +162,7 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: split_bench_mesh [--dir MESH_CITY] [--memory-limit SIZE] [--copies "
-                   "1,16] [--layout tiles|file] [--tmp DIR]\n");
+                   "1,16] [--layout tiles|file] [--tmp DIR] [--vertex-budget MB]\n");
       return 2;
     }
   }
@@ -165,9 +171,11 @@ int main(int argc, char** argv) {
     return 1;
   }
   fs::create_directories(a.tmp);
-  std::printf("split_bench_mesh: %s, layout %s, --memory-limit %s, %u hardware threads\n",
-              a.dir.c_str(), a.layout.c_str(), a.memory.c_str(),
-              std::thread::hardware_concurrency());
+  std::printf(
+      "split_bench_mesh: %s, layout %s, --memory-limit %s, vertex budget %s MB (0: half "
+      "the limit), %u hardware threads\n",
+      a.dir.c_str(), a.layout.c_str(), a.memory.c_str(), a.vertex_budget_mb.c_str(),
+      std::thread::hardware_concurrency());
   std::printf("%4s %12s %8s %8s %10s %10s %7s %12s\n", "N", "triangles", "chunks", "cells",
               "wall s", "cpu s", "RSS MB", "max region");
   double rss1 = 0, rss_last = 0;
@@ -176,7 +184,8 @@ int main(int argc, char** argv) {
     const std::string input = write_scene(a, n, fp);
     const std::string work = (fs::path(a.tmp) / ("work_" + std::to_string(n))).string();
     const std::string crs = a.dir + "/crs_local.wkt";
-    const bench::ChildRun c = bench::run_child(argv[0], {input, fp, work, crs, a.memory});
+    const bench::ChildRun c =
+        bench::run_child(argv[0], {input, fp, work, crs, a.memory, a.vertex_budget_mb});
     if (!c.ok) {
       std::fprintf(stderr, "split_bench_mesh: split failed for N=%d\n", n);
       return 1;

@@ -1033,11 +1033,11 @@ void Splitter::pass2_spill(Spiller& spill) {
           for (const auto& lt : local_tris) tris.push_back({face[lt[0]], face[lt[1]], face[lt[2]]});
         }
         for (const auto& tri : tris) {
-          const std::array<VertexStore::Vertex, 3> v{mv.get(tri[0]), mv.get(tri[1]),
-                                                     mv.get(tri[2])};
-          const Vec3d& p0 = v[0].pos;
-          const Vec3d& p1 = v[1].pos;
-          const Vec3d& p2 = v[2].pos;
+          const std::array<VertexStore::Vertex, 3> cv{mv.get(tri[0]), mv.get(tri[1]),
+                                                      mv.get(tri[2])};
+          const Vec3d& p0 = cv[0].pos;
+          const Vec3d& p1 = cv[1].pos;
+          const Vec3d& p2 = cv[2].pos;
           const Eigen::Vector3d e1(p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]);
           const Eigen::Vector3d e2(p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]);
           const double area = 0.5 * e1.cross(e2).norm();
@@ -1052,8 +1052,8 @@ void Splitter::pass2_spill(Spiller& spill) {
             }
             ps.positions.push_back({p0[0] + u * e1[0] + v * e2[0], p0[1] + u * e1[1] + v * e2[1],
                                     p0[2] + u * e1[2] + v * e2[2]});
-            if (has_normals_) ps.normals.push_back(v[0].normal);
-            if (has_colors_) ps.colors.push_back(v[0].color);
+            if (has_normals_) ps.normals.push_back(cv[0].normal);
+            if (has_colors_) ps.colors.push_back(cv[0].color);
             tri_of.push_back(t);
           }
           if (ps.size() >= (1u << 16)) {
@@ -1061,7 +1061,7 @@ void Splitter::pass2_spill(Spiller& spill) {
             tri_of.clear();
           }
           up += (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0]);
-          spill_face(tri, v, t, ii);
+          spill_face(tri, cv, t, ii);
           ++t;
         }
         stages_.report(a, b,

@@ -27,8 +27,7 @@ void take(const char*& p, T& v) {
 
 }  // namespace
 
-VertexStore::VertexStore(Layout layout, std::uint64_t count, std::uint64_t budget,
-                         std::string path)
+VertexStore::VertexStore(Layout layout, std::uint64_t count, std::uint64_t budget, std::string path)
     : layout_(layout), path_(std::move(path)) {
   rec_ = sizeof(io::Vec3d) + (layout.file ? sizeof(io::Vec3d) : 0) +
          (layout.normals ? sizeof(io::Vec3f) : 0) + (layout.colors ? sizeof(io::Rgb8) : 0);

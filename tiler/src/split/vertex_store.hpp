@@ -60,7 +60,7 @@ class VertexStore {
   std::vector<io::Rgb8> colors_;
   // paged: records appended to `out_` and written in blocks; read through `slots_`
   std::vector<char> out_;
-  std::uint64_t written_ = 0;  ///< records in the file
+  std::uint64_t written_ = 0;                    ///< records in the file
   static constexpr std::uint64_t kBlock = 1024;  ///< records per block
   struct Slot {
     std::int64_t block = -1;
