@@ -8,6 +8,7 @@
 #include <unistd.h>
 #include "support/cli_run.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -19,6 +20,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -304,6 +306,48 @@ TEST(TileCli, BadInputIsOneErrorLine) {
   EXPECT_NE(r.out.find("missing.las"), std::string::npos) << r.out;
   const CliRun nb = run("rebuild " + q(d) + " --building x");
   EXPECT_EQ(nb.code, 1) << nb.out;
+}
+
+// Issue 15 on the photogrammetry city mesh (../shared/data/mesh_city: 26 touching
+// buildings without party walls, 5 cm noise) with its footprints: every building's finest
+// model is within 10 % of its true volume (buildings.csv). The walls a footprint adds where
+// the neighbours hide the real ones used to fill a low wing up to the main roof (b31be22a3:
+// +13 %) and, 2-4 mm off a seen wall, the space over one roof slope (b31bdd42d +43 %,
+// b31bdfb74 +21 %). Measured: median 4.8 %, max 8.3 %. Every solid valid as written.
+TEST(TileCli, MeshCityModelsHaveTheirTrueVolumes) {
+  const std::string dir = std::string(CITYLOD_SHARED_DATA) + "/mesh_city";
+  if (!fs::exists(dir + "/scene.ply")) GTEST_SKIP() << "shared data not found: " << dir;
+  std::ifstream wkt_in(dir + "/crs_local.wkt");
+  const std::string wkt((std::istreambuf_iterator<char>(wkt_in)), std::istreambuf_iterator<char>());
+  const fs::path d = tmp_dir("tile_mesh_city");
+  const CliRun r =
+      run("tile " + q(dir + "/scene.ply") + " --crs " + q(wkt) + " --footprints " +
+          q(dir + "/footprints_bgt_local.geojson") + " --threads 2 --out " + q(d / "out"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("(26 buildings, "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(" solids, 0 invalid)"), std::string::npos) << r.out;
+  std::ifstream csv(dir + "/buildings.csv");
+  std::string line;
+  std::getline(csv, line);  // id,bag_id,index,h_ground,h_max,footprint_area_m2,volume_m3,...
+  std::vector<double> errors;
+  while (std::getline(csv, line)) {
+    std::vector<std::string> col;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) col.push_back(c);
+    ASSERT_GE(col.size(), 7u) << line;
+    const double truth = std::stod(col[6]);
+    const nlohmann::json rep =
+        read_json(d / "out" / "work" / "lod" / ("fp-" + col[0]) / "report.json");
+    double finest = 0;
+    for (const auto& m : rep.at("models"))
+      if (m.at("kind") == "anchor") finest = m.at("volume").get<double>();
+    errors.push_back(std::abs(finest / truth - 1));
+    EXPECT_LE(errors.back(), 0.10) << col[0] << ": " << finest << " m3, true " << truth;
+  }
+  ASSERT_EQ(errors.size(), 26u);
+  std::sort(errors.begin(), errors.end());
+  std::printf("[mesh_city] finest model volume vs truth: median %.1f %%, max %.1f %%\n",
+              100 * errors[13], 100 * errors.back());
 }
 
 }  // namespace

@@ -425,6 +425,25 @@ TEST(LodPipeline, AlphaRadiusChangesTheShapes) {
   EXPECT_GT(std::abs(a0 - a7), 0.01 * a7);  // 2 % on this house
 }
 
+/// A chunk of a city mesh as the split gives it: a mesh without floor (faces refined
+/// 3 times) on its footprint, the ground at z = 0; and the parameters of city runs.
+static test::SynthBuilding city_mesh_chunk(std::vector<test::Face> f, double volume, int planes,
+                                           std::vector<Vec2> footprint) {
+  SynthOptions o;
+  o.refine_levels = 3;
+  auto b = test::finish(std::move(f), volume, planes, o, /*mesh=*/true);
+  b.input.footprint = std::move(footprint);
+  b.input.has_ground_z = true;
+  b.input.ground_z = 0.0;
+  return b;
+}
+static LodParams city_params() {
+  LodParams p = fast_params();
+  p.closure.footprint_walls = true;
+  p.closure.terrain = "cut";
+  return p;
+}
+
 // A row house of a photogrammetry city mesh (issue 15; the proportions of
 // mesh_city's b31bdd447): gable roof 4 m along the ridge (x) x 4 m deep,
 // eaves 3.5 m, ridge 6.7 m; its two eave walls seen, its gable ends hidden by
@@ -433,8 +452,9 @@ TEST(LodPipeline, AlphaRadiusChangesTheShapes) {
 // gable, not a rectangle up to the ridge, whose backs would vote the cells
 // over the roof slopes inside): 4 x 4 x 3.5 + 4 x 4 x 3.2 / 2 = 81.6 m3. The
 // footprint's eave edges lie 4 and 3 mm off the seen walls: those inferred
-// walls take the seen walls' planes, and no model has a triangle thinner
-// than that offset.
+// walls take the seen walls' planes (closure.wall_snap). On this noise-free
+// house the models are valid without it too; on mesh_city 6 solids were not
+// (TileCli.MeshCityModelsHaveTheirTrueVolumes).
 TEST(LodPipeline, MeshRowHouseWallsFollowTheRoofAndTheSeenWalls) {
   const Vec3 X = Vec3::UnitX(), Z = Vec3::UnitZ();
   const double L = 4, D = 4, H = 3.5, R = 3.2, vol = L * D * H + L * D * R / 2;
@@ -444,31 +464,15 @@ TEST(LodPipeline, MeshRowHouseWallsFollowTheRoofAndTheSeenWalls) {
   const double sl = std::sqrt(D * D / 4 + R * R);
   test::add_rect(f, Vec3(0, 0, H), X, L, Vec3(0, D / 2, R) / sl, sl);   // south roof
   test::add_rect(f, Vec3(0, D, H), Vec3(0, -D / 2, R) / sl, sl, X, L);  // north roof
-  SynthOptions o;
-  o.refine_levels = 3;
-  auto b = test::finish(std::move(f), vol, 4, o, /*mesh=*/true);
-  b.input.footprint = {Vec2(0, 0.004), Vec2(L, 0.004), Vec2(L, D + 0.003), Vec2(0, D + 0.003)};
-  b.input.has_ground_z = true;
-  b.input.ground_z = 0.0;
-  LodParams p = fast_params();
-  p.closure.footprint_walls = true;
-  p.closure.terrain = "cut";
-  const LodResult r = build_lod_tree(b.input, p);
+  const auto b =
+      city_mesh_chunk(std::move(f), vol, 4,
+                      {Vec2(0, 0.004), Vec2(L, 0.004), Vec2(L, D + 0.003), Vec2(0, D + 0.003)});
+  const LodResult r = build_lod_tree(b.input, city_params());
   expect_valid_models(r);
   EXPECT_TRUE(has_note(r, "walls along the footprint"));
   EXPECT_TRUE(has_note(r, "2 inferred walls on the plane of a wall"));
   ASSERT_NE(last_anchor(r), nullptr);
   EXPECT_NEAR(last_anchor(r)->volume, vol, 0.01 * vol);
-  for (const auto& m : r.models) {
-    SCOPED_TRACE("model step " + std::to_string(m.step));
-    const auto& V = m.mesh.vertices;
-    for (const auto& t : m.mesh.triangles) {
-      const Vec3 a(V[size_t(t[0])].data()), bb(V[size_t(t[1])].data()), c(V[size_t(t[2])].data());
-      const double area2 = (bb - a).cross(c - a).norm();
-      const double longest = std::max({(bb - a).norm(), (c - bb).norm(), (a - c).norm()});
-      EXPECT_GT(area2 / longest, 0.01) << "a sliver triangle";  // its height, m
-    }
-  }
 }
 
 // A city-mesh building of two heights in a row (issue 15; like mesh_city's
@@ -486,15 +490,9 @@ TEST(LodPipeline, MeshAnnexIsNotFilledUpToTheMainRoof) {
   test::add_rect(f, Vec3(10, 0, 0), Z, 3, Y, 4);  // x = 10 wall, +x
   test::add_rect(f, Vec3(0, 0, 9), X, 5, Y, 4);   // main roof
   test::add_rect(f, Vec3(5, 0, 3), X, 5, Y, 4);   // annex roof
-  SynthOptions o;
-  o.refine_levels = 3;
-  auto b = test::finish(std::move(f), 240.0, 5, o, /*mesh=*/true);
-  b.input.footprint = {Vec2(0, 0), Vec2(10, 0), Vec2(10, 4), Vec2(0, 4)};
-  b.input.has_ground_z = true;
-  b.input.ground_z = 0.0;
-  LodParams p = fast_params();
-  p.closure.footprint_walls = true;
-  p.closure.terrain = "cut";
+  const auto b =
+      city_mesh_chunk(std::move(f), 240.0, 5, {Vec2(0, 0), Vec2(10, 0), Vec2(10, 4), Vec2(0, 4)});
+  LodParams p = city_params();
   const LodResult r = build_lod_tree(b.input, p);
   expect_valid_models(r);
   ASSERT_NE(last_anchor(r), nullptr);
