@@ -109,12 +109,17 @@ TriangleMesh triangulate_fan(const PolygonMesh& mesh) {
 TriangleMesh triangulate_polygons(const PolygonMesh& mesh) {
   TriangleMesh t;
   t.vertices = mesh.vertices;
-  for (const auto& f : mesh.faces)
-    triangulate_face(mesh.vertices.data(), f.data(), f.size(), t.triangles);
+  std::vector<Vec3d> corners;
+  for (const auto& f : mesh.faces) {
+    corners.clear();
+    if (f.size() > 3)
+      for (std::uint32_t v : f) corners.push_back(mesh.vertices[v]);
+    triangulate_face(corners.data(), f.data(), f.size(), t.triangles);
+  }
   return t;
 }
 
-void triangulate_face(const Vec3d* vertices, const std::uint32_t* f, std::size_t n,
+void triangulate_face(const Vec3d* corners, const std::uint32_t* f, std::size_t n,
                       std::vector<std::array<std::uint32_t, 3>>& out) {
   if (n < 3) return;
   if (n == 3) {
@@ -124,8 +129,8 @@ void triangulate_face(const Vec3d* vertices, const std::uint32_t* f, std::size_t
   // Newell normal; project along its dominant axis, CCW about it.
   double nx = 0, ny = 0, nz = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3d& a = vertices[f[i]];
-    const Vec3d& b = vertices[f[(i + 1) % n]];
+    const Vec3d& a = corners[i];
+    const Vec3d& b = corners[(i + 1) % n];
     nx += (a[1] - b[1]) * (a[2] + b[2]);
     ny += (a[2] - b[2]) * (a[0] + b[0]);
     nz += (a[0] - b[0]) * (a[1] + b[1]);
@@ -134,9 +139,10 @@ void triangulate_face(const Vec3d* vertices, const std::uint32_t* f, std::size_t
   const int k = an[0] >= an[1] && an[0] >= an[2] ? 0 : (an[1] >= an[2] ? 1 : 2);
   const double sign = (k == 0 ? nx : k == 1 ? ny : nz) < 0 ? -1.0 : 1.0;
   const int u = (k + 1) % 3, w = (k + 2) % 3;
-  std::vector<std::array<double, 2>> q(n);
-  for (std::size_t i = 0; i < n; ++i)
-    q[i] = {vertices[f[i]][size_t(u)], sign * vertices[f[i]][size_t(w)]};
+  thread_local std::vector<std::array<double, 2>> q;  // scratch, reused face to face
+  thread_local std::vector<std::size_t> ring;
+  q.resize(n);
+  for (std::size_t i = 0; i < n; ++i) q[i] = {corners[i][size_t(u)], sign * corners[i][size_t(w)]};
   auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
     return (q[b][0] - q[a][0]) * (q[c][1] - q[a][1]) - (q[b][1] - q[a][1]) * (q[c][0] - q[a][0]);
   };
@@ -147,7 +153,7 @@ void triangulate_face(const Vec3d* vertices, const std::uint32_t* f, std::size_t
     for (std::size_t i = 1; i + 1 < n; ++i) out.push_back({f[0], f[i], f[i + 1]});
     return;
   }
-  std::vector<std::size_t> ring(n);
+  ring.resize(n);
   for (std::size_t i = 0; i < n; ++i) ring[i] = i;
   while (ring.size() > 3) {
     bool clipped = false;

@@ -93,8 +93,12 @@ Streamed stream(const std::string& path, std::size_t vertex_batch, std::size_t f
 
 std::vector<std::array<std::uint32_t, 3>> triangulate(const Streamed& s) {
   std::vector<std::array<std::uint32_t, 3>> out;
-  for (const auto& f : s.faces)
-    triangulate_face(s.vertices.positions.data(), f.data(), f.size(), out);
+  std::vector<Vec3d> corners;
+  for (const auto& f : s.faces) {
+    corners.clear();
+    for (std::uint32_t v : f) corners.push_back(s.vertices.positions[v]);
+    triangulate_face(corners.data(), f.data(), f.size(), out);
+  }
   return out;
 }
 

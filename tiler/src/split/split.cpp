@@ -420,6 +420,8 @@ class Staging {
   Staging& operator=(const Staging&) = delete;
 
   fs::path spill() const { return dir_ / "spill"; }
+  /// A scratch file of the staging directory (removed with it).
+  fs::path scratch(const std::string& name) const { return dir_ / name; }
   fs::path chunks() const { return dir_ / "chunks"; }
   void drop_spill() {
     std::error_code ec;
@@ -677,8 +679,8 @@ class Splitter {
                                const std::vector<std::size_t>& owned);
   [[noreturn]] void region_too_large(const CellKey& key, double size,
                                      const std::string& what) const;
-  /// A streamed mesh file's vertices: ENU positions, the file's own coordinates (kept
-  /// only when it has polygons to triangulate), the attributes the split uses.
+  /// A streamed mesh triangle (its vertex ids and vertices) to the face files of the
+  /// cells its xy box meets.
   void spill_face(const std::array<std::uint32_t, 3>& tri,
                   const std::array<VertexStore::Vertex, 3>& v, std::uint64_t t, std::size_t input);
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
@@ -967,9 +969,8 @@ void Splitter::pass2_spill(Spiller& spill) {
       const std::uint64_t vertex_budget =
           opt_.mesh_vertex_budget > 0 ? opt_.mesh_vertex_budget : opt_.memory_limit / 2;
       auto reader = io::MeshReader::open(in.path);
-      VertexStore mv(
-          {polygons, has_normals_, has_colors_}, in.info.point_count, vertex_budget,
-          (staging_->spill().parent_path() / ("vertices_" + std::to_string(ii))).string());
+      VertexStore mv({polygons, has_normals_, has_colors_}, in.info.point_count, vertex_budget,
+                     staging_->scratch("vertices_" + std::to_string(ii)).string());
       {
         io::PointSet vb;
         std::vector<Vec3d> file;
@@ -1008,8 +1009,6 @@ void Splitter::pass2_spill(Spiller& spill) {
       io::FaceBatch fb;
       std::vector<std::array<std::uint32_t, 3>> tris;
       std::vector<Vec3d> corners;  // a polygon's corners (file coordinates)
-      std::vector<std::uint32_t> local;
-      std::vector<std::array<std::uint32_t, 3>> local_tris;
       std::uint64_t faces_read = 0;
       while (reader->read_faces(fb, 1 << 16) > 0) {
         faces_read += fb.size();
@@ -1017,20 +1016,12 @@ void Splitter::pass2_spill(Spiller& spill) {
         for (std::size_t f = 0; f < fb.size(); ++f) {
           const std::uint32_t* face = fb.face(f);
           const std::size_t n = fb.face_size(f);
-          if (n <= 3) {  // read as is (triangulate_face reads no vertex)
-            io::triangulate_face(nullptr, face, n, tris);
-            continue;
-          }
-          corners.resize(n);
-          local.resize(n);
-          for (std::size_t k = 0; k < n; ++k) {
+          corners.clear();
+          for (std::size_t k = 0; n > 3 && k < n; ++k) {  // triangles read as they are
             const VertexStore::Vertex c = mv.get(face[k]);
-            corners[k] = polygons ? c.file : c.pos;
-            local[k] = std::uint32_t(k);
+            corners.push_back(polygons ? c.file : c.pos);
           }
-          local_tris.clear();
-          io::triangulate_face(corners.data(), local.data(), n, local_tris);
-          for (const auto& lt : local_tris) tris.push_back({face[lt[0]], face[lt[1]], face[lt[2]]});
+          io::triangulate_face(corners.data(), face, n, tris);
         }
         for (const auto& tri : tris) {
           const std::array<VertexStore::Vertex, 3> cv{mv.get(tri[0]), mv.get(tri[1]),

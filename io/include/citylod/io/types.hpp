@@ -105,9 +105,10 @@ TriangleMesh triangulate_fan(const PolygonMesh& mesh);
 /// degenerate) has its remainder fanned.
 TriangleMesh triangulate_polygons(const PolygonMesh& mesh);
 
-/// One face of triangulate_polygons(): the `n` vertex indices `face` into `vertices` (in range),
-/// its triangles appended to `out` (none when n < 3; vertices are read only when n > 3).
-void triangulate_face(const Vec3d* vertices, const std::uint32_t* face, std::size_t n,
+/// One face of triangulate_polygons(): its `n` vertex indices `face` and their positions
+/// `corners` (corners[i] is vertex face[i]; read only when n > 3, may be null otherwise);
+/// its triangles, as vertex indices, appended to `out` (none when n < 3).
+void triangulate_face(const Vec3d* corners, const std::uint32_t* face, std::size_t n,
                       std::vector<std::array<std::uint32_t, 3>>& out);
 
 }  // namespace citylod::io
