@@ -20,6 +20,20 @@ bool parse_corner(std::string_view c, std::int64_t& v, std::int64_t& vn) {
   return n.empty() || parse_i64(n, vn);
 }
 
+// The 0-based vertex index of corner `v` of face #`face` (1-based; negative: relative to
+// the `seen` "v" lines before the face). A forward reference (v > seen) is returned for
+// the caller to check against the vertex count; 0 and a relative index reaching before
+// the first vertex fail `in`.
+std::int64_t obj_vertex_index(const InputFile& in, std::int64_t v, std::uint64_t seen,
+                              std::uint64_t face) {
+  if (v < 0) {
+    if (static_cast<std::uint64_t>(-v) > seen) in.fail(bad_index_message(face, v, seen));
+    return static_cast<std::int64_t>(seen) + v;
+  }
+  if (v == 0) in.fail(bad_index_message(face, 0, seen) + " (OBJ indices start at 1)");
+  return v - 1;
+}
+
 bool parse_vertex(const std::vector<std::string_view>& tok, Vec3d& p, Rgb8* rgb, bool& has_rgb) {
   if (tok.size() < 4) return false;
   for (int a = 0; a < 3; ++a)
@@ -78,12 +92,8 @@ class ObjReader final : public ReaderBase {
           std::int64_t v, vn;
           if (!parse_corner(tok_[k], v, vn))
             in_.fail("bad face at line " + std::to_string(line_no_));
-          if (v < 0) {
-            if (static_cast<std::uint64_t>(-v) > vertices_)
-              in_.fail(bad_index_message(faces_ - 1, v, vertices_));
-          } else if (v == 0) {
-            in_.fail(bad_index_message(faces_ - 1, 0, vertices_) + " (OBJ indices start at 1)");
-          } else if (static_cast<std::uint64_t>(v) > max_index_) {
+          obj_vertex_index(in_, v, vertices_, faces_ - 1);
+          if (v > 0 && static_cast<std::uint64_t>(v) > max_index_) {
             max_index_ = static_cast<std::uint64_t>(v);
             max_index_face_ = faces_ - 1;
           }
@@ -155,16 +165,11 @@ std::size_t ObjFaceStream::read(FaceBatch& out, std::size_t max_faces) {
     for (std::size_t k = 1; k < tok_.size(); ++k) {
       std::int64_t v, n;
       if (!parse_corner(tok_[k], v, n)) in_.fail("bad face at line " + std::to_string(line_no_));
-      if (v < 0) {
-        if (static_cast<std::uint64_t>(-v) > seen_) in_.fail(bad_index_message(face, v, seen_));
-        v = static_cast<std::int64_t>(seen_) + v;
-      } else if (v == 0 || static_cast<std::uint64_t>(v) > total_) {
+      const std::int64_t i = obj_vertex_index(in_, v, seen_, face);
+      if (static_cast<std::uint64_t>(i) >= total_)
         in_.fail(bad_index_message(face, v, total_) + " (OBJ indices start at 1)");
-      } else {
-        v -= 1;
-      }
-      if (v > 0xFFFFFFFFll) in_.fail(bad_index_message(face, v, total_));
-      out.corners.push_back(static_cast<std::uint32_t>(v));
+      if (i > 0xFFFFFFFFll) in_.fail(bad_index_message(face, v, total_));
+      out.corners.push_back(static_cast<std::uint32_t>(i));
     }
     out.offsets.push_back(out.corners.size());
     ++got;
@@ -210,18 +215,11 @@ void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f
       for (std::size_t k = 1; k < tok.size(); ++k) {
         std::int64_t v, n;
         if (!parse_corner(tok[k], v, n)) in.fail("bad face at line " + std::to_string(line_no));
-        if (v < 0) {
-          if (static_cast<std::uint64_t>(-v) > nv) in.fail(bad_index_message(face, v, nv));
-          v = static_cast<std::int64_t>(nv) + v;
-        } else if (v == 0) {
-          in.fail(bad_index_message(face, 0, nv) + " (OBJ indices start at 1)");
-        } else {
-          if (static_cast<std::uint64_t>(v) > max_index) {
-            max_index = static_cast<std::uint64_t>(v);
-            max_index_face = face;
-          }
-          v -= 1;  // forward references are checked once all vertices are known
+        if (v > 0 && static_cast<std::uint64_t>(v) > max_index) {
+          max_index = static_cast<std::uint64_t>(v);  // forward references: checked at the end
+          max_index_face = face;
         }
+        v = obj_vertex_index(in, v, nv, face);
         if (v > 0xFFFFFFFFll) in.fail(bad_index_message(face, v, nv));
         if (n != 0) {
           std::int64_t ni = n < 0 ? static_cast<std::int64_t>(vn.size()) + n : n - 1;
