@@ -574,10 +574,14 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
   res.what = plinth ? Closure::Plinth : Closure::Base;
   if (!cov.walls_missing && !plinth) return res;  // walls were scanned: only the base was missing
 
-  // Walls under the roof's profile: meshes (labelled by rays) on a footprint.
-  const bool profile = p.wall_profile && in.is_mesh() && in.footprint.size() >= 3 && !terrain;
-  res.added += add_outline_walls(s, p, outline, gz, cov, plinth, profile, t.on_low_up, prims);
+  // Meshes (labelled by rays) on a footprint: walls under the roof's profile, and on
+  // the plane of a seen wall they nearly coincide with.
+  const bool mesh_on_footprint = in.is_mesh() && in.footprint.size() >= 3 && !terrain && !plinth;
+  res.added += add_outline_walls(s, p, outline, gz, cov, plinth,
+                                 mesh_on_footprint && p.wall_profile, t.on_low_up, prims);
   if (!plinth) res.what = cov.walls_unscanned ? Closure::Walls : Closure::FootprintWalls;
+  res.snap_walls = mesh_on_footprint && p.wall_snap > 0;
+  if (res.snap_walls) res.snapped = snap_inferred_walls(prims, p.wall_snap);
   return res;
 }
 

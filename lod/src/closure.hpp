@@ -23,6 +23,10 @@ struct Closure {
   What what = None;
   std::vector<Vec2> outline;  ///< the outline the walls stand on (CCW), when walls were inferred
   double ground_z = 0;        ///< the ground plane's height
+  /// Meshes on a footprint (wall_snap > 0): inferred walls were snapped onto the seen
+  /// walls they nearly coincide with (`snapped` of them); to redo after regularization.
+  bool snap_walls = false;
+  int snapped = 0;
 };
 Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
                        std::vector<Primitive>& prims);

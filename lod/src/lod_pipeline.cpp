@@ -319,14 +319,10 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
     if (c.what == Closure::FootprintWalls)
       st.notes.push_back("walls along the footprint: " + n +
                          " closure planes inferred (ground + walls; scanned walls kept)");
-    if (P.closure.wall_snap > 0 && in.is_mesh() && in.footprint.size() >= 3 &&
-        (c.what == Closure::Walls || c.what == Closure::FootprintWalls)) {
-      out.snap_walls = true;
-      const int snapped = snap_inferred_walls(prims, P.closure.wall_snap);
-      if (snapped > 0)
-        st.notes.push_back(std::to_string(snapped) +
-                           " inferred walls on the plane of a wall they nearly coincide with");
-    }
+    out.snap_walls = c.snap_walls;
+    if (c.snapped > 0)
+      st.notes.push_back(std::to_string(c.snapped) +
+                         " inferred walls on the plane of a wall they nearly coincide with");
     if (c.what == Closure::Plinth)
       st.notes.push_back(
           "terrain sheet kept as a plinth: " + n +
