@@ -216,13 +216,27 @@ TEST(LodStage, RunsEveryBuildingAndResumesWithoutRecomputing) {
     EXPECT_EQ(rep->id, it.chunk->id);
     EXPECT_FALSE(rep->models.empty());
   }
-  // A building whose output vanished is the only one computed again.
+  // A building killed between writing its output and renaming it into place
+  // left "<id>.tmp.<pid>" (a complete report with its key) and its marker's
+  // "<id>.running.tmp.<pid>": it is the only one computed again, and what the
+  // killed run left is removed. Another shard's leftovers are not touched.
   const std::string gone = before.items.front().chunk->id;
-  fs::remove_all(lod_dir(work, gone));
+  const std::string stale = lod_dir(work, gone) + ".tmp.4194301";
+  fs::rename(lod_dir(work, gone), stale);
+  std::ofstream(lod_dir(work, gone) + ".running.tmp.4194301") << gone << "\n";
+  const std::string other = before.items.back().chunk->id;  // killed after its rename
+  std::ofstream(lod_dir(work, other) + ".running") << other << "\n";
+  const std::string foreign = lod_dir(work, "another-shards-building") + ".tmp.4194301";
+  fs::create_directories(foreign);
   EXPECT_EQ(plan_lod_stage(o).up_to_date(), r.total - 1);
   const LodStageReport again = run_lod_stage(o);
   EXPECT_EQ(again.computed, 1u);
   EXPECT_EQ(again.reused, r.total - 1);
+  EXPECT_TRUE(find_lod_report(work, gone));
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_FALSE(fs::exists(lod_dir(work, gone) + ".running.tmp.4194301"));
+  EXPECT_FALSE(fs::exists(lod_dir(work, other) + ".running"));
+  EXPECT_TRUE(fs::exists(foreign));
 }
 
 TEST(LodStage, OverridesApplyToTheirBuildingOnly) {

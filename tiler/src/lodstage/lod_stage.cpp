@@ -10,9 +10,11 @@
 #include <fstream>
 #include <functional>
 #include <mutex>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
 #include <unistd.h>
 
@@ -207,6 +209,42 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
   return {to_status(r.status), r.reason};
 }
 
+bool strip_suffix(std::string& s, const std::string& suffix) {
+  if (s.size() <= suffix.size() || s.compare(s.size() - suffix.size(), suffix.size(), suffix) != 0)
+    return false;
+  s.resize(s.size() - suffix.size());
+  return true;
+}
+
+/// Removes what a run killed from outside (SIGKILL, a node's time limit) left in
+/// WORK/lod for these buildings: "<id>.tmp.<pid>" (a building's output before
+/// its rename), "<id>.running.tmp.<pid>" and "<id>.running" (its marker). A
+/// crash inside a supervised run turned the markers into .crashed/.suspect
+/// already; these are what nobody was left to clean. Only this plan's buildings:
+/// a shard running beside this one owns the others. Called under the stage's
+/// lock, so no live run of these buildings writes them.
+void remove_stale_stages(const std::string& work, const LodStagePlan& plan) {
+  std::set<std::string> ids;
+  for (const auto& it : plan.items) ids.insert(it.chunk->id);
+  std::error_code ec;
+  std::vector<fs::path> stale;
+  for (fs::directory_iterator e(fs::path(work) / "lod", ec), end; !ec && e != end;
+       e.increment(ec)) {
+    std::string id = e->path().filename().string();
+    const std::size_t at = id.rfind(".tmp.");
+    if (at != std::string::npos) {
+      if (at + 5 == id.size() || id.find_first_not_of("0123456789", at + 5) != std::string::npos)
+        continue;
+      id.resize(at);
+      strip_suffix(id, ".running");
+    } else if (!strip_suffix(id, ".running")) {
+      continue;
+    }
+    if (ids.count(id)) stale.push_back(e->path());
+  }
+  for (const auto& p : stale) fs::remove_all(p, ec);
+}
+
 }  // namespace
 
 std::size_t LodStagePlan::up_to_date() const {
@@ -265,6 +303,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
   const LodStageLock lock(o);  // one writer (dir_lock.hpp); held already in a city run
   rep.total = plan.items.size();
   fs::create_directories(fs::path(o.work_dir) / "lod");
+  remove_stale_stages(o.work_dir, plan);
 
   std::mutex mu;
   size_t done = 0;
