@@ -1,8 +1,14 @@
 #include "citylod/geo/georef.hpp"
 
 #include "citylod/geo/units.hpp"
+#include "lattice.hpp"
 
 namespace citylod::geo {
+
+namespace {
+constexpr double kLatticeCell = 64.0;       // metres
+constexpr double kLatticeTolerance = 1e-7;  // metres, at a cell's check points
+}  // namespace
 
 Georef::Georef(LocalFrame frame, Eigen::Vector3d origin_crs, std::unique_ptr<Transformer> t)
     : frame_(std::move(frame)), origin_crs_(std::move(origin_crs)), transformer_(std::move(t)) {}
@@ -35,8 +41,10 @@ Georef Georef::local(const LonLatH& origin) {
 }
 
 Georef Georef::clone() const {
-  return Georef(frame_, origin_crs_,
-                transformer_ ? std::make_unique<Transformer>(transformer_->clone()) : nullptr);
+  Georef g(frame_, origin_crs_,
+           transformer_ ? std::make_unique<Transformer>(transformer_->clone()) : nullptr);
+  g.exact_ = exact_;
+  return g;
 }
 
 const Crs& Georef::crs() const {
@@ -55,9 +63,17 @@ Eigen::Vector3d Georef::to_local(const Eigen::Vector3d& p) {
 
 void Georef::to_local_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
   if (!transformer_) return;
-  transformer_->to_wgs84_inplace(points);
-  for (Eigen::Index i = 0; i < points.cols(); ++i)
-    points.col(i) = frame_.geodetic_to_enu(points.col(i));
+  const auto exact = [this](Eigen::Ref<Eigen::Matrix3Xd> p) {
+    transformer_->to_wgs84_inplace(p);
+    for (Eigen::Index i = 0; i < p.cols(); ++i) p.col(i) = frame_.geodetic_to_enu(p.col(i));
+  };
+  const Crs& crs = transformer_->crs();
+  if (exact_ || !crs.is_projected()) return exact(points);
+  if (!lattice_) {
+    const double h = crs.horizontal_unit().to_si, v = crs.vertical_unit().to_si;
+    lattice_ = std::make_unique<detail::Lattice>(kLatticeCell / h, 1000.0 / v, kLatticeTolerance);
+  }
+  lattice_->apply(points, exact);
 }
 
 Eigen::Vector3d Georef::to_crs(const Eigen::Vector3d& enu) {

@@ -9,6 +9,9 @@
 #include <optional>
 
 namespace citylod::geo {
+namespace detail {
+class Lattice;
+}
 
 /// After ingest all geometry is float64 ENU metres in `frame()`. Georef converts CRS
 /// coordinates (their own units) to that frame and back, and gives what 3D Tiles needs
@@ -46,8 +49,14 @@ class Georef {
 
   /// CRS units -> ENU metres.
   Eigen::Vector3d to_local(const Eigen::Vector3d& crs_point);
-  /// Batch, in place: columns in CRS units become ENU metres.
+  /// Batch, in place: columns in CRS units become ENU metres. For a projected CRS
+  /// through a lattice of 64 m cells (geo/src/lattice.hpp: PROJ at its nodes,
+  /// biquadratic in between, each cell checked against PROJ to 0.1 micrometre, else
+  /// PROJ point by point; measured within 2e-8 m of PROJ, 3-10x faster);
+  /// to_local() is PROJ itself.
   void to_local_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
+  /// Every point of to_local_inplace through PROJ (no lattice): for tests.
+  void set_exact(bool exact) { exact_ = exact; }
   /// ENU metres -> CRS units (GeoError for local scenes).
   Eigen::Vector3d to_crs(const Eigen::Vector3d& enu);
   void to_crs_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
@@ -66,6 +75,8 @@ class Georef {
   LocalFrame frame_;
   Eigen::Vector3d origin_crs_;
   std::unique_ptr<Transformer> transformer_;
+  std::unique_ptr<detail::Lattice> lattice_;  // made on first use
+  bool exact_ = false;
 };
 
 }  // namespace citylod::geo
