@@ -49,8 +49,20 @@ void set_publication_hook(std::function<void(const std::string& step)> h) {
   hook() = std::move(h);
 }
 
+std::string staging_path(const std::string& path) {
+  return path + ".tmp." + std::to_string(::getpid());
+}
+
+std::string staged_for(const std::string& name) {
+  const std::size_t at = name.rfind(".tmp.");
+  if (at == std::string::npos || at == 0 || at + 5 == name.size() ||
+      name.find_first_not_of("0123456789", at + 5) != std::string::npos)
+    return "";
+  return name.substr(0, at);
+}
+
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
-  tmp_ = path_ + ".tmp." + std::to_string(::getpid());
+  tmp_ = staging_path(path_);
   std::filesystem::path parent = std::filesystem::path(path_).parent_path();
   if (!parent.empty()) {
     std::error_code ec;

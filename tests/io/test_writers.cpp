@@ -131,6 +131,18 @@ TEST(AtomicFile, WritesViaTempAndRename) {
   EXPECT_TRUE(no_temp_files(dir));
 }
 
+TEST(AtomicFile, StagingNamesAreRecognised) {
+  const std::string p = "/w/lod/fp-NL.IMBAG.Pand.0503100000022859";
+  AtomicFile f(tmp_path("staging_name"));
+  EXPECT_EQ(f.temp_path(), staging_path(tmp_path("staging_name")));
+  EXPECT_EQ(staged_for(staging_path(p)), p);  // dots in the name are kept
+  EXPECT_EQ(staged_for("fp-1.running.tmp.4194301"), "fp-1.running");
+  EXPECT_EQ(staged_for("fp-1"), "");
+  EXPECT_EQ(staged_for("fp-1.tmp."), "");
+  EXPECT_EQ(staged_for("fp-1.tmp.12a"), "");
+  EXPECT_EQ(staged_for(".tmp.12"), "");
+}
+
 TEST(PointSet, AppendKeepsOnlyCommonAttributes) {
   PointSet a = sample_points(true, true, false);
   PointSet b = sample_points(true, false, false);

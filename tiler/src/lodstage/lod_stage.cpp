@@ -16,8 +16,6 @@
 #include <thread>
 #include <vector>
 
-#include <unistd.h>
-
 #include <nlohmann/json.hpp>
 
 #include "citylod/io/atomic_file.hpp"
@@ -187,7 +185,7 @@ struct Outcome {
 Outcome process_building(const std::string& work, const ChunkRecord& c, const lod::LodParams& p,
                          const std::string& key, bool crashed_before) {
   const std::string dir = lod_dir(work, c.id);
-  const std::string stage = dir + ".tmp." + std::to_string(::getpid());
+  const std::string stage = io::staging_path(dir);
   fs::remove_all(stage);
   lod::LodResult r;
   try {
@@ -230,16 +228,10 @@ void remove_stale_stages(const std::string& work, const LodStagePlan& plan) {
   std::vector<fs::path> stale;
   for (fs::directory_iterator e(fs::path(work) / "lod", ec), end; !ec && e != end;
        e.increment(ec)) {
-    std::string id = e->path().filename().string();
-    const std::size_t at = id.rfind(".tmp.");
-    if (at != std::string::npos) {
-      if (at + 5 == id.size() || id.find_first_not_of("0123456789", at + 5) != std::string::npos)
-        continue;
-      id.resize(at);
-      strip_suffix(id, ".running");
-    } else if (!strip_suffix(id, ".running")) {
-      continue;
-    }
+    const std::string name = e->path().filename().string();
+    std::string id = io::staged_for(name);
+    if (id.empty()) id = name;
+    if (!strip_suffix(id, ".running") && id == name) continue;  // neither staged nor a marker
     if (ids.count(id)) stale.push_back(e->path());
   }
   for (const auto& p : stale) fs::remove_all(p, ec);

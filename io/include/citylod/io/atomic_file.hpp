@@ -15,6 +15,14 @@
 
 namespace citylod::io {
 
+/// "<path>.tmp.<pid of this process>": where an atomic output is staged before
+/// its rename (AtomicFile, and the directories staged for publication).
+std::string staging_path(const std::string& path);
+
+/// The `path` a staging name was made for ("<path>.tmp.<digits>"), or "" when
+/// `name` is not one: what a killed run left.
+std::string staged_for(const std::string& name);
+
 /// Writes `bytes` to `path` atomically (temp file + fsync + rename + fsync of the directory).
 /// Creates missing parent directories. Throws IoError.
 void atomic_write_file(const std::string& path, std::string_view bytes);
