@@ -17,8 +17,15 @@
 
 namespace citylod::io::test {
 
+/// `name` in a directory of the running test's own (io/<Suite>.<Test>), so tests that ctest
+/// runs in parallel never write the same file: two tests writing "c.off" at once made
+/// OffReader.Errors read the other test's bytes in CI.
 inline std::string tmp_path(const std::string& name) {
-  std::filesystem::path dir = std::filesystem::path(CITYLOD_TEST_TMP) / "io";
+  std::string test = "outside_tests";
+  if (const auto* info = ::testing::UnitTest::GetInstance()->current_test_info())
+    test = std::string(info->test_suite_name()) + "." + info->name();
+  std::replace(test.begin(), test.end(), '/', '_');
+  std::filesystem::path dir = std::filesystem::path(CITYLOD_TEST_TMP) / "io" / test;
   std::filesystem::create_directories(dir);
   return (dir / name).string();
 }
