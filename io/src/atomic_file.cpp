@@ -5,10 +5,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 #include <system_error>
+#include <vector>
 
 #include "citylod/io/error.hpp"
 
@@ -43,7 +46,53 @@ std::string parent_of(const std::string& path) {
   return p.empty() ? std::string(".") : p.string();
 }
 
+/// syncfs(2) of the file system holding `dir`: every dirty file of it on disk.
+void sync_file_system(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) throw IoError(dir, std::string("cannot open to sync: ") + std::strerror(errno));
+  const int rc = ::syncfs(fd);
+  const int err = errno;
+  ::close(fd);
+  if (rc != 0) throw IoError(dir, std::string("sync failed: ") + std::strerror(err));
+}
+
+/// The live StagedDirectory guards' directories, each with a trailing '/'.
+struct Staged {
+  std::mutex mu;
+  std::vector<std::string> dirs;
+};
+Staged& staged() {
+  static Staged s;
+  return s;
+}
+
+std::string with_slash(std::string dir) {
+  if (dir.empty() || dir.back() != '/') dir += '/';
+  return dir;
+}
+
 }  // namespace
+
+StagedDirectory::StagedDirectory(std::string dir)
+    : dir_(with_slash(fs::path(dir).lexically_normal().string())) {
+  std::lock_guard<std::mutex> lock(staged().mu);
+  staged().dirs.push_back(dir_);
+}
+
+StagedDirectory::~StagedDirectory() {
+  std::lock_guard<std::mutex> lock(staged().mu);
+  auto& d = staged().dirs;
+  const auto it = std::find(d.begin(), d.end(), dir_);
+  if (it != d.end()) d.erase(it);
+}
+
+bool in_staged_directory(const std::string& path) {
+  const std::string p = fs::path(path).lexically_normal().string();
+  std::lock_guard<std::mutex> lock(staged().mu);
+  for (const std::string& d : staged().dirs)
+    if (p.size() > d.size() && p.compare(0, d.size(), d) == 0) return true;
+  return false;
+}
 
 void set_publication_hook(std::function<void(const std::string& step)> h) {
   hook() = std::move(h);
@@ -62,7 +111,8 @@ std::string staged_for(const std::string& name) {
 }
 
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
-  tmp_ = staging_path(path_);
+  in_place_ = in_staged_directory(path_);
+  tmp_ = in_place_ ? path_ : staging_path(path_);
   std::filesystem::path parent = std::filesystem::path(path_).parent_path();
   if (!parent.empty()) {
     std::error_code ec;
@@ -89,6 +139,17 @@ void AtomicFile::commit() {
   if (!file_) throw IoError(path_, "commit called twice");
   bool ok = std::fflush(file_) == 0 && !std::ferror(file_);
   int err = errno;
+  if (in_place_) {  // in a staged directory: publish_directory syncs it whole
+    step("close " + path_);
+    if (std::fclose(file_) != 0 && ok) {
+      ok = false;
+      err = errno;
+    }
+    file_ = nullptr;
+    if (!ok) throw IoError(path_, std::string("write failed: ") + std::strerror(err));
+    committed_ = true;
+    return;
+  }
   if (ok && ::fsync(::fileno(file_)) != 0 && errno != EINVAL) {
     ok = false;
     err = errno;
@@ -109,23 +170,6 @@ void atomic_write_file(const std::string& path, std::string_view bytes) {
   f.commit();
 }
 
-void fsync_directory(const std::string& dir) {
-  fsync_path(dir, true);
-}
-
-void fsync_tree(const std::string& dir) {
-  std::error_code ec;
-  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::end(it);
-       it.increment(ec)) {
-    const auto st = it->symlink_status(ec);
-    if (ec) break;
-    if (fs::is_regular_file(st)) fsync_path(it->path().string(), false);
-    if (fs::is_directory(st)) fsync_path(it->path().string(), true);
-  }
-  if (ec) throw IoError(dir, "cannot list for sync: " + ec.message());
-  fsync_path(dir, true);
-}
-
 bool recover_directory(const std::string& target) {
   const std::string old = target + ".old";
   std::error_code ec;
@@ -137,7 +181,7 @@ bool recover_directory(const std::string& target) {
 }
 
 void publish_directory(const std::string& stage, const std::string& target) {
-  fsync_tree(stage);
+  sync_file_system(stage);
   const std::string parent = parent_of(target);
   std::error_code ec;
   if (!fs::exists(target, ec)) {

@@ -143,6 +143,41 @@ TEST(AtomicFile, StagingNamesAreRecognised) {
   EXPECT_EQ(staged_for(".tmp.12"), "");
 }
 
+TEST(AtomicFile, InAStagedDirectoryWritesInPlaceAndPublishesWhole) {
+  const std::string stage = tmp_path("stage.tmp.1"), target = tmp_path("published");
+  std::filesystem::remove_all(stage);
+  std::filesystem::remove_all(target);
+  atomic_write_file(target + "/old.txt", "previous");
+  {
+    const StagedDirectory staged(stage + "/");  // a trailing slash or none: the same directory
+    EXPECT_TRUE(in_staged_directory(stage + "/a/b.txt"));
+    EXPECT_TRUE(in_staged_directory(stage + "/./a/../b.txt"));
+    EXPECT_FALSE(in_staged_directory(stage));              // the directory itself is no file in it
+    EXPECT_FALSE(in_staged_directory(stage + "x/b.txt"));  // a sibling with the same prefix
+    EXPECT_FALSE(in_staged_directory(target + "/b.txt"));
+    {
+      AtomicFile f(stage + "/a/b.txt");
+      EXPECT_EQ(f.temp_path(), f.path());  // no temp file
+      f.write("partial");
+      // no commit: the partial file is removed
+    }
+    EXPECT_FALSE(std::filesystem::exists(stage + "/a/b.txt"));
+    atomic_write_file(stage + "/a/b.txt", "staged");
+    EXPECT_EQ(read_file(stage + "/a/b.txt"), "staged");
+    EXPECT_TRUE(no_temp_files(stage + "/a"));
+    AtomicFile outside(target + "/new.txt");  // outside the stage: the temp file + rename as before
+    EXPECT_NE(outside.temp_path(), outside.path());
+  }
+  EXPECT_FALSE(in_staged_directory(stage + "/a/b.txt"));  // the guard is gone
+  AtomicFile after(stage + "/c.txt");
+  EXPECT_NE(after.temp_path(), after.path());
+
+  publish_directory(stage, target);
+  EXPECT_EQ(read_file(target + "/a/b.txt"), "staged");
+  EXPECT_FALSE(std::filesystem::exists(target + "/old.txt"));
+  EXPECT_FALSE(std::filesystem::exists(stage));
+}
+
 TEST(PointSet, AppendKeepsOnlyCommonAttributes) {
   PointSet a = sample_points(true, true, false);
   PointSet b = sample_points(true, false, false);

@@ -540,6 +540,8 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   fs::remove_all(stage);
   fs::create_directories(stage / "tiles");
   if (params.building_models) fs::create_directories(stage / "buildings");
+  // the stage's files are written in place and made durable at once by publish_directory
+  const io::StagedDirectory staged(stage.string());
   io::GlbOptions gopt;
   gopt.quantize = params.quantize;
   {  // footprint attributes: one typed schema for every glb of the tileset

@@ -201,9 +201,11 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
     r.status = "failed";
     r.reason = e.what();
   }
-  write_lod_output(stage, r, p, chunk_path(work, c.id), {0, 0, 0}, false, c.id, key);
-  fs::remove_all(dir);
-  fs::rename(stage, dir);
+  {
+    const io::StagedDirectory staged(stage);  // its files written in place, synced once below
+    write_lod_output(stage, r, p, chunk_path(work, c.id), {0, 0, 0}, false, c.id, key);
+  }
+  io::publish_directory(stage, dir);
   return {to_status(r.status), r.reason};
 }
 

@@ -27,7 +27,8 @@ std::string staged_for(const std::string& name);
 /// Creates missing parent directories. Throws IoError.
 void atomic_write_file(const std::string& path, std::string_view bytes);
 
-/// Streaming variant for large outputs:
+/// Streaming variant for large outputs (inside a StagedDirectory: written in
+/// place, see there):
 ///   AtomicFile f(path); f.write(...); ...; f.commit();
 /// If commit() is never called (exception, early return), the destructor
 /// removes the temp file and `path` is left untouched.
@@ -52,16 +53,34 @@ class AtomicFile {
   std::string tmp_;
   std::FILE* file_ = nullptr;
   bool committed_ = false;
+  bool in_place_ = false;  ///< under a StagedDirectory: no temp file, fsync or rename
 };
 
-/// fsync(2) of a directory (its entries: renames, new files). Throws IoError.
-void fsync_directory(const std::string& dir);
+/// While alive, marks `dir` as a directory staged for publish_directory: an
+/// AtomicFile (or atomic_write_file) under it writes its path in place, with no
+/// temp file, fsync or rename of its own. The directory is published whole, and
+/// publish_directory makes its content durable with one syncfs(2) first, so a
+/// file in it needs neither: a reader never sees the stage, and a killed run
+/// leaves an unpublished stage, removed by the next run. One fsync per file was
+/// most of the Delft tile run's I/O time (~0.4 ms each here; BENCHMARKS.md,
+/// "Process start-up and I/O"). Thread-safe; guards may nest or overlap.
+class StagedDirectory {
+ public:
+  explicit StagedDirectory(std::string dir);
+  ~StagedDirectory();
+  StagedDirectory(const StagedDirectory&) = delete;
+  StagedDirectory& operator=(const StagedDirectory&) = delete;
 
-/// fsyncs every regular file and directory under `dir` (itself included). Throws IoError.
-void fsync_tree(const std::string& dir);
+ private:
+  std::string dir_;
+};
+
+/// True when `path` lies under a directory a live StagedDirectory marks.
+bool in_staged_directory(const std::string& path);
 
 /// Switches the complete directory `stage` in as `target` and removes the
-/// previous one: fsync_tree(stage), then one atomic exchange of the two names
+/// previous one: syncfs(2) of the stage's file system (every file in the stage
+/// durable at once), then one atomic exchange of the two names
 /// (renameat2 RENAME_EXCHANGE; a plain rename when `target` does not exist),
 /// fsync of the parent, then the previous directory (now named `stage`) is
 /// removed. On a file system without RENAME_EXCHANGE: target -> "<target>.old",
@@ -74,7 +93,8 @@ void publish_directory(const std::string& stage, const std::string& target);
 bool recover_directory(const std::string& target);
 
 /// For crash tests only: called with the name of each step of a publication,
-/// before it is taken: "rename <path>" (a temp file onto its path), "switch
+/// before it is taken: "rename <path>" (a temp file onto its path), "close
+/// <path>" (a file written in place in a StagedDirectory), "switch
 /// <target>" (publish_directory's exchange), "clean <dir>" (removal of the
 /// previous directory). A hook that ends the process there simulates a kill
 /// at that point. Nothing in citylod sets it; an empty function removes it.
