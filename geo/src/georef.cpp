@@ -24,7 +24,13 @@ Georef Georef::from_crs(const Crs& crs, const Eigen::Vector3d& origin_crs, Trans
 
 Georef Georef::from_crs_bbox(const Crs& crs, const Eigen::AlignedBox3d& bbox_crs,
                              TransformOptions opts, double area_margin_deg) {
-  auto t = std::make_unique<Transformer>(crs, opts);
+  return from_transformer_bbox(std::make_unique<Transformer>(crs, opts), bbox_crs, area_margin_deg);
+}
+
+Georef Georef::from_transformer_bbox(std::unique_ptr<Transformer> t,
+                                     const Eigen::AlignedBox3d& bbox_crs, double area_margin_deg) {
+  if (!t) throw GeoError("from_transformer_bbox: no transformer");
+  const Crs& crs = t->crs();
   // metre data under a feet CRS (or the reverse) is refused, also when it lands within the
   // margin of the area test; when the area test fails, the unit is named as the likely cause
   const std::string swapped = unit_swap_evidence(crs, bbox_crs);

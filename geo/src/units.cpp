@@ -4,15 +4,31 @@
 #include "proj_util.hpp"
 
 #include <cmath>
+#include <map>
+#include <memory>
+#include <string>
 
 namespace citylod::geo {
 
 namespace {
 
+/// The horizontal Transformer of `crs`, kept per thread for the next call: a split asks
+/// unit_swap_evidence and check_units about the same CRS, and each set-up costs 20-30 ms.
+Transformer& horizontal_transformer(const Crs& crs) {
+  thread_local std::map<std::string, std::unique_ptr<Transformer>> kept;
+  auto it = kept.find(crs.definition());
+  if (it == kept.end()) {
+    if (kept.size() >= 8) kept.clear();
+    it = kept.emplace(crs.definition(),
+                      std::make_unique<Transformer>(crs, TransformOptions{HeightMode::Ellipsoidal}))
+             .first;
+  }
+  return *it->second;
+}
+
 bool lands_in_area(const Crs& crs, const Eigen::AlignedBox3d& bbox, double margin_deg = 1.0) {
   try {
-    Transformer t(crs, {HeightMode::Ellipsoidal});
-    t.check_in_area(bbox, margin_deg);
+    horizontal_transformer(crs).check_in_area(bbox, margin_deg);
     return true;
   } catch (const GeoError&) {
     return false;

@@ -24,10 +24,12 @@ std::string via(const Transformer& t) {
   return s;
 }
 
-VerticalChoice finish(VerticalChoice c, const Transformer& t) {
-  c.effective = t.effective_height_mode();
-  c.missing_grids = t.missing_grids();
-  c.warnings = t.warnings();
+/// `c` with the outcome of `t`, which was set up for c.crs + c.options (kept for the Georef).
+VerticalChoice finish(VerticalChoice c, std::unique_ptr<Transformer> t) {
+  c.effective = t->effective_height_mode();
+  c.missing_grids = t->missing_grids();
+  c.warnings = t->warnings();
+  c.transformer = std::move(t);
   return c;
 }
 
@@ -79,9 +81,9 @@ VerticalChoice choose_vertical(const Crs& crs, VerticalMode mode) {
   if (crs.has_vertical_datum()) {
     c.options.height = HeightMode::FromCrs;
     c.datum = crs.vertical_name();
-    Transformer t(c.crs, c.options);
-    c.assumption = "heights " + c.datum + " (from " + label + ") " + via(t);
-    return finish(std::move(c), t);
+    auto t = std::make_unique<Transformer>(c.crs, c.options);
+    c.assumption = "heights " + c.datum + " (from " + label + ") " + via(*t);
+    return finish(std::move(c), std::move(t));
   }
 
   // a horizontal CRS whose national practice implies a vertical datum
@@ -96,22 +98,23 @@ VerticalChoice choose_vertical(const Crs& crs, VerticalMode mode) {
   if (v) {
     TransformOptions o;
     o.height = HeightMode::FromCrs;
-    Transformer t(*compound, o);
-    if (!v->needs_proj_path || t.effective_height_mode() == HeightMode::FromCrs) {
+    auto t = std::make_unique<Transformer>(*compound, o);
+    if (!v->needs_proj_path || t->effective_height_mode() == HeightMode::FromCrs) {
       c.crs = *compound;
       c.options = o;
       c.datum = v->datum;
       c.vertical_epsg = v->vertical_epsg;
       c.implied = true;
-      c.assumption = "heights " + v->datum + " (implied by " + label + ") " + via(t);
-      return finish(std::move(c), t);
+      c.assumption = "heights " + v->datum + " (implied by " + label + ") " + via(*t);
+      return finish(std::move(c), std::move(t));
     }
     if (mode == VerticalMode::Auto) {
       c.options.height = HeightMode::Ellipsoidal;
       c.effective = HeightMode::Ellipsoidal;
-      c.missing_grids = t.missing_grids();
+      c.missing_grids = t->missing_grids();
       c.assumption = "heights taken as ellipsoidal: " + label + " heights are often " + v->datum +
-                     ", but PROJ cannot convert " + v->datum + " here (" + join(t.missing_grids()) +
+                     ", but PROJ cannot convert " + v->datum + " here (" +
+                     join(t->missing_grids()) +
                      " not installed); --vertical orthometric for heights above the EGM96 geoid";
       return c;
     }
@@ -130,9 +133,9 @@ VerticalChoice choose_vertical(const Crs& crs, VerticalMode mode) {
   // Orthometric, no datum known: EGM96
   c.options.height = HeightMode::Egm96;
   c.datum = "EGM96";
-  Transformer t(c.crs, c.options);
+  auto t = std::make_unique<Transformer>(c.crs, c.options);
   c.assumption = "heights orthometric (--vertical orthometric) -> ellipsoidal via EGM96";
-  return finish(std::move(c), t);
+  return finish(std::move(c), std::move(t));
 }
 
 }  // namespace citylod::geo

@@ -2,6 +2,8 @@
 // the WGS 84 ellipsoid; RD New alone implies NAP; --vertical ellipsoidal keeps z.
 #include "citylod/geo/vertical.hpp"
 
+#include "citylod/geo/georef.hpp"
+
 #include <gtest/gtest.h>
 
 using namespace citylod::geo;
@@ -34,6 +36,23 @@ TEST(Vertical, RdNewImpliesNapByDefault) {
     EXPECT_NE(c.assumption.find("not installed)"), std::string::npos) << c.assumption;
     EXPECT_FALSE(c.missing_grids.empty());
   }
+}
+
+TEST(Vertical, TheChoiceCarriesItsTransformerForTheGeoref) {
+  VerticalChoice c = choose_vertical(Crs::parse("EPSG:28992"));
+  ASSERT_TRUE(c.transformer);
+  EXPECT_EQ(c.transformer->crs().definition(), c.crs.definition());
+  EXPECT_EQ(c.transformer->effective_height_mode(), c.effective);
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(84825, 447456, -5),
+                                Eigen::Vector3d(85056, 447624, 40));
+  Georef built = Georef::from_crs_bbox(c.crs, box, c.options);
+  Georef adopted = Georef::from_transformer_bbox(std::move(c.transformer), box);
+  EXPECT_EQ(built.frame().origin(), adopted.frame().origin());
+  const Eigen::Vector3d p(85000.25, 447500.5, 3.0);
+  EXPECT_EQ(built.to_local(p), adopted.to_local(p));  // the same bits
+  // none is set up when the choice needs none
+  EXPECT_FALSE(choose_vertical(Crs::parse("EPSG:28992"), VerticalMode::Ellipsoidal).transformer);
+  EXPECT_THROW(Georef::from_transformer_bbox(nullptr, box), GeoError);
 }
 
 TEST(Vertical, ExplicitEllipsoidalKeepsZ) {

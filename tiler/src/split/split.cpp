@@ -831,8 +831,11 @@ void Splitter::georeference() {
     } else {
       const geo::VerticalMode mode =
           opt_.vertical.empty() ? geo::VerticalMode::Auto : geo::parse_vertical_mode(opt_.vertical);
-      const geo::VerticalChoice vc = geo::choose_vertical(*crs_, mode);
-      georef_.emplace(geo::Georef::from_crs_bbox(vc.crs, to_eigen(bbox_crs_), vc.options));
+      geo::VerticalChoice vc = geo::choose_vertical(*crs_, mode);
+      georef_.emplace(
+          vc.transformer
+              ? geo::Georef::from_transformer_bbox(std::move(vc.transformer), to_eigen(bbox_crs_))
+              : geo::Georef::from_crs_bbox(vc.crs, to_eigen(bbox_crs_), vc.options));
       rep_.vertical = vc.assumption;
       for (const auto& w : vc.warnings) rep_.notes.push_back(w);
     }

@@ -36,9 +36,10 @@ struct TransformOptions {
 
 /// Transforms between a CRS (its own units, e.g. feet) and WGS84 `LonLatH`.
 ///
-/// Owns one PROJ context: NOT safe to share between threads, but cheap to clone() — use one
-/// Transformer per thread. Results are deterministic (same input -> same bits).
-/// All failures throw GeoError.
+/// Owns one PROJ context: NOT safe to share between threads — clone() one per thread. Setting
+/// one up (construction, clone()) asks PROJ's database for the operations: 0.03-0.25 s (RD New
+/// + NAP ~0.2 s), so a Transformer is built once per CRS and options where possible. Results are
+/// deterministic (same input -> same bits). All failures throw GeoError.
 class Transformer {
  public:
   explicit Transformer(const Crs& crs, TransformOptions options = {});
