@@ -337,6 +337,35 @@ TEST(CityJson, SameBytesWhateverTheThreads) {
   EXPECT_FALSE(fs::exists(a + ".partial.body"));
 }
 
+TEST(CityJson, TakesTheChainsItIsGiven) {
+  Scene s = make_scene("chains");
+  add_building(s, "fp-A1", chain(85010, 447510));
+  add_building(s, "fp-B2", chain(85040, 447530));
+  const std::string chosen = s.work + "/chosen.city.jsonl", given = s.work + "/given.city.jsonl";
+  tiler::write_cityjson(s.work, chosen, opts());
+  // A's chain as assemble would hand it (the finest model only, an error of 0);
+  // B is not in the map and is chosen as usual; an index past B's models is ignored.
+  std::map<std::string, tiler::ModelChoice> chains;
+  chains["fp-A1"] = {{2}, {0.0}, {0.0}};
+  tiler::CityJsonOptions o = opts();
+  o.chains = &chains;
+  tiler::write_cityjson(s.work, given, o);
+  const CjSeq a = read_cjseq(chosen), b = read_cjseq(given);
+  ASSERT_EQ(b.features.size(), 2u);
+  EXPECT_EQ(object_of(a.features[0])["geometry"].size(), 3u);
+  ASSERT_EQ(object_of(b.features[0])["geometry"].size(), 1u);
+  const json &g = object_of(b.features[0])["geometry"][0],
+             &finest = object_of(a.features[0])["geometry"][2];  // vertex indices differ
+  EXPECT_EQ(g["lod"], finest["lod"]);
+  EXPECT_EQ(g["semantics"], finest["semantics"]);
+  EXPECT_EQ(g["boundaries"][0].size(), finest["boundaries"][0].size());
+  EXPECT_EQ(object_of(b.features[0])["attributes"]["citylod_models"][0]["step"], 2);
+  EXPECT_EQ(b.features[1], a.features[1]);
+  chains["fp-B2"] = {{0, 7}, {1.0, 0.0}, {1.0, 0.0}};
+  tiler::write_cityjson(s.work, given, o);
+  EXPECT_EQ(read_cjseq(given).features[1], a.features[1]);
+}
+
 TEST(CityJson, LocalSceneKeepsEnuMetresWithoutReferenceSystem) {
   Scene s = make_scene("local");
   s.man.scene.crs = "";

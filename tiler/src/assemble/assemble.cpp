@@ -68,6 +68,7 @@ struct Building {
   BBox3 bbox;               // all kept models
   double error_none_m = 0;  // error of showing nothing: > error of the coarsest model
   nlohmann::json attributes = nlohmann::json::object();  // its footprint's (manifest)
+  ModelChoice chain;  // the kept models as indices into its report's models
 };
 
 std::string safe_stem(const std::string& id) {
@@ -125,6 +126,7 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
       choose_models(entries, meshes, p.min_change_m, p.hausdorff_tolerance_m);
   if (choice.kept.empty())
     throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
+  b.chain = choice;
   for (std::size_t i = 0; i < choice.kept.size(); ++i) {
     const std::size_t k = choice.kept[i];
     const io::TriangleMesh& mesh = meshes[k];
@@ -522,6 +524,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
     }
     st.models_read += loaded[i].models_read;
     st.models_kept += loaded[i].models.size();
+    st.chains[loaded[i].id] = loaded[i].chain;
     buildings.push_back(std::move(loaded[i]));
   }
   if (buildings.empty())

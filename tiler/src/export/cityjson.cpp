@@ -359,8 +359,13 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     std::sort(kept.begin(), kept.end(),
               [&](std::size_t a, std::size_t b) { return entries[a].step < entries[b].step; });
   } else {
+    const auto given = opt.chains ? opt.chains->find(rec.id) : decltype(opt.chains->end()){};
+    const bool reuse = opt.chains && given != opt.chains->end() &&
+                       std::all_of(given->second.kept.begin(), given->second.kept.end(),
+                                   [&](std::size_t k) { return k < entries.size(); });
     const ModelChoice c =
-        choose_models(entries, meshes, opt.min_change_m, opt.hausdorff_tolerance_m);
+        reuse ? given->second
+              : choose_models(entries, meshes, opt.min_change_m, opt.hausdorff_tolerance_m);
     kept = c.kept;
     error_m = c.error_m;
   }

@@ -272,6 +272,7 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
     co.hausdorff_tolerance_m = ap.hausdorff_tolerance_m;
     co.skip_missing = ap.skip_missing;
     co.threads = threads;
+    co.chains = &st.chains;  // the tileset's chains, not chosen again
     res.cityjson =
         write_cityjson(work, (fs::path(dir) / "buildings.city.jsonl").string(), co, progress);
     for (const auto& w : res.cityjson.warnings) log_warn(w);

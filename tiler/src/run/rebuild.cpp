@@ -173,6 +173,7 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
     co.hausdorff_tolerance_m = ap.hausdorff_tolerance_m;
     co.skip_missing = ap.skip_missing;
     co.threads = ap.threads;
+    co.chains = &st.chains;  // the tileset's chains, not chosen again
     for (const auto& w : write_cityjson(work, cj.string(), co, progress).warnings) log_warn(w);
   }
 

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,13 @@ struct AssembleParams {
   void validate() const;
 };
 
+/// Which models of one building are kept, and their errors (metres).
+struct ModelChoice {
+  std::vector<std::size_t> kept;  ///< indices into the input, coarse -> fine, last = finest anchor
+  std::vector<double> error_m;    ///< per kept model: strictly decreasing, 0 for the last
+  std::vector<double> hausdorff_m;  ///< raw Hausdorff distance to the finest model
+};
+
 struct AssembleStats {
   std::size_t buildings = 0;  ///< in the tileset
   std::size_t skipped = 0;    ///< manifest records without models (skip_missing) or status skipped
@@ -85,6 +93,10 @@ struct AssembleStats {
   double root_error_m = 0;
   double seconds_read = 0, seconds_write = 0;
   std::vector<std::string> warnings;
+  /// Per building of the tileset (by id): its kept chain, indices into its
+  /// report.json's models. A city run hands it to write_cityjson
+  /// (CityJsonOptions::chains) instead of choosing the same chain again.
+  std::map<std::string, ModelChoice> chains;
 };
 
 /// Runs the whole stage. Throws io::IoError / std::runtime_error with a
@@ -123,13 +135,6 @@ struct ModelRecord;  // workdir.hpp (which includes this header)
 std::vector<ModelEntry> model_entries(const std::string& dir,
                                       const std::vector<ModelRecord>& models,
                                       const std::string& report_path);
-
-/// Which models of one building are kept, and their errors (metres).
-struct ModelChoice {
-  std::vector<std::size_t> kept;  ///< indices into the input, coarse -> fine, last = finest anchor
-  std::vector<double> error_m;    ///< per kept model: strictly decreasing, 0 for the last
-  std::vector<double> hausdorff_m;  ///< raw Hausdorff distance to the finest model
-};
 
 /// Chooses the kept chain (docs/3dtiles.md): the models sorted by step; the
 /// finest model is the last anchor; every anchor is kept unless it is the same

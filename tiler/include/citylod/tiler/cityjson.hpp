@@ -19,9 +19,11 @@
 #pragma once
 
 #include <cstddef>
+#include <map>
 #include <string>
 #include <vector>
 
+#include "citylod/tiler/assemble.hpp"
 #include "citylod/tiler/progress.hpp"
 
 namespace citylod::tiler {
@@ -36,6 +38,11 @@ struct CityJsonOptions {
   double hausdorff_tolerance_m = 0.1;
   /// Every model of report.json instead of the kept chain.
   bool all_models = false;
+  /// The kept chains assemble chose from the same work directory with the same
+  /// min_change_m and hausdorff_tolerance_m (AssembleStats::chains): a building
+  /// found here is not chosen again (a city run; the CityJSON then shows the
+  /// tileset's chain by construction). Not owned; null: chosen here.
+  const std::map<std::string, ModelChoice>* chains = nullptr;
   /// Buildings without models: skip with a warning instead of failing.
   bool skip_missing = false;
   int threads = 0;  ///< 0 = all cores; the output does not depend on it
