@@ -73,12 +73,19 @@ struct Transformer::Impl {
     if (options.height == HeightMode::FromCrs) {
       effective = HeightMode::Ellipsoidal;
       if (crs.has_vertical_datum()) {
-        if (try_full3d(src.get())) {
+        // One search of PROJ's database for both questions (~40-70 ms each): the
+        // operations ranked with grid availability ignored are the ones ranked
+        // with missing grids discarded, in the same order, plus those.
+        PjPtr dst(proj_create(ctx.get(), "EPSG:4979"));
+        OpList ops;
+        create_operations(ops, ctx.get(), src.get(), dst.get(), PROJ_GRID_AVAILABILITY_IGNORED);
+        if (try_full3d(ops)) {
           effective = HeightMode::FromCrs;
         } else {
           effective = HeightMode::Egm96;
-          warnings.push_back(missing_vertical_message(src.get()));
+          warnings.push_back(missing_vertical_message(ops));
         }
+        ctx.clear();
       }
     }
     if (effective == HeightMode::Egm96) {
@@ -104,12 +111,9 @@ struct Transformer::Impl {
     if (!horizontal) throw GeoError("cannot normalise axis order: " + ctx.take_error());
   }
 
-  /// Best PROJ operation compound CRS -> EPSG:4979 that has all its grids and no ballpark step.
-  bool try_full3d(const PJ* src) {
-    PjPtr dst(proj_create(ctx.get(), "EPSG:4979"));
-    OpList ops;
-    create_operations(ops, ctx.get(), src, dst.get(),
-                      PROJ_GRID_AVAILABILITY_DISCARD_OPERATION_IF_MISSING_GRID);
+  /// Best PROJ operation compound CRS -> EPSG:4979 (of `ops`, ranked with grid
+  /// availability ignored) that has all its grids and no ballpark step.
+  bool try_full3d(const OpList& ops) {
     const int n = ops.list ? proj_list_get_count(ops.list) : 0;
     for (int i = 0; i < n; ++i) {
       PjPtr op(proj_list_get(ctx.get(), ops.list, i));
@@ -119,14 +123,11 @@ struct Transformer::Impl {
       full3d.reset(proj_normalize_for_visualization(ctx.get(), op.get()));
       if (full3d) return true;
     }
-    ctx.clear();
     return false;
   }
 
-  std::string missing_vertical_message(const PJ* src) {
-    PjPtr dst(proj_create(ctx.get(), "EPSG:4979"));
-    OpList ops;
-    create_operations(ops, ctx.get(), src, dst.get(), PROJ_GRID_AVAILABILITY_IGNORED);
+  /// The warning when no operation of `ops` has its grids: the missing grids of the best one.
+  std::string missing_vertical_message(const OpList& ops) {
     std::string grids;
     if (ops.list && proj_list_get_count(ops.list) > 0) {
       PjPtr best(proj_list_get(ctx.get(), ops.list, 0));
@@ -142,7 +143,6 @@ struct Transformer::Impl {
         }
       }
     }
-    ctx.clear();
     return crs.label() + " heights (" + crs.vertical_name() +
            ") to ellipsoidal need PROJ grid(s) " +
            (grids.empty() ? std::string("that are not installed") : grids + ", not installed") +
