@@ -12,6 +12,7 @@
 #include "citylod/tiler/assemble.hpp"
 
 #include "citylod/io/error.hpp"
+#include "citylod/lod/box_tree.hpp"
 #include "citylod/tiler/workdir.hpp"
 
 namespace citylod::tiler {
@@ -56,133 +57,49 @@ Vec3d closest_on_triangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const 
   return axpy(axpy(a, v, ab), w, ac);
 }
 
-/// Bounding-volume hierarchy of a mesh's triangles for nearest-distance queries.
+/// A mesh's triangles in a lod::BoxTree, for the distance from a point to the mesh.
 class TriangleTree {
  public:
-  explicit TriangleTree(const io::TriangleMesh& m) : mesh_(m) {
-    order_.resize(m.triangles.size());
-    std::iota(order_.begin(), order_.end(), 0u);
-    centroids_.reserve(m.triangles.size());
-    for (const auto& t : m.triangles) {
-      const Vec3d &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
-      centroids_.push_back(
-          {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3});
-    }
-    if (!order_.empty()) build(0, order_.size());
-  }
+  explicit TriangleTree(const io::TriangleMesh& m) : mesh_(m), tree_(boxes(m)) {}
 
   double distance2(const Vec3d& p) const {
     std::uint32_t tri;
     return nearest(p, tri);
   }
 
-  /// Squared distance from p to the mesh and the nearest triangle.
+  /// Squared distance from p to the mesh and the nearest triangle (the lowest
+  /// index among equally near ones).
   double nearest(const Vec3d& p, std::uint32_t& tri) const {
-    double best = std::numeric_limits<double>::infinity();
     tri = 0;
-    if (nodes_.empty()) return best;
-    std::array<std::uint32_t, 128> stack;
-    std::size_t top = 0;
-    stack[top++] = 0;
-    while (top) {
-      const Node& n = nodes_[stack[--top]];
-      if (box_distance2(n, p) >= best) continue;
-      if (n.count) {
-        for (std::uint32_t i = n.first; i < n.first + n.count; ++i) {
-          const auto& t = mesh_.triangles[order_[i]];
-          const Vec3d q = closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]],
-                                              mesh_.vertices[t[2]]);
-          const double d2 = norm2(sub(p, q));
-          if (d2 < best) {
-            best = d2;
-            tri = order_[i];
-          }
-        }
-      } else {
-        // Nearer child last so it is popped first.
-        const double dl = box_distance2(nodes_[n.left], p), dr = box_distance2(nodes_[n.right], p);
-        if (top + 2 > stack.size()) throw std::logic_error("triangle tree too deep");
-        if (dl < dr) {
-          stack[top++] = n.right;
-          stack[top++] = n.left;
-        } else {
-          stack[top++] = n.left;
-          stack[top++] = n.right;
-        }
-      }
-    }
-    return best;
+    return tree_.nearest2(
+        p, [&](std::uint32_t i) { return norm2(sub(p, closest(p, i))); }, &tri);
   }
 
   /// Distance from p to triangle `tri` of the mesh.
   double distance_to(const Vec3d& p, std::uint32_t tri) const {
-    const auto& t = mesh_.triangles[tri];
-    return std::sqrt(norm2(sub(p, closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]],
-                                                      mesh_.vertices[t[2]]))));
+    return std::sqrt(norm2(sub(p, closest(p, tri))));
   }
 
  private:
-  struct Node {
-    Vec3d lo, hi;
-    std::uint32_t left = 0, right = 0, first = 0, count = 0;
-  };
-
-  static double box_distance2(const Node& n, const Vec3d& p) {
-    double d = 0;
-    for (int k = 0; k < 3; ++k) {
-      const double e =
-          std::max({n.lo[size_t(k)] - p[size_t(k)], 0.0, p[size_t(k)] - n.hi[size_t(k)]});
-      d += e * e;
-    }
-    return d;
+  Vec3d closest(const Vec3d& p, std::uint32_t i) const {
+    const auto& t = mesh_.triangles[i];
+    return closest_on_triangle(p, mesh_.vertices[t[0]], mesh_.vertices[t[1]], mesh_.vertices[t[2]]);
   }
 
-  std::uint32_t build(std::size_t first, std::size_t last) {
-    Node n;
-    n.lo = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
-            std::numeric_limits<double>::infinity()};
-    n.hi = {-n.lo[0], -n.lo[1], -n.lo[2]};
-    Vec3d clo = n.lo, chi = n.hi;
-    for (std::size_t i = first; i < last; ++i) {
-      const auto& t = mesh_.triangles[order_[i]];
-      for (int v = 0; v < 3; ++v)
-        for (int k = 0; k < 3; ++k) {
-          n.lo[size_t(k)] = std::min(n.lo[size_t(k)], mesh_.vertices[t[size_t(v)]][size_t(k)]);
-          n.hi[size_t(k)] = std::max(n.hi[size_t(k)], mesh_.vertices[t[size_t(v)]][size_t(k)]);
-        }
-      for (int k = 0; k < 3; ++k) {
-        clo[size_t(k)] = std::min(clo[size_t(k)], centroids_[order_[i]][size_t(k)]);
-        chi[size_t(k)] = std::max(chi[size_t(k)], centroids_[order_[i]][size_t(k)]);
+  static lod::BoxTree boxes(const io::TriangleMesh& m) {
+    std::vector<lod::BoxTree::Box> lo(m.triangles.size()), hi(m.triangles.size());
+    for (std::size_t i = 0; i < m.triangles.size(); ++i) {
+      const auto& t = m.triangles[i];
+      for (std::size_t k = 0; k < 3; ++k) {
+        lo[i][k] = std::min({m.vertices[t[0]][k], m.vertices[t[1]][k], m.vertices[t[2]][k]});
+        hi[i][k] = std::max({m.vertices[t[0]][k], m.vertices[t[1]][k], m.vertices[t[2]][k]});
       }
     }
-    const std::uint32_t id = std::uint32_t(nodes_.size());
-    nodes_.push_back(n);
-    if (last - first <= 8) {
-      nodes_[id].first = std::uint32_t(first);
-      nodes_[id].count = std::uint32_t(last - first);
-      return id;
-    }
-    int axis = 0;
-    for (int k = 1; k < 3; ++k)
-      if (chi[size_t(k)] - clo[size_t(k)] > chi[size_t(axis)] - clo[size_t(axis)]) axis = k;
-    const std::size_t mid = (first + last) / 2;
-    std::nth_element(order_.begin() + long(first), order_.begin() + long(mid),
-                     order_.begin() + long(last), [&](std::uint32_t x, std::uint32_t y) {
-                       const double cx = centroids_[x][size_t(axis)],
-                                    cy = centroids_[y][size_t(axis)];
-                       return cx < cy || (cx == cy && x < y);
-                     });
-    const std::uint32_t l = build(first, mid);
-    const std::uint32_t r = build(mid, last);
-    nodes_[id].left = l;
-    nodes_[id].right = r;
-    return id;
+    return lod::BoxTree(std::move(lo), std::move(hi));
   }
 
   const io::TriangleMesh& mesh_;
-  std::vector<std::uint32_t> order_;
-  std::vector<Vec3d> centroids_;
-  std::vector<Node> nodes_;
+  lod::BoxTree tree_;
 };
 
 /// Largest distance from a vertex of A to B.
