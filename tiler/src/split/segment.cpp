@@ -4,7 +4,7 @@
 // PCL's templates are instantiated here from its headers instead of linked from
 // libpcl_segmentation / libpcl_search / libpcl_kdtree: those pull in pcl_features,
 // pcl_filters, pcl_ml ... whose symbol binding cost every citylod process ~0.1 s
-// at start-up (BENCHMARKS.md, "Process start-up"). Only libpcl_common is linked.
+// at start-up (BENCHMARKS.md, "Process start-up and I/O"). Only libpcl_common is linked.
 #define PCL_NO_PRECOMPILE
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
