@@ -3,6 +3,8 @@
 // Debian library) builds and serializes the glTF; its header stays here.
 #include "citylod/io/gltf.hpp"
 
+#include "citylod/io/weld.hpp"
+
 #include <meshoptimizer.h>
 #include <tiny_gltf.h>
 #include <nlohmann/json.hpp>
@@ -705,10 +707,6 @@ struct GlbBuilder::Impl {
       return from_yup(Vec3d{double(k[0]) / 32767.0 * e, double(k[1]) / 32767.0 * e,
                             double(k[2]) / 32767.0 * e});
     };
-    auto canonical = [](std::array<std::uint32_t, 3> t) {
-      while (t[0] > t[1] || t[0] > t[2]) t = {t[1], t[2], t[0]};
-      return t;
-    };
     // each feature's vertices and triangles (class, first index)
     std::map<float, std::vector<std::uint32_t>> vertices_of;
     for (std::uint32_t i = 0; i < n.rel.size(); ++i) vertices_of[n.feature[i]].push_back(i);
@@ -733,15 +731,12 @@ struct GlbBuilder::Impl {
         if (fresh) cells.push_back(it->first);
         cell_of[v] = it->second;
       }
-      std::vector<std::array<std::uint32_t, 3>> near;  // cells a, b, Chebyshev distance
-      for (auto i = cell_id.begin(); i != cell_id.end(); ++i)
-        for (auto j = std::next(i); j != cell_id.end() && j->first[0] - i->first[0] <= 2; ++j) {
-          const long dy = std::labs(long(j->first[1]) - long(i->first[1])),
-                     dz = std::labs(long(j->first[2]) - long(i->first[2]));
-          if (dy <= 2 && dz <= 2)
-            near.push_back({i->second, j->second,
-                            std::uint32_t(std::max({long(j->first[0] - i->first[0]), dy, dz}))});
-        }
+      std::vector<std::array<std::int64_t, 3>> cell_points;
+      for (const Key& k : cells) cell_points.push_back({k[0], k[1], k[2]});
+      const std::vector<NearPair> near = near_pairs(cell_points, 2);
+      std::vector<std::uint32_t> rank(cells.size());  // a cluster welds into its smallest cell
+      std::uint32_t next_rank = 0;
+      for (const auto& [key, id] : cell_id) rank[id] = next_rank++;
       bool damageable = bad.count(f) || !near.empty();
       for (std::size_t k = 0; !damageable && k < tris.size(); ++k) {
         const auto& ix = n.indices[size_t(tris[k].first)];
@@ -761,69 +756,39 @@ struct GlbBuilder::Impl {
       if (!damageable) continue;  // int16 as it is
       bool stored_int16 = false;
       for (const std::uint32_t r : {0u, 1u, 2u}) {
-        // cells within r steps per axis, transitively -> the smallest cell
-        std::vector<std::uint32_t> parent(cells.size());
-        for (std::uint32_t i = 0; i < parent.size(); ++i) parent[i] = i;
-        std::function<std::uint32_t(std::uint32_t)> find = [&](std::uint32_t x) {
-          return parent[x] == x ? x : parent[x] = find(parent[x]);
-        };
-        for (const auto& [a, b, d] : near)
-          if (d <= r) {
-            const std::uint32_t x = find(a), y = find(b);
-            if (x != y) {
-              const std::uint32_t lo = cells[x] < cells[y] ? x : y;
-              parent[lo == x ? y : x] = lo;
-            }
-          }
         if (r > 0 &&
-            std::none_of(near.begin(), near.end(), [&](const auto& p) { return p[2] == r; }))
+            std::none_of(near.begin(), near.end(), [&](const NearPair& p) { return p.d == r; }))
           continue;  // nothing new to weld
+        // cells within r steps per axis, transitively -> the smallest cell
+        const std::vector<std::uint32_t> root = weld(near, r, rank);
         // the model as stored: welded vertices (cells in first-use order)
         TriangleMesh m;
         std::vector<std::uint32_t> vid(cells.size(), ~0u);
         auto vertex = [&](std::uint32_t node_vertex) {
-          const std::uint32_t root = find(cell_of.at(node_vertex));
-          if (vid[root] == ~0u) {
-            vid[root] = std::uint32_t(m.vertices.size());
-            m.vertices.push_back(at(cells[root]));
+          const std::uint32_t cell = root[cell_of.at(node_vertex)];
+          if (vid[cell] == ~0u) {
+            vid[cell] = std::uint32_t(m.vertices.size());
+            m.vertices.push_back(at(cells[cell]));
           }
-          return vid[root];
+          return vid[cell];
         };
-        std::vector<std::pair<int, std::size_t>> source, dropped;  // class, first index
-        std::map<std::array<std::uint32_t, 3>, std::size_t> seen;
-        std::vector<char> dead;
+        std::vector<std::array<std::uint32_t, 3>> welded;
         for (const auto& [c, t] : tris) {
           const auto& ix = n.indices[size_t(c)];
-          const std::array<std::uint32_t, 3> w{vertex(ix[t]), vertex(ix[t + 1]), vertex(ix[t + 2])};
-          if (w[0] == w[1] || w[1] == w[2] || w[0] == w[2]) {
-            dropped.emplace_back(c, t);
-            continue;
-          }
-          const auto opp = seen.find(canonical({w[0], w[2], w[1]}));
-          if (opp != seen.end() && !dead[opp->second]) {
-            dead[opp->second] = 1;  // a fin: both go
-            seen.erase(opp);
-            dropped.emplace_back(c, t);
-            continue;
-          }
-          seen[canonical(w)] = m.triangles.size();
-          m.triangles.push_back(w);
-          source.emplace_back(c, t);
-          dead.push_back(0);
+          welded.push_back({vertex(ix[t]), vertex(ix[t + 1]), vertex(ix[t + 2])});
         }
+        std::vector<std::size_t> from;
         TriangleMesh kept;
         kept.vertices = m.vertices;
-        for (std::size_t i = 0; i < m.triangles.size(); ++i) {
-          if (dead[i])
-            dropped.push_back(source[i]);
-          else
-            kept.triangles.push_back(m.triangles[i]);
-        }
+        kept.triangles = drop_collapsed_and_fins(welded, from);
+        std::vector<char> stays(tris.size(), 0);
+        for (const std::size_t k : from) stays[k] = 1;
         if (!opt.snapped_is_valid(kept)) continue;
         stored_int16 = true;
         if (r == 0 && !bad.count(f)) break;  // int16 as it is
-        for (const std::uint32_t v : vs) n.rel[v] = at(cells[find(cell_of.at(v))]);
-        for (const auto& [c, t] : dropped) drop[size_t(c)][t / 3] = 1;
+        for (const std::uint32_t v : vs) n.rel[v] = at(cells[root[cell_of.at(v)]]);
+        for (std::size_t k = 0; k < tris.size(); ++k)
+          if (!stays[k]) drop[size_t(tris[k].first)][tris[k].second / 3] = 1;
         break;
       }
       if (!stored_int16) n.float_features.insert(f);

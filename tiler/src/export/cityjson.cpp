@@ -12,6 +12,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <optional>
 #include <set>
 #include <stdexcept>
@@ -24,6 +25,7 @@
 #include "citylod/io/error.hpp"
 #include "citylod/io/gltf.hpp"
 #include "citylod/io/reader.hpp"
+#include "citylod/io/weld.hpp"
 #include "citylod/lod/lod.hpp"
 #include "citylod/tiler/assemble.hpp"
 #include "citylod/tiler/bridge.hpp"
@@ -270,60 +272,32 @@ lod::MeshCheck check_written(const std::vector<std::array<std::uint32_t, 3>>& tr
 
 /// The triangles with every vertex replaced by the smallest index of its
 /// cluster (vertices within `r` integer steps per axis, transitively), the
-/// collapsed ones and pairs of opposite copies (zero-volume fins) removed;
-/// from[i] = the input triangle of output triangle i.
+/// collapsed ones and pairs of opposite copies (zero-volume fins) removed
+/// (io/weld.hpp, the glb writer's rule); from[i] = the input triangle of
+/// output triangle i.
 std::vector<std::array<std::uint32_t, 3>> snap_triangles(
     const std::vector<std::array<std::uint32_t, 3>>& tris, const VertexPool& pool, long r,
     std::vector<std::size_t>& from) {
-  std::vector<std::uint32_t> vs;
+  std::vector<std::uint32_t> vs;  // the pool indices used, ascending: rank = position
   for (const auto& t : tris) vs.insert(vs.end(), t.begin(), t.end());
   std::sort(vs.begin(), vs.end());
   vs.erase(std::unique(vs.begin(), vs.end()), vs.end());
-  std::map<std::uint32_t, std::uint32_t> parent;
-  for (auto v : vs) parent[v] = v;
-  std::function<std::uint32_t(std::uint32_t)> find = [&](std::uint32_t x) {
-    return parent[x] == x ? x : parent[x] = find(parent[x]);
-  };
-  const auto& q = pool.list();
-  std::vector<std::uint32_t> by_x = vs;
-  std::sort(by_x.begin(), by_x.end(), [&](auto a, auto b) { return q[a] < q[b]; });
-  for (std::size_t i = 0; i < by_x.size(); ++i)
-    for (std::size_t j = i + 1; j < by_x.size() && q[by_x[j]][0] - q[by_x[i]][0] <= r; ++j)
-      if (std::llabs(q[by_x[j]][1] - q[by_x[i]][1]) <= r &&
-          std::llabs(q[by_x[j]][2] - q[by_x[i]][2]) <= r) {
-        const std::uint32_t a = find(by_x[i]), b = find(by_x[j]);
-        if (a != b) parent[std::max(a, b)] = std::min(a, b);
-      }
-  std::vector<std::array<std::uint32_t, 3>> out;
-  std::vector<std::size_t> src;
-  std::map<std::array<std::uint32_t, 3>, std::size_t> seen;  // rotated to the smallest first
-  auto canonical = [](std::array<std::uint32_t, 3> t) {
-    while (t[0] > t[1] || t[0] > t[2]) t = {t[1], t[2], t[0]};
-    return t;
-  };
-  std::vector<char> dead;
-  for (std::size_t i = 0; i < tris.size(); ++i) {
-    const std::array<std::uint32_t, 3> t{find(tris[i][0]), find(tris[i][1]), find(tris[i][2])};
-    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
-    const auto opp = seen.find(canonical({t[0], t[2], t[1]}));
-    if (opp != seen.end() && !dead[opp->second]) {
-      dead[opp->second] = 1;  // a fin: both go
-      seen.erase(opp);
-      continue;
-    }
-    seen[canonical(t)] = out.size();
-    out.push_back(t);
-    src.push_back(i);
-    dead.push_back(0);
+  std::vector<std::array<std::int64_t, 3>> points;
+  for (const auto v : vs) {
+    const auto& q = pool.list()[v];
+    points.push_back({q[0], q[1], q[2]});
   }
-  std::vector<std::array<std::uint32_t, 3>> kept;
-  from.clear();
-  for (std::size_t i = 0; i < out.size(); ++i)
-    if (!dead[i]) {
-      kept.push_back(out[i]);
-      from.push_back(src[i]);
-    }
-  return kept;
+  std::vector<std::uint32_t> rank(vs.size());
+  std::iota(rank.begin(), rank.end(), 0u);
+  const std::uint32_t steps = std::uint32_t(std::max(0L, r));
+  const std::vector<std::uint32_t> root = io::weld(io::near_pairs(points, steps), steps, rank);
+  auto welded_id = [&](std::uint32_t v) {
+    return vs[root[std::size_t(std::lower_bound(vs.begin(), vs.end(), v) - vs.begin())]];
+  };
+  std::vector<std::array<std::uint32_t, 3>> welded;
+  welded.reserve(tris.size());
+  for (const auto& t : tris) welded.push_back({welded_id(t[0]), welded_id(t[1]), welded_id(t[2])});
+  return io::drop_collapsed_and_fins(welded, from);
 }
 
 /// One building -> its CityJSONFeature.
