@@ -1,20 +1,21 @@
 // Ground model, point features and building clustering of one cell (+ halo).
 #include "citylod/tiler/segment.hpp"
 
-// PCL's templates are instantiated here from its headers instead of linked from
-// libpcl_segmentation / libpcl_search / libpcl_kdtree: those pull in pcl_features,
-// pcl_filters, pcl_ml ... whose symbol binding cost every citylod process ~0.1 s
-// at start-up (BENCHMARKS.md, "Process start-up and I/O"). Only libpcl_common is linked.
+// PCL's kd-tree (the points' k nearest neighbours for their PCA features, the radius
+// search that attaches edge points to clusters) is instantiated here from its headers
+// instead of linked from libpcl_kdtree: linking PCL's libraries (libpcl_segmentation
+// pulled in pcl_features, pcl_filters, pcl_ml ...) cost every citylod process ~0.1 s of
+// symbol binding at start-up (BENCHMARKS.md, "Process start-up and I/O"). Only
+// libpcl_common and FLANN are linked. The clustering itself: euclidean_clusters().
 #define PCL_NO_PRECOMPILE
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <pcl/search/kdtree.h>
-#include <pcl/segmentation/extract_clusters.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
 
@@ -47,6 +48,62 @@ bool non_building_class(std::uint8_t c) {
     default:
       return false;
   }
+}
+
+std::vector<std::vector<std::uint32_t>> euclidean_clusters(
+    const std::vector<std::array<float, 3>>& pts, double tolerance, std::size_t min_size) {
+  const std::size_t n = pts.size();
+  // as PCL passes it: the tolerance as float, squared in double, then float
+  const double tol = double(static_cast<float>(tolerance));
+  const float r2 = static_cast<float>(tol * tol);
+  // Cells a hair larger than the tolerance: a neighbour lies in the 3 x 3 cells around.
+  const double cell = tol * (1 + 1e-4);
+  using Key = std::pair<std::int64_t, std::int64_t>;
+  auto key_of = [&](std::size_t i) {
+    return Key(std::int64_t(std::floor(double(pts[i][0]) / cell)),
+               std::int64_t(std::floor(double(pts[i][1]) / cell)));
+  };
+  std::vector<std::pair<Key, std::uint32_t>> by_cell(n);
+  for (std::size_t i = 0; i < n; ++i) by_cell[i] = {key_of(i), std::uint32_t(i)};
+  std::sort(by_cell.begin(), by_cell.end());
+  auto near = [&](std::size_t a, std::size_t b) {  // FLANN's L2_Simple<float>, its radius test
+    float d = 0, e;
+    for (std::size_t k = 0; k < 3; ++k) {
+      e = pts[a][k] - pts[b][k];
+      d += e * e;
+    }
+    return d < r2;
+  };
+  std::vector<std::vector<std::uint32_t>> clusters;
+  std::vector<char> processed(n, 0);
+  std::vector<std::uint32_t> queue;
+  for (std::size_t seed = 0; seed < n; ++seed) {
+    if (processed[seed]) continue;
+    queue.assign(1, std::uint32_t(seed));
+    processed[seed] = 1;
+    for (std::size_t at = 0; at < queue.size(); ++at) {
+      const std::uint32_t i = queue[at];
+      const Key k = key_of(i);
+      for (std::int64_t dx = -1; dx <= 1; ++dx)
+        for (std::int64_t dy = -1; dy <= 1; ++dy) {
+          const Key c(k.first + dx, k.second + dy);
+          for (auto it = std::lower_bound(by_cell.begin(), by_cell.end(),
+                                          std::make_pair(c, std::uint32_t(0)));
+               it != by_cell.end() && it->first == c; ++it)
+            if (!processed[it->second] && near(i, it->second)) {
+              processed[it->second] = 1;
+              queue.push_back(it->second);
+            }
+        }
+    }
+    if (queue.size() < min_size) continue;
+    clusters.push_back(queue);
+    std::sort(clusters.back().begin(), clusters.back().end());
+  }
+  // PCL's order: std::sort of the reversed list by size (pcl::comparePointClusters)
+  std::sort(clusters.rbegin(), clusters.rend(),
+            [](const auto& a, const auto& b) { return a.size() < b.size(); });
+  return clusters;
 }
 
 double GroundGrid::at(double x, double y) const {
@@ -269,25 +326,13 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
   }
   if (cand.size() < static_cast<std::size_t>(std::max(1, p.min_cluster_points))) return out;
 
-  pcl::PointCloud<pcl::PointXYZ>::Ptr flat(new pcl::PointCloud<pcl::PointXYZ>);
-  flat->resize(cand.size());
+  std::vector<std::array<float, 3>> flat(cand.size());
   for (std::size_t m = 0; m < cand.size(); ++m) {
     const auto& q = pos[cand[m]];
-    (*flat)[m] = pcl::PointXYZ(float(q[0] - cx), float(q[1] - cy), 0.0f);
+    flat[m] = {float(q[0] - cx), float(q[1] - cy), 0.0f};
   }
-  // Unsorted radius results: a cluster is the same set of points whatever the order its
-  // neighbours come in (PCL sorts each cluster's indices), and sorting them was ~7 % of a
-  // split without footprints.
-  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>(false));
-  tree->setInputCloud(flat);
-  std::vector<pcl::PointIndices> found;
-  pcl::EuclideanClusterExtraction<pcl::PointXYZ> ec;
-  ec.setClusterTolerance(p.cluster_tolerance);
-  ec.setMinClusterSize(std::max(1, p.min_cluster_points));
-  ec.setMaxClusterSize(std::numeric_limits<int>::max());
-  ec.setSearchMethod(tree);
-  ec.setInputCloud(flat);
-  ec.extract(found);
+  const std::vector<std::vector<std::uint32_t>> found =
+      euclidean_clusters(flat, p.cluster_tolerance, std::size_t(std::max(1, p.min_cluster_points)));
 
   // Edges and ridges look like foliage to the PCA (their neighbourhood spans two
   // planes), which cuts walls from roofs and roof halves apart. Foliage-like points
@@ -299,7 +344,7 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
   };
   std::vector<int> label(n, -1);
   for (std::size_t c = 0; c < found.size(); ++c)
-    for (int m : found[c].indices) label[cand[std::size_t(m)]] = int(c);
+    for (const std::uint32_t m : found[c]) label[cand[m]] = int(c);
   std::vector<std::pair<std::uint32_t, int>> attached;  // foliage point -> cluster
   if (mode != ClassMode::buildings && !found.empty()) {
     pcl::PointCloud<pcl::PointXYZ>::Ptr c3(new pcl::PointCloud<pcl::PointXYZ>);
@@ -332,14 +377,13 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
   }
   std::vector<std::vector<std::uint32_t>> groups(found.size());
   for (std::size_t c = 0; c < found.size(); ++c)
-    for (int m : found[c].indices)
-      groups[std::size_t(root(int(c)))].push_back(cand[std::size_t(m)]);
+    for (const std::uint32_t m : found[c]) groups[std::size_t(root(int(c)))].push_back(cand[m]);
   for (const auto& [k, c] : attached) {
     groups[std::size_t(root(c))].push_back(k);
     label[k] = root(c);
   }
   for (std::size_t c = 0; c < found.size(); ++c)
-    for (int m : found[c].indices) label[cand[std::size_t(m)]] = root(int(c));
+    for (const std::uint32_t m : found[c]) label[cand[m]] = root(int(c));
 
   // Foliage points above building height, bucketed for the vegetation ratio.
   const double bucket = 2.0;
