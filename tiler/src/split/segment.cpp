@@ -1,12 +1,13 @@
 // Ground model, point features and building clustering of one cell (+ halo).
 #include "citylod/tiler/segment.hpp"
 
-// PCL's kd-tree (the points' k nearest neighbours for their PCA features, the radius
-// search that attaches edge points to clusters) is instantiated here from its headers
-// instead of linked from libpcl_kdtree: linking PCL's libraries (libpcl_segmentation
-// pulled in pcl_features, pcl_filters, pcl_ml ...) cost every citylod process ~0.1 s of
-// symbol binding at start-up (BENCHMARKS.md, "Process start-up and I/O"). Only
-// libpcl_common and FLANN are linked. The clustering itself: euclidean_clusters().
+// PCL's kd-tree (the radius search that attaches edge points to clusters) is
+// instantiated here from its headers instead of linked from libpcl_kdtree: linking PCL's
+// libraries (libpcl_segmentation pulled in pcl_features, pcl_filters, pcl_ml ...) cost
+// every citylod process ~0.1 s of symbol binding at start-up (BENCHMARKS.md, "Process
+// start-up and I/O"). Only libpcl_common and FLANN are linked. The points' k nearest
+// neighbours (PCA features) ask FLANN's index, the one PCL's kd-tree wraps, directly;
+// the clustering: euclidean_clusters().
 #define PCL_NO_PRECOMPILE
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
@@ -18,6 +19,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <memory>
 
 namespace citylod::tiler {
 
@@ -280,26 +282,51 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
         idx.push_back(static_cast<std::uint32_t>(k));
     const int kk = std::min<int>(p.feature_neighbours, static_cast<int>(idx.size()));
     if (kk >= 5) {
-      pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-      cloud->resize(idx.size());
+      // PCL's KdTreeFLANN::nearestKSearch, called on FLANN's index directly: the same
+      // index (KDTreeSingleIndex, 15 points per leaf), search parameters (exact, sorted)
+      // and result set as PCL's wrapper, without the OpenMP parallel region FLANN's
+      // knnSearch opens for every query point (~20 % of a split of an unclassified scene).
+      std::vector<float> xyz(3 * idx.size());
       for (std::size_t m = 0; m < idx.size(); ++m) {
         const auto& q = pos[idx[m]];
-        (*cloud)[m] = pcl::PointXYZ(float(q[0] - cx), float(q[1] - cy), float(q[2] - cz));
+        xyz[3 * m] = float(q[0] - cx);
+        xyz[3 * m + 1] = float(q[1] - cy);
+        xyz[3 * m + 2] = float(q[2] - cz);
       }
-      pcl::KdTreeFLANN<pcl::PointXYZ> tree;
-      tree.setInputCloud(cloud);
-      std::vector<int> nn(static_cast<std::size_t>(kk));
-      std::vector<float> d2(static_cast<std::size_t>(kk));
+      ::flann::KDTreeSingleIndex<::flann::L2_Simple<float>> tree(
+          ::flann::Matrix<float>(xyz.data(), idx.size(), 3), ::flann::KDTreeSingleIndexParams(15));
+      tree.buildIndex();
+      const ::flann::SearchParams sp(-1, 0.0f);  // PCL's: every leaf checked, exact, sorted
+      const std::size_t k = std::size_t(kk);
+      std::unique_ptr<::flann::ResultSet<float>> results;  // as NNIndex::knnSearch chooses
+      if (k > KNN_HEAP_THRESHOLD)
+        results = std::make_unique<::flann::KNNResultSet2<float>>(k);
+      else
+        results = std::make_unique<::flann::KNNSimpleResultSet<float>>(k);
+      std::vector<std::size_t> nn(k);
+      std::vector<float> d2(k);
+      auto point = [&](std::size_t i) {
+        return Eigen::Vector3d(double(xyz[3 * i]), double(xyz[3 * i + 1]), double(xyz[3 * i + 2]));
+      };
       for (std::size_t m = 0; m < idx.size(); ++m) {
-        const int found = tree.nearestKSearch((*cloud)[m], kk, nn, d2);
+        if (k > KNN_HEAP_THRESHOLD) {
+          auto& rs = static_cast<::flann::KNNResultSet2<float>&>(*results);
+          rs.clear();
+          tree.findNeighbors(rs, &xyz[3 * m], sp);
+          rs.copy(nn.data(), d2.data(), std::min(rs.size(), k), sp.sorted);
+        } else {
+          auto& rs = static_cast<::flann::KNNSimpleResultSet<float>&>(*results);
+          rs.clear();
+          tree.findNeighbors(rs, &xyz[3 * m], sp);
+          rs.copy(nn.data(), d2.data(), std::min(rs.size(), k), sp.sorted);
+        }
+        const int found = kk;  // PCL's nearestKSearch returns k (k <= the points)
         Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (int t = 0; t < found; ++t)
-          mean += (*cloud)[std::size_t(nn[std::size_t(t)])].getVector3fMap().cast<double>();
+        for (int t = 0; t < found; ++t) mean += point(nn[std::size_t(t)]);
         mean /= std::max(1, found);
         Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
         for (int t = 0; t < found; ++t) {
-          const Eigen::Vector3d d =
-              (*cloud)[std::size_t(nn[std::size_t(t)])].getVector3fMap().cast<double>() - mean;
+          const Eigen::Vector3d d = point(nn[std::size_t(t)]) - mean;
           cov += d * d.transpose();
         }
         Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
