@@ -167,14 +167,16 @@ Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
   // e1: model -> input, area-uniform samples of the model.
   const std::vector<P3> msamples = sample_triangles(mtris, I.samples);
   double sum1 = 0, max1 = 0;
+  std::uint32_t near = BoxTree::kNoHint;  // consecutive samples are near each other
   for (const auto& q : msamples) {
     double d2;
     if (I.itree) {
       d2 = CGAL::to_double(I.itree->squared_distance(q));
     } else {
-      d2 = I.ibox->nearest2(box_of(q), [&](std::uint32_t i) {
-        return CGAL::to_double(CGAL::squared_distance(q, I.ipoints[i]));
-      });
+      d2 = I.ibox->nearest2(
+          box_of(q),
+          [&](std::uint32_t i) { return CGAL::to_double(CGAL::squared_distance(q, I.ipoints[i])); },
+          &near, near);
     }
     sum1 += d2;
     max1 = std::max(max1, d2);
@@ -182,10 +184,12 @@ Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
   f.e1 = std::sqrt(sum1 / double(msamples.size())) * I.scale;
   // e2: input -> model, the least squared distance to a model triangle.
   const BoxTree mbox = triangle_tree(mtris);
+  std::uint32_t near_tri = BoxTree::kNoHint;  // the input samples come in scan order
   auto model_d2 = [&](const P3& q) {
-    return mbox.nearest2(box_of(q), [&](std::uint32_t i) {
-      return CGAL::to_double(CGAL::squared_distance(q, mtris[i]));
-    });
+    return mbox.nearest2(
+        box_of(q),
+        [&](std::uint32_t i) { return CGAL::to_double(CGAL::squared_distance(q, mtris[i])); },
+        &near_tri, near_tri);
   };
   double sum2 = 0, wsum = 0, max2 = 0;
   for (std::size_t i = 0; i < I.e2_points.size(); ++i) {

@@ -45,6 +45,13 @@ TEST(BoxTree, NearestPointIsTheScansMinimum) {
                   p, [&](std::uint32_t i) { return d2(p, pts[i]); }, &which),
               best);
     EXPECT_EQ(which, arg);
+    // a hint (any primitive) changes nothing but the work
+    const std::uint32_t hint = std::uint32_t(q * 7 % 3000);
+    which = 99999;
+    EXPECT_EQ(tree.nearest2(
+                  p, [&](std::uint32_t i) { return d2(p, pts[i]); }, &which, hint),
+              best);
+    EXPECT_EQ(which, arg);
   }
 }
 
@@ -67,6 +74,9 @@ TEST(BoxTree, BoxesOfSegmentsAndTies) {
                        p, [&](std::uint32_t i) { return seg(p, i); }, &which),
                    4.0 + 0.04 + 1.0);
   EXPECT_EQ(which, 12u);  // segments 12 and 13 lie at y = 6
+  tree.nearest2(
+      p, [&](std::uint32_t i) { return seg(p, i); }, &which, 13);
+  EXPECT_EQ(which, 12u);  // hinted at the equal segment of higher index: still 12
   // an empty tree
   const BoxTree none({}, {});
   which = 7;

@@ -62,17 +62,20 @@ class TriangleTree {
  public:
   explicit TriangleTree(const io::TriangleMesh& m) : mesh_(m), tree_(boxes(m)) {}
 
-  double distance2(const Vec3d& p) const {
+  /// Squared distance from p to the mesh; `hint`: a triangle likely to be near (the
+  /// answer does not depend on it).
+  double distance2(const Vec3d& p, std::uint32_t hint = lod::BoxTree::kNoHint) const {
     std::uint32_t tri;
-    return nearest(p, tri);
+    return nearest(p, tri, hint);
   }
 
   /// Squared distance from p to the mesh and the nearest triangle (the lowest
   /// index among equally near ones).
-  double nearest(const Vec3d& p, std::uint32_t& tri) const {
+  double nearest(const Vec3d& p, std::uint32_t& tri,
+                 std::uint32_t hint = lod::BoxTree::kNoHint) const {
     tri = 0;
     return tree_.nearest2(
-        p, [&](std::uint32_t i) { return norm2(sub(p, closest(p, i))); }, &tri);
+        p, [&](std::uint32_t i) { return norm2(sub(p, closest(p, i))); }, &tri, hint);
   }
 
   /// Distance from p to triangle `tri` of the mesh.
@@ -105,7 +108,8 @@ class TriangleTree {
 /// Largest distance from a vertex of A to B.
 double vertex_distance(const io::TriangleMesh& a, const TriangleTree& tb) {
   double best2 = 0;
-  for (const auto& v : a.vertices) best2 = std::max(best2, tb.distance2(v));
+  std::uint32_t near = lod::BoxTree::kNoHint;  // consecutive vertices are mostly near
+  for (const auto& v : a.vertices) best2 = std::max(best2, tb.nearest(v, near, near));
   return std::sqrt(best2);
 }
 
@@ -128,6 +132,7 @@ void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, dou
   for (const auto& t : a.triangles)
     stack.push_back({a.vertices[t[0]], a.vertices[t[1]], a.vertices[t[2]]});
   std::size_t budget = 2000000;  // distance queries; bounds the worst case (coincident surfaces)
+  std::uint32_t last = lod::BoxTree::kNoHint;  // the previous query's nearest triangle
   while (!stack.empty() && budget > 0 && best < stop_above) {
     const Tri t = stack.back();
     stack.pop_back();
@@ -137,7 +142,8 @@ void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, dou
         std::sqrt(std::max({norm2(sub(t.a, g)), norm2(sub(t.b, g)), norm2(sub(t.c, g))}));
     if (r <= tol * 0.5) continue;  // within tol of its (evaluated) vertices
     std::uint32_t near;
-    const double dg = std::sqrt(tb.nearest(g, near));
+    const double dg = std::sqrt(tb.nearest(g, near, last));
+    last = near;
     --budget;
     best = std::max(best, dg);
     if (dg + r <= best + tol) continue;
@@ -147,7 +153,7 @@ void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, dou
     const Vec3d ab{(t.a[0] + t.b[0]) / 2, (t.a[1] + t.b[1]) / 2, (t.a[2] + t.b[2]) / 2};
     const Vec3d bc{(t.b[0] + t.c[0]) / 2, (t.b[1] + t.c[1]) / 2, (t.b[2] + t.c[2]) / 2};
     const Vec3d ca{(t.c[0] + t.a[0]) / 2, (t.c[1] + t.a[1]) / 2, (t.c[2] + t.a[2]) / 2};
-    for (const Vec3d& m : {ab, bc, ca}) best = std::max(best, std::sqrt(tb.distance2(m)));
+    for (const Vec3d& m : {ab, bc, ca}) best = std::max(best, std::sqrt(tb.distance2(m, near)));
     budget -= std::min<std::size_t>(budget, 3);
     stack.push_back({t.a, ab, ca});
     stack.push_back({ab, t.b, bc});

@@ -22,6 +22,7 @@ namespace citylod::lod {
 class BoxTree {
  public:
   using Box = std::array<double, 3>;
+  static constexpr std::uint32_t kNoHint = ~std::uint32_t(0);
   /// Box i is [lo[i], hi[i]] (lo <= hi per axis).
   BoxTree(std::vector<Box> lo, std::vector<Box> hi);
   /// Boxes of points (zero size).
@@ -31,13 +32,21 @@ class BoxTree {
 
   /// min over i of dist(i), a squared distance from `p` to primitive i that is
   /// >= the squared distance from `p` to box i; its index in `*which` (if not
-  /// null; unchanged when the tree is empty). +inf for an empty tree.
+  /// null; unchanged when the tree is empty). +inf for an empty tree. `hint`: a
+  /// primitive likely to be near (e.g. the previous query's answer), measured first
+  /// so that more boxes are skipped; the answer does not depend on it.
   template <typename Dist>
-  double nearest2(const Box& p, const Dist& dist, std::uint32_t* which = nullptr) const {
+  double nearest2(const Box& p, const Dist& dist, std::uint32_t* which = nullptr,
+                  std::uint32_t hint = kNoHint) const {
     double best = std::numeric_limits<double>::infinity();
     std::uint32_t arg = 0;
     bool found = false;
     if (nodes_.empty()) return best;
+    if (hint < lo_.size()) {
+      best = dist(hint);
+      arg = hint;
+      found = true;
+    }
     std::uint32_t stack[128];
     std::size_t top = 0;
     stack[top++] = 0;
