@@ -19,7 +19,6 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
-#include <memory>
 
 namespace citylod::tiler {
 
@@ -285,7 +284,8 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
       // PCL's KdTreeFLANN::nearestKSearch, called on FLANN's index directly: the same
       // index (KDTreeSingleIndex, 15 points per leaf), search parameters (exact, sorted)
       // and result set as PCL's wrapper, without the OpenMP parallel region FLANN's
-      // knnSearch opens for every query point (~20 % of a split of an unclassified scene).
+      // knnSearch opens for every query point (mesh_city's split without footprints
+      // 2.9 -> 2.0 s; BENCHMARKS.md, "Splitting").
       std::vector<float> xyz(3 * idx.size());
       for (std::size_t m = 0; m < idx.size(); ++m) {
         const auto& q = pos[idx[m]];
@@ -298,35 +298,30 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
       tree.buildIndex();
       const ::flann::SearchParams sp(-1, 0.0f);  // PCL's: every leaf checked, exact, sorted
       const std::size_t k = std::size_t(kk);
-      std::unique_ptr<::flann::ResultSet<float>> results;  // as NNIndex::knnSearch chooses
-      if (k > KNN_HEAP_THRESHOLD)
-        results = std::make_unique<::flann::KNNResultSet2<float>>(k);
-      else
-        results = std::make_unique<::flann::KNNSimpleResultSet<float>>(k);
       std::vector<std::size_t> nn(k);
       std::vector<float> d2(k);
+      // the k nearest of point m into nn, sorted, by the result set NNIndex::knnSearch picks
+      ::flann::KNNSimpleResultSet<float> simple(k);
+      ::flann::KNNResultSet2<float> heap(k);
+      auto neighbours = [&](auto& rs, std::size_t m) {
+        rs.clear();
+        tree.findNeighbors(rs, &xyz[3 * m], sp);
+        rs.copy(nn.data(), d2.data(), std::min(rs.size(), k), sp.sorted);
+      };
       auto point = [&](std::size_t i) {
         return Eigen::Vector3d(double(xyz[3 * i]), double(xyz[3 * i + 1]), double(xyz[3 * i + 2]));
       };
       for (std::size_t m = 0; m < idx.size(); ++m) {
-        if (k > KNN_HEAP_THRESHOLD) {
-          auto& rs = static_cast<::flann::KNNResultSet2<float>&>(*results);
-          rs.clear();
-          tree.findNeighbors(rs, &xyz[3 * m], sp);
-          rs.copy(nn.data(), d2.data(), std::min(rs.size(), k), sp.sorted);
-        } else {
-          auto& rs = static_cast<::flann::KNNSimpleResultSet<float>&>(*results);
-          rs.clear();
-          tree.findNeighbors(rs, &xyz[3 * m], sp);
-          rs.copy(nn.data(), d2.data(), std::min(rs.size(), k), sp.sorted);
-        }
-        const int found = kk;  // PCL's nearestKSearch returns k (k <= the points)
+        if (k > KNN_HEAP_THRESHOLD)
+          neighbours(heap, m);
+        else
+          neighbours(simple, m);
         Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (int t = 0; t < found; ++t) mean += point(nn[std::size_t(t)]);
-        mean /= std::max(1, found);
+        for (const std::size_t i : nn) mean += point(i);
+        mean /= double(k);
         Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-        for (int t = 0; t < found; ++t) {
-          const Eigen::Vector3d d = point(nn[std::size_t(t)]) - mean;
+        for (const std::size_t i : nn) {
+          const Eigen::Vector3d d = point(i) - mean;
           cov += d * d.transpose();
         }
         Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
