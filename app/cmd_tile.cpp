@@ -73,7 +73,7 @@ int cmd_tile(ArgParser& args) {
     log_info("tile: wrote " + o.out_dir + "/buildings.city.jsonl (" +
              std::to_string(r.cityjson.buildings) + " buildings, " +
              std::to_string(r.cityjson.geometries) + " solids, " +
-             std::to_string(r.cityjson.invalid) + " invalid" +
+             std::to_string(r.cityjson.invalid) + " models left out as invalid" +
              (r.cityjson.coloured
                   ? ", " + std::to_string(r.cityjson.coloured) + " with the input's colours"
                   : std::string()) +

@@ -26,6 +26,7 @@
 #include "citylod/io/reader.hpp"
 #include "citylod/io/weld.hpp"
 #include "citylod/lod/lod.hpp"
+#include "citylod/lod/validity.hpp"
 #include "citylod/tiler/assemble.hpp"
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/threads.hpp"
@@ -73,11 +74,19 @@ constexpr double kRoofHeightTolerance = 0.1;
 /// A downward face is GroundSurface when it lies within this of the model's
 /// lowest point, else OuterCeilingSurface (the underside of an overhang).
 constexpr double kGroundTolerance = 0.5;
-/// Snapping radii (integer steps per axis) tried, in order, when a quantized
-/// model is not a valid solid.
-constexpr long kSnapSteps[] = {1, 2, 4, 8};
+/// Welding radii tried, in order, in multiples of the validator's snap
+/// tolerance: a model is written after welding its vertices within r (more
+/// than the snap tolerance: no two written vertices of a solid are within it).
+constexpr double kWeldFactors[] = {1.1, 2.2, 4.4, 8.8};
 
 enum Semantic : int { kRoof = 0, kWall = 1, kGround = 2, kCeiling = 3 };
+/// The models of a chain that are not one of the Building's LoDs (1.2, 1.3,
+/// 2.2): CityObjects of this Extension type in the Building's feature.
+constexpr const char* kChainObjectType = "+LodTreeModel";
+/// Its Extension (docs/extensions/lodtree.ext.json).
+constexpr const char* kChainExtension = "LodTree";
+constexpr const char* kChainExtensionUrl =
+    "https://raw.githubusercontent.com/citylod/citylod/main/docs/extensions/lodtree.ext.json";
 /// The appearance theme of the input's colours.
 constexpr const char* kColourTheme = "rgb";
 const char* const kSemanticType[] = {"RoofSurface", "WallSurface", "GroundSurface",
@@ -203,15 +212,19 @@ struct Geometry {
   std::vector<int> semantic;                      // per face
   std::vector<io::Rgba8> colour;                  // per face (a = 0: none)
   std::string lod;
-  json attributes;
+  json attributes;  // its citylod_models entry
   bool valid = false, full_semantics = false, from_obj = false;
-  double snapped = 0;  // vertices within this were snapped together to keep the solid valid
+  bool fallback = false, sloped = false;
+  std::size_t roof_heights = 0;
+  int step = 0;
+  double snapped = 0;  // vertices within this were welded together to keep the solid valid
 };
 
 struct Feature {
   std::string id;
   std::string line;  // the JSON text, no newline
   std::size_t geometries = 0, invalid = 0, triangulated = 0, vertices = 0;
+  std::size_t chain_objects = 0;  // +LodTreeModel objects
   std::size_t coloured = 0;  // geometries with a material
   bool full_semantics = false;
   io::BBox3 bbox;  // CRS
@@ -219,6 +232,10 @@ struct Feature {
   std::string error;  // the building cannot be written
   bool skipped = false;
 };
+
+std::string chain_object_id(const std::string& building, int step) {
+  return building + "-lodtree-" + std::to_string(step);
+}
 
 double round_to(double x, double step) {
   return std::round(x / step) * step;
@@ -252,51 +269,80 @@ class VertexPool {
   std::vector<std::array<long long, 3>> list_;
 };
 
-/// lod::check_mesh of triangles over feature vertices (collapsed ones left out).
-lod::MeshCheck check_written(const std::vector<std::array<std::uint32_t, 3>>& tris,
-                             const VertexPool& pool) {
-  io::TriangleMesh m;
-  std::map<std::uint32_t, std::uint32_t> local;
-  auto index = [&](std::uint32_t q) {
-    const auto [it, fresh] = local.emplace(q, std::uint32_t(m.vertices.size()));
-    if (fresh) m.vertices.push_back(pool.relative(q));
-    return it->second;
-  };
-  for (const auto& q : tris) {
-    if (q[0] == q[1] || q[1] == q[2] || q[0] == q[2]) continue;
-    m.triangles.push_back({index(q[0]), index(q[1]), index(q[2])});
+/// A validator's view of faces over feature vertices: the solid (vertices in
+/// CRS units relative to translate), one shell.
+lod::PolygonSolid as_solid(const std::vector<std::vector<std::uint32_t>>& faces,
+                           const VertexPool& pool) {
+  lod::PolygonSolid s;
+  std::map<std::uint32_t, int> local;
+  s.shells.emplace_back();
+  for (const auto& f : faces) {
+    std::vector<int> ring;
+    for (const std::uint32_t q : f) {
+      const auto [it, fresh] = local.emplace(q, int(s.vertices.size()));
+      if (fresh) {
+        const Vec3d v = pool.relative(q);
+        s.vertices.emplace_back(v[0], v[1], v[2]);
+      }
+      ring.push_back(it->second);
+    }
+    s.shells[0].push_back(std::move(ring));
   }
-  return lod::check_mesh(to_lod_mesh(m));
+  return s;
 }
 
-/// The triangles with every vertex replaced by the smallest index of its
-/// cluster (vertices within `r` integer steps per axis, transitively), the
-/// collapsed ones and pairs of opposite copies (zero-volume fins) removed
-/// (io/weld.hpp, the glb writer's rule); from[i] = the input triangle of
-/// output triangle i.
-std::vector<std::array<std::uint32_t, 3>> snap_triangles(
-    const std::vector<std::array<std::uint32_t, 3>>& tris, const VertexPool& pool, long r,
-    std::vector<std::size_t>& from) {
-  std::vector<std::uint32_t> vs;  // the pool indices used, ascending: rank = position
-  for (const auto& t : tris) vs.insert(vs.end(), t.begin(), t.end());
-  std::sort(vs.begin(), vs.end());
-  vs.erase(std::unique(vs.begin(), vs.end()), vs.end());
+/// pool index -> the representative of its cluster: the vertices `used`
+/// within r integer steps of each other per axis, transitively, are one, the
+/// lowest pool index of the cluster (io/weld.hpp, the glb writer's rule).
+/// Representatives are more than r steps apart on some axis.
+std::map<std::uint32_t, std::uint32_t> weld_map(std::vector<std::uint32_t> used,
+                                                const VertexPool& pool, std::uint32_t r) {
+  std::sort(used.begin(), used.end());
+  used.erase(std::unique(used.begin(), used.end()), used.end());
   std::vector<std::array<std::int64_t, 3>> points;
-  for (const auto v : vs) {
+  for (const auto v : used) {
     const auto& q = pool.list()[v];
     points.push_back({q[0], q[1], q[2]});
   }
-  std::vector<std::uint32_t> rank(vs.size());
+  std::vector<std::uint32_t> rank(used.size());
   std::iota(rank.begin(), rank.end(), 0u);
-  const std::uint32_t steps = std::uint32_t(std::max(0L, r));
-  const std::vector<std::uint32_t> root = io::weld(io::near_pairs(points, steps), steps, rank);
-  auto welded_id = [&](std::uint32_t v) {
-    return vs[root[std::size_t(std::lower_bound(vs.begin(), vs.end(), v) - vs.begin())]];
-  };
-  std::vector<std::array<std::uint32_t, 3>> welded;
-  welded.reserve(tris.size());
-  for (const auto& t : tris) welded.push_back({welded_id(t[0]), welded_id(t[1]), welded_id(t[2])});
-  return io::drop_collapsed_and_fins(welded, from);
+  const std::vector<std::uint32_t> root = io::weld(io::near_pairs(points, r), r, rank);
+  std::map<std::uint32_t, std::uint32_t> m;
+  for (std::size_t i = 0; i < used.size(); ++i) m.emplace(used[i], used[root[i]]);
+  return m;
+}
+
+/// The rings with every vertex welded (weld_map): repeated consecutive
+/// vertices and spikes (a, b, a) removed, rings left with fewer than three
+/// vertices dropped; from[i] = the input ring of output ring i.
+std::vector<std::vector<std::uint32_t>> weld_rings(
+    const std::vector<std::vector<std::uint32_t>>& rings,
+    const std::map<std::uint32_t, std::uint32_t>& to, std::vector<std::size_t>& from) {
+  std::vector<std::vector<std::uint32_t>> out;
+  from.clear();
+  for (std::size_t fi = 0; fi < rings.size(); ++fi) {
+    std::vector<std::uint32_t> ring;
+    for (const std::uint32_t q : rings[fi]) ring.push_back(to.at(q));
+    for (bool changed = true; changed && ring.size() >= 3;) {
+      changed = false;
+      for (std::size_t i = 0; i < ring.size() && ring.size() >= 3; ++i) {
+        const std::size_t n = ring.size(), j = (i + 1) % n, k = (i + 2) % n;
+        if (ring[i] == ring[j]) {  // repeated vertex
+          ring.erase(ring.begin() + long(j));
+          changed = true;
+        } else if (ring[i] == ring[k]) {  // spike i -> j -> i: drop j and the return
+          const std::size_t hi = std::max(j, k), lo = std::min(j, k);
+          ring.erase(ring.begin() + long(hi));
+          ring.erase(ring.begin() + long(lo));
+          changed = true;
+        }
+      }
+    }
+    if (ring.size() < 3) continue;
+    out.push_back(std::move(ring));
+    from.push_back(fi);
+  }
+  return out;
 }
 
 /// One building -> its CityJSONFeature.
@@ -345,20 +391,23 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   if (kept.empty())
     throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
 
-  // ---- polygons, semantics, lod per model (chunk frame), then the CRS
+  // ---- per model: polygons and semantics (chunk frame), then the CRS, then
+  // the solid a validator accepts (welded, repaired) or none
   VertexPool pool(translate, opt.scale);
+  const lod::Tolerances tol;  // val3dity's defaults
   std::vector<Geometry> geoms;
-  json models = json::array();
   for (std::size_t gi = 0; gi < kept.size(); ++gi) {
     const std::size_t k = kept[gi];
     const ModelRecord& mr = rep.models[k];
     Geometry g;
-    io::PolygonMesh pm = model_polygons(entries[k].file, meshes[k], g.from_obj);
+    g.step = mr.step;
+    g.fallback = entries[k].kind == ModelKind::fallback;
+    bool from_obj = false;
+    io::PolygonMesh pm = model_polygons(entries[k].file, meshes[k], from_obj);
     // semantics and roof shape, in the model's own (ENU) frame
     double zmin = std::numeric_limits<double>::infinity();
     for (const auto& f : pm.faces)
       for (auto i : f) zmin = std::min(zmin, pm.vertices[i][2]);
-    bool sloped = false;
     std::vector<double> roof_z;
     std::vector<int> sem;
     for (const auto& f : pm.faces) {
@@ -372,7 +421,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       if (c == io::SurfaceClass::roof) {
         sem.push_back(kRoof);
         if (n[2] < kHorizontalNz)
-          sloped = true;
+          g.sloped = true;
         else
           roof_z.push_back(fz_sum / double(f.size()));
       } else if (c == io::SurfaceClass::base) {
@@ -382,12 +431,9 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       }
     }
     std::sort(roof_z.begin(), roof_z.end());
-    std::size_t heights = 0;
     for (std::size_t i = 0; i < roof_z.size(); ++i)
-      if (i == 0 || roof_z[i] - roof_z[i - 1] > kRoofHeightTolerance) ++heights;
-    const bool finest = gi + 1 == kept.size();
-    g.lod =
-        cityjson_lod(entries[k].kind == ModelKind::fallback, finest, sloped, sloped ? 0 : heights);
+      if (i == 0 || roof_z[i] - roof_z[i - 1] > kRoofHeightTolerance) ++g.roof_heights;
+    if (g.sloped) g.roof_heights = 0;
 
     // to the CRS (scene ENU = chunk origin + file coordinates), quantized
     std::vector<std::uint32_t> used;
@@ -406,33 +452,16 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     std::vector<std::uint32_t> to_pool(pm.vertices.size(), 0);
     for (std::size_t j = 0; j < used.size(); ++j)
       to_pool[used[j]] = pool.add({pts(0, long(j)), pts(1, long(j)), pts(2, long(j))});
-    std::size_t dropped = 0;
-    std::set<int> classes;
     // the input's colours of these faces (report.json), when they match
     const std::vector<io::Rgba8>& face_colours =
-        g.from_obj ? mr.polygon_colours : mr.triangle_colours;
+        from_obj ? mr.polygon_colours : mr.triangle_colours;
     const bool coloured = face_colours.size() == pm.faces.size();
-    for (std::size_t fi = 0; fi < pm.faces.size(); ++fi) {
-      std::vector<std::uint32_t> ring;
-      for (auto i : pm.faces[fi]) {
-        const std::uint32_t q = to_pool[i];
-        if (ring.empty() || ring.back() != q) ring.push_back(q);
-      }
-      while (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
-      if (ring.size() < 3) {
-        ++dropped;
-        continue;
-      }
-      g.faces.push_back(std::move(ring));
-      g.semantic.push_back(sem[fi]);
-      g.colour.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
-      classes.insert(sem[fi]);
+    std::vector<std::vector<std::uint32_t>> rings;  // pool indices, per polygon
+    for (const auto& f : pm.faces) {
+      rings.emplace_back();
+      for (auto i : f) rings.back().push_back(to_pool[i]);
     }
-    g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
-
-    // valid solid as written (quantized): lod::check_mesh on the model's own
-    // triangles (the PLY: the same surface as the polygons) on the written
-    // vertices; a triangle that quantization collapses is left out
+    // the model's own triangles (the PLY: the same surface as the polygons)
     std::map<Vec3d, std::uint32_t> pool_of;
     for (auto i : used) pool_of.emplace(pm.vertices[i], to_pool[i]);
     std::vector<std::array<std::uint32_t, 3>> tris;  // pool indices, per PLY triangle
@@ -446,56 +475,78 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       }
       tris.push_back(q);
     }
-    lod::MeshCheck chk = check_written(tris, pool);
-    g.valid = chk.valid();
-    if (!g.valid) {
-      // Sub-millimetre features of the model (vertices a fraction of a step
-      // apart) that rounding moved across each other: snap the vertices
-      // within r steps of each other to one, drop what collapses, and write
-      // the model's triangles if that is a valid solid (docs/cityjson.md).
-      for (const long r : kSnapSteps) {
-        std::vector<std::size_t> from;
-        std::vector<std::array<std::uint32_t, 3>> snapped = snap_triangles(tris, pool, r, from);
-        const lod::MeshCheck c2 = check_written(snapped, pool);
-        if (!c2.valid()) continue;
-        g.faces.clear();
-        g.semantic.clear();
-        g.colour.clear();
-        const bool tri_coloured = mr.triangle_colours.size() == meshes[k].triangles.size();
-        for (std::size_t i = 0; i < snapped.size(); ++i) {
-          const auto& t = meshes[k].triangles[from[i]];
-          const Vec3d n = newell(meshes[k].vertices, {t[0], t[1], t[2]});
-          const io::SurfaceClass c = io::classify_normal(n);
-          double fz = -std::numeric_limits<double>::infinity();
-          for (auto v : t) fz = std::max(fz, meshes[k].vertices[v][2]);
-          g.faces.push_back({snapped[i][0], snapped[i][1], snapped[i][2]});
-          g.colour.push_back(tri_coloured ? mr.triangle_colours[from[i]] : io::Rgba8{0, 0, 0, 0});
-          g.semantic.push_back(c == io::SurfaceClass::roof     ? kRoof
-                               : c == io::SurfaceClass::wall   ? kWall
-                               : fz <= zmin + kGroundTolerance ? kGround
-                                                               : kCeiling);
+    std::vector<std::uint32_t> used_q;
+    for (const auto& t : tris) used_q.insert(used_q.end(), t.begin(), t.end());
+    for (const auto& r : rings) used_q.insert(used_q.end(), r.begin(), r.end());
+
+    // A solid the validator accepts at its tolerances (docs/cityjson.md,
+    // "Validity"): vertices welded within r > the snap tolerance (no two are
+    // then within it; spikes and collapsed faces go), written as the merged
+    // polygons when every one is a planar simple ring, else as the model's
+    // triangles; r grows until one of them is valid, else the model is left out.
+    std::string why;
+    const bool tri_coloured = mr.triangle_colours.size() == meshes[k].triangles.size();
+    for (const double factor : kWeldFactors) {
+      const auto r = std::uint32_t(std::ceil(factor * tol.snap / opt.scale));
+      const std::map<std::uint32_t, std::uint32_t> to = weld_map(used_q, pool, r);
+      const bool moved = std::any_of(to.begin(), to.end(),
+                                     [](const auto& p) { return p.first != p.second; });
+      std::vector<std::size_t> from;
+      std::vector<std::vector<std::uint32_t>> faces = weld_rings(rings, to, from);
+      lod::SolidCheck c = lod::check_solid(as_solid(faces, pool), tol);
+      if (c.valid()) {
+        g.faces = std::move(faces);
+        for (const std::size_t fi : from) {
+          g.semantic.push_back(sem[fi]);
+          g.colour.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
         }
-        std::set<int> cls(g.semantic.begin(), g.semantic.end());
-        g.full_semantics = cls.count(kRoof) && cls.count(kWall) && cls.count(kGround);
-        g.from_obj = false;
-        g.snapped = double(r) * opt.scale;
+        g.from_obj = from_obj;
+        g.snapped = moved ? double(r) * opt.scale : 0;
         g.valid = true;
         break;
       }
+      if (why.empty())
+        why = "polygons: error " + std::to_string(c.error) + " (" + c.detail + ")";
+      std::vector<std::array<std::uint32_t, 3>> welded;
+      for (const auto& t : tris) welded.push_back({to.at(t[0]), to.at(t[1]), to.at(t[2])});
+      const std::vector<std::array<std::uint32_t, 3>> surviving =
+          io::drop_collapsed_and_fins(welded, from);
+      faces.clear();
+      for (const auto& t : surviving) faces.push_back({t[0], t[1], t[2]});
+      c = lod::check_solid(as_solid(faces, pool), tol);
+      if (!c.valid()) {
+        if (why.find("triangles") == std::string::npos)
+          why += ", triangles: error " + std::to_string(c.error) + " (" + c.detail + ")";
+        continue;
+      }
+      g.faces = std::move(faces);
+      for (std::size_t i = 0; i < surviving.size(); ++i) {
+        const auto& t = meshes[k].triangles[from[i]];
+        const Vec3d n = newell(meshes[k].vertices, {t[0], t[1], t[2]});
+        const io::SurfaceClass c3 = io::classify_normal(n);
+        double fz = -std::numeric_limits<double>::infinity();
+        for (auto v : t) fz = std::max(fz, meshes[k].vertices[v][2]);
+        g.colour.push_back(tri_coloured ? mr.triangle_colours[from[i]] : io::Rgba8{0, 0, 0, 0});
+        g.semantic.push_back(c3 == io::SurfaceClass::roof     ? kRoof
+                             : c3 == io::SurfaceClass::wall   ? kWall
+                             : fz <= zmin + kGroundTolerance ? kGround
+                                                             : kCeiling);
+      }
+      g.from_obj = false;
+      g.snapped = moved ? double(r) * opt.scale : 0;
+      g.valid = true;
+      break;
     }
-    if (!g.valid) {
-      std::string why = "closed " + std::to_string(chk.closed) + ", oriented " +
-                        std::to_string(chk.oriented) + ", pinched " +
-                        std::to_string(chk.pinched_vertices) + ", shells " +
-                        std::to_string(chk.shells) + ", self-intersecting " +
-                        std::to_string(chk.self_intersecting);
-      if (dropped) why += ", " + std::to_string(dropped) + " faces collapsed by quantization";
+    if (!g.valid)
       out.warnings.push_back("cityjson: " + rec.id + " model step " + std::to_string(mr.step) +
-                             " is not a valid solid as written (" + why + ")");
-    }
+                             " left out: not a valid solid as written, even welded within " +
+                             std::to_string(kWeldFactors[std::size(kWeldFactors) - 1] *
+                                            tol.snap) +
+                             " m (" + why + ")");
+    const std::set<int> classes(g.semantic.begin(), g.semantic.end());
+    g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
 
     json a;
-    a["lod"] = g.lod;
     a["kind"] = io::to_string(mr.kind);
     a["level"] = mr.level;
     a["step"] = mr.step;
@@ -508,23 +559,39 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     a["polygons"] = g.faces.size();
     a["valid"] = g.valid;
     if (g.snapped > 0) a["snapped_m"] = g.snapped;
-    models.push_back(a);
+    g.attributes = std::move(a);
+    out.invalid += !g.valid;
     geoms.push_back(std::move(g));
   }
 
+  // ---- the lod of each written model; one geometry per lod on the Building
+  // (LoD1.2 the coarsest block, LoD1.3 the finest flat step model, LoD2.2 the
+  // finest model), the rest of the chain as +LodTreeModel children
+  geoms.erase(std::remove_if(geoms.begin(), geoms.end(), [](const Geometry& g) { return !g.valid; }),
+              geoms.end());
+  std::vector<std::size_t> on_building, children;
+  {
+    std::size_t lod12 = geoms.size(), lod13 = geoms.size();
+    for (std::size_t i = 0; i < geoms.size(); ++i) {
+      Geometry& g = geoms[i];
+      g.lod = cityjson_lod(g.fallback, i + 1 == geoms.size(), g.sloped, g.roof_heights);
+      g.attributes["lod"] = g.lod;
+      if (g.lod == "1.2" && lod12 == geoms.size()) lod12 = i;
+      if (g.lod == "1.3") lod13 = i;
+    }
+    for (std::size_t i = 0; i < geoms.size(); ++i)
+      if (i == lod12 || i == lod13 || i + 1 == geoms.size())
+        on_building.push_back(i);
+      else
+        children.push_back(i);
+  }
+  if (geoms.empty())
+    out.warnings.push_back("cityjson: " + rec.id +
+                           " has no model that is a valid solid as written: its Building "
+                           "is written without geometry");
+
   // ---- the feature
-  json obj;
-  obj["type"] = "Building";
-  json attrs = json::object();
-  // the footprint's own attributes (typed as read from its source), then ours
-  for (const auto& [k, v] : rec.attributes.items()) attrs[k] = v;
-  attrs["citylod_id"] = rec.id;
-  if (!rec.source.empty()) attrs["citylod_source"] = rec.source;
-  attrs["citylod_status"] = to_string(rep.status);
-  if (!rep.reason.empty()) attrs["citylod_reason"] = rep.reason;
-  attrs["citylod_models"] = models;
-  obj["attributes"] = attrs;
-  // vertices no written face uses (left by snapping) are not written
+  // vertices no written face uses (left by welding) are not written
   std::vector<std::uint32_t> renum(pool.list().size(), 0);
   std::vector<std::uint32_t> written_vertices;
   {
@@ -555,9 +622,8 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
                               {round_to(c[0] / 255.0, 1e-4), round_to(c[1] / 255.0, 1e-4),
                                round_to(c[2] / 255.0, 1e-4)}}});
       }
-  json geometry = json::array();
   out.full_semantics = true;
-  for (const Geometry& g : geoms) {
+  auto solid_json = [&](const Geometry& g) {
     json boundaries = json::array(), values = json::array();
     json shell = json::array();
     for (const auto& f : g.faces) shell.push_back(json::array({f}));
@@ -584,13 +650,41 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       geo["material"] = {{kColourTheme, {{"values", json::array({shell_values})}}}};
       ++out.coloured;
     }
-    geometry.push_back(geo);
     ++out.geometries;
-    out.invalid += !g.valid;
     out.triangulated += !g.from_obj;
     out.full_semantics = out.full_semantics && g.full_semantics;
+    return geo;
+  };
+  json objects = json::object();
+  json obj;
+  obj["type"] = "Building";
+  json attrs = json::object();
+  // the footprint's own attributes (typed as read from its source), then ours
+  for (const auto& [key, v] : rec.attributes.items()) attrs[key] = v;
+  attrs["citylod_id"] = rec.id;
+  if (!rec.source.empty()) attrs["citylod_source"] = rec.source;
+  attrs["citylod_status"] = to_string(rep.status);
+  if (!rep.reason.empty()) attrs["citylod_reason"] = rep.reason;
+  json models = json::array(), geometry = json::array();
+  for (const std::size_t i : on_building) {
+    models.push_back(geoms[i].attributes);
+    geometry.push_back(solid_json(geoms[i]));
   }
+  attrs["citylod_models"] = models;
+  obj["attributes"] = attrs;
   obj["geometry"] = geometry;
+  objects[object_id] = obj;
+  for (const std::size_t i : children) {
+    json child;
+    child["type"] = kChainObjectType;
+    json ca = geoms[i].attributes;
+    // not a child of the Building: validators (val3dity) read a Building's
+    // children as BuildingParts, which must not overlap
+    child["attributes"] = {{"citylod_building", object_id}, {"citylod_model", ca}};
+    child["geometry"] = json::array({solid_json(geoms[i])});
+    objects[chain_object_id(object_id, geoms[i].step)] = child;
+    ++out.chain_objects;
+  }
   json verts = json::array();
   for (const std::uint32_t i : written_vertices) {
     verts.push_back(pool.list()[i]);
@@ -600,7 +694,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   json feat;
   feat["type"] = "CityJSONFeature";
   feat["id"] = object_id;
-  feat["CityObjects"] = {{object_id, obj}};
+  feat["CityObjects"] = objects;
   feat["vertices"] = verts;
   if (!materials.empty()) feat["appearance"] = {{"materials", materials}};
   out.line = feat.dump();
@@ -688,6 +782,7 @@ CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out
       st.geometries += f.geometries;
       st.invalid += f.invalid;
       st.triangulated += f.triangulated;
+      st.chain_objects += f.chain_objects;
       st.coloured += f.coloured;
       st.vertices += f.vertices;
       st.multi_lod += f.geometries >= 2;
@@ -713,6 +808,8 @@ CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out
                                 extent.max[0], extent.max[1], extent.max[2]};
   meta["title"] = "citylod LOD chains of " + std::to_string(st.buildings) + " buildings";
   head["metadata"] = meta;
+  if (st.chain_objects > 0)
+    head["extensions"] = {{kChainExtension, {{"url", kChainExtensionUrl}, {"version", "1.0"}}}};
   head["CityObjects"] = json::object();
   head["vertices"] = json::array();
   {

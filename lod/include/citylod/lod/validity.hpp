@@ -1,0 +1,52 @@
+// Validity of a solid as val3dity (ISO 19107, the validator 3DBAG publishes
+// with) judges it at its tolerances: vertices closer than `snap` are one
+// vertex, each face is one planar, simple ring (distance to its fitted plane,
+// and the normals of its constrained triangulation within an angle), each
+// shell a closed, 2-manifold, outward, self-intersection-free surface of one
+// connected piece. check_mesh (lod.hpp) is the exact check of a triangle mesh;
+// check_solid is what a validator reading the written polygons finds.
+#pragma once
+
+#include "citylod/lod/types.hpp"
+
+#include <string>
+#include <vector>
+
+namespace citylod::lod {
+
+/// val3dity's default tolerances.
+struct Tolerances {
+  double snap = 0.001;                 ///< m: vertices at most this far apart are one vertex
+  double planarity_d2p = 0.01;         ///< m: a face vertex's distance to the fitted plane
+  double planarity_normals_deg = 20;   ///< degrees: between the triangles of one face
+};
+
+/// A solid as a validator reads it: vertices and shells (the first the outer
+/// one, the others cavities), each a list of faces, each face one ring of
+/// vertex indices (no repeated closing vertex), counter-clockwise seen from
+/// outside the solid.
+struct PolygonSolid {
+  std::vector<Vec3> vertices;
+  std::vector<std::vector<std::vector<int>>> shells;
+};
+
+/// The first error found, with val3dity's code (0: valid). Codes used:
+/// 101 too few points, 102 consecutive points the same (after snapping),
+/// 104 ring self-intersection / collapsed, 203 non-planar (distance),
+/// 204 non-planar (normals), 301 too few polygons, 302 not closed,
+/// 303 non-manifold vertex, 304 non-manifold edge, 305 several connected
+/// components, 306 self-intersection, 307 wrong orientation.
+struct SolidCheck {
+  int error = 0;
+  int shell = -1, face = -1;  ///< where (face index within its shell)
+  std::string detail;
+  bool valid() const { return error == 0; }
+};
+
+SolidCheck check_solid(const PolygonSolid& solid, const Tolerances& tol = {});
+
+/// The smallest distance between two distinct vertices used by the solid's
+/// faces (infinity for fewer than two): > tol.snap means no snapping merges.
+double min_vertex_distance(const PolygonSolid& solid);
+
+}  // namespace citylod::lod
