@@ -45,9 +45,10 @@ int cmd_cityjson(ArgParser& args) {
   for (const auto& w : st.warnings) log_warn(w);
   log_info(
       "wrote " + args.get("out") + ": " + std::to_string(st.buildings) + " buildings, " +
-      std::to_string(st.geometries) + " solids (" + std::to_string(st.chain_objects) + " of them chain models beyond LoD 1.2/1.3/2.2; " + std::to_string(st.invalid) + " models left out as invalid), " +
-      std::to_string(st.multi_lod) + " with >= 2 LODs, " + std::to_string(st.full_semantics) +
-      " with roof/wall/ground on every solid" +
+      std::to_string(st.geometries) + " solids (" + std::to_string(st.chain_objects) +
+      " of them chain models beyond LoD 1.2/1.3/2.2; " + std::to_string(st.invalid) +
+      " models left out as invalid), " + std::to_string(st.multi_lod) + " with >= 2 LODs, " +
+      std::to_string(st.full_semantics) + " with roof/wall/ground on every solid" +
       (st.coloured ? ", " + std::to_string(st.coloured) + " with the input's colours"
                    : std::string()) +
       (st.skipped ? ", " + std::to_string(st.skipped) + " skipped" : std::string()) + "; " +

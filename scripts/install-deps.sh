@@ -3,6 +3,7 @@
 # Usage: scripts/install-deps.sh [--with-test-tools | --with-bench-tools]
 #   --with-test-tools  also installs what the test suite needs beyond the build
 #                      (nodejs/npm, chromium, gdal-bin, gnuplot, slurm-wlm, munge,
+#                      val3dity's runtime libraries, python3-numpy,
 #                      postgresql-15-postgis-3 for the PostGIS footprint test, which
 #                      runs when CITYLOD_TEST_PG names a server).
 #   --with-bench-tools also installs what scripts/bench.sh needs (gnuplot, gdal-bin for ogr2ogr).
@@ -16,7 +17,10 @@ build_pkgs=(
   libgdal-dev
 )
 # clang-14 + libclang-rt-14-dev: the libFuzzer harnesses (scripts/fuzz.sh)
-test_pkgs=(clang-format clang-14 libclang-rt-14-dev chromium gdal-bin gnuplot-nox slurm-wlm munge postgresql-15-postgis-3)
+# libgeos-c1v5 ... libgmp10: the runtime of the prebuilt val3dity in ../shared/tools
+# (the CityJSON tests validate with it); python3-numpy: ../shared/tools/scale/replicate.py
+test_pkgs=(clang-format clang-14 libclang-rt-14-dev chromium gdal-bin gnuplot-nox slurm-wlm munge postgresql-15-postgis-3
+  libgeos-c1v5 libboost-filesystem1.74.0 libmpfr6 libgmp10 python3-numpy)
 # Node.js/npm: use the machine's own if present (Debian's npm conflicts with a
 # nodejs installed from elsewhere); otherwise Debian's.
 if ! command -v npm >/dev/null 2>&1; then test_pkgs+=(nodejs npm); fi

@@ -213,9 +213,9 @@ SolidCheck check_face(const Snapped& s, std::size_t fi, const Tolerances& tol,
     r.detail = "ring encloses no area";
     return r;
   }
-  const Vec3 n0 = unit_normal(s.points[std::size_t(face_tris[0][0])],
-                              s.points[std::size_t(face_tris[0][1])],
-                              s.points[std::size_t(face_tris[0][2])]);
+  const Vec3 n0 =
+      unit_normal(s.points[std::size_t(face_tris[0][0])], s.points[std::size_t(face_tris[0][1])],
+                  s.points[std::size_t(face_tris[0][2])]);
   for (const auto& t : face_tris) {
     const Vec3 n1 = unit_normal(s.points[std::size_t(t[0])], s.points[std::size_t(t[1])],
                                 s.points[std::size_t(t[2])]);
@@ -284,8 +284,8 @@ SolidCheck check_solid(const PolygonSolid& solid, const Tolerances& tol) {
       r.detail = "the shell intersects itself";
     } else if (!m.oriented || (si == 0) != (m.shells == 1)) {
       r.error = 307;
-      r.detail = si == 0 ? "the outer shell is not oriented outwards"
-                         : "a cavity is not oriented inwards";
+      r.detail =
+          si == 0 ? "the outer shell is not oriented outwards" : "a cavity is not oriented inwards";
     } else {
       r.shell = -1;
       continue;
@@ -293,6 +293,26 @@ SolidCheck check_solid(const PolygonSolid& solid, const Tolerances& tol) {
     return r;
   }
   return r;
+}
+
+std::vector<std::vector<int>> face_errors(const PolygonSolid& solid, const Tolerances& tol) {
+  std::vector<std::vector<int>> out;
+  for (const auto& faces : solid.shells) {
+    out.emplace_back();
+    bool indices_ok = true;
+    for (const auto& f : faces)
+      for (const int v : f)
+        indices_ok = indices_ok && v >= 0 && std::size_t(v) < solid.vertices.size();
+    if (!indices_ok) {
+      out.back().assign(faces.size(), 101);
+      continue;
+    }
+    const Snapped s = snap_shell(solid.vertices, faces, tol.snap);
+    std::vector<std::array<int, 3>> tris;
+    for (std::size_t fi = 0; fi < s.rings.size(); ++fi)
+      out.back().push_back(check_face(s, fi, tol, tris).error);
+  }
+  return out;
 }
 
 double min_vertex_distance(const PolygonSolid& solid) {
@@ -305,7 +325,8 @@ double min_vertex_distance(const PolygonSolid& solid) {
   for (std::size_t i = 0; i < used.size(); ++i)
     if (used[i]) p.push_back(solid.vertices[i]);
   std::sort(p.begin(), p.end(), [](const Vec3& a, const Vec3& b) {
-    return a.x() < b.x() || (a.x() == b.x() && (a.y() < b.y() || (a.y() == b.y() && a.z() < b.z())));
+    return a.x() < b.x() ||
+           (a.x() == b.x() && (a.y() < b.y() || (a.y() == b.y() && a.z() < b.z())));
   });
   double best = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < p.size(); ++i)

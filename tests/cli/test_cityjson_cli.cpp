@@ -22,6 +22,7 @@
 
 #include "support/cityjson_check.hpp"
 #include "support/cli_run.hpp"
+#include "support/val3dity.hpp"
 
 namespace fs = std::filesystem;
 
@@ -100,42 +101,48 @@ TEST(CityJsonCli, DelftTileOneValidChainPerBuilding) {
     in_cityjson.insert(cid);
     // the footprint's own attributes travel with the building (here its "id")
     EXPECT_EQ(o["attributes"].value("id", std::string()), f["id"].get<std::string>()) << cid;
-    const json& geoms = o["geometry"];
-    multi += geoms.size() >= 2;
-    // the same chain as the tileset: as many geometries, same steps
+    for (const auto& p : chain_problems(f)) ADD_FAILURE() << cid << ": " << p;
+    const auto chain = feature_chain(f);  // the Building's LoDs + its +LodTreeModel objects
+    multi += chain.size() >= 2;
+    // the same chain as the tileset: as many models, same steps
     const json& kept = tiles_index["buildings"][cid]["models"];
-    bool same = kept.size() == geoms.size();
-    for (std::size_t g = 0; same && g < geoms.size(); ++g)
-      same = kept[g]["step"] == o["attributes"]["citylod_models"][g]["step"];
+    bool same = kept.size() == chain.size();
+    for (std::size_t g = 0; same && g < chain.size(); ++g)
+      same = kept[g]["step"] == chain[g].second["step"];
     chain_matches += same;
     bool all_sem = true;
     const auto v = feature_vertices(seq.header, f);
     const auto vrel = feature_vertices(seq.header, f, true);
-    for (std::size_t g = 0; g < geoms.size(); ++g) {
+    for (std::size_t g = 0; g < chain.size(); ++g) {
+      const json& geom = chain[g].first;
       std::set<std::string> types;
-      for (const auto& s : geoms[g]["semantics"]["surfaces"]) types.insert(s["type"]);
+      for (const auto& s : geom["semantics"]["surfaces"]) types.insert(s["type"]);
       all_sem = all_sem && types.count("RoofSurface") && types.count("WallSurface") &&
                 types.count("GroundSurface");
       ++solids;
-      const SolidCheck c = check_solid(geoms[g]["boundaries"], vrel);
+      const SolidCheck c = check_solid(geom["boundaries"], vrel);
       valid += c.valid();
       EXPECT_TRUE(c.valid()) << cid << " geometry " << g << ": closed/oriented "
                              << c.closed_oriented << ", pinched " << c.pinched << ", volume "
                              << c.volume;
-      EXPECT_EQ(o["attributes"]["citylod_models"][g]["valid"], c.valid()) << cid << " " << g;
+      EXPECT_EQ(chain[g].second["valid"], c.valid()) << cid << " " << g;
       // in RD + NAP: within the input's bounds (a wall's top may be 0.25 m above a point)
-      const Box3 b = geometry_box(geoms[g], v);
+      const Box3 b = geometry_box(geom, v);
       for (int k = 0; k < 2; ++k) {
         EXPECT_GE(b.lo[k], bounds.lo[k] - 30) << cid;  // footprints may stick out of the tile
         EXPECT_LE(b.hi[k], bounds.hi[k] + 30) << cid;
       }
       EXPECT_GE(b.lo[2], bounds.lo[2] - 1) << cid;
       EXPECT_LE(b.hi[2], bounds.hi[2] + 1) << cid;
-      if (g + 1 == geoms.size()) finest_box[cid] = b;
+      if (g + 1 == chain.size()) finest_box[cid] = b;
     }
-    // the finest model is LoD2.2, a fallback (extruded footprint) LoD1.2
+    // the finest model is the Building's LoD2.2, a fallback (extruded
+    // footprint) LoD1.2; the Building's first geometry is LoD1.2
+    const json& geoms = o["geometry"];
+    ASSERT_FALSE(geoms.empty()) << cid;
     EXPECT_EQ(geoms.back()["lod"], o["attributes"]["citylod_status"] == "fallback" ? "1.2" : "2.2")
         << cid;
+    EXPECT_EQ(geoms.front()["lod"], "1.2") << cid;
     snapped += std::count_if(o["attributes"]["citylod_models"].begin(),
                              o["attributes"]["citylod_models"].end(),
                              [](const json& m) { return m.contains("snapped_m"); });
@@ -189,6 +196,21 @@ TEST(CityJsonCli, DelftTileOneValidChainPerBuilding) {
       seq.features.size(), solids, valid, snapped, multi, 100.0 * double(multi) / n, semantics,
       100.0 * double(semantics) / n, std::uintmax_t(fs::file_size(file)),
       dxy.empty() ? -1.0 : dxy[dxy.size() / 2], dz.empty() ? -1.0 : dz[dz.size() / 2]);
+
+  // val3dity (the validator 3DBAG publishes with) at its default tolerances:
+  // every solid and every building valid (issue 26: 71/90 solids, 19/27
+  // buildings before the tolerance-aware check and the one-geometry-per-lod rule)
+  if (val3dity_binary().empty()) {
+    std::printf("val3dity not found beside the shared data: not run\n");
+  } else {
+    const Val3dityResult v3 = run_val3dity(file, d / "val3dity.json");
+    ASSERT_TRUE(v3.ran) << v3.why;
+    EXPECT_EQ(v3.valid_primitives, v3.primitives) << v3.first_error;
+    EXPECT_EQ(v3.valid_features, v3.features) << v3.first_error;
+    EXPECT_EQ(v3.primitives, solids);
+    std::printf("val3dity: %zu / %zu features valid, %zu / %zu solids valid\n", v3.valid_features,
+                v3.features, v3.valid_primitives, v3.primitives);
+  }
 
   // the tiles: EXT_meshopt_compression by default (every glb requires it),
   // against the same work directory assembled with --compression none

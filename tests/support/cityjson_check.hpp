@@ -122,6 +122,43 @@ inline std::vector<std::array<double, 3>> feature_vertices(const nlohmann::json&
   return out;
 }
 
+/// The whole LOD chain of one citylod feature, coarse to fine: the Building's
+/// geometries and those of its "+LodTreeModel" objects (docs/cityjson.md), by
+/// step, each as (geometry, its citylod model entry).
+inline std::vector<std::pair<nlohmann::json, nlohmann::json>> feature_chain(
+    const nlohmann::json& f) {
+  std::map<int, std::pair<nlohmann::json, nlohmann::json>> by_step;
+  const auto& b = f["CityObjects"][f["id"].get<std::string>()];
+  for (std::size_t g = 0; g < b["geometry"].size(); ++g) {
+    const auto& m = b["attributes"]["citylod_models"][g];
+    by_step[m["step"].get<int>()] = {b["geometry"][g], m};
+  }
+  for (const auto& [id, o] : f["CityObjects"].items())
+    if (o["type"] == "+LodTreeModel" && !o["geometry"].empty()) {
+      const auto& m = o["attributes"]["citylod_model"];
+      by_step[m["step"].get<int>()] = {o["geometry"][0], m};
+    }
+  std::vector<std::pair<nlohmann::json, nlohmann::json>> out;
+  for (auto& [step, gm] : by_step) out.push_back(gm);
+  return out;
+}
+
+/// Problems of a feature's chain objects: each "+LodTreeModel" names its
+/// Building, has one geometry and the id "<building>-lodtree-<step>".
+inline std::vector<std::string> chain_problems(const nlohmann::json& f) {
+  std::vector<std::string> p;
+  const std::string fid = f["id"].get<std::string>();
+  for (const auto& [id, o] : f["CityObjects"].items()) {
+    if (o["type"] != "+LodTreeModel") continue;
+    if (o["attributes"]["citylod_building"] != fid) p.push_back(id + ": not of building " + fid);
+    if (o["geometry"].size() != 1u) p.push_back(id + ": not one geometry");
+    const auto& m = o["attributes"]["citylod_model"];
+    if (!m.contains("step") || id != fid + "-lodtree-" + std::to_string(m["step"].get<int>()))
+      p.push_back(id + ": id is not <building>-lodtree-<step>");
+  }
+  return p;
+}
+
 /// Structure problems of a CityJSONSeq by the CityJSON 2.0 rules that apply to
 /// citylod's output (empty = none).
 inline std::vector<std::string> cjseq_problems(const CjSeq& s) {
@@ -163,6 +200,15 @@ inline std::vector<std::string> cjseq_problems(const CjSeq& s) {
     for (const auto& [oid, o] : f["CityObjects"].items()) {
       if (!o.contains("type")) p.push_back(where + ": CityObject " + oid + " without type");
       if (!o.contains("geometry")) continue;
+      const std::string type = o.value("type", "");
+      if (!type.empty() && type[0] == '+' && !h.contains("extensions"))
+        p.push_back(where + ": Extension type " + type + " without header extensions");
+      std::set<std::string> lods;  // validators read two of one lod as overlapping parts
+      for (const auto& g : o["geometry"])
+        if (g.contains("lod") && g["lod"].is_string() &&
+            !lods.insert(g["lod"].get<std::string>()).second)
+          p.push_back(where + ": CityObject " + oid + " has two geometries of lod " +
+                      g["lod"].get<std::string>());
       for (const auto& g : o["geometry"]) {
         if (g.value("type", "") != "Solid") {
           p.push_back(where + ": geometry is not a Solid");

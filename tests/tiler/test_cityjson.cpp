@@ -14,11 +14,13 @@
 #include "citylod/io/error.hpp"
 #include "citylod/io/glb_reader.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/lod/validity.hpp"
 #include "citylod/tiler/assemble.hpp"
 #include "citylod/tiler/cityjson.hpp"
 #include "citylod/tiler/workdir.hpp"
 #include "support/cityjson_check.hpp"
 #include "support/cli_run.hpp"
+#include "support/val3dity.hpp"
 
 namespace citylod::test {
 namespace {
@@ -174,6 +176,12 @@ const json& object_of(const json& f) {
   return f["CityObjects"][f["id"].get<std::string>()];
 }
 
+/// The whole chain (support/cityjson_check.hpp), its objects checked.
+std::vector<std::pair<json, json>> chain_of(const json& f) {
+  for (const auto& p : chain_problems(f)) ADD_FAILURE() << p;
+  return feature_chain(f);
+}
+
 TEST(CityJson, StructureFollowsTheSpecification) {
   Scene s = make_scene("structure");
   add_building(s, "fp-A1", chain(85010, 447510), "footprint:A1");
@@ -182,6 +190,7 @@ TEST(CityJson, StructureFollowsTheSpecification) {
   const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
   EXPECT_EQ(st.buildings, 2u);
   EXPECT_EQ(st.geometries, 6u);
+  EXPECT_EQ(st.chain_objects, 2u);
   EXPECT_EQ(st.invalid, 0u);
   EXPECT_EQ(st.multi_lod, 2u);
   EXPECT_EQ(st.full_semantics, 2u);
@@ -196,24 +205,31 @@ TEST(CityJson, StructureFollowsTheSpecification) {
   EXPECT_EQ(seq.features[0]["id"], "A1");
   EXPECT_EQ(object_of(seq.features[0])["type"], "Building");
   EXPECT_EQ(object_of(seq.features[0])["attributes"]["citylod_id"], "fp-A1");
-  // geometries coarse -> fine with their lod and per-model attributes aligned
+  // one geometry per lod on the Building (the block LoD1.2, the finest
+  // LoD2.2), with the per-model attributes aligned; the rest of the chain
+  // (the low gable) as a +LodTreeModel object of the Extension
+  EXPECT_EQ(seq.header["extensions"]["LodTree"]["version"], "1.0");
   const json& o = object_of(seq.features[1]);
-  ASSERT_EQ(o["geometry"].size(), 3u);
+  ASSERT_EQ(o["geometry"].size(), 2u);
   EXPECT_EQ(o["geometry"][0]["lod"], "1.2");
-  EXPECT_EQ(o["geometry"][1]["lod"], "2.1");
-  EXPECT_EQ(o["geometry"][2]["lod"], "2.2");
+  EXPECT_EQ(o["geometry"][1]["lod"], "2.2");
+  EXPECT_FALSE(o.contains("children"));  // val3dity would read them as BuildingParts
+  ASSERT_EQ(seq.features[1]["CityObjects"].size(), 2u);
   const json& ms = o["attributes"]["citylod_models"];
-  ASSERT_EQ(ms.size(), 3u);
-  EXPECT_EQ(ms[1]["kind"], "interpolation");
-  EXPECT_EQ(ms[1]["level"], 1);
-  EXPECT_EQ(ms[1]["step"], 1);
-  EXPECT_NEAR(ms[1]["rmse_m"].get<double>(), 0.01 * 20, 1e-9);  // e2 1 % of 20 m
-  EXPECT_EQ(ms[2]["triangles"], 16);  // fan: 5 quads x 2 + 2 pentagons x 3
-  EXPECT_EQ(ms[2]["polygons"], 7);
-  EXPECT_EQ(ms[2]["error_m"], 0.0);
-  for (std::size_t g = 0; g < 3; ++g) {
-    EXPECT_EQ(ms[g]["lod"], o["geometry"][g]["lod"]);
-    EXPECT_TRUE(ms[g]["valid"].get<bool>());
+  ASSERT_EQ(ms.size(), 2u);
+  EXPECT_EQ(ms[1]["triangles"], 16);  // fan: 5 quads x 2 + 2 pentagons x 3
+  EXPECT_EQ(ms[1]["polygons"], 7);
+  EXPECT_EQ(ms[1]["error_m"], 0.0);
+  const auto whole = chain_of(seq.features[1]);
+  ASSERT_EQ(whole.size(), 3u);
+  EXPECT_EQ(whole[1].first["lod"], "2.1");
+  EXPECT_EQ(whole[1].second["kind"], "interpolation");
+  EXPECT_EQ(whole[1].second["level"], 1);
+  EXPECT_EQ(whole[1].second["step"], 1);
+  EXPECT_NEAR(whole[1].second["rmse_m"].get<double>(), 0.01 * 20, 1e-9);  // e2 1 % of 20 m
+  for (const auto& [g, m] : whole) {
+    EXPECT_EQ(m["lod"], g["lod"]);
+    EXPECT_TRUE(m["valid"].get<bool>());
   }
   // the extent is in RD
   const auto& e = seq.header["metadata"]["geographicalExtent"];
@@ -232,13 +248,13 @@ TEST(CityJson, RoundTripGivesBackTheModelsInTheCrs) {
   ASSERT_EQ(seq.features.size(), 1u);
   EXPECT_EQ(seq.features[0]["id"], "b-1");  // no footprint: the chunk id
   const auto v = feature_vertices(seq.header, seq.features[0]);
-  const json& geoms = object_of(seq.features[0])["geometry"];
-  ASSERT_EQ(geoms.size(), models.size());
+  const auto whole = chain_of(seq.features[0]);
+  ASSERT_EQ(whole.size(), models.size());
   // quantized to 0.1 mm: each coordinate within half a step (+ the ENU round trip)
   const double tol = 0.00005 + 1e-6;
   for (std::size_t g = 0; g < models.size(); ++g) {
     const PolygonMesh& truth = models[g].rd;
-    const json& b = geoms[g]["boundaries"];
+    const json& b = whole[g].first["boundaries"];
     ASSERT_EQ(b.size(), 1u);
     ASSERT_EQ(b[0].size(), truth.faces.size()) << "geometry " << g;
     // face by face, vertex by vertex, in the same order
@@ -296,7 +312,8 @@ TEST(CityJson, TriangulatedAndInvalidModelsAreRecorded) {
   Scene s = make_scene("records");
   // no OBJ: the PLY's triangles are the faces
   add_building(s, "b-tri", {{box(85000, 447500, 0, 85010, 447508, 6), "anchor", 0, 0, false}});
-  // an open box (no ground): written, recorded as not a valid solid
+  // an open box (no ground): not a valid solid even welded: left out, the
+  // Building is written without geometry and a warning names it
   PolygonMesh open = box(85030, 447500, 0, 85040, 447508, 6);
   open.faces.erase(std::remove_if(open.faces.begin(), open.faces.end(),
                                   [&](const auto& f) {
@@ -312,16 +329,61 @@ TEST(CityJson, TriangulatedAndInvalidModelsAreRecorded) {
   EXPECT_EQ(st.buildings, 2u);
   EXPECT_EQ(st.triangulated, 1u);
   EXPECT_EQ(st.invalid, 1u);
-  ASSERT_EQ(st.warnings.size(), 1u);
-  EXPECT_NE(st.warnings[0].find("b-open"), std::string::npos) << st.warnings[0];
+  ASSERT_EQ(st.warnings.size(), 2u);
+  EXPECT_NE(st.warnings[0].find("b-open model step 0 left out"), std::string::npos)
+      << st.warnings[0];
+  EXPECT_NE(st.warnings[0].find("error 302"), std::string::npos) << st.warnings[0];
+  EXPECT_NE(st.warnings[1].find("b-open has no model"), std::string::npos) << st.warnings[1];
   const CjSeq seq = read_cjseq(out);
   for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
   const json& open_obj = object_of(seq.features[0]);  // "b-open" < "b-tri"
-  EXPECT_FALSE(open_obj["attributes"]["citylod_models"][0]["valid"].get<bool>());
+  EXPECT_TRUE(open_obj["geometry"].empty());
+  EXPECT_TRUE(open_obj["attributes"]["citylod_models"].empty());
   const json& tri = object_of(seq.features[1]);
   EXPECT_EQ(tri["geometry"][0]["boundaries"][0].size(), 12u);
   EXPECT_TRUE(tri["attributes"]["citylod_models"][0]["valid"].get<bool>());
   EXPECT_EQ(tri["geometry"][0]["lod"], "2.2");
+}
+
+// Issue 26: a vertex 0.3 mm from a corner (a T-junction on the top face's edge
+// and on the wall's) is exact and closed, but a validator snaps it onto the
+// corner (val3dity: 102 CONSECUTIVE_POINTS_SAME). The writer welds it away.
+TEST(CityJson, VerticesWithinTheValidatorsSnapAreWelded) {
+  Scene s = make_scene("weld");
+  const double x0 = 85000, y0 = 447500, x1 = 85010, y1 = 447508, h = 6;
+  std::vector<Vec3d> v;
+  for (int i = 0; i < 8; ++i) v.push_back({(i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? h : 0});
+  v.push_back({x0, y1 - 0.0003, h});  // 8: on the edge 6-4
+  const PolygonMesh m = convex(
+      v,
+      {{0, 2, 3, 1}, {4, 5, 7, 6, 8}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 8, 6, 2}, {1, 3, 7, 5}});
+  add_building(s, "b-weld", {{m, "anchor", 0, 0, true}});
+  const std::string out = s.work + "/weld.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.invalid, 0u);
+  EXPECT_EQ(st.triangulated, 0u);  // the polygons, welded
+  const CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  const json& o = object_of(seq.features[0]);
+  ASSERT_EQ(o["geometry"].size(), 1u);
+  EXPECT_NEAR(o["attributes"]["citylod_models"][0]["snapped_m"].get<double>(), 0.0011, 1e-12);
+  EXPECT_EQ(seq.features[0]["vertices"].size(), 8u);
+  // what the validator reads: valid, no two vertices within 1 mm
+  const auto rel = feature_vertices(seq.header, seq.features[0], true);
+  lod::PolygonSolid solid;
+  for (const auto& p : rel) solid.vertices.emplace_back(p[0], p[1], p[2]);
+  solid.shells.emplace_back();
+  for (const auto& f : o["geometry"][0]["boundaries"][0])
+    solid.shells[0].push_back(f[0].get<std::vector<int>>());
+  const lod::SolidCheck c = lod::check_solid(solid);
+  EXPECT_TRUE(c.valid()) << c.error << " " << c.detail;
+  EXPECT_GT(lod::min_vertex_distance(solid), 0.001);
+  for (const auto& f : solid.shells[0]) EXPECT_EQ(f.size(), 4u);
+  if (!val3dity_binary().empty()) {
+    const Val3dityResult v3 = run_val3dity(out, s.work + "/weld_val3dity.json");
+    ASSERT_TRUE(v3.ran) << v3.why;
+    EXPECT_EQ(v3.valid_primitives, 1u) << v3.first_error;
+  }
 }
 
 TEST(CityJson, SameBytesWhateverTheThreads) {
@@ -352,10 +414,10 @@ TEST(CityJson, TakesTheChainsItIsGiven) {
   tiler::write_cityjson(s.work, given, o);
   const CjSeq a = read_cjseq(chosen), b = read_cjseq(given);
   ASSERT_EQ(b.features.size(), 2u);
-  EXPECT_EQ(object_of(a.features[0])["geometry"].size(), 3u);
+  EXPECT_EQ(chain_of(a.features[0]).size(), 3u);
   ASSERT_EQ(object_of(b.features[0])["geometry"].size(), 1u);
   const json &g = object_of(b.features[0])["geometry"][0],
-             &finest = object_of(a.features[0])["geometry"][2];  // vertex indices differ
+             &finest = object_of(a.features[0])["geometry"][1];  // vertex indices differ
   EXPECT_EQ(g["lod"], finest["lod"]);
   EXPECT_EQ(g["semantics"], finest["semantics"]);
   EXPECT_EQ(g["boundaries"][0].size(), finest["boundaries"][0].size());

@@ -225,7 +225,7 @@ struct Feature {
   std::string line;  // the JSON text, no newline
   std::size_t geometries = 0, invalid = 0, triangulated = 0, vertices = 0;
   std::size_t chain_objects = 0;  // +LodTreeModel objects
-  std::size_t coloured = 0;  // geometries with a material
+  std::size_t coloured = 0;       // geometries with a material
   bool full_semantics = false;
   io::BBox3 bbox;  // CRS
   std::vector<std::string> warnings;
@@ -479,69 +479,128 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     for (const auto& t : tris) used_q.insert(used_q.end(), t.begin(), t.end());
     for (const auto& r : rings) used_q.insert(used_q.end(), r.begin(), r.end());
 
+    // The triangles of each polygon: the PLY triangulates the OBJ's polygons
+    // in order, n - 2 triangles each (checked: each uses its polygon's
+    // vertices only; else none are known and a polygon is never split).
+    std::vector<std::pair<std::size_t, std::size_t>> tris_of_ring;  // [first, last)
+    if (from_obj) {
+      std::size_t at = 0;
+      for (const auto& ring : rings) {
+        const std::size_t n = ring.size() >= 3 ? ring.size() - 2 : 0;
+        bool ok = at + n <= tris.size();
+        for (std::size_t t = at; ok && t < at + n; ++t)
+          for (const std::uint32_t q : tris[t])
+            ok = ok && std::find(ring.begin(), ring.end(), q) != ring.end();
+        if (!ok) {
+          tris_of_ring.clear();
+          break;
+        }
+        tris_of_ring.emplace_back(at, at + n);
+        at += n;
+      }
+      if (at != tris.size()) tris_of_ring.clear();
+    }
+
     // A solid the validator accepts at its tolerances (docs/cityjson.md,
     // "Validity"): vertices welded within r > the snap tolerance (no two are
     // then within it; spikes and collapsed faces go), written as the merged
-    // polygons when every one is a planar simple ring, else as the model's
-    // triangles; r grows until one of them is valid, else the model is left out.
+    // polygons when every one is a planar simple ring; else with the
+    // polygons a validator rejects alone (a fold, a ring that touches itself)
+    // as their triangles; else as the model's triangles; r grows until one of
+    // them is valid, else the model is left out.
     std::string why;
     const bool tri_coloured = mr.triangle_colours.size() == meshes[k].triangles.size();
+    auto take = [&](std::vector<std::vector<std::uint32_t>>&& faces, std::vector<int>&& semantic,
+                    std::vector<io::Rgba8>&& colour, bool polygons, double snapped) {
+      g.faces = std::move(faces);
+      g.semantic = std::move(semantic);
+      g.colour = std::move(colour);
+      g.from_obj = polygons;
+      g.snapped = snapped;
+      g.valid = true;
+    };
     for (const double factor : kWeldFactors) {
       const auto r = std::uint32_t(std::ceil(factor * tol.snap / opt.scale));
       const std::map<std::uint32_t, std::uint32_t> to = weld_map(used_q, pool, r);
-      const bool moved = std::any_of(to.begin(), to.end(),
-                                     [](const auto& p) { return p.first != p.second; });
+      const bool moved =
+          std::any_of(to.begin(), to.end(), [](const auto& p) { return p.first != p.second; });
+      const double snapped = moved ? double(r) * opt.scale : 0;
       std::vector<std::size_t> from;
       std::vector<std::vector<std::uint32_t>> faces = weld_rings(rings, to, from);
-      lod::SolidCheck c = lod::check_solid(as_solid(faces, pool), tol);
+      std::vector<int> fsem;
+      std::vector<io::Rgba8> fcol;
+      for (const std::size_t fi : from) {
+        fsem.push_back(sem[fi]);
+        fcol.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
+      }
+      const lod::PolygonSolid solid = as_solid(faces, pool);
+      lod::SolidCheck c = lod::check_solid(solid, tol);
       if (c.valid()) {
-        g.faces = std::move(faces);
-        for (const std::size_t fi : from) {
-          g.semantic.push_back(sem[fi]);
-          g.colour.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
-        }
-        g.from_obj = from_obj;
-        g.snapped = moved ? double(r) * opt.scale : 0;
-        g.valid = true;
+        take(std::move(faces), std::move(fsem), std::move(fcol), from_obj, snapped);
         break;
       }
-      if (why.empty())
-        why = "polygons: error " + std::to_string(c.error) + " (" + c.detail + ")";
+      if (why.empty()) why = "polygons: error " + std::to_string(c.error) + " (" + c.detail + ")";
+      // the polygons rejected alone, as their (welded) triangles
+      const std::vector<int> errs = lod::face_errors(solid, tol)[0];
+      if (!tris_of_ring.empty() && std::any_of(errs.begin(), errs.end(), [](int e) { return e; })) {
+        std::vector<std::vector<std::uint32_t>> mixed;
+        std::vector<int> msem;
+        std::vector<io::Rgba8> mcol;
+        for (std::size_t j = 0; j < faces.size(); ++j) {
+          if (!errs[j]) {
+            mixed.push_back(faces[j]);
+            msem.push_back(fsem[j]);
+            mcol.push_back(fcol[j]);
+            continue;
+          }
+          for (std::size_t t = tris_of_ring[from[j]].first; t < tris_of_ring[from[j]].second; ++t) {
+            const std::array<std::uint32_t, 3> w{to.at(tris[t][0]), to.at(tris[t][1]),
+                                                 to.at(tris[t][2])};
+            if (w[0] == w[1] || w[1] == w[2] || w[0] == w[2]) continue;  // collapsed
+            mixed.push_back({w[0], w[1], w[2]});
+            msem.push_back(fsem[j]);
+            mcol.push_back(fcol[j]);
+          }
+        }
+        c = lod::check_solid(as_solid(mixed, pool), tol);
+        if (c.valid()) {
+          take(std::move(mixed), std::move(msem), std::move(mcol), from_obj, snapped);
+          break;
+        }
+      }
+      // the model's triangles
       std::vector<std::array<std::uint32_t, 3>> welded;
       for (const auto& t : tris) welded.push_back({to.at(t[0]), to.at(t[1]), to.at(t[2])});
       const std::vector<std::array<std::uint32_t, 3>> surviving =
           io::drop_collapsed_and_fins(welded, from);
       faces.clear();
-      for (const auto& t : surviving) faces.push_back({t[0], t[1], t[2]});
-      c = lod::check_solid(as_solid(faces, pool), tol);
-      if (!c.valid()) {
-        if (why.find("triangles") == std::string::npos)
-          why += ", triangles: error " + std::to_string(c.error) + " (" + c.detail + ")";
-        continue;
-      }
-      g.faces = std::move(faces);
+      fsem.clear();
+      fcol.clear();
       for (std::size_t i = 0; i < surviving.size(); ++i) {
+        faces.push_back({surviving[i][0], surviving[i][1], surviving[i][2]});
         const auto& t = meshes[k].triangles[from[i]];
         const Vec3d n = newell(meshes[k].vertices, {t[0], t[1], t[2]});
         const io::SurfaceClass c3 = io::classify_normal(n);
         double fz = -std::numeric_limits<double>::infinity();
         for (auto v : t) fz = std::max(fz, meshes[k].vertices[v][2]);
-        g.colour.push_back(tri_coloured ? mr.triangle_colours[from[i]] : io::Rgba8{0, 0, 0, 0});
-        g.semantic.push_back(c3 == io::SurfaceClass::roof     ? kRoof
-                             : c3 == io::SurfaceClass::wall   ? kWall
-                             : fz <= zmin + kGroundTolerance ? kGround
-                                                             : kCeiling);
+        fcol.push_back(tri_coloured ? mr.triangle_colours[from[i]] : io::Rgba8{0, 0, 0, 0});
+        fsem.push_back(c3 == io::SurfaceClass::roof    ? kRoof
+                       : c3 == io::SurfaceClass::wall  ? kWall
+                       : fz <= zmin + kGroundTolerance ? kGround
+                                                       : kCeiling);
       }
-      g.from_obj = false;
-      g.snapped = moved ? double(r) * opt.scale : 0;
-      g.valid = true;
-      break;
+      c = lod::check_solid(as_solid(faces, pool), tol);
+      if (c.valid()) {
+        take(std::move(faces), std::move(fsem), std::move(fcol), false, snapped);
+        break;
+      }
+      if (why.find("triangles") == std::string::npos)
+        why += ", triangles: error " + std::to_string(c.error) + " (" + c.detail + ")";
     }
     if (!g.valid)
       out.warnings.push_back("cityjson: " + rec.id + " model step " + std::to_string(mr.step) +
                              " left out: not a valid solid as written, even welded within " +
-                             std::to_string(kWeldFactors[std::size(kWeldFactors) - 1] *
-                                            tol.snap) +
+                             std::to_string(kWeldFactors[std::size(kWeldFactors) - 1] * tol.snap) +
                              " m (" + why + ")");
     const std::set<int> classes(g.semantic.begin(), g.semantic.end());
     g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
@@ -567,8 +626,9 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   // ---- the lod of each written model; one geometry per lod on the Building
   // (LoD1.2 the coarsest block, LoD1.3 the finest flat step model, LoD2.2 the
   // finest model), the rest of the chain as +LodTreeModel children
-  geoms.erase(std::remove_if(geoms.begin(), geoms.end(), [](const Geometry& g) { return !g.valid; }),
-              geoms.end());
+  geoms.erase(
+      std::remove_if(geoms.begin(), geoms.end(), [](const Geometry& g) { return !g.valid; }),
+      geoms.end());
   std::vector<std::size_t> on_building, children;
   {
     std::size_t lod12 = geoms.size(), lod13 = geoms.size();

@@ -16,9 +16,9 @@ namespace citylod::lod {
 
 /// val3dity's default tolerances.
 struct Tolerances {
-  double snap = 0.001;                 ///< m: vertices at most this far apart are one vertex
-  double planarity_d2p = 0.01;         ///< m: a face vertex's distance to the fitted plane
-  double planarity_normals_deg = 20;   ///< degrees: between the triangles of one face
+  double snap = 0.001;                ///< m: vertices at most this far apart are one vertex
+  double planarity_d2p = 0.01;        ///< m: a face vertex's distance to the fitted plane
+  double planarity_normals_deg = 20;  ///< degrees: between the triangles of one face
 };
 
 /// A solid as a validator reads it: vertices and shells (the first the outer
@@ -44,6 +44,11 @@ struct SolidCheck {
 };
 
 SolidCheck check_solid(const PolygonSolid& solid, const Tolerances& tol = {});
+
+/// The ring and planarity checks alone, of every face (after the shell's
+/// snapping): per shell, per face, the error code (101, 102, 104, 203, 204)
+/// or 0. A writer replaces the faces that fail by their triangles.
+std::vector<std::vector<int>> face_errors(const PolygonSolid& solid, const Tolerances& tol = {});
 
 /// The smallest distance between two distinct vertices used by the solid's
 /// faces (infinity for fewer than two): > tol.snap means no snapping merges.

@@ -51,10 +51,10 @@ struct CityJsonOptions {
 };
 
 struct CityJsonStats {
-  std::size_t buildings = 0;       ///< features written
-  std::size_t skipped = 0;         ///< manifest records skipped by split or without models
-  std::size_t geometries = 0;      ///< Solids written
-  std::size_t invalid = 0;         ///< kept models left out: no valid solid as written (lod::check_solid)
+  std::size_t buildings = 0;   ///< features written
+  std::size_t skipped = 0;     ///< manifest records skipped by split or without models
+  std::size_t geometries = 0;  ///< Solids written
+  std::size_t invalid = 0;  ///< kept models left out: no valid solid as written (lod::check_solid)
   std::size_t chain_objects = 0;   ///< +LodTreeModel objects (the chain beyond LoD 1.2 / 1.3 / 2.2)
   std::size_t multi_lod = 0;       ///< buildings with >= 2 geometries
   std::size_t full_semantics = 0;  ///< buildings whose every geometry has roof, wall and ground
