@@ -177,17 +177,17 @@ double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, 
   return best;
 }
 
-std::vector<ModelEntry> model_entries(const std::string& dir,
-                                      const std::vector<ModelRecord>& models,
+std::vector<ModelEntry> model_entries(const std::string& dir, const LodReport& report,
                                       const std::string& report_path) {
   std::vector<ModelEntry> entries;
-  for (const ModelRecord& m : models) {
+  for (const ModelRecord& m : report.models) {
     ModelEntry e;
     const std::filesystem::path f = m.file;
     e.file = (f.is_absolute() ? f : std::filesystem::path(dir) / f).string();
     e.kind = m.kind;
     e.level = m.level;
     e.step = m.step;
+    if (m.e2 >= 0 && report.bbox_diagonal_m > 0) e.rmse_m = m.e2 / 100 * report.bbox_diagonal_m;
     if (!std::filesystem::exists(e.file))
       throw io::IoError(e.file, "model listed in " + report_path + " is missing");
     entries.push_back(std::move(e));
@@ -258,6 +258,23 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries,
         min_change_m)
       continue;
     kept.push_back(m);
+  }
+  // Monotone in RMSE: never worse than a coarser kept model by more than the
+  // tolerance (the finest stays; models without an RMSE are not judged).
+  {
+    const double finest_rmse = entries[finest].rmse_m;
+    std::vector<std::size_t> mono;
+    double best = std::numeric_limits<double>::infinity();
+    for (const std::size_t m : kept) {
+      const double r = entries[m].rmse_m;
+      if (m != finest && r >= 0 && finest_rmse >= 0 &&
+          r < finest_rmse - kChainMonotoneTolerance_m)
+        continue;  // the finest would be worse than it
+      if (m != finest && r >= 0 && r > best + kChainMonotoneTolerance_m) continue;
+      if (r >= 0) best = std::min(best, r);
+      mono.push_back(m);
+    }
+    kept = std::move(mono);
   }
   out.kept = kept;
   out.hausdorff_m.resize(kept.size());

@@ -124,24 +124,34 @@ struct ModelEntry {
   io::LodKind kind = io::LodKind::anchor;  ///< a fallback (the outline written when reconstruction
                                            ///< fails) counts as an anchor
   int level = 0, step = 0;
+  /// RMSE of the building's points to the model, metres (report.json's e2 x
+  /// the bbox diagonal / 100); < 0: not measured.
+  double rmse_m = -1;
   bool anchor() const { return kind != io::LodKind::interpolation; }
 };
 
-struct ModelRecord;  // workdir.hpp (which includes this header)
+struct LodReport;  // workdir.hpp (which includes this header)
 
 /// The models one building's report lists, paths made absolute against the
-/// building's LOD directory `dir`; a listed file that does not exist is an
-/// IoError naming it and `report_path`.
-std::vector<ModelEntry> model_entries(const std::string& dir,
-                                      const std::vector<ModelRecord>& models,
+/// building's LOD directory `dir`, with their RMSE; a listed file that does
+/// not exist is an IoError naming it and `report_path`.
+std::vector<ModelEntry> model_entries(const std::string& dir, const LodReport& report,
                                       const std::string& report_path);
+
+/// A kept model is never worse (RMSE of the points) than a coarser kept model
+/// by more than this (metres): zooming in never makes a building worse.
+constexpr double kChainMonotoneTolerance_m = 0.05;
 
 /// Chooses the kept chain (docs/3dtiles.md): the models sorted by step; the
 /// finest model is the last anchor; every anchor is kept unless it is the same
 /// surface as the next anchor (Hausdorff < 1 mm); an interpolation is kept when
 /// it differs by >= min_change_m from the previous kept model and from the next
 /// anchor and is >= min_change_m closer to the finest model than the previous
-/// kept one. error_m = max(Hausdorff to the finest, next kept error + 1 cm).
+/// kept one. Then the chain is made monotone in RMSE (models with one, within
+/// kChainMonotoneTolerance_m): a coarser model better than the finest by more
+/// than the tolerance is dropped, and coarse -> fine a model worse than the
+/// best kept coarser one by more than the tolerance is dropped.
+/// error_m = max(Hausdorff to the finest, next kept error + 1 cm).
 ModelChoice choose_models(const std::vector<ModelEntry>& entries,
                           const std::vector<io::TriangleMesh>& meshes, double min_change_m,
                           double tolerance_m);
