@@ -46,10 +46,22 @@ Georef Georef::local(const LonLatH& origin) {
   return Georef(LocalFrame(origin), Eigen::Vector3d::Zero(), nullptr);
 }
 
+void Georef::use_projected_frame(const Eigen::Vector3d& origin_crs) {
+  const Crs& c = crs();  // throws for local scenes
+  h_to_si_ = c.horizontal_unit().to_si;
+  v_to_si_ = c.vertical_unit().to_si;
+  origin_crs_ = origin_crs;
+  frame_ = LocalFrame(transformer_->to_wgs84(origin_crs));
+  scene_ = SceneFrame::projected;
+}
+
 Georef Georef::clone() const {
   Georef g(frame_, origin_crs_,
            transformer_ ? std::make_unique<Transformer>(transformer_->clone()) : nullptr);
   g.exact_ = exact_;
+  g.scene_ = scene_;
+  g.h_to_si_ = h_to_si_;
+  g.v_to_si_ = v_to_si_;
   return g;
 }
 
@@ -64,11 +76,22 @@ std::vector<std::string> Georef::warnings() const {
 
 Eigen::Vector3d Georef::to_local(const Eigen::Vector3d& p) {
   if (!transformer_) return p;
+  if (scene_ == SceneFrame::projected)
+    return {(p[0] - origin_crs_[0]) * h_to_si_, (p[1] - origin_crs_[1]) * h_to_si_,
+            (p[2] - origin_crs_[2]) * v_to_si_};
   return frame_.geodetic_to_enu(transformer_->to_wgs84(p));
 }
 
 void Georef::to_local_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
   if (!transformer_) return;
+  if (scene_ == SceneFrame::projected) {
+    for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) = to_local(points.col(i));
+    return;
+  }
+  crs_to_enu_inplace(points);
+}
+
+void Georef::crs_to_enu_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
   const auto exact = [this](Eigen::Ref<Eigen::Matrix3Xd> p) {
     transformer_->to_wgs84_inplace(p);
     for (Eigen::Index i = 0; i < p.cols(); ++i) p.col(i) = frame_.geodetic_to_enu(p.col(i));
@@ -82,16 +105,47 @@ void Georef::to_local_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
   lattice_->apply(points, exact);
 }
 
-Eigen::Vector3d Georef::to_crs(const Eigen::Vector3d& enu) {
+Eigen::Vector3d Georef::to_crs(const Eigen::Vector3d& p) {
   crs();  // throws for local scenes
-  return transformer_->from_wgs84(frame_.enu_to_geodetic(enu));
+  if (scene_ == SceneFrame::projected)
+    return {p[0] / h_to_si_ + origin_crs_[0], p[1] / h_to_si_ + origin_crs_[1],
+            p[2] / v_to_si_ + origin_crs_[2]};
+  return transformer_->from_wgs84(frame_.enu_to_geodetic(p));
 }
 
 void Georef::to_crs_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
   crs();  // throws for local scenes
+  if (scene_ == SceneFrame::projected) {
+    for (Eigen::Index i = 0; i < points.cols(); ++i) points.col(i) = to_crs(points.col(i));
+    return;
+  }
   for (Eigen::Index i = 0; i < points.cols(); ++i)
     points.col(i) = frame_.enu_to_geodetic(points.col(i));
   transformer_->from_wgs84_inplace(points);
+}
+
+void Georef::to_enu_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
+  if (scene_ != SceneFrame::projected) return;
+  to_crs_inplace(points);
+  crs_to_enu_inplace(points);
+}
+
+void Georef::enu_to_scene_inplace(Eigen::Ref<Eigen::Matrix3Xd> points) {
+  if (scene_ != SceneFrame::projected) return;
+  for (Eigen::Index i = 0; i < points.cols(); ++i)
+    points.col(i) = frame_.enu_to_geodetic(points.col(i));
+  transformer_->from_wgs84_inplace(points);
+  to_local_inplace(points);
+}
+
+Eigen::Vector3d Georef::from_geodetic(const LonLatH& g) {
+  if (scene_ == SceneFrame::projected) return to_local(transformer_->from_wgs84(g));
+  return frame_.geodetic_to_enu(g);
+}
+
+LonLatH Georef::to_geodetic(const Eigen::Vector3d& p) {
+  if (scene_ == SceneFrame::projected) return transformer_->to_wgs84(to_crs(p));
+  return frame_.enu_to_geodetic(p);
 }
 
 }  // namespace citylod::geo

@@ -14,7 +14,8 @@ namespace {
 /// Unit-ish box [0,a]x[0,b]x[0,c]: 6 outward quads (corner i: x if i&1, y if i&2, z if i&4).
 PolygonSolid box(double a = 10, double b = 8, double c = 6) {
   PolygonSolid s;
-  for (int i = 0; i < 8; ++i) s.vertices.emplace_back((i & 1) ? a : 0, (i & 2) ? b : 0, (i & 4) ? c : 0);
+  for (int i = 0; i < 8; ++i)
+    s.vertices.emplace_back((i & 1) ? a : 0, (i & 2) ? b : 0, (i & 4) ? c : 0);
   s.shells = {{{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}}};
   return s;
 }

@@ -40,8 +40,8 @@ inline Val3dityResult run_val3dity(const std::filesystem::path& file,
   std::filesystem::remove(report);
   const CliRun c = sh(q(bin) + " " + q(file) + " --report " + q(report) + " 2>&1");
   if (!std::filesystem::exists(report)) {
-    r.why = "val3dity wrote no report (exit " + std::to_string(c.code) + "): " +
-            c.out.substr(0, 300);
+    r.why =
+        "val3dity wrote no report (exit " + std::to_string(c.code) + "): " + c.out.substr(0, 300);
     return r;
   }
   std::ifstream in(report);

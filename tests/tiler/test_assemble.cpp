@@ -118,8 +118,9 @@ TEST(AssembleMetrics, ErrorsStrictlyDecreaseEvenWhenDistancesDoNot) {
 // an anchor 2 m from the next (all kept by distance); their RMSEs decide.
 TEST(AssembleMetrics, KeptChainIsMonotoneInRmse) {
   const auto A = tiler::ModelKind::anchor;
-  const std::vector<TriangleMesh> meshes{box_mesh(6, 0, 0, 16, 10, 10), box_mesh(4, 0, 0, 14, 10, 10),
-                                         box_mesh(2, 0, 0, 12, 10, 10), box_mesh(0, 0, 0, 10, 10, 10)};
+  const std::vector<TriangleMesh> meshes{
+      box_mesh(6, 0, 0, 16, 10, 10), box_mesh(4, 0, 0, 14, 10, 10), box_mesh(2, 0, 0, 12, 10, 10),
+      box_mesh(0, 0, 0, 10, 10, 10)};
   auto choose = [&](std::vector<double> rmse) {
     std::vector<tiler::ModelEntry> e;
     for (int i = 0; i < 4; ++i) {
@@ -129,13 +130,13 @@ TEST(AssembleMetrics, KeptChainIsMonotoneInRmse) {
     return tiler::choose_models(e, meshes, 0.1, 0.05).kept;
   };
   using K = std::vector<std::size_t>;
-  EXPECT_EQ(choose({0.5, 0.4, 0.3, 0.2}), (K{0, 1, 2, 3}));  // better and better
-  EXPECT_EQ(choose({0.5, 2.8, 0.3, 0.2}), (K{0, 2, 3}));     // worse than the block: dropped
+  EXPECT_EQ(choose({0.5, 0.4, 0.3, 0.2}), (K{0, 1, 2, 3}));   // better and better
+  EXPECT_EQ(choose({0.5, 2.8, 0.3, 0.2}), (K{0, 2, 3}));      // worse than the block: dropped
   EXPECT_EQ(choose({0.5, 0.54, 0.3, 0.2}), (K{0, 1, 2, 3}));  // within 5 cm
-  EXPECT_EQ(choose({0.5, 0.4, 0.9, 0.45}), (K{0, 1, 3}));    // 0.9 > 0.4 + 0.05
+  EXPECT_EQ(choose({0.5, 0.4, 0.9, 0.45}), (K{0, 1, 3}));     // 0.9 > 0.4 + 0.05
   // the finest stays; a coarser model better than it by more than 5 cm goes
   EXPECT_EQ(choose({0.3, 0.5, 0.6, 0.5}), (K{1, 3}));
-  EXPECT_EQ(choose({0.5, 2.8, -1, 0.2}), (K{0, 2, 3}));  // not measured: not judged
+  EXPECT_EQ(choose({0.5, 2.8, -1, 0.2}), (K{0, 2, 3}));    // not measured: not judged
   EXPECT_EQ(choose({-1, 2.8, -1, 0.2}), (K{0, 1, 2, 3}));  // nothing measured to compare with
   // the distances still decide first (an anchor identical to the next goes)
   EXPECT_EQ(choose({0.5, 0.4, 0.3, 0.2}).back(), 3u);

@@ -386,6 +386,46 @@ TEST(CityJson, VerticesWithinTheValidatorsSnapAreWelded) {
   }
 }
 
+// A roof ring that runs out along an edge and comes back on it (4 -> 5 -> m, m
+// halfway between 4 and 5: a zero-width hair; the Delft tile had one on a roof,
+// val3dity 204 / 104) is exact and closed, but not valid to a validator. The
+// writer takes the hair out and puts m on the wall's edge 5 -> 4.
+TEST(CityJson, CollinearSpikesAreTakenOut) {
+  Scene s = make_scene("spike");
+  const double x0 = 85000, y0 = 447500, x1 = 85010, y1 = 447508, h = 6;
+  std::vector<Vec3d> v;
+  for (int i = 0; i < 8; ++i) v.push_back({(i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? h : 0});
+  v.push_back({(x0 + x1) / 2, y0, h});  // 8 = m
+  PolygonMesh m;
+  m.vertices = v;
+  m.faces = {{0, 2, 3, 1}, {4, 5, 8, 7, 6}, {8, 5, 7},   {0, 1, 5, 4},
+             {2, 6, 7, 3}, {0, 4, 6, 2},    {1, 3, 7, 5}};
+  add_building(s, "b-spike", {{m, "anchor", 0, 0, true}});
+  const std::string out = s.work + "/spike.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.invalid, 0u);
+  const CjSeq seq = read_cjseq(out);
+  const json& o = object_of(seq.features[0]);
+  ASSERT_EQ(o["geometry"].size(), 1u);
+  std::vector<std::size_t> sizes;
+  for (const auto& f : o["geometry"][0]["boundaries"][0]) sizes.push_back(f[0].size());
+  // the top loses the tip (4 vertices), the south wall gains m (5)
+  EXPECT_EQ(sizes, (std::vector<std::size_t>{4, 4, 3, 5, 4, 4, 4}));
+  const auto rel = feature_vertices(seq.header, seq.features[0], true);
+  lod::PolygonSolid solid;
+  for (const auto& p : rel) solid.vertices.emplace_back(p[0], p[1], p[2]);
+  solid.shells.emplace_back();
+  for (const auto& f : o["geometry"][0]["boundaries"][0])
+    solid.shells[0].push_back(f[0].get<std::vector<int>>());
+  EXPECT_TRUE(lod::check_solid(solid).valid()) << lod::check_solid(solid).detail;
+  // as it was, the validator rejects it
+  lod::PolygonSolid before;
+  for (const auto& p : m.vertices) before.vertices.emplace_back(p[0] - x0, p[1] - y0, p[2]);
+  before.shells.emplace_back();
+  for (const auto& f : m.faces) before.shells[0].emplace_back(f.begin(), f.end());
+  EXPECT_FALSE(lod::check_solid(before).valid());
+}
+
 TEST(CityJson, SameBytesWhateverTheThreads) {
   Scene s = make_scene("threads");
   for (int i = 0; i < 12; ++i)

@@ -1042,6 +1042,9 @@ MeshCityLabels mesh_city_labels(const std::string& dir, const tiler::Manifest& m
   geo::Georef g = geo::Georef::from_crs(
       vc.crs, Eigen::Vector3d(m.scene.origin_crs[0], m.scene.origin_crs[1], m.scene.origin_crs[2]),
       vc.options);
+  if (m.scene.projected_frame)
+    g.use_projected_frame(
+        Eigen::Vector3d(m.scene.origin_crs[0], m.scene.origin_crs[1], m.scene.origin_crs[2]));
   Eigen::Map<Eigen::Matrix3Xd> v(scene.vertices[0].data(), 3, Eigen::Index(scene.vertices.size()));
   g.to_local_inplace(v);
   const auto cell = [](const Eigen::Vector3d& p) {

@@ -117,8 +117,13 @@ LoadedBuilding load_building(const std::string& path) {
 lod::BuildingInput chunk_input(const std::string& work, const ChunkRecord& c) {
   const std::string path = chunk_path(work, c.id);
   lod::BuildingInput in = to_building_input(read_building_file(path), {0, 0, 0}, path);
-  for (const auto& q : c.outline) in.footprint.emplace_back(q[0] - c.origin[0], q[1] - c.origin[1]);
-  in.ground_z = c.ground_z - c.origin[2];
+  // on a micrometre grid relative to the chunk origin: the same footprint gives the same
+  // outline wherever it lies (relative to a whole-metre origin the scene coordinates of
+  // a copy differ in their last bits)
+  const auto snap = [](double v) { return std::round(v * 1e6) / 1e6; };
+  for (const auto& q : c.outline)
+    in.footprint.emplace_back(snap(q[0] - c.origin[0]), snap(q[1] - c.origin[1]));
+  in.ground_z = snap(c.ground_z - c.origin[2]);
   in.has_ground_z = true;
   in.name = c.id;
   return in;

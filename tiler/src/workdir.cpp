@@ -429,6 +429,12 @@ Manifest read_manifest(const std::string& work_dir) {
     const json& s = j.at("scene");
     m.scene.crs = s.value("crs", "");
     m.scene.origin_crs = s.at("origin_crs").get<std::array<double, 3>>();
+    const std::string frame = s.value("frame", "enu");
+    if (frame != "enu" && frame != "projected")
+      throw io::IoError(path, "unknown scene frame \"" + frame + "\" (enu or projected)");
+    m.scene.projected_frame = frame == "projected";
+    if (m.scene.projected_frame && m.scene.crs.empty())
+      throw io::IoError(path, "a projected scene frame needs a CRS");
     m.scene.origin_lon = s.at("origin_lon").get<double>();
     m.scene.origin_lat = s.at("origin_lat").get<double>();
     m.scene.origin_h = s.at("origin_h").get<double>();
@@ -464,6 +470,7 @@ void write_manifest(const std::string& work_dir, const Manifest& m) {
   j["version"] = m.version;
   j["scene"] = {{"crs", m.scene.crs},
                 {"origin_crs", m.scene.origin_crs},
+                {"frame", m.scene.projected_frame ? "projected" : "enu"},
                 {"origin_lon", m.scene.origin_lon},
                 {"origin_lat", m.scene.origin_lat},
                 {"origin_h", m.scene.origin_h},

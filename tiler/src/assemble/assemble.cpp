@@ -27,6 +27,7 @@
 #include "citylod/lod/polygon2d.hpp"
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/dir_lock.hpp"
+#include "citylod/tiler/scene_georef.hpp"
 #include "citylod/tiler/threads.hpp"
 #include "citylod/tiler/workdir.hpp"
 
@@ -91,15 +92,32 @@ double projected_area(const io::TriangleMesh& m) {
   return down > 0 ? down : up;
 }
 
-io::TriangleMesh read_model(const std::string& file, const Vec3d& origin) {
+/// A model in the scene frame: its file's coordinates + the chunk origin.
+io::TriangleMesh read_scene_model(const std::string& file, const Vec3d& origin) {
   io::TriangleMesh m = io::read_mesh(file);
   for (auto& v : m.vertices)
     for (int k = 0; k < 3; ++k) v[size_t(k)] += origin[size_t(k)];
   return m;
 }
 
+/// A scene-frame mesh in the tiles' frame: ENU at the scene origin (the earth's
+/// curvature and the geoid enter here for a projected scene frame).
+io::TriangleMesh to_enu(io::TriangleMesh m, const SceneGeoref& georef) {
+  if (georef.projected() && !m.vertices.empty())
+    georef.to_enu(
+        Eigen::Map<Eigen::Matrix3Xd>(m.vertices[0].data(), 3, Eigen::Index(m.vertices.size())));
+  return m;
+}
+
+/// A model in the tiles' frame.
+io::TriangleMesh read_model(const std::string& file, const Vec3d& origin,
+                            const SceneGeoref& georef) {
+  return to_enu(read_scene_model(file, origin), georef);
+}
+
 /// Reads one building's report and models and chooses its kept chain.
-Building load_building(const std::string& work, const ChunkRecord& rec, const AssembleParams& p) {
+Building load_building(const std::string& work, const ChunkRecord& rec, const AssembleParams& p,
+                       const SceneGeoref& georef) {
   Building b;
   b.id = rec.id;
   b.file_stem = safe_stem(rec.id);
@@ -118,9 +136,10 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     if (!rep.reason.empty()) why += ": " + nlohmann::json(rep.reason).dump();
     throw io::IoError(report_path, why + ")");
   }
-  const std::vector<ModelEntry> entries = model_entries(dir, rep.models, report_path);
+  const std::vector<ModelEntry> entries = model_entries(dir, rep, report_path);
   std::vector<io::TriangleMesh> meshes;
-  for (const ModelEntry& e : entries) meshes.push_back(read_model(e.file, rec.origin));
+  // the chain is chosen in the scene frame (as `citylod cityjson` chooses it)
+  for (const ModelEntry& e : entries) meshes.push_back(read_scene_model(e.file, rec.origin));
   b.models_read = entries.size();
   const ModelChoice choice =
       choose_models(entries, meshes, p.min_change_m, p.hausdorff_tolerance_m);
@@ -129,7 +148,7 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
   b.chain = choice;
   for (std::size_t i = 0; i < choice.kept.size(); ++i) {
     const std::size_t k = choice.kept[i];
-    const io::TriangleMesh& mesh = meshes[k];
+    const io::TriangleMesh mesh = to_enu(meshes[k], georef);
     KeptModel km;
     km.file = entries[k].file;
     km.colours = rep.models[k].triangle_colours;
@@ -153,7 +172,7 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     b.bbox.add(km.bbox);
     b.models.push_back(km);
   }
-  const io::TriangleMesh& finest = meshes[choice.kept.back()];
+  const io::TriangleMesh finest = to_enu(meshes[choice.kept.back()], georef);
   b.footprint_area_m2 =
       rec.outline.size() >= 3 ? std::fabs(poly2::signed_area(rec.outline)) : projected_area(finest);
   const BBox3& fb = b.models.back().bbox;
@@ -491,6 +510,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
     throw io::IoError(manifest_path(work_dir),
                       "the manifest lists no buildings (nothing to assemble)");
   require_valid_origin(man, work_dir);
+  const SceneGeoref georef(man, work_dir);
   const auto& sc = man.scene;
   check_output_dir(out, params.force);
 
@@ -504,7 +524,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
   for (long i = 0; i < long(recs.size()); ++i) {
     try {
-      loaded[size_t(i)] = load_building(work_dir, *recs[size_t(i)], params);
+      loaded[size_t(i)] = load_building(work_dir, *recs[size_t(i)], params, georef);
     } catch (const std::exception& e) {
       errors[size_t(i)] = e.what();
     }
@@ -573,7 +593,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
       io::GlbBuilder g(rounded_centre(t.content_box), gopt);
       for (const auto& it : t.items) {
         const Building& b = buildings[it.b];
-        g.add_feature(feature_of(b, it.m), read_model(b.models[it.m].file, b.origin),
+        g.add_feature(feature_of(b, it.m), read_model(b.models[it.m].file, b.origin, georef),
                       b.models[it.m].colours);
       }
       if (!inside(g.stored_bounds(), t.content_box))
@@ -628,7 +648,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
         io::GlbBuilder g(rounded_centre(b.bbox), gopt);
         for (std::size_t m = 0; m < b.models.size(); ++m) {
           g.begin_node("model_" + std::to_string(m));
-          g.add_feature(feature_of(b, m), read_model(b.models[m].file, b.origin),
+          g.add_feature(feature_of(b, m), read_model(b.models[m].file, b.origin, georef),
                         b.models[m].colours);
         }
         const std::string bytes = g.glb();

@@ -267,8 +267,7 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries,
     double best = std::numeric_limits<double>::infinity();
     for (const std::size_t m : kept) {
       const double r = entries[m].rmse_m;
-      if (m != finest && r >= 0 && finest_rmse >= 0 &&
-          r < finest_rmse - kChainMonotoneTolerance_m)
+      if (m != finest && r >= 0 && finest_rmse >= 0 && r < finest_rmse - kChainMonotoneTolerance_m)
         continue;  // the finest would be worse than it
       if (m != finest && r >= 0 && r > best + kChainMonotoneTolerance_m) continue;
       if (r >= 0) best = std::min(best, r);

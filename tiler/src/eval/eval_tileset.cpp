@@ -20,6 +20,7 @@
 #include "citylod/io/reader.hpp"
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/eval.hpp"
+#include "citylod/tiler/scene_georef.hpp"
 #include "citylod/tiler/threads.hpp"
 #include "citylod/tiler/workdir.hpp"
 #include "eval/tileset_walk.hpp"
@@ -122,6 +123,7 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
   Manifest man;
   std::map<std::string, const ChunkRecord*> chunks;
   std::unique_ptr<geo::LocalFrame> frame;
+  std::unique_ptr<SceneGeoref> georef;  // ENU -> scene frame
   if (!work_dir.empty()) {
     if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
     man = read_manifest(work_dir);
@@ -130,6 +132,7 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
     const auto& sc = man.scene;
     frame =
         std::make_unique<geo::LocalFrame>(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
+    georef = std::make_unique<SceneGeoref>(man, work_dir);
   }
   const int threads = resolve_threads(o.threads);
 
@@ -233,11 +236,18 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
           const Mat4& t = w.contents[rows[i].content].transform;
           const Vec3d& co = rec->origin;
           const Vec3d& ro = ref->origin;
-          const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [&](const Vec3d& v) {
+          io::TriangleMesh scene = g.mesh;
+          for (auto& v : scene.vertices) {
             const Vec3d world = io::transform_point(t, v);
             const Eigen::Vector3d enu =
                 frame->ecef_to_enu(Eigen::Vector3d(world[0], world[1], world[2]));
-            return Vec3d{enu.x() - co[0] - ro[0], enu.y() - co[1] - ro[1], enu.z() - co[2] - ro[2]};
+            v = {enu.x(), enu.y(), enu.z()};
+          }
+          if (!scene.vertices.empty())
+            georef->from_enu(Eigen::Map<Eigen::Matrix3Xd>(scene.vertices[0].data(), 3,
+                                                          Eigen::Index(scene.vertices.size())));
+          const lod::TriangleMesh lm = to_lod_mesh(scene, [&](const Vec3d& v) {
+            return Vec3d{v[0] - co[0] - ro[0], v[1] - co[1] - ro[1], v[2] - co[2] - ro[2]};
           });
           const lod::ModelEvaluation e = lod::evaluate_model(lm, ref->input, o.samples);
           m.check = e.check;

@@ -20,7 +20,6 @@
 #include <nlohmann/json.hpp>
 
 #include "citylod/geo/crs.hpp"
-#include "citylod/geo/georef.hpp"
 #include "citylod/io/error.hpp"
 #include "citylod/io/gltf.hpp"
 #include "citylod/io/reader.hpp"
@@ -29,6 +28,7 @@
 #include "citylod/lod/validity.hpp"
 #include "citylod/tiler/assemble.hpp"
 #include "citylod/tiler/bridge.hpp"
+#include "citylod/tiler/scene_georef.hpp"
 #include "citylod/tiler/threads.hpp"
 #include "citylod/tiler/workdir.hpp"
 
@@ -93,46 +93,13 @@ const char* const kSemanticType[] = {"RoofSurface", "WallSurface", "GroundSurfac
                                      "OuterCeilingSurface"};
 
 // ------------------------------------------------------------ georeferencing
-/// Scene ENU -> the input's CRS, as split made the scene frame. The height
-/// mode is the one that reproduces the manifest's origin (FromCrs, or EGM96
-/// for `--geoid egm96`). Local scenes (no CRS) keep their ENU metres.
-struct Georeferencing {
-  std::optional<geo::Georef> georef;
-  Vec3d translate{0, 0, 0};
-  std::string reference_system;
-};
-
-Georeferencing georeferencing(const Manifest& man, const std::string& work_dir) {
-  Georeferencing g;
-  const SceneInfo& sc = man.scene;
-  if (sc.crs.empty()) return g;
-  const std::string where = manifest_path(work_dir);
-  try {
-    const geo::Crs crs = geo::Crs::parse(sc.crs);
-    const Eigen::Vector3d o(sc.origin_crs[0], sc.origin_crs[1], sc.origin_crs[2]);
-    for (geo::HeightMode mode : {geo::HeightMode::FromCrs, geo::HeightMode::Egm96}) {
-      geo::TransformOptions to;
-      to.height = mode;
-      geo::Georef r = geo::Georef::from_crs(crs, o, to);
-      const geo::LonLatH& f = r.frame().origin();
-      if (std::fabs(f[0] - sc.origin_lon) < 1e-9 && std::fabs(f[1] - sc.origin_lat) < 1e-9 &&
-          std::fabs(f[2] - sc.origin_h) < 1e-3) {
-        g.georef.emplace(std::move(r));
-        break;
-      }
-    }
-    if (!g.georef)
-      throw io::IoError(where, "the scene origin (" + std::to_string(sc.origin_lon) + ", " +
-                                   std::to_string(sc.origin_lat) + ", " +
-                                   std::to_string(sc.origin_h) + ") is not where " + sc.crs +
-                                   " puts origin_crs: cannot convert back to the CRS");
-    if (crs.epsg())
-      g.reference_system = "https://www.opengis.net/def/crs/EPSG/0/" + std::to_string(*crs.epsg());
-  } catch (const geo::GeoError& e) {
-    throw io::IoError(where, e.what());
-  }
-  for (int k = 0; k < 3; ++k) g.translate[size_t(k)] = std::round(sc.origin_crs[size_t(k)]);
-  return g;
+/// transform.translate: the manifest's origin_crs rounded to whole units (local
+/// scenes: ENU metres, translate 0).
+Vec3d translate_of(const Manifest& man) {
+  Vec3d t{0, 0, 0};
+  if (man.scene.crs.empty()) return t;
+  for (int k = 0; k < 3; ++k) t[size_t(k)] = std::round(man.scene.origin_crs[size_t(k)]);
+  return t;
 }
 
 // ------------------------------------------------------------ one model
@@ -345,9 +312,95 @@ std::vector<std::vector<std::uint32_t>> weld_rings(
   return out;
 }
 
+/// Collinear spikes: a ring that runs out along a line and comes back on it
+/// (i -> j -> k on one line in the integer coordinates, i and k on the same side
+/// of j: a zero-width hair a validator sees as a fold or a triangle on a line).
+/// j leaves the ring, and the nearer of i and k goes into the face across the
+/// longer of the two edges (between its ends), so that every edge keeps its
+/// opposite: i -> k is met by the inserted vertex's k -> i (or the mirror case).
+/// Faces left with fewer than 3 vertices go. Returns the input indices of the
+/// faces kept, in order; `faces` is replaced by them.
+std::vector<std::size_t> remove_collinear_spikes(std::vector<std::vector<std::uint32_t>>& faces,
+                                                 const VertexPool& pool) {
+  using I = __int128;
+  auto at = [&](std::uint32_t q) { return pool.list()[q]; };
+  auto collinear_tip = [&](std::uint32_t i, std::uint32_t j, std::uint32_t k) {
+    const auto a = at(i), b = at(j), c = at(k);
+    const I u[3] = {I(a[0]) - b[0], I(a[1]) - b[1], I(a[2]) - b[2]};
+    const I v[3] = {I(c[0]) - b[0], I(c[1]) - b[1], I(c[2]) - b[2]};
+    const bool line =
+        u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0];
+    return line && u[0] * v[0] + u[1] * v[1] + u[2] * v[2] > 0;
+  };
+  auto dist2 = [&](std::uint32_t i, std::uint32_t j) {
+    const auto a = at(i), b = at(j);
+    I d = 0;
+    for (int k = 0; k < 3; ++k)
+      d += (I(a[std::size_t(k)]) - b[std::size_t(k)]) * (I(a[std::size_t(k)]) - b[std::size_t(k)]);
+    return d;
+  };
+  // Puts `m` between the ends of the directed edge a -> b of some face; false if none has it.
+  auto insert_on_edge = [&](std::uint32_t a, std::uint32_t b, std::uint32_t m) {
+    for (auto& g : faces)
+      for (std::size_t x = 0; x < g.size(); ++x)
+        if (g[x] == a && g[(x + 1) % g.size()] == b) {
+          g.insert(g.begin() + long(x + 1), m);
+          return true;
+        }
+    return false;
+  };
+  for (std::size_t guard = 0, changed = 1; changed && guard < 4 * faces.size() + 16; ++guard) {
+    changed = 0;
+    for (auto& f : faces) {
+      for (std::size_t x = 0; f.size() >= 3 && x < f.size(); ++x) {
+        const std::size_t n = f.size();
+        const std::uint32_t i = f[(x + n - 1) % n], j = f[x], k = f[(x + 1) % n];
+        if (i == j || j == k) continue;
+        if (i == k) {  // a spike onto one vertex: drop the tip and the return
+          f.erase(f.begin() + long(x));
+          f.erase(f.begin() + long(x < f.size() ? x : 0));
+          changed = 1;
+          break;
+        }
+        if (!collinear_tip(i, j, k)) continue;
+        // the nearer of i, k lies between j and the farther one
+        const bool k_nearer = dist2(k, j) < dist2(i, j);
+        if (!(k_nearer ? insert_on_edge(j, i, k) : insert_on_edge(k, j, i))) continue;
+        // (the insertion may have been into f itself: find j again)
+        f.erase(std::find(f.begin(), f.end(), j));
+        changed = 1;
+        break;
+      }
+    }
+  }
+  std::vector<std::size_t> kept;
+  std::vector<std::vector<std::uint32_t>> out;
+  for (std::size_t fi = 0; fi < faces.size(); ++fi)
+    if (faces[fi].size() >= 3) {
+      kept.push_back(fi);
+      out.push_back(std::move(faces[fi]));
+    }
+  faces = std::move(out);
+  return kept;
+}
+
+/// remove_collinear_spikes with the faces' semantics and colours kept aligned.
+void remove_collinear_spikes(std::vector<std::vector<std::uint32_t>>& faces, std::vector<int>& sem,
+                             std::vector<io::Rgba8>& col, const VertexPool& pool) {
+  const std::vector<std::size_t> kept = remove_collinear_spikes(faces, pool);
+  std::vector<int> s2;
+  std::vector<io::Rgba8> c2;
+  for (const std::size_t x : kept) {
+    s2.push_back(sem[x]);
+    c2.push_back(col[x]);
+  }
+  sem = std::move(s2);
+  col = std::move(c2);
+}
+
 /// One building -> its CityJSONFeature.
 Feature make_feature(const std::string& work, const ChunkRecord& rec, const std::string& object_id,
-                     std::optional<geo::Georef>& georef, const Vec3d& translate,
+                     const SceneGeoref& georef, const Vec3d& translate,
                      const CityJsonOptions& opt) {
   Feature out;
   out.id = object_id;
@@ -368,7 +421,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
   }
   // ---- the models and the chain
   const std::string dir = lod_dir(work, rec.id);
-  const std::vector<ModelEntry> entries = model_entries(dir, rep.models, report_path);
+  const std::vector<ModelEntry> entries = model_entries(dir, rep, report_path);
   std::vector<io::TriangleMesh> meshes;
   for (const ModelEntry& e : entries) meshes.push_back(io::read_mesh(e.file));
   std::vector<std::size_t> kept;
@@ -448,7 +501,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     for (std::size_t j = 0; j < used.size(); ++j)
       for (int c = 0; c < 3; ++c)
         pts(c, long(j)) = pm.vertices[used[j]][size_t(c)] + rec.origin[size_t(c)];
-    if (georef) georef->to_crs_inplace(pts);
+    if (georef.has_crs()) georef.to_crs(pts);
     std::vector<std::uint32_t> to_pool(pm.vertices.size(), 0);
     for (std::size_t j = 0; j < used.size(); ++j)
       to_pool[used[j]] = pool.add({pts(0, long(j)), pts(1, long(j)), pts(2, long(j))});
@@ -527,6 +580,12 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       const double snapped = moved ? double(r) * opt.scale : 0;
       std::vector<std::size_t> from;
       std::vector<std::vector<std::uint32_t>> faces = weld_rings(rings, to, from);
+      {
+        const std::vector<std::size_t> kept_faces = remove_collinear_spikes(faces, pool);
+        std::vector<std::size_t> f2;
+        for (const std::size_t x : kept_faces) f2.push_back(from[x]);
+        from = std::move(f2);
+      }
       std::vector<int> fsem;
       std::vector<io::Rgba8> fcol;
       for (const std::size_t fi : from) {
@@ -562,6 +621,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
             mcol.push_back(fcol[j]);
           }
         }
+        remove_collinear_spikes(mixed, msem, mcol, pool);
         c = lod::check_solid(as_solid(mixed, pool), tol);
         if (c.valid()) {
           take(std::move(mixed), std::move(msem), std::move(mcol), from_obj, snapped);
@@ -589,6 +649,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
                        : fz <= zmin + kGroundTolerance ? kGround
                                                        : kCeiling);
       }
+      remove_collinear_spikes(faces, fsem, fcol, pool);
       c = lod::check_solid(as_solid(faces, pool), tol);
       if (c.valid()) {
         take(std::move(faces), std::move(fsem), std::move(fcol), false, snapped);
@@ -790,8 +851,9 @@ CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out
   if (man.chunks.empty())
     throw io::IoError(manifest_path(work_dir),
                       "the manifest lists no buildings (nothing to write)");
-  Georeferencing gr = georeferencing(man, work_dir);
-  st.reference_system = gr.reference_system;
+  const SceneGeoref georef(man, work_dir);
+  const Vec3d translate = translate_of(man);
+  st.reference_system = cityjson_reference_system(man.scene.crs);
   const fs::path out = fs::absolute(out_path).lexically_normal();
   if (out.filename().empty() || fs::is_directory(out))
     throw io::IoError(out_path, "not a file path for the CityJSONSeq output");
@@ -807,9 +869,6 @@ CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out
   std::ofstream bf(body, std::ios::binary | std::ios::trunc);
   if (!bf) throw io::IoError(body.string(), "cannot write");
   const int nthreads = resolve_threads(opt.threads);
-  std::vector<std::optional<geo::Georef>> georefs(static_cast<std::size_t>(nthreads));
-  for (auto& g : georefs)
-    if (gr.georef) g.emplace(gr.georef->clone());
   io::BBox3 extent;
   const std::size_t batch = std::size_t(16 * nthreads);
   auto fail = [&](const std::string& msg) {
@@ -824,8 +883,7 @@ CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out
     for (long i = long(b0); i < long(b1); ++i) {
       Feature& f = feats[size_t(i) - b0];
       try {
-        f = make_feature(work_dir, *recs[size_t(i)], ids[size_t(i)],
-                         georefs[size_t(omp_get_thread_num())], gr.translate, opt);
+        f = make_feature(work_dir, *recs[size_t(i)], ids[size_t(i)], georef, translate, opt);
       } catch (const std::exception& e) {
         f.error = e.what();
       }
@@ -861,9 +919,9 @@ CityJsonStats write_cityjson(const std::string& work_dir, const std::string& out
   head["type"] = "CityJSON";
   head["version"] = "2.0";
   head["transform"] = {{"scale", {opt.scale, opt.scale, opt.scale}},
-                       {"translate", {gr.translate[0], gr.translate[1], gr.translate[2]}}};
+                       {"translate", {translate[0], translate[1], translate[2]}}};
   json meta;
-  if (!gr.reference_system.empty()) meta["referenceSystem"] = gr.reference_system;
+  if (!st.reference_system.empty()) meta["referenceSystem"] = st.reference_system;
   meta["geographicalExtent"] = {extent.min[0], extent.min[1], extent.min[2],
                                 extent.max[0], extent.max[1], extent.max[2]};
   meta["title"] = "citylod LOD chains of " + std::to_string(st.buildings) + " buildings";

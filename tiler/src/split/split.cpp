@@ -141,7 +141,7 @@ std::string SplitOptions::canonical() const {
   o.precision(17);
   // a "PG:" connection string's password stays out of the manifest
   static const std::regex pw(R"((password\s*=\s*)('[^']*'|\S+))", std::regex::icase);
-  o << "v=2;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
+  o << "v=3;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
     << ";footprints=" << std::regex_replace(footprints, pw, "$1***")
     << ";footprint_buffer=" << footprint_buffer << ";memory_limit=" << memory_limit
     << ";cell=" << cell_size << ";halo=" << halo << ";max_halo=" << max_halo
@@ -700,6 +700,11 @@ class Splitter {
   std::string crs_spec_;  // recorded in the manifest
   std::optional<geo::Crs> crs_;
   std::optional<geo::Georef> georef_;
+  /// The inputs' common coordinate grid in the scene frame (LAS/LAZ scale per axis,
+  /// offsets on it, metres), 0 = none: chunk coordinates are snapped back onto it, so
+  /// that the same points give the same bytes wherever they lie (a copy's decoded
+  /// coordinates differ in their last bits).
+  std::array<double, 3> grid_{0, 0, 0};
   io::BBox3 bbox_crs_;  // union of input boxes (CRS units)
   io::BBox3 bbox_enu_;  // after pass 2
   std::uint64_t total_points_ = 0;
@@ -779,6 +784,9 @@ void Splitter::pass1_headers() {
 }
 
 // ---------------------------------------------------------------------- georeferencing
+/// The scene origin's x and y are multiples of this (CRS units).
+constexpr double kOriginGrid = 100;
+
 void Splitter::georeference() {
   const std::string label = inputs_label(inputs_);
   try {
@@ -839,6 +847,29 @@ void Splitter::georeference() {
       rep_.vertical = vc.assumption;
       for (const auto& w : vc.warnings) rep_.notes.push_back(w);
     }
+    // The scene frame: the CRS's axes in metres from an origin on a 100-unit grid
+    // (geo::SceneFrame::projected): a building's points get the same coordinates
+    // wherever it lies (the same model), and grids anchored at the scene origin (the
+    // cells) fall alike on copies shifted by whole 100 units.
+    {
+      const Eigen::Vector3d c = to_eigen(bbox_crs_).center();
+      georef_->use_projected_frame(Eigen::Vector3d(std::round(c[0] / kOriginGrid) * kOriginGrid,
+                                                   std::round(c[1] / kOriginGrid) * kOriginGrid,
+                                                   std::round(c[2])));
+    }
+    if (crs_->horizontal_unit().to_si == 1.0 && crs_->vertical_unit().to_si == 1.0)
+      for (int k = 0; k < 3; ++k) {
+        const double step = inputs_.front().info.scale[std::size_t(k)];
+        bool ok = step > 0 && std::isfinite(step);
+        const double per_unit = ok ? std::round(1.0 / step) : 0;  // steps per metre
+        ok = ok && per_unit >= 1 && std::fabs(per_unit * step - 1.0) < 1e-9;
+        for (const auto& in : inputs_) {
+          const double o = in.info.offset[std::size_t(k)] + in.offset[std::size_t(k)];
+          ok = ok && in.info.scale[std::size_t(k)] == step &&
+               std::fabs(o * per_unit - std::round(o * per_unit)) < 1e-6;
+        }
+        grid_[std::size_t(k)] = ok ? step : 0;
+      }
     rep_.notes.push_back(rep_.vertical);
     rep_.crs = crs_->label();
     const auto& hu = crs_->horizontal_unit();
@@ -1218,13 +1249,15 @@ void Splitter::load_footprints() {
             if (other) {
               geo::LonLatH g = other->to_wgs84(Eigen::Vector3d(v[0], v[1], 0));
               g[2] = georef_->frame().origin()[2];
-              e = georef_->frame().geodetic_to_enu(g);
+              e = georef_->from_geodetic(g);
             } else {
               e = georef_->to_local(Eigen::Vector3d(v[0], v[1], z0));
             }
             if (!std::isfinite(e[0]) || !std::isfinite(e[1]))
               throw IoError(src, "footprint '" + f.id + "' cannot be transformed to the scene CRS");
-            v = {e[0], e[1]};
+            // on a micrometre grid: the same footprint gives the same outline wherever
+            // it lies (its source's coordinates, shifted, differ in their last bits)
+            v = {std::round(e[0] * 1e6) / 1e6, std::round(e[1] * 1e6) / 1e6};
           }
       for (auto& poly : f.polygons) normalise(poly);
       f.update_bbox();
@@ -1622,10 +1655,13 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
     bb.add(pts.pos[k]);
     ground.push_back(pts.pos[k][2] - double(seg.hag[k]));
   }
-  rec.ground_z = median(std::move(ground));
+  // The chunk origin on whole metres and the ground on 0.1 mm: a building's chunk is
+  // the same wherever it lies (with the points snapped onto the inputs' grid below).
+  rec.ground_z = std::round(median(std::move(ground)) * 1e4) / 1e4;
   rec.bbox_min = bb.min;
   rec.bbox_max = bb.max;
-  rec.origin = {0.5 * (bb.min[0] + bb.max[0]), 0.5 * (bb.min[1] + bb.max[1]), rec.ground_z};
+  rec.origin = {std::round(0.5 * (bb.min[0] + bb.max[0])),
+                std::round(0.5 * (bb.min[1] + bb.max[1])), std::round(rec.ground_z)};
   if (outline.size() < 3) {
     std::vector<Vec2> xy;
     for (std::uint32_t k : members) xy.push_back({pts.pos[k][0], pts.pos[k][1]});
@@ -1657,18 +1693,41 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
     chunks_.push_back(std::move(pc));
     return;
   }
+  // Chunk coordinates, snapped onto the inputs' grid, in one order (by position, then
+  // class, colour, normal): the order the cells gave the points depends on what else
+  // the scene holds, and the LOD stage's result on the order.
+  std::vector<Vec3d> local(members.size());
+  for (std::size_t i = 0; i < members.size(); ++i) {
+    const Vec3d& p = pts.pos[members[i]];
+    Vec3d q{p[0] - rec.origin[0], p[1] - rec.origin[1], p[2] - rec.origin[2]};
+    for (std::size_t a = 0; a < 3; ++a)
+      if (grid_[a] > 0) q[a] = std::round(q[a] / grid_[a]) * grid_[a];
+    local[i] = q;
+  }
+  std::vector<std::uint32_t> order(members.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    if (local[a] != local[b]) return local[a] < local[b];
+    const std::uint32_t ka = members[a], kb = members[b];
+    if (has_classes_ && pts.cls[ka] != pts.cls[kb]) return pts.cls[ka] < pts.cls[kb];
+    if (has_colors_ && pts.rgb[ka] != pts.rgb[kb]) return pts.rgb[ka] < pts.rgb[kb];
+    if (has_normals_ && pts.nrm[ka] != pts.nrm[kb]) return pts.nrm[ka] < pts.nrm[kb];
+    return false;
+  });
   io::PointSet ps;
   ps.positions.reserve(members.size());
-  for (std::uint32_t k : members) {
-    const Vec3d& p = pts.pos[k];
-    ps.positions.push_back({p[0] - rec.origin[0], p[1] - rec.origin[1], p[2] - rec.origin[2]});
+  for (const std::uint32_t i : order) {
+    const std::uint32_t k = members[i];
+    ps.positions.push_back(local[i]);
     if (has_normals_) ps.normals.push_back(pts.nrm[k]);
     if (has_colors_) ps.colors.push_back(pts.rgb[k]);
     if (has_classes_) ps.classes.push_back(pts.cls[k]);
   }
   const std::string path = (staging_->chunks() / (rec.id + ".ply")).string();
   io::PlyWriteOptions wo;
-  wo.comment = "citylod chunk " + rec.id + " (xyz relative to the chunk origin, scene ENU metres)";
+  wo.comment = "citylod chunk " + rec.id + " (xyz relative to the chunk origin, scene " +
+               std::string(georef_->scene_frame() == geo::SceneFrame::projected ? "CRS" : "ENU") +
+               " metres)";
   io::write_ply(path, ps, wo);
   rec.content_hash = io::hash_file(path);
   ++rep_.chunks;
@@ -2023,7 +2082,8 @@ void Splitter::write_mesh_chunks() {
     }
     rec.bbox_min = bb.min;
     rec.bbox_max = bb.max;
-    rec.origin = {0.5 * (bb.min[0] + bb.max[0]), 0.5 * (bb.min[1] + bb.max[1]), rec.ground_z};
+    rec.origin = {std::round(0.5 * (bb.min[0] + bb.max[0])),
+                  std::round(0.5 * (bb.min[1] + bb.max[1])), std::round(rec.ground_z)};
     for (auto& v : out.vertices)
       v = {v[0] - rec.origin[0], v[1] - rec.origin[1], v[2] - rec.origin[2]};
     rec.points = out.vertices.size();
@@ -2126,6 +2186,7 @@ SplitReport Splitter::run() {
 
   Manifest m;
   m.scene.crs = crs_spec_;
+  m.scene.projected_frame = georef_->scene_frame() == geo::SceneFrame::projected;
   const auto& oc = georef_->origin_crs();
   m.scene.origin_crs = {oc[0], oc[1], oc[2]};
   m.scene.origin_lon = o[0];

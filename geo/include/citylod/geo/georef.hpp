@@ -13,9 +13,19 @@ namespace detail {
 class Lattice;
 }
 
-/// After ingest all geometry is float64 ENU metres in `frame()`. Georef converts CRS
-/// coordinates (their own units) to that frame and back, and gives what 3D Tiles needs
-/// (root transform, bounding regions).
+/// How a scene's coordinates relate to its CRS.
+///  - `enu`: local east-north-up metres at the origin (the earth's curvature and the
+///    geoid are in them: the same building gets other coordinates elsewhere);
+///  - `projected`: the CRS's own axes converted to metres, minus the origin (x, y) and
+///    heights as the input gives them minus the origin's: a translation and the units'
+///    scale only, so the same points have the same coordinates wherever they lie. The
+///    curvature and the geoid enter when the tiles are written (to_enu_inplace).
+enum class SceneFrame { enu, projected };
+
+/// After ingest all geometry is float64 metres in the scene frame (`scene_frame()`). Georef
+/// converts CRS coordinates (their own units) to that frame and back, from the scene frame to
+/// the ENU frame of the tiles at `frame()`, and gives what 3D Tiles needs (root transform,
+/// bounding regions of ENU boxes).
 ///
 /// Holds a Transformer, so it is NOT thread-safe: clone() one per thread.
 class Georef {
@@ -40,6 +50,11 @@ class Georef {
   /// the identity.
   static Georef local(const LonLatH& origin);
 
+  /// Puts the scene in the projected frame at `origin_crs` (CRS units; the ENU frame of the
+  /// tiles moves to it too). For a Georef with a CRS.
+  void use_projected_frame(const Eigen::Vector3d& origin_crs);
+  SceneFrame scene_frame() const { return scene_; }
+
   Georef clone() const;
   ~Georef();
   Georef(Georef&&) noexcept;
@@ -53,9 +68,10 @@ class Georef {
   /// Warnings of the CRS and the transformer (e.g. the NAP -> EGM96 fallback).
   std::vector<std::string> warnings() const;
 
-  /// CRS units -> ENU metres.
+  /// CRS units -> scene metres.
   Eigen::Vector3d to_local(const Eigen::Vector3d& crs_point);
-  /// Batch, in place: columns in CRS units become ENU metres. For a projected CRS
+  /// Batch, in place: columns in CRS units become scene metres. Projected frame: the
+  /// translation and scale. ENU frame: for a projected CRS
   /// through a lattice of 64 m cells (geo/src/lattice.hpp: PROJ at its nodes,
   /// biquadratic in between, each cell checked against PROJ to 0.1 micrometre, else
   /// PROJ point by point; tests/geo/test_lattice.cpp: within 2e-8 m of PROJ, 2.5-8x
@@ -64,12 +80,19 @@ class Georef {
   void to_local_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
   /// Every point of to_local_inplace through PROJ (no lattice): for tests.
   void set_exact(bool exact) { exact_ = exact; }
-  /// ENU metres -> CRS units (GeoError for local scenes).
-  Eigen::Vector3d to_crs(const Eigen::Vector3d& enu);
+  /// Scene metres -> CRS units (GeoError for local scenes).
+  Eigen::Vector3d to_crs(const Eigen::Vector3d& scene);
   void to_crs_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
+  /// Scene metres -> ENU metres at frame() (the tiles' frame), in place: the identity in the
+  /// ENU frame; in the projected frame the CRS's transformation (through the lattice).
+  void to_enu_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
+  /// ENU metres at frame() -> scene metres, in place (the inverse of to_enu_inplace).
+  void enu_to_scene_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
 
   Eigen::Vector3d to_ecef(const Eigen::Vector3d& enu) const { return frame_.enu_to_ecef(enu); }
-  LonLatH to_geodetic(const Eigen::Vector3d& enu) const { return frame_.enu_to_geodetic(enu); }
+  /// Geodetic coordinates of a scene point, and back.
+  LonLatH to_geodetic(const Eigen::Vector3d& scene);
+  Eigen::Vector3d from_geodetic(const LonLatH& g);
   /// Root `transform` for tileset.json (column-major ENU -> ECEF).
   std::array<double, 16> root_transform() const { return frame_.enu_to_ecef_matrix(); }
   /// 3D Tiles region of a local ENU box.
@@ -79,7 +102,11 @@ class Georef {
 
  private:
   Georef(LocalFrame frame, Eigen::Vector3d origin_crs, std::unique_ptr<Transformer> t);
+  /// CRS units -> ENU metres, in place (the lattice for projected CRSs).
+  void crs_to_enu_inplace(Eigen::Ref<Eigen::Matrix3Xd> points);
   LocalFrame frame_;
+  SceneFrame scene_ = SceneFrame::enu;
+  double h_to_si_ = 1, v_to_si_ = 1;  // projected frame: the CRS's units
   Eigen::Vector3d origin_crs_;
   std::unique_ptr<Transformer> transformer_;
   std::unique_ptr<detail::Lattice> lattice_;  // made on first use

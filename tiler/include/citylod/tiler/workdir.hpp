@@ -67,11 +67,15 @@ inline bool is_anchor(ModelKind k) {
 struct SceneInfo {
   std::string crs;  ///< CRS spec as given ("EPSG:28992", WKT, or "" for --origin)
   std::array<double, 3> origin_crs{0, 0, 0};  ///< scene origin in CRS units
-  double origin_lon = 0, origin_lat = 0;      ///< degrees (WGS84)
-  double origin_h = 0;                        ///< metres, ellipsoidal (WGS84)
-  std::vector<std::string> inputs;            ///< input files
-  std::string options;                        ///< split options as a canonical string
-  std::vector<std::string> notes;             ///< e.g. "heights NAP -> ellipsoidal via EGM96"
+  /// The scene frame (geo::SceneFrame): true: chunk coordinates are the CRS's axes in
+  /// metres from origin_crs, heights the input's ("frame": "projected"); false: ENU metres
+  /// at the origin ("enu": --origin scenes, and work directories of earlier versions).
+  bool projected_frame = false;
+  double origin_lon = 0, origin_lat = 0;  ///< degrees (WGS84)
+  double origin_h = 0;                    ///< metres, ellipsoidal (WGS84)
+  std::vector<std::string> inputs;        ///< input files
+  std::string options;                    ///< split options as a canonical string
+  std::vector<std::string> notes;         ///< e.g. "heights NAP -> ellipsoidal via EGM96"
   std::string vertical;  ///< the height assumption of the split ("" when not recorded)
   /// Building (class 6) points read, and those outside every footprint; -1 = not counted.
   std::int64_t building_points = -1, unmatched_points = -1;
