@@ -38,6 +38,7 @@
 #include "citylod/io/reader.hpp"
 #include "citylod/io/writers.hpp"
 #include "citylod/tiler/eval.hpp"
+#include "citylod/tiler/scene_georef.hpp"
 #include "citylod/tiler/workdir.hpp"
 
 namespace fs = std::filesystem;
@@ -141,17 +142,12 @@ int main(int argc, char** argv) {
   }
   try {
     const tiler::Manifest m = tiler::read_manifest(work);
-    const geo::Crs crs = geo::Crs::parse(m.scene.crs);
-    const geo::VerticalChoice vc = geo::choose_vertical(crs);
-    geo::Georef g = geo::Georef::from_crs(
-        vc.crs,
-        Eigen::Vector3d(m.scene.origin_crs[0], m.scene.origin_crs[1], m.scene.origin_crs[2]),
-        vc.options);
+    const tiler::SceneGeoref georef(m, work);
     io::TriangleMesh scene = io::read_mesh(data + "/scene.ply");
     const std::vector<io::Vec3d> scene_crs = scene.vertices;
     Eigen::Map<Eigen::Matrix3Xd> v(scene.vertices[0].data(), 3,
                                    Eigen::Index(scene.vertices.size()));
-    g.to_local_inplace(v);
+    georef.from_crs(v);  // to the chunks' frame
     const std::size_t n = scene.triangles.size();
     const Truth truth = read_truth(data, n);
     std::vector<Eigen::Vector3d> cen(n);
@@ -222,11 +218,11 @@ int main(int argc, char** argv) {
           if (fin) {
             const fs::path mp = fs::path(tiler::lod_dir(work, c.id)) / fin->file;
             io::TriangleMesh model = io::read_mesh(mp.string());
-            for (auto& p : model.vertices) {
-              const Eigen::Vector3d q = g.to_crs(
-                  Eigen::Vector3d(p[0] + c.origin[0], p[1] + c.origin[1], p[2] + c.origin[2]));
-              p = {q[0], q[1], q[2]};
-            }
+            for (auto& p : model.vertices)
+              for (int k = 0; k < 3; ++k) p[std::size_t(k)] += c.origin[std::size_t(k)];
+            if (!model.vertices.empty())
+              georef.to_crs(Eigen::Map<Eigen::Matrix3Xd>(model.vertices[0].data(), 3,
+                                                         Eigen::Index(model.vertices.size())));
             const fs::path tmp = fs::temp_directory_path() / ("mesh_city_bench_" + c.id + ".ply");
             io::write_ply(tmp.string(), model);
             // The truth as a dense point set (5 cm lattice on every face): the distances

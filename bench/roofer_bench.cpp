@@ -26,6 +26,7 @@
 #include "citylod/io/types.hpp"
 #include "citylod/lod/lod.hpp"
 #include "citylod/lod/polygon2d.hpp"
+#include "citylod/tiler/scene_georef.hpp"
 #include "citylod/tiler/workdir.hpp"
 
 #include <nlohmann/json.hpp>
@@ -159,22 +160,15 @@ lod::TriangleMesh to_lod(const io::TriangleMesh& m) {
   return out;
 }
 
-/// roofer's features by id: the Solid of each LoD (in scene ENU), attributes.
+/// roofer's features by id: the Solid of each LoD (in the scene frame), attributes.
 struct RooferBuilding {
   io::PolygonMesh lod[3];
   double t_run_ms = NAN;
   int roof_planes = 0;
 };
 
-geo::HeightMode height_mode_of(const tiler::SceneInfo& s) {
-  for (const auto& n : s.notes)
-    if (n.find("EGM96") != std::string::npos && n.find("ellipsoidal") != std::string::npos)
-      return geo::HeightMode::Egm96;
-  return geo::HeightMode::FromCrs;
-}
-
 std::map<std::string, RooferBuilding> read_roofer(const std::string& path,
-                                                  const tiler::SceneInfo& scene,
+                                                  const tiler::SceneGeoref& scene,
                                                   int& skipped_holes) {
   std::ifstream f(path);
   if (!f) throw std::runtime_error(path + ": cannot open");
@@ -183,11 +177,6 @@ std::map<std::string, RooferBuilding> read_roofer(const std::string& path,
   const json meta = json::parse(line);
   const auto& sc = meta.at("transform").at("scale");
   const auto& tr = meta.at("transform").at("translate");
-  geo::TransformOptions to;
-  to.height = height_mode_of(scene);
-  geo::Georef g = geo::Georef::from_crs(
-      geo::Crs::parse(scene.crs),
-      Eigen::Vector3d(scene.origin_crs[0], scene.origin_crs[1], scene.origin_crs[2]), to);
   std::map<std::string, RooferBuilding> out;
   while (std::getline(f, line)) {
     if (line.empty()) continue;
@@ -199,8 +188,9 @@ std::map<std::string, RooferBuilding> read_roofer(const std::string& path,
       const Eigen::Vector3d crs(v[0].get<double>() * sc[0].get<double>() + tr[0].get<double>(),
                                 v[1].get<double>() * sc[1].get<double>() + tr[1].get<double>(),
                                 v[2].get<double>() * sc[2].get<double>() + tr[2].get<double>());
-      const Eigen::Vector3d e = g.to_local(crs);
-      verts.push_back({e.x(), e.y(), e.z()});
+      Eigen::Matrix3Xd e = crs;
+      scene.from_crs(e);  // to the chunks' frame
+      verts.push_back({e(0, 0), e(1, 0), e(2, 0)});
     }
     bool any = false;
     for (const auto& [oid, obj] : feat.at("CityObjects").items()) {
@@ -278,7 +268,8 @@ int main(int argc, char** argv) {
   try {
     const tiler::Manifest man = tiler::read_manifest(work);
     int holes = 0;
-    const auto roofer = read_roofer(roofer_path, man.scene, holes);
+    const tiler::SceneGeoref scene(man, work);
+    const auto roofer = read_roofer(roofer_path, scene, holes);
     std::vector<Building> rows;
     for (const auto& c : man.chunks) {
       const std::string prefix = "footprint:";

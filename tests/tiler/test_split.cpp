@@ -1,5 +1,6 @@
 // split_scene(): synthetic scenes (clusters, footprints, meshes, cell borders,
 // halo growth, idempotence, atomicity) and the real data sets when present.
+#include "citylod/tiler/scene_georef.hpp"
 #include "citylod/tiler/split.hpp"
 
 #include <gtest/gtest.h>
@@ -1037,16 +1038,9 @@ MeshCityLabels mesh_city_labels(const std::string& dir, const tiler::Manifest& m
     std::getline(ss, idx, ',');
     out.row_of["fp-" + id] = std::stoi(idx);
   }
-  const geo::Crs crs = geo::Crs::parse(m.scene.crs);
-  const geo::VerticalChoice vc = geo::choose_vertical(crs);
-  geo::Georef g = geo::Georef::from_crs(
-      vc.crs, Eigen::Vector3d(m.scene.origin_crs[0], m.scene.origin_crs[1], m.scene.origin_crs[2]),
-      vc.options);
-  if (m.scene.projected_frame)
-    g.use_projected_frame(
-        Eigen::Vector3d(m.scene.origin_crs[0], m.scene.origin_crs[1], m.scene.origin_crs[2]));
+  const tiler::SceneGeoref georef(m, work);
   Eigen::Map<Eigen::Matrix3Xd> v(scene.vertices[0].data(), 3, Eigen::Index(scene.vertices.size()));
-  g.to_local_inplace(v);
+  georef.from_crs(v);  // to the chunks' frame
   const auto cell = [](const Eigen::Vector3d& p) {
     return std::array<long long, 3>{std::llround(std::floor(p[0] / 0.02)),
                                     std::llround(std::floor(p[1] / 0.02)),

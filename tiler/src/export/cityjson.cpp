@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -178,6 +179,7 @@ struct Geometry {
   std::vector<std::vector<std::uint32_t>> faces;  // feature vertex indices
   std::vector<int> semantic;                      // per face
   std::vector<io::Rgba8> colour;                  // per face (a = 0: none)
+  std::vector<int> shell;                         // per face: 0 outer, > 0 a cavity
   std::string lod;
   json attributes;  // its citylod_models entry
   bool valid = false, full_semantics = false, from_obj = false;
@@ -236,16 +238,64 @@ class VertexPool {
   std::vector<std::array<long long, 3>> list_;
 };
 
+/// The shell of each face: the edge-connected pieces of the surface, the one
+/// enclosing the largest positive volume first (the outer shell, 0), then the
+/// others (cavities, whose volume is negative, in order of their first face).
+std::vector<int> shells_of(const std::vector<std::vector<std::uint32_t>>& faces,
+                           const VertexPool& pool) {
+  std::vector<int> parent(faces.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  std::function<int(int)> find = [&](int x) {
+    while (parent[std::size_t(x)] != x)
+      x = parent[std::size_t(x)] = parent[std::size_t(parent[std::size_t(x)])];
+    return x;
+  };
+  std::map<std::pair<std::uint32_t, std::uint32_t>, int> edge_face;
+  for (std::size_t f = 0; f < faces.size(); ++f)
+    for (std::size_t i = 0; i < faces[f].size(); ++i) {
+      std::uint32_t a = faces[f][i], b = faces[f][(i + 1) % faces[f].size()];
+      if (a > b) std::swap(a, b);
+      const auto [it, fresh] = edge_face.emplace(std::make_pair(a, b), int(f));
+      if (!fresh) parent[std::size_t(find(int(f)))] = find(it->second);
+    }
+  // signed volume per piece: 1/3 sum over faces of (a vertex . the face's vector area)
+  std::map<int, double> volume;
+  std::vector<int> order;  // pieces by first face
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    const int r = find(int(f));
+    if (!volume.count(r)) order.push_back(r);
+    const Vec3d p0 = pool.relative(faces[f][0]);
+    double n[3] = {0, 0, 0};
+    for (std::size_t i = 0; i < faces[f].size(); ++i) {
+      const Vec3d a = pool.relative(faces[f][i]),
+                  b = pool.relative(faces[f][(i + 1) % faces[f].size()]);
+      n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+      n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+      n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    volume[r] += (p0[0] * n[0] + p0[1] * n[1] + p0[2] * n[2]) / 6;
+  }
+  int outer = order.empty() ? 0 : order[0];
+  for (const int r : order)
+    if (volume[r] > volume[outer]) outer = r;
+  std::map<int, int> index{{outer, 0}};
+  for (const int r : order)
+    if (r != outer) index.emplace(r, int(index.size()));
+  std::vector<int> out(faces.size());
+  for (std::size_t f = 0; f < faces.size(); ++f) out[f] = index.at(find(int(f)));
+  return out;
+}
+
 /// A validator's view of faces over feature vertices: the solid (vertices in
-/// CRS units relative to translate), one shell.
+/// CRS units relative to translate), its shells by shells_of.
 lod::PolygonSolid as_solid(const std::vector<std::vector<std::uint32_t>>& faces,
                            const VertexPool& pool) {
   lod::PolygonSolid s;
   std::map<std::uint32_t, int> local;
-  s.shells.emplace_back();
-  for (const auto& f : faces) {
+  const std::vector<int> shell = shells_of(faces, pool);
+  for (std::size_t fi = 0; fi < faces.size(); ++fi) {
     std::vector<int> ring;
-    for (const std::uint32_t q : f) {
+    for (const std::uint32_t q : faces[fi]) {
       const auto [it, fresh] = local.emplace(q, int(s.vertices.size()));
       if (fresh) {
         const Vec3d v = pool.relative(q);
@@ -253,7 +303,8 @@ lod::PolygonSolid as_solid(const std::vector<std::vector<std::uint32_t>>& faces,
       }
       ring.push_back(it->second);
     }
-    s.shells[0].push_back(std::move(ring));
+    if (s.shells.size() <= std::size_t(shell[fi])) s.shells.resize(std::size_t(shell[fi]) + 1);
+    s.shells[std::size_t(shell[fi])].push_back(std::move(ring));
   }
   return s;
 }
@@ -565,6 +616,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     const bool tri_coloured = mr.triangle_colours.size() == meshes[k].triangles.size();
     auto take = [&](std::vector<std::vector<std::uint32_t>>&& faces, std::vector<int>&& semantic,
                     std::vector<io::Rgba8>&& colour, bool polygons, double snapped) {
+      g.shell = shells_of(faces, pool);
       g.faces = std::move(faces);
       g.semantic = std::move(semantic);
       g.colour = std::move(colour);
@@ -745,11 +797,20 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       }
   out.full_semantics = true;
   auto solid_json = [&](const Geometry& g) {
-    json boundaries = json::array(), values = json::array();
-    json shell = json::array();
-    for (const auto& f : g.faces) shell.push_back(json::array({f}));
-    boundaries.push_back(shell);
-    values.push_back(g.semantic);
+    // the shells (outer first, then cavities), each face one ring
+    json boundaries = json::array(), values = json::array(), colour_values = json::array();
+    for (std::size_t f = 0; f < g.faces.size(); ++f) {
+      const std::size_t sh = std::size_t(g.shell[f]);
+      while (boundaries.size() <= sh) {
+        boundaries.push_back(json::array());
+        values.push_back(json::array());
+        colour_values.push_back(json::array());
+      }
+      boundaries[sh].push_back(json::array({g.faces[f]}));
+      values[sh].push_back(g.semantic[f]);
+      colour_values[sh].push_back(g.colour[f][3] ? json(material_of.at(g.colour[f]))
+                                                 : json(nullptr));
+    }
     std::set<int> present(g.semantic.begin(), g.semantic.end());
     // surfaces: one object per class present, values index into them
     json surfaces = json::array();
@@ -758,17 +819,15 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       slot[c] = int(surfaces.size());
       surfaces.push_back({{"type", kSemanticType[c]}});
     }
-    for (auto& v : values[0]) v = slot[v.get<int>()];
+    for (auto& sv : values)
+      for (auto& v : sv) v = slot[v.get<int>()];
     json geo;
     geo["type"] = "Solid";
     geo["lod"] = g.lod;
     geo["boundaries"] = boundaries;
     geo["semantics"] = {{"surfaces", surfaces}, {"values", values}};
     if (std::any_of(g.colour.begin(), g.colour.end(), [](const io::Rgba8& c) { return c[3]; })) {
-      json shell_values = json::array();
-      for (const io::Rgba8& c : g.colour)
-        shell_values.push_back(c[3] ? json(material_of.at(c)) : json(nullptr));
-      geo["material"] = {{kColourTheme, {{"values", json::array({shell_values})}}}};
+      geo["material"] = {{kColourTheme, {{"values", colour_values}}}};
       ++out.coloured;
     }
     ++out.geometries;

@@ -59,23 +59,11 @@ void SceneGeoref::release(std::unique_ptr<geo::Georef> g) const {
   free_.push_back(std::move(g));
 }
 
-void SceneGeoref::to_enu(Eigen::Ref<Eigen::Matrix3Xd> points) const {
-  if (!projected_ || points.cols() == 0) return;
+template <class F>
+void SceneGeoref::with_georef(F&& f) const {
   std::unique_ptr<geo::Georef> g = acquire();
   try {
-    g->to_enu_inplace(points);
-  } catch (...) {
-    release(std::move(g));
-    throw;
-  }
-  release(std::move(g));
-}
-
-void SceneGeoref::from_enu(Eigen::Ref<Eigen::Matrix3Xd> points) const {
-  if (!projected_ || points.cols() == 0) return;
-  std::unique_ptr<geo::Georef> g = acquire();
-  try {
-    g->enu_to_scene_inplace(points);
+    f(*g);
   } catch (...) {
     release(std::move(g));
     throw;
@@ -86,14 +74,23 @@ void SceneGeoref::from_enu(Eigen::Ref<Eigen::Matrix3Xd> points) const {
 void SceneGeoref::to_crs(Eigen::Ref<Eigen::Matrix3Xd> points) const {
   if (!proto_) throw std::logic_error("SceneGeoref::to_crs: a local scene has no CRS");
   if (points.cols() == 0) return;
-  std::unique_ptr<geo::Georef> g = acquire();
-  try {
-    g->to_crs_inplace(points);
-  } catch (...) {
-    release(std::move(g));
-    throw;
-  }
-  release(std::move(g));
+  with_georef([&](geo::Georef& g) { g.to_crs_inplace(points); });
+}
+
+void SceneGeoref::to_enu(Eigen::Ref<Eigen::Matrix3Xd> points) const {
+  if (!projected_ || points.cols() == 0) return;
+  with_georef([&](geo::Georef& g) { g.to_enu_inplace(points); });
+}
+
+void SceneGeoref::from_enu(Eigen::Ref<Eigen::Matrix3Xd> points) const {
+  if (!projected_ || points.cols() == 0) return;
+  with_georef([&](geo::Georef& g) { g.enu_to_scene_inplace(points); });
+}
+
+void SceneGeoref::from_crs(Eigen::Ref<Eigen::Matrix3Xd> points) const {
+  if (!proto_) throw std::logic_error("SceneGeoref::from_crs: a local scene has no CRS");
+  if (points.cols() == 0) return;
+  with_georef([&](geo::Georef& g) { g.to_local_inplace(points); });
 }
 
 }  // namespace citylod::tiler

@@ -38,9 +38,14 @@ class SceneGeoref {
   /// Scene metres -> CRS units, in place (exact for a projected frame). Thread-safe;
   /// std::logic_error for local scenes.
   void to_crs(Eigen::Ref<Eigen::Matrix3Xd> points) const;
+  /// CRS units -> scene metres, in place (exact for a projected frame). Thread-safe;
+  /// std::logic_error for local scenes.
+  void from_crs(Eigen::Ref<Eigen::Matrix3Xd> points) const;
 
  private:
   std::unique_ptr<geo::Georef> acquire() const;
+  template <class F>
+  void with_georef(F&& f) const;  // f(Georef&) on a clone lent for the call
   void release(std::unique_ptr<geo::Georef> g) const;
 
   std::unique_ptr<geo::Georef> proto_;  // null: local scene
