@@ -426,6 +426,47 @@ TEST(CityJson, CollinearSpikesAreTakenOut) {
   EXPECT_FALSE(lod::check_solid(before).valid());
 }
 
+// A model with a cavity (a room seen through windows) is one Solid with an
+// inner shell: val3dity reads the faces of one shell as one connected surface
+// (305 otherwise).
+TEST(CityJson, CavitiesAreInnerShells) {
+  Scene s = make_scene("cavity");
+  PolygonMesh m = box(85000, 447500, 0, 85010, 447508, 6);
+  const PolygonMesh in = box(85003, 447503, 2, 85005, 447505, 4);
+  const auto base = std::uint32_t(m.vertices.size());
+  m.vertices.insert(m.vertices.end(), in.vertices.begin(), in.vertices.end());
+  for (auto f : in.faces) {
+    std::reverse(f.begin(), f.end());  // facing into the cavity
+    for (auto& i : f) i += base;
+    m.faces.push_back(f);
+  }
+  add_building(s, "b-cavity", {{m, "anchor", 0, 0, true}});
+  const std::string out = s.work + "/cavity.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.invalid, 0u);
+  const CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  const json& g = object_of(seq.features[0])["geometry"][0];
+  ASSERT_EQ(g["boundaries"].size(), 2u);  // outer shell, then the cavity
+  EXPECT_EQ(g["boundaries"][0].size(), 6u);
+  EXPECT_EQ(g["boundaries"][1].size(), 6u);
+  EXPECT_EQ(g["semantics"]["values"].size(), 2u);
+  // the outer shell holds the outer box: its x extent is 10 m
+  const auto v = feature_vertices(seq.header, seq.features[0]);
+  double lo = 1e300, hi = -1e300;
+  for (const auto& f : g["boundaries"][0])
+    for (const auto& i : f[0]) {
+      lo = std::min(lo, v[i.get<std::size_t>()][0]);
+      hi = std::max(hi, v[i.get<std::size_t>()][0]);
+    }
+  EXPECT_NEAR(hi - lo, 10, 1e-3);
+  if (!val3dity_binary().empty()) {
+    const Val3dityResult v3 = run_val3dity(out, s.work + "/cavity_val3dity.json");
+    ASSERT_TRUE(v3.ran) << v3.why;
+    EXPECT_EQ(v3.valid_primitives, 1u) << v3.first_error;
+  }
+}
+
 TEST(CityJson, SameBytesWhateverTheThreads) {
   Scene s = make_scene("threads");
   for (int i = 0; i < 12; ++i)
