@@ -169,7 +169,8 @@ nlohmann::ordered_json to_json(const TilesetEval& t) {
         {"self_intersecting", l.self_intersecting},
         {"pinched", l.pinched},
         {"not_one_shell", l.not_one_shell},
-        {"valid", l.valid}};
+        {"valid", l.valid},
+        {"valid_val3dity", l.valid_tolerant}};
     if (l.evaluated) {
       j["mean_e1_percent"] = l.mean_e1;
       j["mean_e2_percent"] = l.mean_e2;
@@ -196,6 +197,7 @@ nlohmann::ordered_json to_json(const TilesetEval& t) {
     j["triangles"] = m.triangles;
     j["vertices"] = m.vertices;
     put_check(j, m.check);
+    j["val3dity_error"] = m.val3dity_error;  // 0: valid at val3dity's tolerances
     j["volume"] = m.volume;
     if (m.evaluated) {
       j["e1_percent"] = m.e1;
@@ -218,14 +220,15 @@ std::string to_text(const TilesetEval& t) {
         t.work.c_str(), t.samples);
   out += "\n\n";
   const bool ev = !t.work.empty();
-  out += strf("%5s %6s %9s %10s %7s %8s %8s %7s %9s %6s", "level", "tiles", "buildings",
-              "triangles", "closed", "manifold", "self-int", "pinched", "not-1-shl", "valid");
+  out += strf("%5s %6s %9s %10s %7s %8s %8s %7s %9s %6s %9s", "level", "tiles", "buildings",
+              "triangles", "closed", "manifold", "self-int", "pinched", "not-1-shl", "valid",
+              "val3dity");
   if (ev) out += strf(" %9s %9s %9s  %s", "mean e1 %", "mean e2 %", "max e2 %", "(building)");
   out += "\n";
   for (const auto& l : t.levels) {
-    out += strf("%5d %6zu %9zu %10zu %7zu %8zu %8zu %7zu %9zu %6zu", l.level, l.tiles, l.buildings,
-                l.triangles, l.closed, l.edge_manifold, l.self_intersecting, l.pinched,
-                l.not_one_shell, l.valid);
+    out += strf("%5d %6zu %9zu %10zu %7zu %8zu %8zu %7zu %9zu %6zu %9zu", l.level, l.tiles,
+                l.buildings, l.triangles, l.closed, l.edge_manifold, l.self_intersecting, l.pinched,
+                l.not_one_shell, l.valid, l.valid_tolerant);
     if (ev)
       out +=
           strf(" %9.3f %9.3f %9.3f  %s", l.mean_e1, l.mean_e2, l.max_e2, l.max_e2_building.c_str());
@@ -233,23 +236,26 @@ std::string to_text(const TilesetEval& t) {
   }
   out +=
       "(closed / manifold / self-int / pinched: building meshes with a pinched vertex / not-1-shl: "
-      "not one solid / valid: valid solids; a level is a tile depth, root = 0)\n\n";
+      "not one solid / valid: valid solids / val3dity: valid at val3dity's tolerances, snap 1 mm, "
+      "planarity 1 cm / 20 degrees; a level is a tile depth, root = 0)\n\n";
   std::size_t idw = 8, tw = 4;
   for (const auto& m : t.meshes) {
     idw = std::max(idw, m.building.size());
     tw = std::max(tw, m.tile.size());
   }
-  out += strf("%-*s %5s %-*s %5s %-13s %9s %-6s %-8s %-8s %12s", int(idw), "building", "level",
+  out += strf("%-*s %5s %-*s %5s %-13s %9s %-6s %-8s %-8s %8s %12s", int(idw), "building", "level",
               int(tw), "tile", "model", "kind", "triangles", "closed", "manifold", "self-int",
-              "volume m3");
+              "val3dity", "volume m3");
   if (ev) out += strf(" %8s %8s %11s", "e1 %", "e2 %", "Hausdorff m");
   out += "\n";
   for (const auto& m : t.meshes) {
     const std::string model = m.model_index >= 0 ? std::to_string(m.model_index) : "-";
-    out += strf("%-*s %5d %-*s %5s %-13s %9zu %-6s %-8s %-8s %12.3f", int(idw), m.building.c_str(),
-                m.level, int(tw), m.tile.c_str(), model.c_str(),
-                m.kind.empty() ? "-" : m.kind.c_str(), m.triangles, yes_no(m.check.closed),
-                yes_no(m.check.edge_manifold), yes_no(m.check.self_intersecting), m.volume);
+    out +=
+        strf("%-*s %5d %-*s %5s %-13s %9zu %-6s %-8s %-8s %8s %12.3f", int(idw), m.building.c_str(),
+             m.level, int(tw), m.tile.c_str(), model.c_str(), m.kind.empty() ? "-" : m.kind.c_str(),
+             m.triangles, yes_no(m.check.closed), yes_no(m.check.edge_manifold),
+             yes_no(m.check.self_intersecting),
+             m.val3dity_error == 0 ? "valid" : std::to_string(m.val3dity_error).c_str(), m.volume);
     if (ev) out += strf(" %8.3f %8.3f %11.3f", m.e1, m.e2, m.hausdorff);
     out += "\n";
   }

@@ -733,7 +733,10 @@ struct GlbBuilder::Impl {
       }
       std::vector<std::array<std::int64_t, 3>> cell_points;
       for (const Key& k : cells) cell_points.push_back({k[0], k[1], k[2]});
-      const std::vector<NearPair> near = near_pairs(cell_points, 2);
+      // a validator merges corners within its snap tolerance: that many steps too
+      const std::uint32_t reach =
+          std::max<std::uint32_t>(2, std::uint32_t(std::ceil(opt.snap_tolerance_m * 1.1 / step)));
+      const std::vector<NearPair> near = near_pairs(cell_points, reach);
       std::vector<std::uint32_t> rank(cells.size());  // a cluster welds into its smallest cell
       std::uint32_t next_rank = 0;
       for (const auto& [key, id] : cell_id) rank[id] = next_rank++;
@@ -755,9 +758,12 @@ struct GlbBuilder::Impl {
       }
       if (!damageable) continue;  // int16 as it is
       bool stored_int16 = false;
-      for (const std::uint32_t r : {0u, 1u, 2u}) {
-        if (r > 0 &&
-            std::none_of(near.begin(), near.end(), [&](const NearPair& p) { return p.d == r; }))
+      std::vector<std::uint32_t> radii{0u, 1u, 2u};
+      if (reach > 2) radii.push_back(reach);
+      for (const std::uint32_t r : radii) {
+        if (r > 0 && std::none_of(near.begin(), near.end(), [&](const NearPair& p) {
+              return p.d <= r && (p.d == r || r == reach);
+            }))
           continue;  // nothing new to weld
         // cells within r steps per axis, transitively -> the smallest cell
         const std::vector<std::uint32_t> root = weld(near, r, rank);

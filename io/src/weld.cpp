@@ -86,4 +86,69 @@ std::vector<std::array<std::uint32_t, 3>> drop_collapsed_and_fins(
   return kept;
 }
 
+std::vector<std::size_t> remove_collinear_spikes(
+    std::vector<std::vector<std::uint32_t>>& faces,
+    const std::vector<std::array<std::int64_t, 3>>& points) {
+  using I = __int128;
+  auto at = [&](std::uint32_t q) { return points[q]; };
+  auto collinear_tip = [&](std::uint32_t i, std::uint32_t j, std::uint32_t k) {
+    const auto a = at(i), b = at(j), c = at(k);
+    const I u[3] = {I(a[0]) - b[0], I(a[1]) - b[1], I(a[2]) - b[2]};
+    const I v[3] = {I(c[0]) - b[0], I(c[1]) - b[1], I(c[2]) - b[2]};
+    const bool line =
+        u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0];
+    return line && u[0] * v[0] + u[1] * v[1] + u[2] * v[2] > 0;
+  };
+  auto dist2 = [&](std::uint32_t i, std::uint32_t j) {
+    const auto a = at(i), b = at(j);
+    I d = 0;
+    for (int k = 0; k < 3; ++k)
+      d += (I(a[std::size_t(k)]) - b[std::size_t(k)]) * (I(a[std::size_t(k)]) - b[std::size_t(k)]);
+    return d;
+  };
+  // Puts `m` between the ends of the directed edge a -> b of some face; false if none has it.
+  auto insert_on_edge = [&](std::uint32_t a, std::uint32_t b, std::uint32_t m) {
+    for (auto& g : faces)
+      for (std::size_t x = 0; x < g.size(); ++x)
+        if (g[x] == a && g[(x + 1) % g.size()] == b) {
+          g.insert(g.begin() + long(x + 1), m);
+          return true;
+        }
+    return false;
+  };
+  for (std::size_t guard = 0, changed = 1; changed && guard < 4 * faces.size() + 16; ++guard) {
+    changed = 0;
+    for (auto& f : faces) {
+      for (std::size_t x = 0; f.size() >= 3 && x < f.size(); ++x) {
+        const std::size_t n = f.size();
+        const std::uint32_t i = f[(x + n - 1) % n], j = f[x], k = f[(x + 1) % n];
+        if (i == j || j == k) continue;
+        if (i == k) {  // a spike onto one vertex: drop the tip and the return
+          f.erase(f.begin() + long(x));
+          f.erase(f.begin() + long(x < f.size() ? x : 0));
+          changed = 1;
+          break;
+        }
+        if (!collinear_tip(i, j, k)) continue;
+        // the nearer of i, k lies between j and the farther one
+        const bool k_nearer = dist2(k, j) < dist2(i, j);
+        if (!(k_nearer ? insert_on_edge(j, i, k) : insert_on_edge(k, j, i))) continue;
+        // (the insertion may have been into f itself: find j again)
+        f.erase(std::find(f.begin(), f.end(), j));
+        changed = 1;
+        break;
+      }
+    }
+  }
+  std::vector<std::size_t> kept;
+  std::vector<std::vector<std::uint32_t>> out;
+  for (std::size_t fi = 0; fi < faces.size(); ++fi)
+    if (faces[fi].size() >= 3) {
+      kept.push_back(fi);
+      out.push_back(std::move(faces[fi]));
+    }
+  faces = std::move(out);
+  return kept;
+}
+
 }  // namespace citylod::io

@@ -315,6 +315,57 @@ std::vector<std::vector<int>> face_errors(const PolygonSolid& solid, const Toler
   return out;
 }
 
+PolygonSolid make_solid(std::vector<Vec3> vertices, const std::vector<std::vector<int>>& faces,
+                        std::vector<int>* shell_of) {
+  std::vector<int> parent(faces.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
+  const auto find = [&](int x) {
+    while (parent[std::size_t(x)] != x)
+      x = parent[std::size_t(x)] = parent[std::size_t(parent[std::size_t(x)])];
+    return x;
+  };
+  std::map<std::pair<int, int>, int> edge_face;
+  for (std::size_t f = 0; f < faces.size(); ++f)
+    for (std::size_t i = 0; i < faces[f].size(); ++i) {
+      int a = faces[f][i], b = faces[f][(i + 1) % faces[f].size()];
+      if (a > b) std::swap(a, b);
+      const auto [it, fresh] = edge_face.emplace(std::make_pair(a, b), int(f));
+      if (!fresh) parent[std::size_t(find(int(f)))] = find(it->second);
+    }
+  // signed volume of each piece: 1/3 sum over its faces of (a vertex . the face's vector area)
+  std::map<int, double> volume;
+  std::vector<int> order;  // pieces by first face
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    const int r = find(int(f));
+    if (!volume.count(r)) {
+      order.push_back(r);
+      volume[r] = 0;
+    }
+    if (faces[f].empty()) continue;
+    Vec3 n(0, 0, 0);
+    for (std::size_t i = 0; i < faces[f].size(); ++i)
+      n += vertices[std::size_t(faces[f][i])].cross(
+          vertices[std::size_t(faces[f][(i + 1) % faces[f].size()])]);
+    volume[r] += vertices[std::size_t(faces[f][0])].dot(n) / 6;
+  }
+  int outer = order.empty() ? 0 : order[0];
+  for (const int r : order)
+    if (volume[r] > volume[outer]) outer = r;
+  std::map<int, int> index{{outer, 0}};
+  for (const int r : order)
+    if (r != outer) index.emplace(r, int(index.size()));
+  PolygonSolid s;
+  s.vertices = std::move(vertices);
+  s.shells.resize(index.size());
+  if (shell_of) shell_of->assign(faces.size(), 0);
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    const int sh = index.at(find(int(f)));
+    s.shells[std::size_t(sh)].push_back(faces[f]);
+    if (shell_of) (*shell_of)[f] = sh;
+  }
+  return s;
+}
+
 double min_vertex_distance(const PolygonSolid& solid) {
   std::vector<char> used(solid.vertices.size(), 0);
   for (const auto& sh : solid.shells)

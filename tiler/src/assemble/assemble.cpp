@@ -11,6 +11,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <numeric>
 #include <sstream>
 #include <stdexcept>
 
@@ -24,7 +25,9 @@
 #include "citylod/io/hash.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/io/tileset.hpp"
+#include "citylod/io/weld.hpp"
 #include "citylod/lod/polygon2d.hpp"
+#include "citylod/lod/validity.hpp"
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/scene_georef.hpp"
@@ -109,10 +112,93 @@ io::TriangleMesh to_enu(io::TriangleMesh m, const SceneGeoref& georef) {
   return m;
 }
 
-/// A model in the tiles' frame.
+/// The triangles as lod::check_solid reads them (shells by lod::make_solid).
+lod::SolidCheck check_for_validators(const io::TriangleMesh& m) {
+  std::vector<lod::Vec3> v;
+  v.reserve(m.vertices.size());
+  for (const auto& p : m.vertices) v.emplace_back(p[0], p[1], p[2]);
+  std::vector<std::vector<int>> faces;
+  faces.reserve(m.triangles.size());
+  for (const auto& t : m.triangles) faces.push_back({int(t[0]), int(t[1]), int(t[2])});
+  return lod::check_solid(lod::make_solid(std::move(v), faces));
+}
+
+/// A model as validators read it at their tolerances (val3dity: snap 1 mm;
+/// docs/3dtiles.md "Validity"): its vertices on a 0.1 mm grid, those within r
+/// of each other (per axis, transitively; r = 1.1 mm, then 2.2, 4.4, 8.8) one
+/// vertex (at the position of the cluster's first), collapsed triangles,
+/// zero-volume fins and collinear spikes gone (io/weld.hpp); the first r that
+/// lod::check_solid accepts. A model that is valid as it is, or that no r makes
+/// valid, is returned unchanged.
+io::TriangleMesh weld_for_validators(const io::TriangleMesh& m) {
+  constexpr double kGrid = 1e-4;  // metres
+  const lod::Tolerances tol;
+  if (m.triangles.empty() || check_for_validators(m).valid()) return m;
+  std::vector<std::array<std::int64_t, 3>> q;
+  q.reserve(m.vertices.size());
+  for (const auto& p : m.vertices)
+    q.push_back(
+        {std::llround(p[0] / kGrid), std::llround(p[1] / kGrid), std::llround(p[2] / kGrid)});
+  std::vector<std::uint32_t> rank(q.size());
+  std::iota(rank.begin(), rank.end(), 0u);
+  for (const double factor : {1.1, 2.2, 4.4, 8.8}) {
+    const auto r = std::uint32_t(std::ceil(factor * tol.snap / kGrid));
+    const std::vector<std::uint32_t> root = io::weld(io::near_pairs(q, r), r, rank);
+    std::vector<std::array<std::uint32_t, 3>> welded;
+    for (const auto& t : m.triangles) welded.push_back({root[t[0]], root[t[1]], root[t[2]]});
+    std::vector<std::size_t> from;
+    std::vector<std::vector<std::uint32_t>> faces;
+    for (const auto& t : io::drop_collapsed_and_fins(welded, from))
+      faces.push_back({t[0], t[1], t[2]});
+    io::remove_collinear_spikes(faces, q);
+    io::TriangleMesh out;
+    out.vertices = m.vertices;
+    bool ok = true;
+    for (const auto& f : faces) {
+      // a face that took a vertex on an edge: a fan from an apex that gives no
+      // triangle on a line
+      bool fanned = false;
+      for (std::size_t a = 0; a < f.size() && !fanned; ++a) {
+        std::vector<std::array<std::uint32_t, 3>> fan;
+        bool flat = false;
+        for (std::size_t k = 1; k + 1 < f.size() && !flat; ++k) {
+          const std::array<std::uint32_t, 3> t{f[a], f[(a + k) % f.size()],
+                                               f[(a + k + 1) % f.size()]};
+          const auto &p0 = q[t[0]], &p1 = q[t[1]], &p2 = q[t[2]];
+          const __int128 u[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+          const __int128 w[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+          flat = u[1] * w[2] == u[2] * w[1] && u[2] * w[0] == u[0] * w[2] &&
+                 u[0] * w[1] == u[1] * w[0];
+          fan.push_back(t);
+        }
+        if (flat) continue;
+        out.triangles.insert(out.triangles.end(), fan.begin(), fan.end());
+        fanned = true;
+      }
+      ok = ok && fanned;
+    }
+    if (!ok || !check_for_validators(out).valid()) continue;
+    // only the vertices the triangles use
+    std::vector<std::uint32_t> remap(out.vertices.size(), ~0u);
+    io::TriangleMesh compact;
+    for (auto& t : out.triangles)
+      for (auto& v : t) {
+        if (remap[v] == ~0u) {
+          remap[v] = std::uint32_t(compact.vertices.size());
+          compact.vertices.push_back(out.vertices[v]);
+        }
+        v = remap[v];
+      }
+    compact.triangles = std::move(out.triangles);
+    return compact;
+  }
+  return m;
+}
+
+/// A model in the tiles' frame, welded for validators.
 io::TriangleMesh read_model(const std::string& file, const Vec3d& origin,
                             const SceneGeoref& georef) {
-  return to_enu(read_scene_model(file, origin), georef);
+  return weld_for_validators(to_enu(read_scene_model(file, origin), georef));
 }
 
 /// Reads one building's report and models and chooses its kept chain.
@@ -575,9 +661,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   gopt.compression = params.compression;
   // quantized models are checked as stored: one that int16 damages is snapped
   // (or kept float) so that every valid model stays a valid solid in the tiles
-  gopt.snapped_is_valid = [](const io::TriangleMesh& m) {
-    return lod::check_mesh(to_lod_mesh(m)).valid();
-  };
+  gopt.snapped_is_valid = [](const io::TriangleMesh& m) { return check_for_validators(m).valid(); };
   // One schema for every glb (tiles/ and buildings/ are one level below it).
   gopt.schema_uri = "../schema.json";
   io::atomic_write_file((stage / "schema.json").string(), io::glb_schema(gopt) + "\n");

@@ -18,6 +18,7 @@
 #include "citylod/io/glb_reader.hpp"
 #include "citylod/io/json_file.hpp"
 #include "citylod/io/reader.hpp"
+#include "citylod/lod/validity.hpp"
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/eval.hpp"
 #include "citylod/tiler/scene_georef.hpp"
@@ -225,6 +226,12 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
         for (std::size_t i : by_building.at(id)) {
           const Group& g = groups[rows[i].content][rows[i].group];
           TileMeshEval& m = r.meshes[i];
+          {  // as val3dity would judge it at its tolerances (content frame: metres)
+            const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [](const Vec3d& v) { return v; });
+            std::vector<std::vector<int>> faces;
+            for (const auto& t : lm.triangles) faces.push_back({t[0], t[1], t[2]});
+            m.val3dity_error = lod::check_solid(lod::make_solid(lm.vertices, faces)).error;
+          }
           if (!ref) {
             const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [](const Vec3d& v) { return v; });
             m.check = lod::check_mesh(lm);
@@ -287,6 +294,7 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
     l.pinched += m.check.pinched_vertices > 0;
     l.not_one_shell += m.check.shells != 1;
     l.valid += m.check.valid();
+    l.valid_tolerant += m.val3dity_error == 0;
     if (m.evaluated) {
       ++l.evaluated;
       l.mean_e1 += m.e1;

@@ -238,75 +238,27 @@ class VertexPool {
   std::vector<std::array<long long, 3>> list_;
 };
 
-/// The shell of each face: the edge-connected pieces of the surface, the one
-/// enclosing the largest positive volume first (the outer shell, 0), then the
-/// others (cavities, whose volume is negative, in order of their first face).
-std::vector<int> shells_of(const std::vector<std::vector<std::uint32_t>>& faces,
-                           const VertexPool& pool) {
-  std::vector<int> parent(faces.size());
-  std::iota(parent.begin(), parent.end(), 0);
-  std::function<int(int)> find = [&](int x) {
-    while (parent[std::size_t(x)] != x)
-      x = parent[std::size_t(x)] = parent[std::size_t(parent[std::size_t(x)])];
-    return x;
-  };
-  std::map<std::pair<std::uint32_t, std::uint32_t>, int> edge_face;
-  for (std::size_t f = 0; f < faces.size(); ++f)
-    for (std::size_t i = 0; i < faces[f].size(); ++i) {
-      std::uint32_t a = faces[f][i], b = faces[f][(i + 1) % faces[f].size()];
-      if (a > b) std::swap(a, b);
-      const auto [it, fresh] = edge_face.emplace(std::make_pair(a, b), int(f));
-      if (!fresh) parent[std::size_t(find(int(f)))] = find(it->second);
-    }
-  // signed volume per piece: 1/3 sum over faces of (a vertex . the face's vector area)
-  std::map<int, double> volume;
-  std::vector<int> order;  // pieces by first face
-  for (std::size_t f = 0; f < faces.size(); ++f) {
-    const int r = find(int(f));
-    if (!volume.count(r)) order.push_back(r);
-    const Vec3d p0 = pool.relative(faces[f][0]);
-    double n[3] = {0, 0, 0};
-    for (std::size_t i = 0; i < faces[f].size(); ++i) {
-      const Vec3d a = pool.relative(faces[f][i]),
-                  b = pool.relative(faces[f][(i + 1) % faces[f].size()]);
-      n[0] += (a[1] - b[1]) * (a[2] + b[2]);
-      n[1] += (a[2] - b[2]) * (a[0] + b[0]);
-      n[2] += (a[0] - b[0]) * (a[1] + b[1]);
-    }
-    volume[r] += (p0[0] * n[0] + p0[1] * n[1] + p0[2] * n[2]) / 6;
-  }
-  int outer = order.empty() ? 0 : order[0];
-  for (const int r : order)
-    if (volume[r] > volume[outer]) outer = r;
-  std::map<int, int> index{{outer, 0}};
-  for (const int r : order)
-    if (r != outer) index.emplace(r, int(index.size()));
-  std::vector<int> out(faces.size());
-  for (std::size_t f = 0; f < faces.size(); ++f) out[f] = index.at(find(int(f)));
-  return out;
-}
-
 /// A validator's view of faces over feature vertices: the solid (vertices in
-/// CRS units relative to translate), its shells by shells_of.
+/// CRS units relative to translate) with its shells (lod::make_solid: the
+/// outer one first, then cavities); `shell_of` receives each face's shell.
 lod::PolygonSolid as_solid(const std::vector<std::vector<std::uint32_t>>& faces,
-                           const VertexPool& pool) {
-  lod::PolygonSolid s;
+                           const VertexPool& pool, std::vector<int>* shell_of = nullptr) {
+  std::vector<lod::Vec3> vertices;
+  std::vector<std::vector<int>> rings;
   std::map<std::uint32_t, int> local;
-  const std::vector<int> shell = shells_of(faces, pool);
-  for (std::size_t fi = 0; fi < faces.size(); ++fi) {
+  for (const auto& f : faces) {
     std::vector<int> ring;
-    for (const std::uint32_t q : faces[fi]) {
-      const auto [it, fresh] = local.emplace(q, int(s.vertices.size()));
+    for (const std::uint32_t q : f) {
+      const auto [it, fresh] = local.emplace(q, int(vertices.size()));
       if (fresh) {
         const Vec3d v = pool.relative(q);
-        s.vertices.emplace_back(v[0], v[1], v[2]);
+        vertices.emplace_back(v[0], v[1], v[2]);
       }
       ring.push_back(it->second);
     }
-    if (s.shells.size() <= std::size_t(shell[fi])) s.shells.resize(std::size_t(shell[fi]) + 1);
-    s.shells[std::size_t(shell[fi])].push_back(std::move(ring));
+    rings.push_back(std::move(ring));
   }
-  return s;
+  return lod::make_solid(std::move(vertices), rings, shell_of);
 }
 
 /// pool index -> the representative of its cluster: the vertices `used`
@@ -363,82 +315,18 @@ std::vector<std::vector<std::uint32_t>> weld_rings(
   return out;
 }
 
-/// Collinear spikes: a ring that runs out along a line and comes back on it
-/// (i -> j -> k on one line in the integer coordinates, i and k on the same side
-/// of j: a zero-width hair a validator sees as a fold or a triangle on a line).
-/// j leaves the ring, and the nearer of i and k goes into the face across the
-/// longer of the two edges (between its ends), so that every edge keeps its
-/// opposite: i -> k is met by the inserted vertex's k -> i (or the mirror case).
-/// Faces left with fewer than 3 vertices go. Returns the input indices of the
-/// faces kept, in order; `faces` is replaced by them.
-std::vector<std::size_t> remove_collinear_spikes(std::vector<std::vector<std::uint32_t>>& faces,
-                                                 const VertexPool& pool) {
-  using I = __int128;
-  auto at = [&](std::uint32_t q) { return pool.list()[q]; };
-  auto collinear_tip = [&](std::uint32_t i, std::uint32_t j, std::uint32_t k) {
-    const auto a = at(i), b = at(j), c = at(k);
-    const I u[3] = {I(a[0]) - b[0], I(a[1]) - b[1], I(a[2]) - b[2]};
-    const I v[3] = {I(c[0]) - b[0], I(c[1]) - b[1], I(c[2]) - b[2]};
-    const bool line =
-        u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0];
-    return line && u[0] * v[0] + u[1] * v[1] + u[2] * v[2] > 0;
-  };
-  auto dist2 = [&](std::uint32_t i, std::uint32_t j) {
-    const auto a = at(i), b = at(j);
-    I d = 0;
-    for (int k = 0; k < 3; ++k)
-      d += (I(a[std::size_t(k)]) - b[std::size_t(k)]) * (I(a[std::size_t(k)]) - b[std::size_t(k)]);
-    return d;
-  };
-  // Puts `m` between the ends of the directed edge a -> b of some face; false if none has it.
-  auto insert_on_edge = [&](std::uint32_t a, std::uint32_t b, std::uint32_t m) {
-    for (auto& g : faces)
-      for (std::size_t x = 0; x < g.size(); ++x)
-        if (g[x] == a && g[(x + 1) % g.size()] == b) {
-          g.insert(g.begin() + long(x + 1), m);
-          return true;
-        }
-    return false;
-  };
-  for (std::size_t guard = 0, changed = 1; changed && guard < 4 * faces.size() + 16; ++guard) {
-    changed = 0;
-    for (auto& f : faces) {
-      for (std::size_t x = 0; f.size() >= 3 && x < f.size(); ++x) {
-        const std::size_t n = f.size();
-        const std::uint32_t i = f[(x + n - 1) % n], j = f[x], k = f[(x + 1) % n];
-        if (i == j || j == k) continue;
-        if (i == k) {  // a spike onto one vertex: drop the tip and the return
-          f.erase(f.begin() + long(x));
-          f.erase(f.begin() + long(x < f.size() ? x : 0));
-          changed = 1;
-          break;
-        }
-        if (!collinear_tip(i, j, k)) continue;
-        // the nearer of i, k lies between j and the farther one
-        const bool k_nearer = dist2(k, j) < dist2(i, j);
-        if (!(k_nearer ? insert_on_edge(j, i, k) : insert_on_edge(k, j, i))) continue;
-        // (the insertion may have been into f itself: find j again)
-        f.erase(std::find(f.begin(), f.end(), j));
-        changed = 1;
-        break;
-      }
-    }
-  }
-  std::vector<std::size_t> kept;
-  std::vector<std::vector<std::uint32_t>> out;
-  for (std::size_t fi = 0; fi < faces.size(); ++fi)
-    if (faces[fi].size() >= 3) {
-      kept.push_back(fi);
-      out.push_back(std::move(faces[fi]));
-    }
-  faces = std::move(out);
-  return kept;
+/// The pool's integer vertices, for io/weld.hpp.
+std::vector<std::array<std::int64_t, 3>> integer_points(const VertexPool& pool) {
+  std::vector<std::array<std::int64_t, 3>> p;
+  p.reserve(pool.list().size());
+  for (const auto& q : pool.list()) p.push_back({q[0], q[1], q[2]});
+  return p;
 }
 
-/// remove_collinear_spikes with the faces' semantics and colours kept aligned.
+/// io::remove_collinear_spikes with the faces' semantics and colours kept aligned.
 void remove_collinear_spikes(std::vector<std::vector<std::uint32_t>>& faces, std::vector<int>& sem,
                              std::vector<io::Rgba8>& col, const VertexPool& pool) {
-  const std::vector<std::size_t> kept = remove_collinear_spikes(faces, pool);
+  const std::vector<std::size_t> kept = io::remove_collinear_spikes(faces, integer_points(pool));
   std::vector<int> s2;
   std::vector<io::Rgba8> c2;
   for (const std::size_t x : kept) {
@@ -616,7 +504,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
     const bool tri_coloured = mr.triangle_colours.size() == meshes[k].triangles.size();
     auto take = [&](std::vector<std::vector<std::uint32_t>>&& faces, std::vector<int>&& semantic,
                     std::vector<io::Rgba8>&& colour, bool polygons, double snapped) {
-      g.shell = shells_of(faces, pool);
+      as_solid(faces, pool, &g.shell);
       g.faces = std::move(faces);
       g.semantic = std::move(semantic);
       g.colour = std::move(colour);
@@ -633,7 +521,8 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
       std::vector<std::size_t> from;
       std::vector<std::vector<std::uint32_t>> faces = weld_rings(rings, to, from);
       {
-        const std::vector<std::size_t> kept_faces = remove_collinear_spikes(faces, pool);
+        const std::vector<std::size_t> kept_faces =
+            io::remove_collinear_spikes(faces, integer_points(pool));
         std::vector<std::size_t> f2;
         for (const std::size_t x : kept_faces) f2.push_back(from[x]);
         from = std::move(f2);

@@ -109,6 +109,11 @@ struct GlbOptions {
   /// int16 step when they pass too (docs/3dtiles.md). Empty: a model whose
   /// distinct corners int16 would merge keeps float positions.
   std::function<bool(const TriangleMesh&)> snapped_is_valid;
+  /// With snapped_is_valid: the distance (m) under which a validator reads two
+  /// corners as one (val3dity's snap tolerance): a model with two distinct
+  /// int16 corners within it is damageable too, and it is also snapped at the
+  /// radius of that many steps. 0: only the 1-2 steps above.
+  double snap_tolerance_m = 0;
   std::string generator = "citylod";
   /// Extra properties of the "building" class, from GlbFeature::attributes.
   std::vector<GlbAttribute> attributes;

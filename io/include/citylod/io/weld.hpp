@@ -33,4 +33,17 @@ std::vector<std::uint32_t> weld(const std::vector<NearPair>& pairs, std::uint32_
 std::vector<std::array<std::uint32_t, 3>> drop_collapsed_and_fins(
     const std::vector<std::array<std::uint32_t, 3>>& triangles, std::vector<std::size_t>& from);
 
+/// Collinear spikes: a ring that runs out along a line and comes back on it
+/// (i -> j -> k on one line in the integer coordinates, i and k on the same side
+/// of j: a zero-width hair, which a validator sees as a fold, a self-touching
+/// ring or a triangle on a line). j leaves the ring, and the nearer of i and k
+/// goes into the face across the longer of the two edges (between its ends), so
+/// that every edge keeps its opposite. A spike onto one vertex (i == k) loses
+/// its tip and return. Faces left with fewer than 3 vertices go. `faces` index
+/// `points`; returns the input indices of the faces kept, in order, and
+/// replaces `faces` by them.
+std::vector<std::size_t> remove_collinear_spikes(
+    std::vector<std::vector<std::uint32_t>>& faces,
+    const std::vector<std::array<std::int64_t, 3>>& points);
+
 }  // namespace citylod::io

@@ -45,6 +45,13 @@ struct SolidCheck {
 
 SolidCheck check_solid(const PolygonSolid& solid, const Tolerances& tol = {});
 
+/// Faces (rings over `vertices`) as a solid: its shells are the edge-connected
+/// pieces of the surface, the one enclosing the largest positive volume first
+/// (the outer shell), then the others (cavities) in order of their first face.
+/// `shell_of`, when given, receives the shell of each face.
+PolygonSolid make_solid(std::vector<Vec3> vertices, const std::vector<std::vector<int>>& faces,
+                        std::vector<int>* shell_of = nullptr);
+
 /// The ring and planarity checks alone, of every face (after the shell's
 /// snapping): per shell, per face, the error code (101, 102, 104, 203, 204)
 /// or 0. A writer replaces the faces that fail by their triangles.

@@ -104,6 +104,9 @@ struct TileMeshEval {
   std::string kind;
   std::size_t triangles = 0, vertices = 0;  ///< after welding equal stored positions
   lod::MeshCheck check;
+  /// lod::check_solid at val3dity's tolerances of the mesh as decoded (triangles as
+  /// faces, shells by lod::make_solid): 0 valid, else the validator's error code.
+  int val3dity_error = -1;
   double volume = 0;
   bool evaluated = false;  ///< e1/e2/Hausdorff computed (a work directory was given)
   double e1 = 0, e2 = 0, hausdorff = 0;
@@ -121,6 +124,7 @@ struct LevelSummary {
   std::size_t tiles = 0, meshes = 0, buildings = 0, triangles = 0;
   std::size_t closed = 0, edge_manifold = 0, self_intersecting = 0;
   std::size_t pinched = 0, not_one_shell = 0, valid = 0;  ///< building meshes
+  std::size_t valid_tolerant = 0;  ///< valid at val3dity's tolerances (val3dity_error == 0)
   std::size_t evaluated = 0;
   double mean_e1 = 0, mean_e2 = 0, max_e2 = 0;
   std::string max_e2_building;
