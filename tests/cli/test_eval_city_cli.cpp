@@ -296,9 +296,10 @@ TEST(EvalCityCli, TilesetExactAnswersWithAndWithoutReferences) {
   }
   char row[128];
   // the text table's row: the self-intersecting mesh (two overlapping boxes)
-  // is also not one solid; the other two are valid solids
-  std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d %7d %9d %6d\n", 1, 1, 3, 48, 3, 3, 1,
-                0, 1, 2);
+  // is also not one solid; the other two are valid solids, also at val3dity's
+  // tolerances
+  std::snprintf(row, sizeof row, "%5d %6d %9d %10d %7d %8d %8d %7d %9d %6d %9d\n", 1, 1, 3, 48, 3,
+                3, 1, 0, 1, 2, 2);
   EXPECT_NE(r0.out.find(row), std::string::npos) << r0.out;
 
   // With references: positions back in each chunk frame (tile transform ->
@@ -461,13 +462,17 @@ TEST(EvalCityCli, DelftExampleBothFormsAgree) {
     shown_closed += m["closed"] == true;
     EXPECT_NEAR(m["e2_percent"].get<double>(), finest_e2.at(id), 1e-3) << id;
     EXPECT_LE(tris, finest_tris.at(id)) << id;
-    // (measured: at most 8 of 382 triangles, 2.1 %, on one building)
-    EXPECT_GE(double(tris), 0.97 * double(finest_tris.at(id))) << id;
+    // and a model welded for validators (1.1 mm) loses its slivers (measured:
+    // at most 14 of 382 triangles, 3.7 %, on one building)
+    EXPECT_GE(double(tris), 0.95 * double(finest_tris.at(id))) << id;
   }
   EXPECT_LE(shown_triangles, finest_triangles);
-  EXPECT_GE(double(shown_triangles), 0.99 * double(finest_triangles));
+  EXPECT_GE(double(shown_triangles), 0.98 * double(finest_triangles));
   // With float positions (no quantization, no meshopt) nothing is snapped:
-  // exactly the finest models' triangles.
+  // the finest models' triangles but for the slivers assemble welds away for
+  // validators (1.1 mm); valid at val3dity's tolerances but for one building
+  // whose welded triangles fold into each other (306; its CityJSON, written
+  // from the merged polygons, is valid: docs/3dtiles.md "Validity").
   ASSERT_EQ(
       run("assemble " + q(d / "out" / "work") + " -q --compression none --out " + q(d / "float"))
           .code,
@@ -483,8 +488,14 @@ TEST(EvalCityCli, DelftExampleBothFormsAgree) {
     if (s.is_null() || m["level"].get<int>() > s["level"].get<int>()) s = m;
   }
   std::size_t float_triangles = 0;
-  for (const auto& [id, m] : shown_float) float_triangles += m["triangles"].get<std::size_t>();
-  EXPECT_EQ(float_triangles, finest_triangles);
+  std::size_t float_invalid = 0;
+  for (const auto& [id, m] : shown_float) {
+    float_triangles += m["triangles"].get<std::size_t>();
+    float_invalid += m["val3dity_error"] != 0;
+  }
+  EXPECT_LE(float_invalid, 1u);
+  EXPECT_LE(float_triangles, finest_triangles);
+  EXPECT_GE(double(float_triangles), 0.98 * double(finest_triangles));
   // Validity as stored in the glbs is the validity of the models.
   std::size_t finest_closed = 0;
   for (const auto& b : w["buildings"])

@@ -129,8 +129,11 @@ lod::SolidCheck check_for_validators(const io::TriangleMesh& m) {
 /// vertex (at the position of the cluster's first), collapsed triangles,
 /// zero-volume fins and collinear spikes gone (io/weld.hpp); the first r that
 /// lod::check_solid accepts. A model that is valid as it is, or that no r makes
-/// valid, is returned unchanged.
-io::TriangleMesh weld_for_validators(const io::TriangleMesh& m) {
+/// valid, is returned unchanged. source[i] = the input triangle of output
+/// triangle i.
+io::TriangleMesh weld_for_validators(const io::TriangleMesh& m, std::vector<std::size_t>& source) {
+  source.resize(m.triangles.size());
+  std::iota(source.begin(), source.end(), std::size_t(0));
   constexpr double kGrid = 1e-4;  // metres
   const lod::Tolerances tol;
   if (m.triangles.empty() || check_for_validators(m).valid()) return m;
@@ -150,11 +153,13 @@ io::TriangleMesh weld_for_validators(const io::TriangleMesh& m) {
     std::vector<std::vector<std::uint32_t>> faces;
     for (const auto& t : io::drop_collapsed_and_fins(welded, from))
       faces.push_back({t[0], t[1], t[2]});
-    io::remove_collinear_spikes(faces, q);
+    const std::vector<std::size_t> kept_faces = io::remove_collinear_spikes(faces, q);
     io::TriangleMesh out;
     out.vertices = m.vertices;
+    std::vector<std::size_t> out_source;
     bool ok = true;
-    for (const auto& f : faces) {
+    for (std::size_t fi = 0; fi < faces.size(); ++fi) {
+      const auto& f = faces[fi];
       // a face that took a vertex on an edge: a fan from an apex that gives no
       // triangle on a line
       bool fanned = false;
@@ -173,6 +178,7 @@ io::TriangleMesh weld_for_validators(const io::TriangleMesh& m) {
         }
         if (flat) continue;
         out.triangles.insert(out.triangles.end(), fan.begin(), fan.end());
+        out_source.insert(out_source.end(), fan.size(), from[kept_faces[fi]]);
         fanned = true;
       }
       ok = ok && fanned;
@@ -190,15 +196,24 @@ io::TriangleMesh weld_for_validators(const io::TriangleMesh& m) {
         v = remap[v];
       }
     compact.triangles = std::move(out.triangles);
+    source = std::move(out_source);
     return compact;
   }
   return m;
 }
 
-/// A model in the tiles' frame, welded for validators.
-io::TriangleMesh read_model(const std::string& file, const Vec3d& origin,
-                            const SceneGeoref& georef) {
-  return weld_for_validators(to_enu(read_scene_model(file, origin), georef));
+/// A model in the tiles' frame, welded for validators, with its triangles'
+/// colours (`colours`: per input triangle, or empty) following it.
+std::pair<io::TriangleMesh, std::vector<io::Rgba8>> read_model(
+    const std::string& file, const Vec3d& origin, const SceneGeoref& georef,
+    const std::vector<io::Rgba8>& colours) {
+  std::vector<std::size_t> source;
+  io::TriangleMesh m = weld_for_validators(to_enu(read_scene_model(file, origin), georef), source);
+  std::vector<io::Rgba8> c;
+  if (!colours.empty())
+    for (const std::size_t t : source)
+      c.push_back(t < colours.size() ? colours[t] : io::Rgba8{0, 0, 0, 0});
+  return {std::move(m), std::move(c)};
 }
 
 /// Reads one building's report and models and chooses its kept chain.
@@ -662,6 +677,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   // quantized models are checked as stored: one that int16 damages is snapped
   // (or kept float) so that every valid model stays a valid solid in the tiles
   gopt.snapped_is_valid = [](const io::TriangleMesh& m) { return check_for_validators(m).valid(); };
+  gopt.snap_tolerance_m = lod::Tolerances().snap;
   // One schema for every glb (tiles/ and buildings/ are one level below it).
   gopt.schema_uri = "../schema.json";
   io::atomic_write_file((stage / "schema.json").string(), io::glb_schema(gopt) + "\n");
@@ -677,8 +693,9 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
       io::GlbBuilder g(rounded_centre(t.content_box), gopt);
       for (const auto& it : t.items) {
         const Building& b = buildings[it.b];
-        g.add_feature(feature_of(b, it.m), read_model(b.models[it.m].file, b.origin, georef),
-                      b.models[it.m].colours);
+        const auto [mesh, colours] =
+            read_model(b.models[it.m].file, b.origin, georef, b.models[it.m].colours);
+        g.add_feature(feature_of(b, it.m), mesh, colours);
       }
       if (!inside(g.stored_bounds(), t.content_box))
         throw std::logic_error("tile " + t.name + ": stored positions leave the content box");
@@ -732,8 +749,9 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
         io::GlbBuilder g(rounded_centre(b.bbox), gopt);
         for (std::size_t m = 0; m < b.models.size(); ++m) {
           g.begin_node("model_" + std::to_string(m));
-          g.add_feature(feature_of(b, m), read_model(b.models[m].file, b.origin, georef),
-                        b.models[m].colours);
+          const auto [mesh, colours] =
+              read_model(b.models[m].file, b.origin, georef, b.models[m].colours);
+          g.add_feature(feature_of(b, m), mesh, colours);
         }
         const std::string bytes = g.glb();
         io::atomic_write_file((stage / "buildings" / (b.file_stem + ".glb")).string(), bytes);
