@@ -141,6 +141,17 @@ TEST(SplitOptions, MemorySizes) {
   EXPECT_EQ(tiler::parse_memory_size("1048576"), 1ull << 20);
   EXPECT_THROW(tiler::parse_memory_size("lots"), std::invalid_argument);
   EXPECT_THROW(tiler::parse_memory_size("2X"), std::invalid_argument);
+  // issue 27 item 3: a size past 2^64 bytes wrapped round and was called too small
+  for (const char* huge : {"99999999999999999999T", "16777216T", "18446744073709551616"}) {
+    try {
+      tiler::parse_memory_size(huge);
+      ADD_FAILURE() << huge << ": no error";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("more than the largest size"), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_EQ(tiler::parse_memory_size("16777215T"), 16777215ull << 40);
   SplitOptions o;
   EXPECT_THROW(o.validate(), std::invalid_argument);  // no inputs
   o.inputs = {"a.las"};

@@ -72,6 +72,10 @@ std::uint64_t parse_memory_size(const std::string& s) {
     throw std::invalid_argument("--memory-limit: unknown unit '" + unit + "' in '" + s + "'");
   if (!(v > 0) || !std::isfinite(v))
     throw std::invalid_argument("--memory-limit: must be positive");
+  // 2^64 bytes and more do not fit the count (the conversion would wrap round)
+  if (!(v * mul < 18446744073709551616.0))
+    throw std::invalid_argument("--memory-limit: '" + s +
+                                "' is more than the largest size there is (16E = 2^64 bytes)");
   return static_cast<std::uint64_t>(v * mul);
 }
 
