@@ -406,7 +406,20 @@ FootprintLayer read_footprints(const std::string& source, const FootprintReadOpt
   const bool can_repair = opt.repair && footprint_repair_available();
   QuietGdal quiet;
   layer->ResetReading();
-  for (OGRFeatureUniquePtr f(layer->GetNextFeature()); f; f.reset(layer->GetNextFeature())) {
+  // A read error ends the layer like its last feature does: the error state
+  // tells them apart (a damaged file read as a short one drops buildings
+  // silently, issue 27).
+  auto next_feature = [&]() {
+    CPLErrorReset();
+    OGRFeatureUniquePtr f(layer->GetNextFeature());
+    if (!f && CPLGetLastErrorType() >= CE_Failure)
+      throw IoError(out.source,
+                    "reading stopped after feature " + std::to_string(out.source_features) +
+                        " of layer '" + std::string(layer->GetName()) +
+                        "': " + std::string(CPLGetLastErrorMsg()) + " (the file is damaged?)");
+    return f;
+  };
+  for (OGRFeatureUniquePtr f = next_feature(); f; f = next_feature()) {
     ++out.source_features;
     const std::int64_t fid = f->GetFID();
     std::string sid;

@@ -364,6 +364,32 @@ TEST(LowItems, CellSizeHasALowerBound) {
   }
 }
 
+// Issue 27 item 2: a GeoPackage with 8 pages overwritten (SQLite: "database
+// disk image is malformed") was read as a short layer (40 of 160 features) and
+// the split exited 0. A read error is now one line naming the file.
+TEST(LowItems, ADamagedGeoPackageIsAnErrorNotAShortLayer) {
+  const fs::path src = fs::path(CITYLOD_SHARED_DATA) / "delft" / "bgt_pand.gpkg";
+  if (!fs::exists(src)) GTEST_SKIP() << "shared data missing: " << src;
+  const fs::path d = tmp_dir("hardening_damaged_gpkg");
+  std::string bytes = slurp(src);
+  const std::size_t page = 4096, start = (bytes.size() / page) / 2;
+  ASSERT_GT(bytes.size(), (start + 8) * page);
+  for (std::size_t k = 0; k < 8 * page; ++k) bytes[start * page + k] = char(0xAB);
+  std::ofstream(d / "damaged.gpkg", std::ios::binary) << bytes;
+  const CliRun r =
+      run("split " + q(kExample / "delft_small.las") + " --crs EPSG:28992 --footprints " +
+          q(d / "damaged.gpkg") + " -o " + q(d / "w"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("damaged.gpkg: reading stopped after feature 40"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("malformed"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(d / "w" / "manifest.json"));
+  // the intact file: the same 160 features read, 12 buildings
+  const CliRun ok = run("split " + q(kExample / "delft_small.las") +
+                        " --crs EPSG:28992 --footprints " + q(src) + " -o " + q(d / "ok"));
+  EXPECT_EQ(ok.code, 0) << ok.out;
+}
+
 TEST(LowItems, SplitNeverReplacesAForeignChunksFolder) {
   const fs::path d = tmp_dir("hardening_foreign");
   fs::create_directories(d / "w" / "chunks");
