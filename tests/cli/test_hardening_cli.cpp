@@ -390,6 +390,26 @@ TEST(LowItems, ADamagedGeoPackageIsAnErrorNotAShortLayer) {
   EXPECT_EQ(ok.code, 0) << ok.out;
 }
 
+// Issue 27: footprints whose geometries are all empty ended in "(see the notes
+// above)" with no notes above (they are printed on success only): the reason is
+// now in the error line.
+TEST(LowItems, FootprintsWithoutPolygonsSayWhy) {
+  const fs::path d = tmp_dir("hardening_empty_footprints");
+  std::ofstream(d / "empty.geojson")
+      << R"({"type":"FeatureCollection","features":[)"
+      << R"({"type":"Feature","properties":{"id":"a"},"geometry":null},)"
+      << R"({"type":"Feature","properties":{"id":"b"},"geometry":{"type":"Polygon","coordinates":[]}}]})";
+  const CliRun r =
+      run("split " + q(kExample / "delft_small.las") + " --crs EPSG:28992 --footprints " +
+          q(d / "empty.geojson") + " -o " + q(d / "w"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("empty.geojson: none of its 2 features is a usable polygon ("),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("see the notes above"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+}
+
 TEST(LowItems, SplitNeverReplacesAForeignChunksFolder) {
   const fs::path d = tmp_dir("hardening_foreign");
   fs::create_directories(d / "w" / "chunks");

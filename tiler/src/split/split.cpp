@@ -1212,10 +1212,19 @@ void Splitter::load_footprints() {
                          " more features skipped or repaired (" + std::to_string(set.repaired) +
                          " repaired, " + std::to_string(set.skipped) + " skipped in all)");
   if (set.footprints.empty())
-    throw IoError(src, set.source_features == 0
-                           ? "no footprints (layer '" + set.layer + "' is empty)"
-                           : "none of its " + std::to_string(set.source_features) +
-                                 " features is a usable polygon (see the notes above)");
+    throw IoError(
+        src,
+        set.source_features == 0
+            ? "no footprints (layer '" + set.layer + "' is empty)"
+            : "none of its " + std::to_string(set.source_features) +
+                  " features is a usable polygon (" +
+                  (set.problems.empty()
+                       ? std::string("none has a polygon geometry")
+                       : set.problems.front() +
+                             (set.problems.size() > 1
+                                  ? "; and " + std::to_string(set.problems.size() - 1) + " more"
+                                  : std::string())) +
+                  ")");
   // The source's extent, in its own units (for messages and the lon/lat test).
   double ext[4] = {1e300, 1e300, -1e300, -1e300};
   for (const auto& f : set.footprints) {
