@@ -9,13 +9,17 @@
 //             "attributes":{...,"citylod_models":[...]},"geometry":[Solid, ...]}},
 //             "vertices":[[x,y,z],...]}   one per building, in chunk id order
 //
-// Each geometry is one kept model (coarse -> fine, the chain the tileset shows;
-// or every model with `all_models`): a Solid of the model's merged polygons in
-// the input's CRS, integer vertices through `transform`, semantic surfaces from
-// the face normals, a `lod` string placing it in the chain, checked with
-// lod::check_mesh after quantization. The work directory is read through
-// workdir.hpp's records only; the models are the files report.json names (the
-// merged polygons come from the OBJ of the same stem when it matches the PLY).
+// The Building holds one Solid per LoD (1.2 the coarsest block, 1.3 the finest
+// flat step model, 2.2 the finest model); the rest of the kept chain (coarse ->
+// fine, the chain the tileset shows; or every model with `all_models`) are
+// "+LodTreeModel" CityObjects of the same feature (docs/extensions). Each Solid
+// is the model's merged polygons in the input's CRS, integer vertices through
+// `transform`, semantic surfaces from the face normals, made valid for
+// val3dity at its tolerances as written (lod::check_solid: welded, spikes out,
+// rejected polygons as their triangles, cavities as inner shells) or left out.
+// The work directory is read through workdir.hpp's records only; the models are
+// the files report.json names (the merged polygons come from the OBJ of the
+// same stem when it matches the PLY).
 #pragma once
 
 #include <cstddef>
@@ -58,7 +62,7 @@ struct CityJsonStats {
   std::size_t chain_objects = 0;   ///< +LodTreeModel objects (the chain beyond LoD 1.2 / 1.3 / 2.2)
   std::size_t multi_lod = 0;       ///< buildings with >= 2 geometries
   std::size_t full_semantics = 0;  ///< buildings whose every geometry has roof, wall and ground
-  std::size_t triangulated = 0;    ///< geometries written from the PLY's triangles (no usable OBJ)
+  std::size_t triangulated = 0;    ///< geometries written from the PLY's triangles (no usable OBJ, or welding needed them)
   std::size_t coloured = 0;        ///< geometries with the input's colours (material theme "rgb")
   std::size_t vertices = 0;        ///< written, over all features (deduplicated per feature)
   std::size_t bytes = 0;           ///< file size
