@@ -62,10 +62,11 @@ struct CityJsonStats {
   std::size_t chain_objects = 0;   ///< +LodTreeModel objects (the chain beyond LoD 1.2 / 1.3 / 2.2)
   std::size_t multi_lod = 0;       ///< buildings with >= 2 geometries
   std::size_t full_semantics = 0;  ///< buildings whose every geometry has roof, wall and ground
-  std::size_t triangulated = 0;    ///< geometries written from the PLY's triangles (no usable OBJ, or welding needed them)
-  std::size_t coloured = 0;        ///< geometries with the input's colours (material theme "rgb")
-  std::size_t vertices = 0;        ///< written, over all features (deduplicated per feature)
-  std::size_t bytes = 0;           ///< file size
+  std::size_t triangulated =
+      0;  ///< geometries written from the PLY's triangles (no usable OBJ, or welding needed them)
+  std::size_t coloured = 0;  ///< geometries with the input's colours (material theme "rgb")
+  std::size_t vertices = 0;  ///< written, over all features (deduplicated per feature)
+  std::size_t bytes = 0;     ///< file size
   std::string
       reference_system;  ///< metadata.referenceSystem ("" when unknown: no CRS / no EPSG code)
   double seconds = 0;
