@@ -1883,6 +1883,13 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
     box = {std::min(box[0], b[0] - margin), std::min(box[1], b[1] - margin),
            std::max(box[2], b[2] + margin), std::max(box[3], b[3] + margin)};
   }
+  // ... but no farther than the data reach: the region's grids (the ground
+  // model) cost its area, and a footprint of a park or an airport must cost the
+  // data under it, not its size (issue 27: a 6 km square over a 72 m tile).
+  box = {std::max(box[0], bbox_enu_.min[0] - margin), std::max(box[1], bbox_enu_.min[1] - margin),
+         std::min(box[2], bbox_enu_.max[0] + margin), std::min(box[3], bbox_enu_.max[1] + margin)};
+  box[2] = std::max(box[2], box[0]);  // a footprint beside the data: an empty region, not an
+  box[3] = std::max(box[3], box[1]);  // inverted one
   RegionPoints pts;
   const std::size_t n = load_region(spill, box, pts, region_budget_points_);
   if (n > region_budget_points_) {
