@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <new>
 
@@ -366,7 +367,8 @@ int run_cli(int argc, char** argv) {
   std::setlocale(LC_ALL, "C");
   install_log_sink();
   std::vector<std::string> args(argv + 1, argv + argc);
-  std::string cmd_name, subject;
+  std::string cmd_name;
+  std::unique_ptr<ArgParser> parser;  // outlives the command: an error names its inputs
   try {
     std::size_t i = 0;
     for (; i < args.size(); ++i) {
@@ -401,18 +403,20 @@ int run_cli(int argc, char** argv) {
       if (args[i] == c.name) cmd = &c;
     if (!cmd) throw UsageError("unknown command '" + args[i] + "'");
     cmd_name = cmd->name;
-    for (std::size_t k = i + 1; k < args.size() && subject.size() < 200; ++k)
-      if (!args[k].empty() && args[k][0] != '-') subject += (subject.empty() ? "" : " ") + args[k];
-    ArgParser parser(cmd->name,
-                     std::vector<std::string>(args.begin() + static_cast<long>(i) + 1, args.end()));
-    return cmd->run(parser);
+    parser = std::make_unique<ArgParser>(
+        cmd->name, std::vector<std::string>(args.begin() + static_cast<long>(i) + 1, args.end()));
+    return cmd->run(*parser);
   } catch (const UsageError& e) {
     return usage_error(e.what(), cmd_name);
   } catch (const Cancelled&) {
     log_error("cancelled");
     return 1;
   } catch (const std::bad_alloc&) {
-    // the one error without a file of its own: name what the command was working on
+    // the one error without a file of its own: name what the command was working
+    // on, its positional arguments (the inputs), not the option values
+    std::string subject;
+    for (const std::string& a : parser ? parser->positionals() : std::vector<std::string>{})
+      if (subject.size() < 200) subject += (subject.empty() ? "" : ", ") + a;
     log_error((subject.empty() ? cmd_name : cmd_name + " " + subject) +
               ": out of memory (the input needs more memory than this machine has, or declares "
               "sizes it does not hold)");

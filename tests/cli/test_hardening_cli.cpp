@@ -432,6 +432,18 @@ TEST(LowItems, AFootprintCostsTheDataUnderItNotItsArea) {
   EXPECT_NE(r.out.find("1 chunks"), std::string::npos) << r.out;
 }
 
+// Issue 27 item 4: a 100 km cell over the 1.6 MB example tile sized the
+// region's grids from the cell, not the data: "out of memory" at once, with
+// the whole argument list as the subject. Now the region is the data's reach.
+TEST(LowItems, AHugeCellCostsTheDataInItNotItsArea) {
+  const fs::path d = tmp_dir("hardening_huge_cell");
+  const CliRun r =
+      run("split " + q(kExample / "delft_small.las") +
+          " --crs EPSG:28992 --memory-limit 1000000T --cell-size 100000 -o " + q(d / "w"));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("-> 5 chunks"), std::string::npos) << r.out;
+}
+
 TEST(LowItems, SplitNeverReplacesAForeignChunksFolder) {
   const fs::path d = tmp_dir("hardening_foreign");
   fs::create_directories(d / "w" / "chunks");

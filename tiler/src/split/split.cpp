@@ -687,6 +687,7 @@ class Splitter {
   /// cells its xy box meets.
   void spill_face(const std::array<std::uint32_t, 3>& tri,
                   const std::array<VertexStore::Vertex, 3>& v, std::uint64_t t, std::size_t input);
+  std::array<double, 4> within_data_reach(std::array<double, 4> box, double margin) const;
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
                           std::size_t max_points);
   void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
@@ -1566,6 +1567,17 @@ double Splitter::mesh_planar_share(std::vector<std::uint64_t> tris, const Region
 // Loads the points (mesh scenes: samples and the faces meeting the box) of a box and
 // returns how many (points + faces); when that is more than max_points it stops early
 // (nothing kept: memory stays bounded) and returns max_points + 1.
+// A region no farther than `margin` beyond the data: its grids (the ground
+// model) cost its area, so a large cell (--cell-size 100000) or a park's
+// footprint costs the data under it, not its size (issue 27). Never inverted.
+std::array<double, 4> Splitter::within_data_reach(std::array<double, 4> box, double margin) const {
+  box = {std::max(box[0], bbox_enu_.min[0] - margin), std::max(box[1], bbox_enu_.min[1] - margin),
+         std::min(box[2], bbox_enu_.max[0] + margin), std::min(box[3], bbox_enu_.max[1] + margin)};
+  box[2] = std::max(box[2], box[0]);
+  box[3] = std::max(box[3], box[1]);
+  return box;
+}
+
 std::size_t Splitter::load_region(const Spiller& spill, const std::array<double, 4>& box,
                                   RegionPoints& out, std::size_t max_points) {
   out = RegionPoints{};
@@ -1773,7 +1785,8 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, d
   RegionPoints pts;
   CellSegmentation seg;
   for (;;) {
-    const std::array<double, 4> box{cx0 - halo, cy0 - halo, cx1 + halo, cy1 + halo};
+    const std::array<double, 4> box =
+        within_data_reach({cx0 - halo, cy0 - halo, cx1 + halo, cy1 + halo}, opt_.halo);
     const std::size_t n = load_region(spill, box, pts, region_budget_points_);
     if (unmatched) drop_footprint_points(pts);
     if (n > region_budget_points_) {
@@ -1781,8 +1794,8 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, d
         rep_.notes.push_back("cell " + std::to_string(key.first) + "," +
                              std::to_string(key.second) +
                              ": a building larger than the halo was cut (memory limit)");
-        const std::array<double, 4> prev{cx0 - halo / 2, cy0 - halo / 2, cx1 + halo / 2,
-                                         cy1 + halo / 2};
+        const std::array<double, 4> prev = within_data_reach(
+            {cx0 - halo / 2, cy0 - halo / 2, cx1 + halo / 2, cy1 + halo / 2}, opt_.halo);
         load_region(spill, prev, pts, ~std::size_t(0));
         if (unmatched) drop_footprint_points(pts);
         seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, prev, true);
@@ -1886,10 +1899,7 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   // ... but no farther than the data reach: the region's grids (the ground
   // model) cost its area, and a footprint of a park or an airport must cost the
   // data under it, not its size (issue 27: a 6 km square over a 72 m tile).
-  box = {std::max(box[0], bbox_enu_.min[0] - margin), std::max(box[1], bbox_enu_.min[1] - margin),
-         std::min(box[2], bbox_enu_.max[0] + margin), std::min(box[3], bbox_enu_.max[1] + margin)};
-  box[2] = std::max(box[2], box[0]);  // a footprint beside the data: an empty region, not an
-  box[3] = std::max(box[3], box[1]);  // inverted one
+  box = within_data_reach(box, margin);
   RegionPoints pts;
   const std::size_t n = load_region(spill, box, pts, region_budget_points_);
   if (n > region_budget_points_) {
