@@ -10,8 +10,11 @@
 // Hardening: symbolic links are resolved and a file must lie under its root;
 // at most 128 connections (then 503), request headers within 10 s, idle
 // connections closed after 15 s, clients that read nothing dropped after 30 s;
-// files streamed in 64 KiB pieces with single-range Range support; CORS only
-// with --cors.
+// files streamed in 64 KiB pieces; Range requests honoured for byte ranges: one
+// range -> 206 with Content-Range, several -> 206 multipart/byteranges
+// (overlapping and adjacent ones coalesced, at most 64), none satisfiable -> 416,
+// a malformed Range or another unit -> the whole file (200), as RFC 9110 says; a
+// request line over 64 KiB -> 414, headers over it -> 431; CORS only with --cors.
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
@@ -202,35 +205,69 @@ std::string header_value(const std::string& lower, const std::string& name) {
   return v;
 }
 
-/// One "bytes=A-B" range of a file of `size` bytes. 0: no (usable) Range header
-/// (serve all), 1: [first, last], -1: unsatisfiable (416).
-int parse_range(const std::string& value, std::uint64_t size, std::uint64_t& first,
-                std::uint64_t& last) {
+/// A byte range [first, last] of a file.
+struct ByteRange {
+  std::uint64_t first = 0, last = 0;
+};
+
+constexpr std::size_t kMaxRanges = 64;  // more (after coalescing): the whole file, as RFC 9110 lets
+
+/// The ranges of a Range header ("bytes=A-B, C-, -D", RFC 9110 section 14) for a
+/// file of `size` bytes, sorted, overlapping and adjacent ones coalesced (RFC
+/// 9110 14.2 lets a server do so). 0: serve the whole file (no Range header, a
+/// unit other than bytes, a malformed set, which RFC 9110 says to ignore, or
+/// more than kMaxRanges ranges); 1: `out` holds the ranges; -1: none is
+/// satisfiable (416).
+int parse_ranges(const std::string& value, std::uint64_t size, std::vector<ByteRange>& out) {
+  out.clear();
   if (value.rfind("bytes=", 0) != 0) return 0;
-  const std::string spec = value.substr(6);
-  if (spec.find(',') != std::string::npos) return 0;  // several ranges: the whole file
-  const auto dash = spec.find('-');
-  if (dash == std::string::npos) return 0;
-  const std::string a = spec.substr(0, dash), b = spec.substr(dash + 1);
   auto number = [](const std::string& t, std::uint64_t& v) {
     if (t.empty() || t.size() > 19 || t.find_first_not_of("0123456789") != std::string::npos)
       return false;
     v = std::stoull(t);
     return true;
   };
-  std::uint64_t x = 0, y = 0;
-  if (a.empty()) {  // the last y bytes
-    if (!number(b, y)) return 0;
-    if (y == 0 || size == 0) return -1;
-    first = size - std::min(y, size);
-    last = size - 1;
-    return 1;
+  const std::string set = value.substr(6);
+  std::size_t specs = 0;
+  for (std::size_t at = 0; at <= set.size();) {
+    std::size_t comma = set.find(',', at);
+    if (comma == std::string::npos) comma = set.size();
+    std::string spec = set.substr(at, comma - at);
+    at = comma + 1;
+    spec.erase(0, spec.find_first_not_of(" \t"));
+    while (!spec.empty() && (spec.back() == ' ' || spec.back() == '\t')) spec.pop_back();
+    if (spec.empty()) continue;  // "a, , b": empty list elements are allowed
+    if (++specs > 1024) return 0;
+    const auto dash = spec.find('-');
+    if (dash == std::string::npos) return 0;
+    const std::string a = spec.substr(0, dash), b = spec.substr(dash + 1);
+    std::uint64_t x = 0, y = 0;
+    if (a.empty()) {  // the last y bytes
+      if (!number(b, y)) return 0;
+      if (y == 0 || size == 0) continue;
+      out.push_back({size - std::min(y, size), size - 1});
+      continue;
+    }
+    if (!number(a, x)) return 0;
+    if (!b.empty() && (!number(b, y) || y < x)) return 0;
+    if (x >= size) continue;
+    out.push_back({x, b.empty() ? size - 1 : std::min(y, size - 1)});
   }
-  if (!number(a, x)) return 0;
-  if (!b.empty() && (!number(b, y) || y < x)) return 0;
-  if (x >= size) return -1;
-  first = x;
-  last = b.empty() ? size - 1 : std::min(y, size - 1);
+  if (specs == 0) return 0;
+  if (out.empty()) return -1;
+  std::sort(out.begin(), out.end(),
+            [](const ByteRange& p, const ByteRange& q) { return p.first < q.first; });
+  std::vector<ByteRange> merged;
+  for (const ByteRange& r : out)
+    if (!merged.empty() && r.first <= merged.back().last + 1)
+      merged.back().last = std::max(merged.back().last, r.last);
+    else
+      merged.push_back(r);
+  out = std::move(merged);
+  if (out.size() > kMaxRanges) {
+    out.clear();
+    return 0;
+  }
   return 1;
 }
 
@@ -252,6 +289,7 @@ using Clock = std::chrono::steady_clock;
 constexpr int kHeaderSeconds = 10;  // a request's headers must arrive within this
 constexpr int kIdleSeconds = 15;    // a kept-alive connection with no request is closed
 constexpr int kSendSeconds = 30;    // a client that reads nothing for this long is dropped
+constexpr std::size_t kMaxRequestBytes = 65536;  // request line and headers together
 
 /// Waits until `fd` is readable or `deadline`; false on timeout.
 bool wait_readable(int fd, Clock::time_point deadline) {
@@ -266,6 +304,22 @@ bool wait_readable(int fd, Clock::time_point deadline) {
   }
 }
 
+/// Closes after an early answer: the write side first, then what the client
+/// still sends is read and dropped (up to 1 MiB or 2 s), so that the answer is
+/// not lost to a reset from unread data (RFC 9112 9.6).
+void lingering_close(int fd) {
+  ::shutdown(fd, SHUT_WR);
+  const auto deadline = Clock::now() + std::chrono::seconds(2);
+  char sink[8192];
+  for (std::size_t total = 0; total < (1u << 20) && wait_readable(fd, deadline);) {
+    const ssize_t k = ::recv(fd, sink, sizeof sink, 0);
+    if (k < 0 && errno == EINTR) continue;
+    if (k <= 0) break;
+    total += std::size_t(k);
+  }
+  ::close(fd);
+}
+
 bool serve_file(int fd, const fs::path& file, const std::string& lower, bool head, bool keep,
                 const ServeOptions& o, const std::string& target) {
   const int in = ::open(file.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
@@ -276,23 +330,46 @@ bool serve_file(int fd, const fs::path& file, const std::string& lower, bool hea
                    o);
   }
   const std::uint64_t size = std::uint64_t(st.st_size);
-  std::uint64_t first = 0, last = size ? size - 1 : 0;
-  const int range = parse_range(header_value(lower, "range:"), size, first, last);
+  std::vector<ByteRange> ranges;
+  const int range = parse_ranges(header_value(lower, "range:"), size, ranges);
+  const std::string type = mime_type(file.extension().string());
+  const auto content_range = [&](const ByteRange& r) {
+    return "Content-Range: bytes " + std::to_string(r.first) + "-" + std::to_string(r.last) + "/" +
+           std::to_string(size) + "\r\n";
+  };
   bool ok;
   if (range < 0) {
     ok = respond(fd, 416, "Range Not Satisfiable", "text/plain", "range not satisfiable\n", head,
                  keep, o, "Content-Range: bytes */" + std::to_string(size) + "\r\n");
-  } else {
-    const std::uint64_t length = range ? last - first + 1 : size;
-    const std::string extra = range ? "Content-Range: bytes " + std::to_string(first) + "-" +
-                                          std::to_string(last) + "/" + std::to_string(size) + "\r\n"
-                                    : "";
-    const std::string hs = headers(range ? 206 : 200, range ? "Partial Content" : "OK",
-                                   mime_type(file.extension().string()), length, keep, o, extra);
+  } else if (range == 0 || ranges.size() == 1) {
+    const ByteRange r = range ? ranges[0] : ByteRange{0, size ? size - 1 : 0};
+    const std::uint64_t length = range ? r.last - r.first + 1 : size;
+    const std::string hs = headers(range ? 206 : 200, range ? "Partial Content" : "OK", type,
+                                   length, keep, o, range ? content_range(r) : "");
     ok = send_all(fd, hs.data(), hs.size()) &&
-         (head || length == 0 || send_file_range(fd, in, first, first + length - 1));
-    log_debug("serve: " + std::to_string(range ? 206 : 200) + " " + target);
+         (head || length == 0 || send_file_range(fd, in, r.first, r.first + length - 1));
+  } else {
+    // Several ranges: multipart/byteranges (RFC 9110 14.6), each part with its
+    // own Content-Type and Content-Range; the length is known before sending.
+    const std::string boundary = "citylod-byteranges-" + std::to_string(size);
+    std::vector<std::string> heads;
+    std::uint64_t length = 0;
+    for (const ByteRange& r : ranges) {
+      heads.push_back("\r\n--" + boundary + "\r\nContent-Type: " + type + "\r\n" +
+                      content_range(r) + "\r\n");
+      length += heads.back().size() + (r.last - r.first + 1);
+    }
+    const std::string tail = "\r\n--" + boundary + "--\r\n";
+    length += tail.size();
+    const std::string hs = headers(206, "Partial Content",
+                                   "multipart/byteranges; boundary=" + boundary, length, keep, o);
+    ok = send_all(fd, hs.data(), hs.size());
+    for (std::size_t k = 0; ok && !head && k < ranges.size(); ++k)
+      ok = send_all(fd, heads[k].data(), heads[k].size()) &&
+           send_file_range(fd, in, ranges[k].first, ranges[k].last);
+    if (ok && !head) ok = send_all(fd, tail.data(), tail.size());
   }
+  log_debug("serve: " + std::to_string(range < 0 ? 416 : range ? 206 : 200) + " " + target);
   ::close(in);
   return ok;
 }
@@ -310,7 +387,18 @@ void handle_connection(int fd, const Roots& roots, const ServeOptions& o) {
     if (started) deadline = Clock::now() + std::chrono::seconds(kHeaderSeconds);
     std::size_t end;
     while ((end = buf.find("\r\n\r\n")) == std::string::npos) {
-      if (buf.size() > 65536 || !wait_readable(fd, deadline)) {
+      if (buf.size() > kMaxRequestBytes) {
+        // RFC 9110 15.5.15 / RFC 6585 5: a request line too long is 414, headers 431
+        if (buf.find("\r\n") == std::string::npos || buf.find("\r\n") > kMaxRequestBytes)
+          respond(fd, 414, "URI Too Long", "text/plain", "request line too long\n", false, false,
+                  o);
+        else
+          respond(fd, 431, "Request Header Fields Too Large", "text/plain",
+                  "request headers too large\n", false, false, o);
+        lingering_close(fd);
+        return;
+      }
+      if (!wait_readable(fd, deadline)) {
         ::close(fd);
         return;
       }

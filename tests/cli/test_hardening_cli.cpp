@@ -601,6 +601,37 @@ TEST(Serve, RangesStreamingAndSlowClients) {
   EXPECT_EQ(body_of(r).size(), 3u);
   r = get(s.port, "/tileset/big.bin", "Range: bytes=" + std::to_string(big) + "-\r\n");
   EXPECT_NE(r.find("416"), std::string::npos) << r.substr(0, 300);
+  // several ranges: multipart/byteranges with each part's Content-Range (issue 27)
+  r = get(s.port, "/tileset/big.bin", "Range: bytes=0-1, 26-28\r\n");
+  EXPECT_NE(r.find("206 Partial Content"), std::string::npos) << r.substr(0, 300);
+  EXPECT_NE(r.find("Content-Type: multipart/byteranges; boundary="), std::string::npos);
+  {
+    const auto b = r.find("boundary="), e = r.find("\r\n", b);
+    const std::string boundary = r.substr(b + 9, e - b - 9);
+    const std::string tail = "/" + std::to_string(big) + "\r\n\r\n";
+    const std::string want = "\r\n--" + boundary +
+                             "\r\nContent-Type: application/octet-stream\r\n"
+                             "Content-Range: bytes 0-1" +
+                             tail + "ab\r\n--" + boundary +
+                             "\r\nContent-Type: application/octet-stream\r\n"
+                             "Content-Range: bytes 26-28" +
+                             tail + "abc\r\n--" + boundary + "--\r\n";
+    EXPECT_EQ(body_of(r), want);
+    EXPECT_NE(r.find("Content-Length: " + std::to_string(want.size()) + "\r\n"), std::string::npos);
+  }
+  // overlapping ranges are coalesced into one; unsatisfiable ones among them dropped
+  r = get(s.port, "/tileset/big.bin", "Range: bytes=2-5,4-7, " + std::to_string(big + 5) + "-\r\n");
+  EXPECT_NE(r.find("Content-Range: bytes 2-7/"), std::string::npos) << r.substr(0, 300);
+  EXPECT_EQ(body_of(r), "cdefgh");
+  // a malformed range set is ignored: the whole file
+  r = get(s.port, "/tileset/tileset.json", "Range: bytes=1-2,x\r\n");
+  EXPECT_NE(r.find("200 OK"), std::string::npos) << r.substr(0, 300);
+  // an oversized request line or header block gets its status, not a silent close
+  EXPECT_NE(get(s.port, "/tileset/" + std::string(100000, 'a')).find("HTTP/1.1 414 "),
+            std::string::npos);
+  EXPECT_NE(get(s.port, "/tileset/tileset.json", "X-Big: " + std::string(100000, 'b') + "\r\n")
+                .find("HTTP/1.1 431 "),
+            std::string::npos);
   // 70 clients that send nothing do not stall the others
   std::vector<int> slow;
   for (int i = 0; i < 70; ++i) slow.push_back(connect_to(s.port));
