@@ -444,6 +444,39 @@ TEST(LowItems, AHugeCellCostsTheDataInItNotItsArea) {
   EXPECT_NE(r.out.find("-> 5 chunks"), std::string::npos) << r.out;
 }
 
+// Issue 27: 10,000 footprints of 6 cm on one building (a 10 cm grid over its
+// roof) were blamed on "wrong CRS, or footprints of another area": they meet the
+// data and hold its points, too few in each. The line now says so. (No buffer:
+// with one, the grid's edge squares take the building points around the grid.)
+TEST(LowItems, TinyFootprintsAreCalledTooSmallNotMisplaced) {
+  const fs::path d = tmp_dir("hardening_tiny_footprints");
+  {
+    std::ofstream f(d / "tiny.geojson");
+    f << R"({"type":"FeatureCollection","crs":{"type":"name","properties":{"name":)"
+      << R"("urn:ogc:def:crs:EPSG::28992"}},"features":[)";
+    char buf[256];
+    for (int i = 0; i < 100; ++i)
+      for (int j = 0; j < 100; ++j) {
+        const double x = 85025.0 + 0.1 * i, y = 447460.0 + 0.1 * j, e = 0.06;
+        std::snprintf(buf, sizeof buf,
+                      R"(%s{"type":"Feature","properties":{"id":"t%d_%d"},"geometry":)"
+                      R"({"type":"Polygon","coordinates":[[[%.3f,%.3f],[%.3f,%.3f],[%.3f,%.3f],)"
+                      R"([%.3f,%.3f],[%.3f,%.3f]]]}})",
+                      i + j ? "," : "", i, j, x, y, x + e, y, x + e, y + e, x, y + e, x, y);
+        f << buf;
+      }
+    f << "]}";
+  }
+  const CliRun r =
+      run("split " + q(kExample / "delft_small.las") + " --crs EPSG:28992 --footprints " +
+          q(d / "tiny.geojson") + " --footprint-buffer 0 -o " + q(d / "w"));
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("tiny.geojson: none of its 10000 footprints"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("much smaller than the buildings"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("another area"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(d / "w" / "manifest.json"));
+}
+
 TEST(LowItems, SplitNeverReplacesAForeignChunksFolder) {
   const fs::path d = tmp_dir("hardening_foreign");
   fs::create_directories(d / "w" / "chunks");

@@ -724,6 +724,8 @@ class Splitter {
   std::unique_ptr<CellFiles<FaceRec>> faces_;    // mesh triangles by the cells they meet
   std::unique_ptr<CellFiles<ClaimRec>> claims_;  // chunk claims by the triangle's cell
   std::size_t subdivided_ = 0;                   // regions processed as quarter cells
+  std::size_t fp_few_ = 0, fp_few_points_ = 0;   // footprints with too few building points
+  std::size_t fp_few_max_ = 0;                   // ... and the most any of them holds
   double claim_cell_ = 10;  // claims by the smallest cell of their centroid: a file stays small
   std::vector<double> mesh_up_;  // +1 when a mesh's faces point up/out (counter-clockwise), else -1
 
@@ -1941,6 +1943,11 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       pc.rec.id = unique_id("fp-" + sanitize_id(fps_[i].id));
       pc.rec.source = "footprint:" + fps_[i].id;
       pc.rec.status = Status::skipped;
+      if (count > 0) {
+        ++fp_few_;
+        fp_few_points_ += count;
+        fp_few_max_ = std::max(fp_few_max_, count);
+      }
       pc.rec.reason =
           count == 0 ? "no building points inside the footprint"
                      : "only " + std::to_string(count) + " building points inside the footprint";
@@ -2208,10 +2215,21 @@ SplitReport Splitter::run() {
   pass3_cells(spill);
   staging_->drop_spill();
   if (mesh_scene_) write_mesh_chunks();
-  if (!opt_.footprints.empty() && rep_.chunks == 0)
-    throw IoError(fp_source_, "none of its " + std::to_string(rep_.footprints_in_scene) +
+  if (!opt_.footprints.empty() && rep_.chunks == 0) {
+    const std::string n = std::to_string(rep_.footprints_in_scene);
+    // Building points inside footprints, but too few in each: footprints smaller
+    // than buildings (pieces of a footprint, a grid of cells), not another area.
+    if (fp_few_ > 0)
+      throw IoError(fp_source_, "none of its " + n + " footprints over the data holds " +
+                                    std::to_string(opt_.min_footprint_points) +
+                                    " building points: " + std::to_string(fp_few_) +
+                                    " hold some (" + std::to_string(fp_few_points_) +
+                                    " in all, at most " + std::to_string(fp_few_max_) +
+                                    " in one): footprints much smaller than the buildings?");
+    throw IoError(fp_source_, "none of its " + n +
                                   " footprints over the data holds building points (all "
                                   "skipped): wrong CRS, or footprints of another area?");
+  }
   stages_.report(0.97, 1.0, 0.5, "manifest");
 
   Manifest m;
