@@ -35,6 +35,9 @@ Georef Georef::from_transformer_bbox(std::unique_ptr<Transformer> t,
   // margin of the area test; when the area test fails, the unit is named as the likely cause
   const std::string swapped = unit_swap_evidence(crs, bbox_crs);
   if (!swapped.empty()) throw GeoError(swapped);
+  // a unit that makes the scene smaller than a building (or wider than the earth) likewise
+  const std::string scale = unit_scale_evidence(crs, bbox_crs);
+  if (!scale.empty()) throw GeoError(scale);
   t->check_in_area(bbox_crs, area_margin_deg);
   // the same transformer (setting one up asks PROJ's database for its operations: ~0.1 s)
   const Eigen::Vector3d origin_crs = bbox_crs.center();

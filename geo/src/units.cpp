@@ -3,6 +3,7 @@
 #include "citylod/geo/transformer.hpp"
 #include "proj_util.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -57,6 +58,28 @@ std::string unit_swap_evidence(const Crs& crs, const Eigen::AlignedBox3d& bbox) 
   return "the data lies outside the area of use of " + crs.label() + " read in " + unit.name +
          " but inside it read in " + other.name + ": are the coordinates in " + other.name +
          ", not " + unit.name + "? Give the CRS of the data's real unit (--crs)";
+}
+
+std::string unit_scale_evidence(const Crs& crs, const Eigen::AlignedBox3d& bbox) {
+  if (bbox.isEmpty() || !crs.is_projected()) return {};
+  const Unit& unit = crs.horizontal_unit();
+  const Eigen::Vector3d size = bbox.sizes();
+  const double across = std::max(size.x(), size.y());  // CRS units
+  const double across_m = across * unit.to_si;
+  std::string what;
+  if (across >= 1.0 && across_m < kMinSceneAcross_m)
+    what = "smaller than any building";
+  else if (across_m > kMaxSceneAcross_m)
+    what = "wider than a projected CRS reaches";
+  if (what.empty()) return {};
+  const std::string per = detail::fmt(unit.to_si, 10) + " m";
+  const std::string name = unit.name.empty() || unit.name == "unknown"
+                               ? "units of " + per
+                               : unit.name + " (" + per + ")";
+  return "the data spans " + detail::fmt(size.x() * unit.to_si, 3) + " x " +
+         detail::fmt(size.y() * unit.to_si, 3) + " m read in " + name + ", " + what +
+         ": are the coordinates really in " + name +
+         "? Give the CRS of the data's real unit (--crs)";
 }
 
 std::string declared_unit_conflict(const Crs& declared, const std::string& file_crs_name,

@@ -477,6 +477,20 @@ TEST(LowItems, TinyFootprintsAreCalledTooSmallNotMisplaced) {
   EXPECT_FALSE(fs::exists(d / "w" / "manifest.json"));
 }
 
+// Issue 27: a CRS in nanometres (no area of use to test against) exited 0 with an empty
+// manifest; the unit is now named, and nothing is written.
+TEST(LowItems, ACrsInNanometresIsAnErrorNotAnEmptyScene) {
+  const fs::path d = tmp_dir("hardening_nanometres");
+  const CliRun r = run("split " + q(kExample / "delft_small.las") +
+                       " --crs '+proj=tmerc +lon_0=4.37 +lat_0=52 +datum=WGS84 +to_meter=1e-9 "
+                       "+type=crs' -o " +
+                       q(d / "w"));
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("delft_small.las: the data spans"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("smaller than any building"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(d / "w" / "manifest.json"));
+}
+
 TEST(LowItems, SplitNeverReplacesAForeignChunksFolder) {
   const fs::path d = tmp_dir("hardening_foreign");
   fs::create_directories(d / "w" / "chunks");

@@ -176,6 +176,32 @@ TEST(Units, FeetDeclaredAsMetresIsReported) {
   EXPECT_NE(bad.warnings[0].find("if read in foot"), std::string::npos) << bad.warnings[0];
 }
 
+// Issue 27: a WKT in nanometres over metre data (no area of use to test) exited 0 with
+// an empty manifest: the 72 m tile read as 72 micrometres.
+TEST(Units, AUnitThatMakesTheSceneSmallerThanABuildingIsNamed) {
+  const Eigen::AlignedBox3d tile(Eigen::Vector3d(85000, 447400, -5),
+                                 Eigen::Vector3d(85072, 447472, 30));
+  const Crs nm =
+      Crs::parse("+proj=tmerc +lon_0=4.37 +lat_0=52 +datum=WGS84 +to_meter=1e-9 +type=crs");
+  const std::string why = unit_scale_evidence(nm, tile);
+  EXPECT_NE(why.find("the data spans 7.2e-08 x 7.2e-08 m"), std::string::npos) << why;
+  EXPECT_NE(why.find("smaller than any building"), std::string::npos) << why;
+  EXPECT_THROW(Georef::from_crs_bbox(nm, tile), GeoError);
+  // The same numbers in metres, and a scene of 0.5 units of a metre CRS: plausible or too
+  // small to judge (one point, a few points close together), not a unit mistake.
+  const Crs m = Crs::parse("+proj=tmerc +lon_0=4.37 +lat_0=52 +datum=WGS84 +type=crs");
+  EXPECT_EQ(unit_scale_evidence(m, tile), "");
+  EXPECT_EQ(unit_scale_evidence(
+                m, Eigen::AlignedBox3d(tile.min(), tile.min() + Eigen::Vector3d(0.5, 0.5, 0.5))),
+            "");
+  // Kilometre coordinates of a 72 km area read in megametres: 72,000 km across.
+  const Crs mm =
+      Crs::parse("+proj=tmerc +lon_0=4.37 +lat_0=52 +datum=WGS84 +to_meter=1e6 +type=crs");
+  const std::string wide = unit_scale_evidence(
+      mm, Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(72, 72, 0)));
+  EXPECT_NE(wide.find("wider than a projected CRS reaches"), std::string::npos) << wide;
+}
+
 TEST(Units, AutzenInFeetIsConsistent) {
   const auto las = test::scan_las(kAutzen);
   if (!las) GTEST_SKIP() << "shared data missing: " << kAutzen;

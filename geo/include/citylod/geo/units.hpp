@@ -34,6 +34,17 @@ UnitReport check_units(const Crs& crs, const Eigen::AlignedBox3d& bbox);
 /// origin and can stay within the usual 1-degree tolerance of the area test.
 std::string unit_swap_evidence(const Crs& crs, const Eigen::AlignedBox3d& bbox);
 
+/// A scene narrower than this (metres, the wider of x and y) is no scene of buildings.
+inline constexpr double kMinSceneAcross_m = 1.0;
+/// ... and one wider than this is beyond what any projected CRS maps (half the equator).
+inline constexpr double kMaxSceneAcross_m = 2.0e7;
+
+/// The scale check of the horizontal unit, for a projected CRS whatever its area of use: the
+/// data's box (CRS units) read in the CRS's unit spans less than kMinSceneAcross_m while
+/// spanning at least one unit (a WKT in nanometres over metre data: 72 m read as 72 micrometres),
+/// or more than kMaxSceneAcross_m. Returns the one-line reason, or "" when the size is plausible.
+std::string unit_scale_evidence(const Crs& crs, const Eigen::AlignedBox3d& bbox);
+
 /// Compares a CRS given by the user (--crs) with the units of the CRS a file declares
 /// (`file_unit_m`: metres per horizontal unit, 0 = unknown; `file_vertical_unit_m`: metres per
 /// vertical unit, 0 = unknown). Returns "" when they agree (within 1e-6, so foot and US survey
