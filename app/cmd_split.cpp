@@ -57,7 +57,8 @@ int cmd_split(ArgParser& args) {
   if (!o.footprints.empty()) {
     std::snprintf(
         line, sizeof line,
-        "footprints: %zu in file, %zu meet the data, %zu got a chunk (%zu of %zu entirely inside)",
+        "footprints: %zu in file, %zu meet the data, %zu got a chunk (%zu of the %zu entirely "
+        "inside the data)",
         r.footprints_total, r.footprints_in_scene, r.footprints_with_chunk,
         r.footprints_inside_with_chunk, r.footprints_inside);
     log_info(line);
