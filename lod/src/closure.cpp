@@ -336,12 +336,26 @@ std::vector<Vec2> closure_outline(const BuildingInput& in, const Samples& s, con
   return outline;
 }
 
+/// A point cloud whose lowest samples are roof, not wall bottoms or ground:
+/// half of its samples lie within 1 m (the lowest wall) of the lowest one
+/// (roof-only LiDAR of a shed or a flat annex, a large low roof).
+bool lowest_samples_are_roof(const Samples& s, double zmin) {
+  std::size_t low = 0;
+  for (const auto& q : s.points) low += q.z() < zmin + 1.0 ? 1 : 0;
+  return 2 * low >= s.points.size();
+}
+
 /// Phase 4: the ground's height: the input's ground height when given, else
-/// the lowest sample; a plinth's base p.plinth_depth below it; on a terrain
-/// that is cut off, the terrain plane's height under the outline's centroid.
-double ground_height(const BuildingInput& in, const ClosureParams& p, const Primitive* terrain,
-                     const std::vector<Vec2>& outline, bool plinth, double zmin) {
+/// the lowest sample -- p.unknown_ground_depth under it for a point cloud
+/// whose lowest samples are roof; a plinth's base p.plinth_depth below the lowest sample; on
+/// a terrain that is cut off, the terrain plane's height under the outline's
+/// centroid.
+double ground_height(const BuildingInput& in, const Samples& s, const ClosureParams& p,
+                     const Primitive* terrain, const std::vector<Vec2>& outline, bool plinth,
+                     double zmin) {
   double gz = in.has_ground_z && !plinth ? in.ground_z : zmin;
+  if (!in.has_ground_z && !plinth && !in.is_mesh() && lowest_samples_are_roof(s, zmin))
+    gz = zmin - p.unknown_ground_depth;
   if (plinth) gz = zmin - p.plinth_depth;
   if (terrain) {  // the terrain plane's height under the outline's centroid
     Vec2 c = Vec2::Zero();
@@ -545,12 +559,14 @@ int snap_inferred_walls(std::vector<Primitive>& prims, double max_off) {
 }
 
 Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
-                       std::vector<Primitive>& prims) {
+                       std::vector<Primitive>& prims, bool outline_walls) {
   Closure res;
   if (!p.enabled || s.points.size() < 3) return res;
   Coverage cov;
   if (!find_missing_walls(in, s, p, prims, cov)) return res;
   Terrain t = find_terrain(s, p, prims, cov);
+  // airborne input: walls on the outline, unless the scan stands on a terrain sheet
+  cov.walls_missing = cov.walls_missing || (outline_walls && !t.on_terrain);
   // A terrain sheet kept as a plinth: base plane under the whole scene and
   // walls up to the terrain along the scene's outline. The terrain has a hole
   // where the building stands; the ground floor's rays that escape through it
@@ -565,7 +581,7 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
 
   const std::vector<Vec2> outline = closure_outline(in, s, p, t, terrain, plinth);
   if (outline.size() < 3 || !(signed_area(outline) > 0)) return res;
-  const double gz = ground_height(in, p, terrain, outline, plinth, cov.zmin);
+  const double gz = ground_height(in, s, p, terrain, outline, plinth, cov.zmin);
   res.outline = outline;
   res.ground_z = gz;
 

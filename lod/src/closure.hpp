@@ -16,7 +16,9 @@ namespace citylod::lod::detail {
 /// With p.footprint_walls, walls go along a given footprint even when some
 /// walls were scanned. An open bottom gets a base plane; a terrain sheet
 /// (params.terrain) becomes a plinth (base + walls along the scene's outline)
-/// or is cut off.
+/// or is cut off. With `outline_walls` (airborne input, whose height field
+/// labels the cells inside the outline) walls go along the outline even when
+/// some walls were scanned.
 struct Closure {
   enum What { None, Base, Walls, FootprintWalls, Plinth };
   int added = 0;  ///< primitives added
@@ -29,7 +31,7 @@ struct Closure {
   int snapped = 0;
 };
 Closure close_building(const BuildingInput& in, const Samples& s, const ClosureParams& p,
-                       std::vector<Primitive>& prims);
+                       std::vector<Primitive>& prims, bool outline_walls = false);
 
 /// (ours) An inferred outline wall that (nearly) coincides with another
 /// vertical plane -- a scanned wall along the same footprint edge (within 3

@@ -241,8 +241,9 @@ int drop_small_shells(LodModel& m, double min_fraction) {
   return outer;
 }
 
-/// (ours) Airborne LiDAR: a point cloud that sees (almost) no walls, or a city
-/// chunk with a footprint whose walls are inferred along it.
+/// (ours) Airborne LiDAR: a point cloud that sees few walls (less than
+/// airborne.wall_fraction_max of its samples), or a city chunk with a
+/// footprint whose walls are inferred along it.
 bool airborne_input(const BuildingInput& in, const Samples& s, const LodParams& P) {
   if (P.airborne.mode != "auto") return P.airborne.mode == "on";
   if (in.is_mesh() || !P.closure.enabled || s.points.empty()) return false;
@@ -253,7 +254,7 @@ bool airborne_input(const BuildingInput& in, const Samples& s, const LodParams& 
     total += w;
     if (std::abs(s.normals[i].z()) < 0.3) wall += w;
   }
-  return total > 0 && wall / total < P.closure.wall_fraction_min;
+  return total > 0 && wall / total < P.airborne.wall_fraction_max;
 }
 
 /// (ours) Airborne LiDAR: the roof planes (normal.z >= 0.3) and inferred
@@ -310,15 +311,16 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
   // Roof-only LiDAR: ground + walls through the outline so the building closes.
   Closure c;
   if (P.closure.enabled) {
-    c = close_building(in, samples, P.closure, prims);
+    c = close_building(in, samples, P.closure, prims, airborne);
     st.walls_inferred = c.what == Closure::Walls || c.what == Closure::FootprintWalls;
     const std::string n = std::to_string(c.added);
     if (c.what == Closure::Base) st.notes.push_back("open bottom: a base plane was inferred");
     if (c.what == Closure::Walls)
       st.notes.push_back("walls missing: " + n + " closure planes inferred (ground + walls)");
     if (c.what == Closure::FootprintWalls)
-      st.notes.push_back("walls along the footprint: " + n +
-                         " closure planes inferred (ground + walls; scanned walls kept)");
+      st.notes.push_back(std::string(in.footprint.size() >= 3 ? "walls along the footprint: "
+                                                              : "walls along the outline: ") +
+                         n + " closure planes inferred (ground + walls; scanned walls kept)");
     out.snap_walls = c.snap_walls;
     if (c.snapped > 0)
       st.notes.push_back(std::to_string(c.snapped) +
@@ -650,13 +652,41 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   }
   const double diag = std::max(1e-9, (hi - lo).norm());
   R.stats.bbox_diagonal = diag;
-  try {
-    run_method(in, samples, params, progress, budget, R);
-  } catch (const std::exception& e) {
-    LodResult f = fallback_result(in, e.what());  // may throw LodError: no area at all
+  const auto fall_back = [&](const std::string& reason) {
+    LodResult f = fallback_result(in, reason);  // may throw LodError: no area at all
     R.status = f.status;
     R.reason = f.reason;
     R.models = std::move(f.models);
+  };
+  const LodResult fresh = R;
+  try {
+    run_method(in, samples, params, progress, budget, R);
+  } catch (const LodError& e) {
+    // (ours) A point cloud the rays could not label (a scan with many wall points
+    // but gaps in them) is tried again as airborne LiDAR: walls on its outline,
+    // cells labelled by its roof height field. Not after the budget or a cancel.
+    const std::string why = e.what();
+    const bool retry = !in.is_mesh() && params.airborne.mode == "auto" &&
+                       !airborne_input(in, samples, params) &&
+                       why.find("time budget exceeded") == std::string::npos &&
+                       why.find("cancelled") == std::string::npos;
+    if (!retry) {
+      fall_back(why);
+    } else {
+      LodParams as_airborne = params;
+      as_airborne.airborne.mode = "on";
+      R = fresh;
+      R.stats.notes.push_back("the rays failed (" + why +
+                              "): modelled as airborne LiDAR (walls on the outline, cells "
+                              "labelled by the roof height field)");
+      try {
+        run_method(in, samples, as_airborne, progress, budget, R);
+      } catch (const std::exception& e2) {
+        fall_back(why + "; as airborne LiDAR, " + e2.what());
+      }
+    }
+  } catch (const std::exception& e) {
+    fall_back(e.what());
   }
   // Fidelity of every model against the input (e1, e2 in % of the bbox diagonal).
   progress(0.9, "metrics");

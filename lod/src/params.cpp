@@ -119,10 +119,12 @@ void visit(P& p, F&& f) {
   f("closure.outline_alpha", p.closure.outline_alpha);
   f("closure.terrain", p.closure.terrain);
   f("closure.plinth_depth", p.closure.plinth_depth);
+  f("closure.unknown_ground_depth", p.closure.unknown_ground_depth);
   f("closure.footprint_walls", p.closure.footprint_walls);
   f("closure.wall_profile", p.closure.wall_profile);
   f("closure.wall_snap", p.closure.wall_snap);
   f("airborne.mode", p.airborne.mode);
+  f("airborne.wall_fraction_max", p.airborne.wall_fraction_max);
   f("airborne.cell", p.airborne.cell);
   f("airborne.fill_radius", p.airborne.fill_radius);
   f("airborne.step_min", p.airborne.step_min);
@@ -207,10 +209,12 @@ void LodParams::validate() const {
   check(closure.terrain == "plinth" || closure.terrain == "cut", "closure.terrain",
         "must be 'plinth' or 'cut'");
   check(pos(closure.plinth_depth), "closure.plinth_depth", "must be > 0");
+  check(closure.unknown_ground_depth >= 0, "closure.unknown_ground_depth", "must be >= 0");
   check(closure.wall_snap >= 0 && std::isfinite(closure.wall_snap), "closure.wall_snap",
         "must be >= 0");
   check(airborne.mode == "auto" || airborne.mode == "on" || airborne.mode == "off", "airborne.mode",
         "must be 'auto', 'on' or 'off'");
+  check(ratio(airborne.wall_fraction_max), "airborne.wall_fraction_max", "must be in (0, 1]");
   check(pos(airborne.cell), "airborne.cell", "must be > 0");
   check(airborne.fill_radius >= 0, "airborne.fill_radius", "must be >= 0");
   check(pos(airborne.step_min), "airborne.step_min", "must be > 0");

@@ -89,6 +89,8 @@ TEST(LodParams, ValidateNamesTheParameter) {
   expect_bad("closure.terrain", "keep");
   expect_bad("closure.plinth_depth", "0");
   expect_bad("closure.wall_snap", "-0.1");
+  expect_bad("closure.unknown_ground_depth", "-1");
+  expect_bad("airborne.wall_fraction_max", "0");
   expect_bad("ioview.uncovered", "drop");
 }
 
@@ -122,7 +124,7 @@ TEST(LodParams, ItemsRoundTrip) {
                         "closure.wall_snap",
                         "colour.min_points"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 63u);  // one per field of every parameter struct
+  EXPECT_EQ(items.size(), 65u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");
