@@ -661,7 +661,9 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   const LodResult fresh = R;
   try {
     run_method(in, samples, params, progress, budget, R);
-  } catch (const LodError& e) {
+  } catch (const std::bad_alloc& e) {
+    fall_back(e.what());
+  } catch (const std::exception& e) {
     // (ours) A point cloud the rays could not label (a scan with many wall points
     // but gaps in them) is tried again as airborne LiDAR: walls on its outline,
     // cells labelled by its roof height field. Not after the budget or a cancel.
@@ -685,8 +687,6 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
         fall_back(why + "; as airborne LiDAR, " + e2.what());
       }
     }
-  } catch (const std::exception& e) {
-    fall_back(e.what());
   }
   // Fidelity of every model against the input (e1, e2 in % of the bbox diagonal).
   progress(0.9, "metrics");
