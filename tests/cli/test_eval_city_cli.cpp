@@ -511,8 +511,8 @@ namespace {
 
 // The Delft tile of ../shared (airborne LiDAR, 9 buildings): a city run puts
 // walls along every footprint (closure.footprint_walls). Without them a
-// tower whose walls were hit in part loses its tower (finest e2 5.8 %) and a
-// small roof piece falls back; with them no building falls back and every
+// tower whose walls were hit in part loses its tower (finest e2 5.8 %) (and a
+// small roof piece fell back before issue 30); with them no building falls back and every
 // finest e2 stays under 3.5 % (measured: max 2.805 %).
 TEST(EvalCityCli, DelftTileFootprintWallsCloseEveryBuilding) {
   const fs::path las = fs::path(CITYLOD_SHARED_DATA) / "delft" / "ahn3_cropped_2.las";
@@ -537,7 +537,9 @@ TEST(EvalCityCli, DelftTileFootprintWallsCloseEveryBuilding) {
   EXPECT_EQ(with["pinched"], 0);
   EXPECT_EQ(with["not_one_shell"], 0);
   const nlohmann::json without = summary("off", " --set closure.footprint_walls=false");
-  EXPECT_EQ(without["fallbacks"].size(), 1u);
+  // Without them the tower (41 % wall samples: not airborne) still loses its tower; the
+  // small roof piece that fell back is now modelled as airborne (issue 30).
+  EXPECT_TRUE(without["fallbacks"].empty()) << without["fallbacks"].dump();
   EXPECT_GT(without["finest_e2_percent"]["max"].get<double>(), 5.0);
 }
 
