@@ -140,7 +140,8 @@ double hull_width(const Ring& h) {
 }
 
 // Min (or max) over a (2r+1)-window along rows then columns; +inf cells are empty and ignored.
-void window_filter(std::vector<float>& z, int nx, int ny, int r, bool take_min) {
+// (Not inlined: GCC 12 inlining it into build_dtm reports a false -Wfree-nonheap-object.)
+[[gnu::noinline]] void window_filter(std::vector<float>& z, int nx, int ny, int r, bool take_min) {
   std::vector<float> tmp(z.size(), kInf);
   auto better = [take_min](float a, float b) { return take_min ? std::min(a, b) : std::max(a, b); };
   for (int j = 0; j < ny; ++j)
@@ -178,31 +179,49 @@ void fill_holes(std::vector<float>& z, int nx, int ny) {
     std::fill(z.begin(), z.end(), 0.0f);
     return;
   }
-  for (;;) {
-    std::vector<std::size_t> todo;
-    std::vector<float> val;
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i) {
-        const std::size_t c = std::size_t(j) * std::size_t(nx) + std::size_t(i);
-        if (z[c] != kInf) continue;
-        double s = 0;
-        int n = 0;
-        for (int dj = -1; dj <= 1; ++dj)
-          for (int di = -1; di <= 1; ++di) {
-            const int a = i + di, b = j + dj;
-            if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
-            const float v = z[std::size_t(b) * std::size_t(nx) + std::size_t(a)];
-            if (v == kInf) continue;
-            s += v;
-            ++n;
-          }
-        if (n) {
-          todo.push_back(c);
-          val.push_back(static_cast<float>(s / n));
-        }
+  // Rounds of dilation: an empty cell with filled neighbours takes their mean (of the
+  // previous round's values). Only the front is visited: the empty cells next to the
+  // cells filled in the round before (a whole-grid scan per round cost 14 % of a split).
+  const auto idx = [nx](int i, int j) { return std::size_t(j) * std::size_t(nx) + std::size_t(i); };
+  std::vector<char> queued(z.size(), 0);
+  std::vector<std::size_t> front;
+  const auto queue_empty_neighbours = [&](int i, int j) {
+    for (int dj = -1; dj <= 1; ++dj)
+      for (int di = -1; di <= 1; ++di) {
+        const int a = i + di, b = j + dj;
+        if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+        const std::size_t c = idx(a, b);
+        if (z[c] != kInf || queued[c]) continue;
+        queued[c] = 1;
+        front.push_back(c);
       }
-    if (todo.empty()) break;
-    for (std::size_t k = 0; k < todo.size(); ++k) z[todo[k]] = val[k];
+  };
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i)
+      if (z[idx(i, j)] != kInf) queue_empty_neighbours(i, j);
+  std::vector<float> val;
+  while (!front.empty()) {
+    val.assign(front.size(), 0.0f);
+    for (std::size_t k = 0; k < front.size(); ++k) {
+      const int i = int(front[k] % std::size_t(nx)), j = int(front[k] / std::size_t(nx));
+      double s = 0;
+      int n = 0;
+      for (int dj = -1; dj <= 1; ++dj)
+        for (int di = -1; di <= 1; ++di) {
+          const int a = i + di, b = j + dj;
+          if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+          const float v = z[idx(a, b)];
+          if (v == kInf) continue;
+          s += v;
+          ++n;
+        }
+      val[k] = static_cast<float>(s / n);  // n >= 1: queued next to a filled cell
+    }
+    for (std::size_t k = 0; k < front.size(); ++k) z[front[k]] = val[k];
+    std::vector<std::size_t> done;
+    done.swap(front);
+    for (const std::size_t c : done)
+      queue_empty_neighbours(int(c % std::size_t(nx)), int(c / std::size_t(nx)));
   }
 }
 

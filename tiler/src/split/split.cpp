@@ -356,17 +356,43 @@ class Spiller {
     buf_.push_back(r);
     if (buf_.size() >= budget_) flush();
   }
+  /// Writes the buffer out by cell, each cell's records in arrival order: the cell of
+  /// each record computed once, a counting sort of the records by cell (a scene's
+  /// buffer meets few cells), each cell's run written through a piece buffer. (A
+  /// comparison sort recomputing both keys per comparison took 20 % of a split.)
   void flush() {
-    std::sort(buf_.begin(), buf_.end(), [this](const SpillRec& a, const SpillRec& b) {
-      return key(a.x, a.y) < key(b.x, b.y);
-    });
-    for (std::size_t i = 0; i < buf_.size();) {
+    std::vector<std::uint32_t> cell_of(buf_.size());
+    std::vector<CellKey> cells;
+    std::map<CellKey, std::uint32_t> index;
+    CellKey last{};
+    std::uint32_t last_i = ~0u;
+    for (std::size_t i = 0; i < buf_.size(); ++i) {
       const CellKey k = key(buf_[i].x, buf_[i].y);
-      std::size_t j = i + 1;
-      while (j < buf_.size() && key(buf_[j].x, buf_[j].y) == k) ++j;
-      files_.append(k, buf_.data() + i, j - i);
-      i = j;
+      if (last_i == ~0u || k != last) {  // points arrive in runs of one cell
+        const auto it = index.emplace(k, std::uint32_t(cells.size())).first;
+        if (it->second == cells.size()) cells.push_back(k);
+        last = k;
+        last_i = it->second;
+      }
+      cell_of[i] = last_i;
     }
+    std::vector<std::size_t> start(cells.size() + 1, 0);
+    for (const std::uint32_t c : cell_of) ++start[c + 1];
+    for (std::size_t c = 0; c < cells.size(); ++c) start[c + 1] += start[c];
+    std::vector<std::uint32_t> order(buf_.size());
+    {
+      std::vector<std::size_t> next(start.begin(), start.end() - 1);
+      for (std::size_t i = 0; i < buf_.size(); ++i) order[next[cell_of[i]]++] = std::uint32_t(i);
+    }
+    constexpr std::size_t kPiece = 4096;
+    std::vector<SpillRec> run;
+    run.reserve(kPiece);
+    for (const auto& [k, c] : index)  // cells in key order, as the files were written before
+      for (std::size_t j = start[c]; j < start[c + 1];) {
+        run.clear();
+        while (j < start[c + 1] && run.size() < kPiece) run.push_back(buf_[order[j++]]);
+        files_.append(k, run.data(), run.size());
+      }
     buf_.clear();
   }
   /// Frees the buffer (after the last flush).
