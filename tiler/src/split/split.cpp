@@ -762,6 +762,12 @@ class Splitter {
   std::map<CellKey, std::vector<std::size_t>> fp_owned_;
   std::unordered_map<CellKey, std::vector<std::size_t>, CellKeyHash> fp_index_;  // 2D bucket index
   double fp_bucket_ = 50;
+  /// footprint_of's answers by 1 m cell of a bucket, where one answer holds for the
+  /// whole cell (kFpExact: test the point); built on first use, dropped past a bound.
+  const std::vector<std::int32_t>& fp_raster(const CellKey& bucket,
+                                             const std::vector<std::size_t>& candidates) const;
+  mutable std::unordered_map<CellKey, std::vector<std::int32_t>, CellKeyHash> fp_raster_;
+  mutable std::unordered_map<CellKey, std::uint32_t, CellKeyHash> fp_queries_;  // before a raster
 
   std::vector<PendingChunk> chunks_;
   std::set<std::string> ids_;
@@ -1351,12 +1357,80 @@ void Splitter::load_footprints() {
   }
 }
 
+constexpr double kFpRasterCell = 1.0;           ///< m, cell of footprint_of's answer raster
+constexpr std::int32_t kFpExact = -1;           ///< raster: the cell needs the exact test
+constexpr std::int32_t kFpNone = -2;            ///< raster: no footprint for any point of it
+constexpr std::size_t kFpRasterBuckets = 1024;  ///< rasters kept (10 KB each at 50 m / 1 m)
+
+// A cell's answer is the exact test's for every point of it, or kFpExact. In the exact
+// test's order (increasing index): a footprint whose box + buffer misses the cell is
+// skipped for all its points; one whose boundary lies farther than the cell's
+// half-diagonal from the cell's centre holds all of the cell (the answer, as the test
+// stops at the first footprint holding the point) or none of it, and then is within the
+// buffer of none of it when that distance exceeds the buffer too.
+const std::vector<std::int32_t>& Splitter::fp_raster(
+    const CellKey& bucket, const std::vector<std::size_t>& candidates) const {
+  auto it = fp_raster_.find(bucket);
+  if (it != fp_raster_.end()) return it->second;
+  if (fp_raster_.size() >= kFpRasterBuckets) fp_raster_.clear();
+  fp_queries_.erase(bucket);
+  const int n = int(std::ceil(fp_bucket_ / kFpRasterCell));
+  const double buf = opt_.footprint_buffer;
+  const double half = 0.5 * kFpRasterCell, reach = half * std::sqrt(2.0) + 1e-6;
+  std::vector<std::int32_t> r(std::size_t(n) * std::size_t(n), kFpNone);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const Vec2 m{bucket.first * fp_bucket_ + (i + 0.5) * kFpRasterCell,
+                   bucket.second * fp_bucket_ + (j + 0.5) * kFpRasterCell};
+      std::int32_t answer = kFpNone;
+      for (const std::size_t f : candidates) {
+        const auto& b = fps_[f].bbox;
+        if (m[0] + half < b[0] - buf || m[0] - half > b[2] + buf || m[1] + half < b[1] - buf ||
+            m[1] - half > b[3] + buf)
+          continue;
+        double edge = std::numeric_limits<double>::infinity();
+        for (const auto& poly : fps_[f].polygons)
+          for (const auto& ring : poly.rings) edge = std::min(edge, distance_to_ring(ring, m));
+        if (edge <= reach) {
+          answer = kFpExact;
+          break;
+        }
+        if (point_in_footprint(fps_[f], m)) {
+          answer = std::int32_t(f);
+          break;
+        }
+        if (edge - reach <= buf) {
+          answer = kFpExact;
+          break;
+        }
+      }
+      r[std::size_t(j) * std::size_t(n) + std::size_t(i)] = answer;
+    }
+  return fp_raster_.emplace(bucket, std::move(r)).first->second;
+}
+
 /// The footprint a point belongs to: the one containing it, else the nearest within
-/// the buffer (ties to the first); SIZE_MAX when none.
+/// the buffer (ties to the first); SIZE_MAX when none. The bucket's raster answers
+/// for most points; the points of cells it cannot answer for are tested.
 std::size_t Splitter::footprint_of(const Vec2& q) const {
-  auto it =
-      fp_index_.find({int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))});
+  const CellKey bk{int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))};
+  auto it = fp_index_.find(bk);
   if (it == fp_index_.end()) return SIZE_MAX;
+  // A raster costs about as much as testing one point per cell: built for a bucket once
+  // it has been asked that often (sparse data, huge rings: the points are tested).
+  const int n = int(std::ceil(fp_bucket_ / kFpRasterCell));
+  const bool rasterise = fp_raster_.count(bk) > 0 || (fps_.size() < std::size_t(INT32_MAX) &&
+                                                      ++fp_queries_[bk] >= std::uint32_t(n * n));
+  if (rasterise) {
+    const std::vector<std::int32_t>& r = fp_raster(bk, it->second);
+    const int i =
+        std::clamp(int(std::floor((q[0] - bk.first * fp_bucket_) / kFpRasterCell)), 0, n - 1);
+    const int j =
+        std::clamp(int(std::floor((q[1] - bk.second * fp_bucket_) / kFpRasterCell)), 0, n - 1);
+    const std::int32_t a = r[std::size_t(j) * std::size_t(n) + std::size_t(i)];
+    if (a == kFpNone) return SIZE_MAX;
+    if (a >= 0) return std::size_t(a);
+  }
   const double buf = opt_.footprint_buffer;
   std::size_t best = SIZE_MAX;
   double best_d = std::numeric_limits<double>::infinity();
