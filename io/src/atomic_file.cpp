@@ -46,16 +46,6 @@ std::string parent_of(const std::string& path) {
   return p.empty() ? std::string(".") : p.string();
 }
 
-/// syncfs(2) of the file system holding `dir`: every dirty file of it on disk.
-void sync_file_system(const std::string& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) throw IoError(dir, std::string("cannot open to sync: ") + std::strerror(errno));
-  const int rc = ::syncfs(fd);
-  const int err = errno;
-  ::close(fd);
-  if (rc != 0) throw IoError(dir, std::string("sync failed: ") + std::strerror(err));
-}
-
 /// The live StagedDirectory guards' directories, each with a trailing '/'.
 struct Staged {
   std::mutex mu;
@@ -72,6 +62,15 @@ std::string with_slash(std::string dir) {
 }
 
 }  // namespace
+
+void sync_file_system(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) throw IoError(dir, std::string("cannot open to sync: ") + std::strerror(errno));
+  const int rc = ::syncfs(fd);
+  const int err = errno;
+  ::close(fd);
+  if (rc != 0) throw IoError(dir, std::string("sync failed: ") + std::strerror(err));
+}
 
 StagedDirectory::StagedDirectory(std::string dir)
     : dir_(with_slash(fs::path(dir).lexically_normal().string())) {

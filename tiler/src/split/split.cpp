@@ -33,6 +33,7 @@
 #include "citylod/geo/georef.hpp"
 #include "citylod/geo/units.hpp"
 #include "citylod/geo/vertical.hpp"
+#include "citylod/io/atomic_file.hpp"
 #include "citylod/io/error.hpp"
 #include "citylod/io/hash.hpp"
 #include "citylod/io/reader.hpp"
@@ -440,6 +441,9 @@ class Staging {
     fs::create_directories(dir_ / "chunks", ec);
     fs::create_directories(dir_ / "faces", ec);
     if (ec) throw IoError(dir_.string(), "cannot create staging directory: " + ec.message());
+    // Chunks written in place (no temp file, fsync or rename each), made durable by one
+    // syncfs in commit(): a chunk's fsync was 7 % of a replica's split and most of its wait.
+    staged_ = std::make_unique<io::StagedDirectory>(dir_.string());
   }
   ~Staging() {
     std::error_code ec;
@@ -468,6 +472,7 @@ class Staging {
   void commit(const Manifest& m) {
     const fs::path live = work_ / "chunks";
     const fs::path old = dir_ / "chunks.old";
+    io::sync_file_system(chunks().string());
     std::error_code ec;
     const bool had_live = fs::exists(live);
     if (had_live) {
@@ -507,6 +512,7 @@ class Staging {
   }
 
   fs::path work_, dir_;
+  std::unique_ptr<io::StagedDirectory> staged_;
   bool created_work_ = false, committed_ = false;
 };
 

@@ -75,6 +75,11 @@ class StagedDirectory {
   std::string dir_;
 };
 
+/// syncfs(2) of the file system holding `dir`: every file written under a
+/// StagedDirectory durable at once, before the directory (or what it holds) is
+/// renamed into place by the caller. Throws IoError.
+void sync_file_system(const std::string& dir);
+
 /// True when `path` lies under a directory a live StagedDirectory marks.
 bool in_staged_directory(const std::string& path);
 
