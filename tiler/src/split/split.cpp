@@ -1699,8 +1699,12 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
     return k.first >= i0 && k.first <= i1 && k.second >= j0 && k.second <= j1;
   };
   std::vector<CellKey> keys;
+  std::uint64_t in_cells = 0;  // an upper bound of the region's points: one allocation each
   for (const auto& [k, n] : spill.counts())
-    if (in_range(k)) keys.push_back(k);
+    if (in_range(k)) {
+      keys.push_back(k);
+      in_cells += n;
+    }
   const auto too_many = [&]() {
     out = RegionPoints{};
     out.box = box;
@@ -1736,6 +1740,12 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
     by_id(out.faces);
     n_faces = out.faces.size();
   }
+  const auto reserve = std::size_t(std::min<std::uint64_t>(in_cells, max_points));
+  out.pos.reserve(reserve);
+  if (has_normals_) out.nrm.reserve(reserve);
+  if (has_colors_) out.rgb.reserve(reserve);
+  if (has_classes_) out.cls.reserve(reserve);
+  if (mesh_scene_) out.src.reserve(reserve);
   std::vector<SpillRec> buf(8192);
   for (const auto& cell : keys) {
     const fs::path p = spill.file(cell);
