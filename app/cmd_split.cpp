@@ -29,6 +29,7 @@ int cmd_split(ArgParser& args) {
           "Re-running with the same inputs and options does nothing.")
       .option("out", 'o', "WORK", "work directory (created)");
   declare_split_options(args);
+  declare_threads_option(args, "cells segmented at once");
   args.flag("force", 'f', "split again even if WORK is up to date")
       .positional("INPUT", "point cloud or mesh file(s) of one scene", Arity::one_or_more);
   if (!args.parse()) return 0;
@@ -36,6 +37,7 @@ int cmd_split(ArgParser& args) {
   if (!args.has("out")) throw UsageError("--out WORK is required");
   SplitOptions o = parse_split_options(args, args.positionals(), args.get("out"));
   o.force = args.has("force");
+  o.threads = parse_threads(args);
 
   ProgressDisplay bars;
   const tiler::DirLock lock(o.work_dir);  // one writer per work directory

@@ -21,7 +21,9 @@ int cmd_tile(ArgParser& args) {
   args.option("out", 'o', "DIR", "output directory (work/, tileset/, run_report.json)");
   declare_split_options(args);
   declare_lod_param_options(args);
-  declare_threads_option(args, "buildings processed at once (LOD stage) and assemble's threads");
+  declare_threads_option(args,
+                         "cells segmented at once (split), buildings processed at once (LOD stage) "
+                         "and assemble's threads");
   declare_assemble_options(args);
   args.flag("force", 'f', "split again even if DIR/work is up to date");
   args.flag("no-cityjson", 0,

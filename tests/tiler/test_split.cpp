@@ -917,6 +917,55 @@ TEST(SplitRealData, DelftWithAndWithoutFootprints) {
   }
 }
 
+// Issue 28: pass 3 runs cells on several threads and merges them in cell order, within
+// the region budget at once. The chunks, the manifest and the report are the same bytes
+// with 1 or 3 threads, with the generous default limit and with one so small that the
+// regions of two cells do not fit together (the gate makes a worker wait), with footprints
+// and with the buildings outside them clustered (--unmatched segment: both passes).
+TEST(SplitRealData, ChunksDoNotDependOnTheThreads) {
+  if (!have("delft/ahn3_cropped_2.las")) GTEST_SKIP() << "shared data not found: " << kData;
+  const fs::path dir = tmp_dir("threads");
+  const auto files = [](const fs::path& root) {
+    std::map<std::string, std::string> t;
+    for (const auto& e : fs::recursive_directory_iterator(root))
+      if (e.is_regular_file()) {
+        std::ifstream f(e.path(), std::ios::binary);
+        t[fs::relative(e.path(), root).generic_string()] =
+            std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+      }
+    return t;
+  };
+  for (const std::uint64_t limit : {2048ull << 20, 128ull << 20}) {
+    std::vector<std::map<std::string, std::string>> trees;
+    std::vector<SplitReport> reps;
+    for (const int threads : {1, 3}) {
+      SplitOptions o;
+      o.inputs = {kData + "/delft/ahn3_cropped_2.las"};
+      o.crs = "EPSG:28992";
+      o.footprints = kFixtures + "/delft_bgt_pand.geojson";
+      o.unmatched = SplitOptions::Unmatched::segment;
+      o.memory_limit = limit;
+      o.threads = threads;
+      o.work_dir =
+          (dir / ("w" + std::to_string(limit >> 20) + "_" + std::to_string(threads))).string();
+      reps.push_back(tiler::split_scene(o));
+      trees.push_back(files(o.work_dir));
+    }
+    ASSERT_GT(reps[0].chunks, 20u) << limit;
+    EXPECT_GT(reps[0].unmatched_chunks, 0u) << limit;
+    EXPECT_EQ(trees[0], trees[1]) << "memory limit " << (limit >> 20) << " MiB";
+    EXPECT_EQ(reps[0].notes, reps[1].notes);
+    EXPECT_EQ(reps[0].cluster_log, reps[1].cluster_log);
+    EXPECT_EQ(reps[0].max_region_points, reps[1].max_region_points);
+    EXPECT_EQ(reps[0].footprints_with_chunk, reps[1].footprints_with_chunk);
+    std::printf(
+        "[threads] limit %llu MiB: %zu chunks (%zu without footprint), cell %.1f m, "
+        "largest region %zu points\n",
+        static_cast<unsigned long long>(limit >> 20), reps[0].chunks, reps[0].unmatched_chunks,
+        reps[0].cell_size, reps[0].max_region_points);
+  }
+}
+
 // Issue 18: footprints from any OGR source. bgt_pand.sqlite, bgt_pand.gpkg and the
 // GeoJSON of the same footprints (ogr2ogr, into a temp dir) give the same chunks:
 // the same records (ids from gml_id, attributes included) and the same chunk bytes.

@@ -24,6 +24,7 @@
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/log.hpp"
+#include "citylod/tiler/threads.hpp"
 
 namespace citylod::tiler {
 
@@ -144,10 +145,9 @@ std::string recorded_key(const std::string& work, const std::string& id) {
   }
 }
 
-/// f(0..n-1) on `threads` std::threads, dynamic schedule; the first exception is
-/// rethrown after all have joined. Not OpenMP: the stage runs in a forked child
-/// (supervise.hpp), and a child forked after the parent used OpenMP (a program
-/// calling run_city() twice) cannot start an OpenMP team.
+/// f(0..n-1) on `threads` std::threads (run_workers), dynamic schedule; the first
+/// exception is rethrown after all have joined. Not OpenMP: the stage runs in a forked
+/// child (supervise.hpp).
 void run_parallel(std::size_t n, int threads, const std::function<void(std::size_t)>& f) {
   std::atomic<std::size_t> next{0};
   std::exception_ptr error;
@@ -162,14 +162,7 @@ void run_parallel(std::size_t n, int threads, const std::function<void(std::size
       }
     }
   };
-  const std::size_t k = std::min<std::size_t>(std::size_t(std::max(1, threads)), n);
-  if (k <= 1) {
-    worker();
-  } else {
-    std::vector<std::thread> pool;
-    for (std::size_t t = 0; t < k; ++t) pool.emplace_back(worker);
-    for (auto& t : pool) t.join();
-  }
+  run_workers(std::max(1, threads), n, worker);
   if (error) std::rethrow_exception(error);
 }
 

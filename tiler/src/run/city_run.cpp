@@ -219,6 +219,7 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   const int threads = resolve_threads(opt.threads);
   SplitOptions so = opt.split;
   so.work_dir = work;
+  so.threads = threads;
   lod::LodParams params = opt.lod;
   params.threads = 1;
   params.validate();

@@ -9,9 +9,11 @@
 #endif
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -19,13 +21,16 @@
 #include <limits>
 #include <locale>
 #include <memory>
+#include <mutex>
 #include <numeric>
 #include <optional>
 #include <regex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -38,6 +43,7 @@
 #include "citylod/io/hash.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/io/writers.hpp"
+#include "citylod/tiler/threads.hpp"
 #include "citylod/tiler/workdir.hpp"
 #include "vertex_store.hpp"
 
@@ -340,35 +346,76 @@ class CellFiles {
 };
 
 /// Grid of cells spilled to per-cell files (CellFiles without its buffer). Points
-/// collect in one fixed buffer; when it is full it is sorted by cell and each run is
-/// appended to its cell's file.
+/// collect in a fixed buffer; when it is full it is handed to a writer thread, which
+/// sorts it by cell and appends each run to its cell's file while the next buffer fills
+/// (two buffers of half the budget; the files' content does not depend on their size).
 class Spiller {
  public:
   Spiller(fs::path dir, double cell, std::size_t budget_records)
       : files_(std::move(dir), "", 0),
         cell_(cell),
-        budget_(std::max<std::size_t>(budget_records, 4096)) {
+        budget_(std::max<std::size_t>(budget_records / 2, 4096)) {
     buf_.reserve(budget_);
   }
+  ~Spiller() {
+    if (writer_.joinable()) writer_.join();
+  }
+  Spiller(const Spiller&) = delete;
+  Spiller& operator=(const Spiller&) = delete;
 
   CellKey key(double x, double y) const { return key_at(x, y, cell_); }
   fs::path file(const CellKey& k) const { return files_.file(k); }
   void add(const SpillRec& r) {
     buf_.push_back(r);
-    if (buf_.size() >= budget_) flush();
+    if (buf_.size() >= budget_) flush_behind();
   }
-  /// Writes the buffer out by cell, each cell's records in arrival order: the cell of
-  /// each record computed once, a counting sort of the records by cell (a scene's
-  /// buffer meets few cells), each cell's run written through a piece buffer. (A
-  /// comparison sort recomputing both keys per comparison took 20 % of a split.)
+  /// Writes what is buffered and waits for the writer: the files are complete.
   void flush() {
-    std::vector<std::uint32_t> cell_of(buf_.size());
+    wait_writer();
+    write(buf_);
+    buf_.clear();
+  }
+  /// Frees the buffers (after the last flush).
+  void release() {
+    wait_writer();
+    std::vector<SpillRec>().swap(buf_);
+    std::vector<SpillRec>().swap(writing_);
+  }
+  const std::map<CellKey, std::uint64_t>& counts() const { return files_.counts(); }
+  std::uint64_t bytes() const { return files_.bytes(); }
+  double cell() const { return cell_; }
+
+ private:
+  /// The full buffer to the writer thread (after the previous one is written).
+  void flush_behind() {
+    wait_writer();
+    writing_.swap(buf_);
+    buf_.clear();
+    if (buf_.capacity() < budget_) buf_.reserve(budget_);
+    writer_ = std::thread([this] {
+      try {
+        write(writing_);
+      } catch (...) {
+        error_ = std::current_exception();
+      }
+    });
+  }
+  void wait_writer() {
+    if (writer_.joinable()) writer_.join();
+    if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+  }
+  /// `buf` out by cell, each cell's records in arrival order: the cell of each record
+  /// computed once, a counting sort of the records by cell (a scene's buffer meets few
+  /// cells), each cell's run written through a piece buffer. (A comparison sort
+  /// recomputing both keys per comparison took 20 % of a split.)
+  void write(const std::vector<SpillRec>& buf) {
+    std::vector<std::uint32_t> cell_of(buf.size());
     std::vector<CellKey> cells;
     std::map<CellKey, std::uint32_t> index;
     CellKey last{};
     std::uint32_t last_i = ~0u;
-    for (std::size_t i = 0; i < buf_.size(); ++i) {
-      const CellKey k = key(buf_[i].x, buf_[i].y);
+    for (std::size_t i = 0; i < buf.size(); ++i) {
+      const CellKey k = key(buf[i].x, buf[i].y);
       if (last_i == ~0u || k != last) {  // points arrive in runs of one cell
         const auto it = index.emplace(k, std::uint32_t(cells.size())).first;
         if (it->second == cells.size()) cells.push_back(k);
@@ -380,10 +427,10 @@ class Spiller {
     std::vector<std::size_t> start(cells.size() + 1, 0);
     for (const std::uint32_t c : cell_of) ++start[c + 1];
     for (std::size_t c = 0; c < cells.size(); ++c) start[c + 1] += start[c];
-    std::vector<std::uint32_t> order(buf_.size());
+    std::vector<std::uint32_t> order(buf.size());
     {
       std::vector<std::size_t> next(start.begin(), start.end() - 1);
-      for (std::size_t i = 0; i < buf_.size(); ++i) order[next[cell_of[i]]++] = std::uint32_t(i);
+      for (std::size_t i = 0; i < buf.size(); ++i) order[next[cell_of[i]]++] = std::uint32_t(i);
     }
     constexpr std::size_t kPiece = 4096;
     std::vector<SpillRec> run;
@@ -391,22 +438,18 @@ class Spiller {
     for (const auto& [k, c] : index)  // cells in key order, as the files were written before
       for (std::size_t j = start[c]; j < start[c + 1];) {
         run.clear();
-        while (j < start[c + 1] && run.size() < kPiece) run.push_back(buf_[order[j++]]);
+        while (j < start[c + 1] && run.size() < kPiece) run.push_back(buf[order[j++]]);
         files_.append(k, run.data(), run.size());
       }
-    buf_.clear();
   }
-  /// Frees the buffer (after the last flush).
-  void release() { std::vector<SpillRec>().swap(buf_); }
-  const std::map<CellKey, std::uint64_t>& counts() const { return files_.counts(); }
-  std::uint64_t bytes() const { return files_.bytes(); }
-  double cell() const { return cell_; }
 
- private:
   CellFiles<SpillRec> files_;
   double cell_;
   std::size_t budget_;
-  std::vector<SpillRec> buf_;
+  std::vector<SpillRec> buf_;      ///< filling
+  std::vector<SpillRec> writing_;  ///< being written by writer_
+  std::thread writer_;
+  std::exception_ptr error_;
 };
 
 /// Points of a cell + halo, gathered from the spill files.
@@ -563,6 +606,72 @@ struct PendingChunk {
   ChunkRecord rec;
 };
 
+/// footprint_of's answer rasters (by 50 m bucket) and the queries of the buckets that
+/// have none yet: one per pass-3 worker (the answers do not depend on it).
+struct FpCache {
+  std::unordered_map<CellKey, std::vector<std::int32_t>, CellKeyHash> raster;
+  std::unordered_map<CellKey, std::uint32_t, CellKeyHash> queries;
+};
+
+/// What pass 3 makes of one cell, merged into the split in cell order (merge_cell): the
+/// chunks' ids, their order, their files and the report do not depend on which worker
+/// ran the cell, nor when.
+struct CellOutput {
+  struct Chunk {
+    PendingChunk pc;
+    std::string base_id;           ///< before unique_id; "" = from the cluster's centroid
+    Vec2 cluster_at{0, 0};         ///< a cluster's centroid (scene frame): its id
+    bool write = false;            ///< a point chunk: `points` to WORK/chunks/<id>.ply
+    bool unmatched = false;        ///< --unmatched segment: a building without footprint
+    io::PointSet points;           ///< chunk coordinates, in the chunk's order
+    std::vector<ClaimRec> claims;  ///< mesh scenes (the chunk index set by the merge)
+  };
+  std::vector<Chunk> chunks;
+  SplitReport rep;  ///< this cell's notes, cluster lines and counters
+  std::size_t subdivided = 0, fp_few = 0, fp_few_points = 0, fp_few_max = 0;
+};
+
+/// Points of the regions the pass-3 workers hold at once, within the region budget: a
+/// worker waits before loading a region that does not fit, unless its cell is the
+/// oldest unmerged one (which the others wait for, so it never waits itself).
+class RegionGate {
+ public:
+  explicit RegionGate(std::size_t budget) : budget_(budget) {}
+  /// Raises the points `held` by cell `index` to `n` (waiting as above).
+  void hold(std::size_t index, std::size_t& held, std::size_t n) {
+    if (n <= held) return;
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [&] { return index <= oldest_ || used_ + (n - held) <= budget_; });
+    used_ += n - held;
+    held = n;
+  }
+  /// Cell `index` is merged: its points are freed and the next cell is the oldest.
+  void done(std::size_t index, std::size_t& held) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      used_ -= held;
+      oldest_ = std::max(oldest_, index + 1);
+    }
+    held = 0;
+    cv_.notify_all();
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::size_t budget_, used_ = 0, oldest_ = 0;
+};
+
+/// One cell's work in pass 3: its place in the pass's order, the region points it
+/// holds through the gate, its worker's footprint cache and what it produces.
+struct CellJob {
+  std::size_t index = 0;
+  std::size_t held = 0;
+  RegionGate* gate = nullptr;
+  FpCache* fp = nullptr;
+  CellOutput out;
+};
+
 // ---------------------------------------------------------------------- inputs, sidecars
 /// A folder input stands for the scene files under it (any depth, sorted by path).
 std::vector<std::string> expand_inputs(const std::vector<std::string>& inputs) {
@@ -702,17 +811,24 @@ class Splitter {
   void read_footprints();
   void load_footprints();
   void pass3_cells(const Spiller& spill);
-  void process_cell_clusters(const Spiller& spill, const CellKey& key, double size, bool unmatched);
+  /// Runs `process(job)` for cells 0..n-1 on the split's threads and merges each
+  /// cell's output in order.
+  template <class Process>
+  void run_cells(std::size_t n, std::size_t progress_from, double progress_total, const char* stage,
+                 Process&& process);
+  void merge_cell(CellOutput& out);
+  void process_cell_clusters(const Spiller& spill, const CellKey& key, double size, bool unmatched,
+                             CellJob& job);
   void count_unmatched(const Spiller& spill);
-  void drop_footprint_points(RegionPoints& pts) const;
-  std::size_t footprint_of(const Vec2& q) const;
+  void drop_footprint_points(RegionPoints& pts, FpCache& fp) const;
+  std::size_t footprint_of(const Vec2& q, FpCache& fp) const;
   std::size_t mesh_footprint_of(const FaceRec& f, bool above_ground) const;
   double mesh_planar_share(std::vector<std::uint64_t> tris, const RegionPoints& pts) const;
   void mesh_footprint_members(const RegionPoints& pts, const CellSegmentation& seg,
                               const std::set<std::size_t>& mine,
                               std::map<std::size_t, std::vector<std::uint32_t>>& members) const;
   void process_cell_footprints(const Spiller& spill, const CellKey& key, double size,
-                               const std::vector<std::size_t>& owned);
+                               const std::vector<std::size_t>& owned, CellJob& job);
   [[noreturn]] void region_too_large(const CellKey& key, double size,
                                      const std::string& what) const;
   /// A streamed mesh triangle (its vertex ids and vertices) to the face files of the
@@ -721,10 +837,10 @@ class Splitter {
                   const std::array<VertexStore::Vertex, 3>& v, std::uint64_t t, std::size_t input);
   std::array<double, 4> within_data_reach(std::array<double, 4> box, double margin) const;
   std::size_t load_region(const Spiller& spill, const std::array<double, 4>& box, RegionPoints& out,
-                          std::size_t max_points);
-  void emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
-                  const std::vector<std::uint32_t>& members, const std::string& id,
-                  const std::string& source, Ring outline);
+                          std::size_t max_points, CellJob& job) const;
+  CellOutput::Chunk& emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
+                                const std::vector<std::uint32_t>& members, const std::string& id,
+                                const std::string& source, Ring outline, CellOutput& out) const;
   void write_mesh_chunks();
   std::string unique_id(std::string id);
 
@@ -771,9 +887,8 @@ class Splitter {
   /// footprint_of's answers by 1 m cell of a bucket, where one answer holds for the
   /// whole cell (kFpExact: test the point); built on first use, dropped past a bound.
   const std::vector<std::int32_t>& fp_raster(const CellKey& bucket,
-                                             const std::vector<std::size_t>& candidates) const;
-  mutable std::unordered_map<CellKey, std::vector<std::int32_t>, CellKeyHash> fp_raster_;
-  mutable std::unordered_map<CellKey, std::uint32_t, CellKeyHash> fp_queries_;  // before a raster
+                                             const std::vector<std::size_t>& candidates,
+                                             FpCache& fp) const;
 
   std::vector<PendingChunk> chunks_;
   std::set<std::string> ids_;
@@ -1374,12 +1489,13 @@ constexpr std::size_t kFpRasterBuckets = 1024;  ///< rasters kept (10 KB each at
 // half-diagonal from the cell's centre holds all of the cell (the answer, as the test
 // stops at the first footprint holding the point) or none of it, and then is within the
 // buffer of none of it when that distance exceeds the buffer too.
-const std::vector<std::int32_t>& Splitter::fp_raster(
-    const CellKey& bucket, const std::vector<std::size_t>& candidates) const {
-  auto it = fp_raster_.find(bucket);
-  if (it != fp_raster_.end()) return it->second;
-  if (fp_raster_.size() >= kFpRasterBuckets) fp_raster_.clear();
-  fp_queries_.erase(bucket);
+const std::vector<std::int32_t>& Splitter::fp_raster(const CellKey& bucket,
+                                                     const std::vector<std::size_t>& candidates,
+                                                     FpCache& fp) const {
+  auto it = fp.raster.find(bucket);
+  if (it != fp.raster.end()) return it->second;
+  if (fp.raster.size() >= kFpRasterBuckets) fp.raster.clear();
+  fp.queries.erase(bucket);
   const int n = int(std::ceil(fp_bucket_ / kFpRasterCell));
   const double buf = opt_.footprint_buffer;
   const double half = 0.5 * kFpRasterCell, reach = half * std::sqrt(2.0) + 1e-6;
@@ -1412,23 +1528,23 @@ const std::vector<std::int32_t>& Splitter::fp_raster(
       }
       r[std::size_t(j) * std::size_t(n) + std::size_t(i)] = answer;
     }
-  return fp_raster_.emplace(bucket, std::move(r)).first->second;
+  return fp.raster.emplace(bucket, std::move(r)).first->second;
 }
 
 /// The footprint a point belongs to: the one containing it, else the nearest within
 /// the buffer (ties to the first); SIZE_MAX when none. The bucket's raster answers
 /// for most points; the points of cells it cannot answer for are tested.
-std::size_t Splitter::footprint_of(const Vec2& q) const {
+std::size_t Splitter::footprint_of(const Vec2& q, FpCache& fp) const {
   const CellKey bk{int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))};
   auto it = fp_index_.find(bk);
   if (it == fp_index_.end()) return SIZE_MAX;
   // A raster costs about as much as testing one point per cell: built for a bucket once
   // it has been asked that often (sparse data, huge rings: the points are tested).
   const int n = int(std::ceil(fp_bucket_ / kFpRasterCell));
-  const bool rasterise = fp_raster_.count(bk) > 0 || (fps_.size() < std::size_t(INT32_MAX) &&
-                                                      ++fp_queries_[bk] >= std::uint32_t(n * n));
+  const bool rasterise = fp.raster.count(bk) > 0 || (fps_.size() < std::size_t(INT32_MAX) &&
+                                                     ++fp.queries[bk] >= std::uint32_t(n * n));
   if (rasterise) {
-    const std::vector<std::int32_t>& r = fp_raster(bk, it->second);
+    const std::vector<std::int32_t>& r = fp_raster(bk, it->second, fp);
     const int i =
         std::clamp(int(std::floor((q[0] - bk.first * fp_bucket_) / kFpRasterCell)), 0, n - 1);
     const int j =
@@ -1687,7 +1803,7 @@ std::array<double, 4> Splitter::within_data_reach(std::array<double, 4> box, dou
 }
 
 std::size_t Splitter::load_region(const Spiller& spill, const std::array<double, 4>& box,
-                                  RegionPoints& out, std::size_t max_points) {
+                                  RegionPoints& out, std::size_t max_points, CellJob& job) const {
   out = RegionPoints{};
   out.box = box;
   const double c = spill.cell();
@@ -1741,6 +1857,7 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
     n_faces = out.faces.size();
   }
   const auto reserve = std::size_t(std::min<std::uint64_t>(in_cells, max_points));
+  job.gate->hold(job.index, job.held, reserve);
   out.pos.reserve(reserve);
   if (has_normals_) out.nrm.reserve(reserve);
   if (has_colors_) out.rgb.reserve(reserve);
@@ -1774,7 +1891,7 @@ std::size_t Splitter::load_region(const Spiller& spill, const std::array<double,
     if (err) throw IoError(p.string(), "cannot read spill file");
     if (over) return too_many();
   }
-  rep_.max_region_points = std::max(rep_.max_region_points, out.pos.size());
+  job.out.rep.max_region_points = std::max(job.out.rep.max_region_points, out.pos.size());
   return out.pos.size() + n_faces;
 }
 
@@ -1784,12 +1901,15 @@ std::string Splitter::unique_id(std::string id) {
   return u;
 }
 
-void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
-                          const std::vector<std::uint32_t>& members, const std::string& id,
-                          const std::string& source, Ring outline) {
-  PendingChunk pc;
-  ChunkRecord& rec = pc.rec;
-  rec.id = unique_id(id);
+// A building's chunk: its record, and its points in chunk coordinates (mesh scenes: its
+// claims on triangles), kept in the cell's output until merge_cell() names and writes it.
+CellOutput::Chunk& Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
+                                        const std::vector<std::uint32_t>& members,
+                                        const std::string& id, const std::string& source,
+                                        Ring outline, CellOutput& out) const {
+  CellOutput::Chunk& ch = out.chunks.emplace_back();
+  ch.base_id = id;
+  ChunkRecord& rec = ch.pc.rec;
   rec.source = source;
   io::BBox3 bb;
   std::vector<double> ground;
@@ -1820,21 +1940,15 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
     tris.reserve(members.size());
     for (std::uint32_t k : members) tris.push_back(pts.src[k]);
     std::sort(tris.begin(), tris.end());
-    const auto chunk = static_cast<std::uint32_t>(chunks_.size());
     for (std::size_t i = 0; i < tris.size();) {
       std::size_t j = i + 1;
       while (j < tris.size() && tris[j] == tris[i]) ++j;
-      ClaimRec cr{};
+      ClaimRec& cr = ch.claims.emplace_back();
       cr.face = pts.face(tris[i]);
       cr.votes = static_cast<std::uint32_t>(j - i);
-      cr.chunk = chunk;
-      const double cx = (cr.face.v[0][0] + cr.face.v[1][0] + cr.face.v[2][0]) / 3;
-      const double cy = (cr.face.v[0][1] + cr.face.v[1][1] + cr.face.v[2][1]) / 3;
-      claims_->add(key_at(cx, cy, claim_cell_), cr);
       i = j;
     }
-    chunks_.push_back(std::move(pc));
-    return;
+    return ch;
   }
   // Chunk coordinates, snapped onto the inputs' grid, in one order (by position, then
   // class, colour, normal): the order the cells gave the points depends on what else
@@ -1857,7 +1971,7 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
     if (has_normals_ && pts.nrm[ka] != pts.nrm[kb]) return pts.nrm[ka] < pts.nrm[kb];
     return false;
   });
-  io::PointSet ps;
+  io::PointSet& ps = ch.points;
   ps.positions.reserve(members.size());
   for (const std::uint32_t i : order) {
     const std::uint32_t k = members[i];
@@ -1866,15 +1980,59 @@ void Splitter::emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
     if (has_colors_) ps.colors.push_back(pts.rgb[k]);
     if (has_classes_) ps.classes.push_back(pts.cls[k]);
   }
-  const std::string path = (staging_->chunks() / (rec.id + ".ply")).string();
-  io::PlyWriteOptions wo;
-  wo.comment = "citylod chunk " + rec.id + " (xyz relative to the chunk origin, scene " +
-               std::string(georef_->scene_frame() == geo::SceneFrame::projected ? "CRS" : "ENU") +
-               " metres)";
-  io::write_ply(path, ps, wo);
-  rec.content_hash = io::hash_file(path);
-  ++rep_.chunks;
-  chunks_.push_back(std::move(pc));
+  ch.write = true;
+  return ch;
+}
+
+// A cell's output into the split, in cell order: each chunk named (unique_id), its file
+// written, its claims filed; the cell's report lines and counters added.
+void Splitter::merge_cell(CellOutput& out) {
+  for (CellOutput::Chunk& ch : out.chunks) {
+    ChunkRecord& rec = ch.pc.rec;
+    if (ch.base_id.empty()) {  // a cluster: named by its position
+      const geo::LonLatH g =
+          georef_->to_geodetic(Eigen::Vector3d(ch.cluster_at[0], ch.cluster_at[1], 0));
+      char key_text[64];
+      std::snprintf(key_text, sizeof key_text, "%.5f,%.5f", g[0], g[1]);
+      ch.base_id = "b-" + io::hash_hex(key_text, std::strlen(key_text)).substr(0, 12);
+    }
+    rec.id = unique_id(ch.base_id);
+    if (ch.write) {
+      const std::string path = (staging_->chunks() / (rec.id + ".ply")).string();
+      io::PlyWriteOptions wo;
+      wo.comment =
+          "citylod chunk " + rec.id + " (xyz relative to the chunk origin, scene " +
+          std::string(georef_->scene_frame() == geo::SceneFrame::projected ? "CRS" : "ENU") +
+          " metres)";
+      io::write_ply(path, ch.points, wo);
+      rec.content_hash = io::hash_file(path);
+      ch.points = io::PointSet{};
+      ++rep_.chunks;
+      if (ch.unmatched) ++rep_.unmatched_chunks;
+    }
+    const auto chunk = static_cast<std::uint32_t>(chunks_.size());
+    for (ClaimRec& cr : ch.claims) {
+      cr.chunk = chunk;
+      const double cx = (cr.face.v[0][0] + cr.face.v[1][0] + cr.face.v[2][0]) / 3;
+      const double cy = (cr.face.v[0][1] + cr.face.v[1][1] + cr.face.v[2][1]) / 3;
+      claims_->add(key_at(cx, cy, claim_cell_), cr);
+    }
+    chunks_.push_back(std::move(ch.pc));
+  }
+  const SplitReport& r = out.rep;
+  rep_.notes.insert(rep_.notes.end(), r.notes.begin(), r.notes.end());
+  rep_.cluster_log.insert(rep_.cluster_log.end(), r.cluster_log.begin(), r.cluster_log.end());
+  rep_.halo_growths += r.halo_growths;
+  rep_.max_region_points = std::max(rep_.max_region_points, r.max_region_points);
+  rep_.clusters_rejected += r.clusters_rejected;
+  for (const auto& [why, n] : r.rejected_by) rep_.rejected_by[why] += n;
+  rep_.footprints_with_chunk += r.footprints_with_chunk;
+  rep_.footprints_inside_with_chunk += r.footprints_inside_with_chunk;
+  subdivided_ += out.subdivided;
+  fp_few_ += out.fp_few;
+  fp_few_points_ += out.fp_few_points;
+  fp_few_max_ = std::max(fp_few_max_, out.fp_few_max);
+  out = CellOutput{};
 }
 
 // A region over the budget at the smallest cell: one line with the cell, the budget and
@@ -1894,7 +2052,8 @@ void Splitter::region_too_large(const CellKey& key, double size, const std::stri
 // owned building touches the edge of what was loaded (so it is never cut). A cell whose
 // region exceeds the budget is processed as its four quarters (key_at at size / 2).
 void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, double size,
-                                     bool unmatched) {
+                                     bool unmatched, CellJob& job) {
+  SplitReport& rep = job.out.rep;
   const double c = size;
   const double cx0 = key.first * c, cy0 = key.second * c, cx1 = cx0 + c, cy1 = cy0 + c;
   // Exact ownership: the cell holding the cluster's anchor point.
@@ -1905,28 +2064,28 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, d
   for (;;) {
     const std::array<double, 4> box =
         within_data_reach({cx0 - halo, cy0 - halo, cx1 + halo, cy1 + halo}, opt_.halo);
-    const std::size_t n = load_region(spill, box, pts, region_budget_points_);
-    if (unmatched) drop_footprint_points(pts);
+    const std::size_t n = load_region(spill, box, pts, region_budget_points_, job);
+    if (unmatched) drop_footprint_points(pts, *job.fp);
     if (n > region_budget_points_) {
       if (halo > opt_.halo) {  // keep the previous (smaller) result
-        rep_.notes.push_back("cell " + std::to_string(key.first) + "," +
-                             std::to_string(key.second) +
-                             ": a building larger than the halo was cut (memory limit)");
+        rep.notes.push_back("cell " + std::to_string(key.first) + "," + std::to_string(key.second) +
+                            ": a building larger than the halo was cut (memory limit)");
         const std::array<double, 4> prev = within_data_reach(
             {cx0 - halo / 2, cy0 - halo / 2, cx1 + halo / 2, cy1 + halo / 2}, opt_.halo);
-        load_region(spill, prev, pts, ~std::size_t(0));
-        if (unmatched) drop_footprint_points(pts);
+        load_region(spill, prev, pts, ~std::size_t(0), job);
+        if (unmatched) drop_footprint_points(pts, *job.fp);
         seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, prev, true);
         break;
       }
       // Nothing of its own to process: skip. Else quarters, down to kMinSplitCell.
       RegionPoints own;
-      if (load_region(spill, {cx0, cy0, cx1, cy1}, own, 0) == 0) return;
+      if (load_region(spill, {cx0, cy0, cx1, cy1}, own, 0, job) == 0) return;
       if (!(c > kMinSplitCell)) region_too_large(key, c, "");
-      if (c == cell_) ++subdivided_;
+      if (c == cell_) ++job.out.subdivided;
       for (int di = 0; di < 2; ++di)
         for (int dj = 0; dj < 2; ++dj)
-          process_cell_clusters(spill, {2 * key.first + di, 2 * key.second + dj}, c / 2, unmatched);
+          process_cell_clusters(spill, {2 * key.first + di, 2 * key.second + dj}, c / 2, unmatched,
+                                job);
       return;
     }
     seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, true);
@@ -1950,13 +2109,12 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, d
     }
     if (!truncated || halo >= opt_.max_halo) {
       if (truncated)
-        rep_.notes.push_back("cell " + std::to_string(key.first) + "," +
-                             std::to_string(key.second) +
-                             ": a building larger than --max-halo was cut");
+        rep.notes.push_back("cell " + std::to_string(key.first) + "," + std::to_string(key.second) +
+                            ": a building larger than --max-halo was cut");
       break;
     }
     halo = std::min(2 * halo, opt_.max_halo);
-    ++rep_.halo_growths;
+    ++rep.halo_growths;
   }
   for (auto& cl : seg.clusters) {
     if (!owns(cl)) continue;
@@ -1984,27 +2142,27 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, d
                     cl.centroid[0], cl.centroid[1], cl.members.size(), cl.area, cl.width, cl.height,
                     cl.vegetation_ratio, cl.planar_fraction, planar_share,
                     cl.building ? "building" : cl.reject_reason.c_str());
-      rep_.cluster_log.push_back(line);
+      rep.cluster_log.push_back(line);
     }
     if (!cl.building) {
-      ++rep_.clusters_rejected;
-      ++rep_.rejected_by[cl.reject_reason.substr(0, cl.reject_reason.find(' '))];
+      ++rep.clusters_rejected;
+      ++rep.rejected_by[cl.reject_reason.substr(0, cl.reject_reason.find(' '))];
       continue;
     }
-    const geo::LonLatH g = georef_->to_geodetic(Eigen::Vector3d(cl.centroid[0], cl.centroid[1], 0));
-    char key_text[64];
-    std::snprintf(key_text, sizeof key_text, "%.5f,%.5f", g[0], g[1]);
-    const std::string id = "b-" + io::hash_hex(key_text, std::strlen(key_text)).substr(0, 12);
-    const std::size_t before = rep_.chunks;
-    emit_chunk(pts, seg, cl.members, id, unmatched ? "cluster (no footprint)" : "cluster", cl.hull);
-    if (unmatched) rep_.unmatched_chunks += rep_.chunks - before;
+    // named by its position at the merge (the georeference is not shared by workers)
+    CellOutput::Chunk& ch =
+        emit_chunk(pts, seg, cl.members, "", unmatched ? "cluster (no footprint)" : "cluster",
+                   cl.hull, job.out);
+    ch.cluster_at = {cl.centroid[0], cl.centroid[1]};
+    ch.unmatched = unmatched;
   }
 }
 
 // Footprints: owned by the cell holding their centroid; a point goes to the
 // footprint containing it, else to the nearest within the buffer.
 void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key, double size,
-                                       const std::vector<std::size_t>& owned) {
+                                       const std::vector<std::size_t>& owned, CellJob& job) {
+  CellOutput& out = job.out;
   const double c = size;
   std::array<double, 4> box{key.first * c - opt_.halo, key.second * c - opt_.halo,
                             (key.first + 1) * c + opt_.halo, (key.second + 1) * c + opt_.halo};
@@ -2019,19 +2177,19 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   // data under it, not its size (issue 27: a 6 km square over a 72 m tile).
   box = within_data_reach(box, margin);
   RegionPoints pts;
-  const std::size_t n = load_region(spill, box, pts, region_budget_points_);
+  const std::size_t n = load_region(spill, box, pts, region_budget_points_, job);
   if (n > region_budget_points_) {
     // Quarters (the footprints by the quarter holding their centroid), down to kMinSplitCell.
     if (!(c > kMinSplitCell))
       region_too_large(key, c,
                        owned.size() == 1 ? " with footprint '" + fps_[owned[0]].id + "'" : "");
-    if (c == cell_) ++subdivided_;
+    if (c == cell_) ++out.subdivided;
     std::map<CellKey, std::vector<std::size_t>> parts;
     for (std::size_t i : owned) {
       const Vec2 ce = fps_[i].centroid();
       parts[key_at(ce[0], ce[1], c / 2)].push_back(i);
     }
-    for (const auto& [k, v] : parts) process_cell_footprints(spill, k, c / 2, v);
+    for (const auto& [k, v] : parts) process_cell_footprints(spill, k, c / 2, v, job);
     return;
   }
   const CellSegmentation seg = segment_cell(pts.pos, pts.cls, mode_, opt_.seg, box, false);
@@ -2047,7 +2205,7 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       if (have_cls && non_building_class(pts.cls[k])) continue;
       if (seg.foliage[k] && seg.hag[k] >= opt_.seg.min_height) continue;
     }
-    const std::size_t best = footprint_of({pts.pos[k][0], pts.pos[k][1]});
+    const std::size_t best = footprint_of({pts.pos[k][0], pts.pos[k][1]}, *job.fp);
     if (best != SIZE_MAX && mine.count(best))
       members[best].push_back(static_cast<std::uint32_t>(k));
   }
@@ -2055,14 +2213,15 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
     const auto it = members.find(i);
     const std::size_t count = it == members.end() ? 0 : it->second.size();
     if (count < static_cast<std::size_t>(std::max(1, opt_.min_footprint_points))) {
-      PendingChunk pc;
-      pc.rec.id = unique_id("fp-" + sanitize_id(fps_[i].id));
+      CellOutput::Chunk& ch = out.chunks.emplace_back();
+      ch.base_id = "fp-" + sanitize_id(fps_[i].id);
+      PendingChunk& pc = ch.pc;
       pc.rec.source = "footprint:" + fps_[i].id;
       pc.rec.status = Status::skipped;
       if (count > 0) {
-        ++fp_few_;
-        fp_few_points_ += count;
-        fp_few_max_ = std::max(fp_few_max_, count);
+        ++out.fp_few;
+        out.fp_few_points += count;
+        out.fp_few_max = std::max(out.fp_few_max, count);
       }
       pc.rec.reason =
           count == 0 ? "no building points inside the footprint"
@@ -2074,14 +2233,13 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       pc.rec.bbox_min = {fps_[i].bbox[0], fps_[i].bbox[1], 0};
       pc.rec.bbox_max = {fps_[i].bbox[2], fps_[i].bbox[3], 0};
       pc.rec.attributes = fps_[i].attributes;
-      chunks_.push_back(std::move(pc));
       continue;
     }
-    ++rep_.footprints_with_chunk;
-    if (fp_inside_[i]) ++rep_.footprints_inside_with_chunk;
+    ++out.rep.footprints_with_chunk;
+    if (fp_inside_[i]) ++out.rep.footprints_inside_with_chunk;
     emit_chunk(pts, seg, it->second, "fp-" + sanitize_id(fps_[i].id), "footprint:" + fps_[i].id,
-               fps_[i].main_ring());
-    chunks_.back().rec.attributes = fps_[i].attributes;
+               fps_[i].main_ring(), out)
+        .pc.rec.attributes = fps_[i].attributes;
   }
 }
 
@@ -2105,25 +2263,76 @@ void Splitter::pass3_cells(const Spiller& spill) {
   const bool segment =
       !opt_.footprints.empty() && opt_.unmatched == SplitOptions::Unmatched::segment;
   const double total = double(cells.size() + (segment ? spill.counts().size() : 0));
-  for (std::size_t i = 0; i < cells.size(); ++i) {
+  run_cells(cells.size(), 0, total, "segment", [&](CellJob& job) {
+    const CellKey& key = cells[job.index];
     if (opt_.footprints.empty())
-      process_cell_clusters(spill, cells[i], cell_, false);
+      process_cell_clusters(spill, key, cell_, false, job);
     else
-      process_cell_footprints(spill, cells[i], cell_, fp_owned_.at(cells[i]));
-    stages_.report(0.5, 0.97, double(i + 1) / total, "segment");
-    release_free_memory();
-  }
+      process_cell_footprints(spill, key, cell_, fp_owned_.at(key), job);
+  });
   if (subdivided_ > 0)
     rep_.notes.push_back(std::to_string(subdivided_) +
                          " cells processed in quarters to fit --memory-limit");
   if (opt_.footprints.empty()) return;
   count_unmatched(spill);
   if (!segment) return;
-  std::size_t i = cells.size();
-  for (const auto& [k, n] : spill.counts()) {
-    process_cell_clusters(spill, k, cell_, true);
-    stages_.report(0.5, 0.97, double(++i) / total, "segment unmatched");
-  }
+  std::vector<CellKey> all;
+  for (const auto& [k, n] : spill.counts()) all.push_back(k);
+  run_cells(all.size(), cells.size(), total, "segment unmatched",
+            [&](CellJob& job) { process_cell_clusters(spill, all[job.index], cell_, true, job); });
+}
+
+// Cells on the split's threads, merged in cell order: a worker that finishes ahead waits
+// with its output. Regions held at once stay within the region budget (RegionGate). The
+// first failure in cell order is rethrown once all have stopped (run_workers: no OpenMP).
+template <class Process>
+void Splitter::run_cells(std::size_t n, std::size_t progress_from, double progress_total,
+                         const char* stage, Process&& process) {
+  RegionGate gate(region_budget_points_);
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> failed{false};
+  std::mutex mu;
+  std::condition_variable merged_cv;
+  std::size_t merged = 0;  // cells merged so far: the next to merge
+  std::exception_ptr failure;
+  const auto worker = [&]() {
+    FpCache fp;
+    for (std::size_t i; (i = next++) < n;) {
+      CellJob job;
+      job.index = i;
+      job.gate = &gate;
+      job.fp = &fp;
+      std::exception_ptr err;
+      if (!failed) {
+        try {
+          process(job);
+        } catch (...) {
+          err = std::current_exception();
+          failed = true;
+        }
+      }
+      std::unique_lock<std::mutex> lock(mu);
+      merged_cv.wait(lock, [&] { return merged == i; });
+      if (err && !failure) failure = err;
+      if (!failure) {
+        try {
+          merge_cell(job.out);
+          stages_.report(0.5, 0.97, double(progress_from + i + 1) / progress_total, stage);
+        } catch (...) {
+          failure = std::current_exception();
+          failed = true;
+        }
+      }
+      ++merged;
+      lock.unlock();
+      gate.done(i, job.held);
+      merged_cv.notify_all();
+      job.out = CellOutput{};
+      release_free_memory();
+    }
+  };
+  run_workers(opt_.threads, n, worker);
+  if (failure) std::rethrow_exception(failure);
 }
 
 // Building points (class 6) outside every footprint (+ buffer), each counted once:
@@ -2134,21 +2343,40 @@ void Splitter::count_unmatched(const Spiller& spill) {
         "no building class in the input: points outside the footprints are not counted");
     return;
   }
+  // Each cell's file on the split's threads (a footprint cache per worker), summed in order.
+  std::vector<CellKey> cells;
+  for (const auto& [k, n] : spill.counts()) cells.push_back(k);
+  std::vector<std::int64_t> per_cell(cells.size(), 0);
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr failure;
+  std::mutex mu;
+  const auto worker = [&]() {
+    FpCache fp;
+    std::vector<SpillRec> buf(8192);
+    for (std::size_t c; (c = next++) < cells.size();) {
+      try {
+        const fs::path p = spill.file(cells[c]);
+        std::FILE* f = std::fopen(p.c_str(), "rb");
+        if (!f)
+          throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
+        std::size_t got;
+        while ((got = std::fread(buf.data(), sizeof(SpillRec), buf.size(), f)) > 0)
+          for (std::size_t j = 0; j < got; ++j)
+            if (buf[j].cls == 6 && footprint_of({buf[j].x, buf[j].y}, fp) == SIZE_MAX)
+              ++per_cell[c];
+        const bool err = std::ferror(f);
+        std::fclose(f);
+        if (err) throw IoError(p.string(), "cannot read spill file");
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(mu);
+        if (!failure) failure = std::current_exception();
+      }
+    }
+  };
+  run_workers(opt_.threads, cells.size(), worker);
+  if (failure) std::rethrow_exception(failure);
   std::int64_t out = 0;
-  std::vector<SpillRec> buf(8192);
-  for (const auto& [k, n] : spill.counts()) {
-    const fs::path p = spill.file(k);
-    std::FILE* f = std::fopen(p.c_str(), "rb");
-    if (!f)
-      throw IoError(p.string(), std::string("cannot read spill file: ") + std::strerror(errno));
-    std::size_t got;
-    while ((got = std::fread(buf.data(), sizeof(SpillRec), buf.size(), f)) > 0)
-      for (std::size_t j = 0; j < got; ++j)
-        if (buf[j].cls == 6 && footprint_of({buf[j].x, buf[j].y}) == SIZE_MAX) ++out;
-    const bool err = std::ferror(f);
-    std::fclose(f);
-    if (err) throw IoError(p.string(), "cannot read spill file");
-  }
+  for (const std::int64_t n : per_cell) out += n;
   rep_.building_points = std::int64_t(class_hist_[6]);
   rep_.unmatched_points = out;
   char b[256];
@@ -2164,10 +2392,10 @@ void Splitter::count_unmatched(const Spiller& spill) {
 
 // --unmatched segment: the points of a region that belong to a footprint are taken
 // out before clustering (they are the footprints' buildings).
-void Splitter::drop_footprint_points(RegionPoints& pts) const {
+void Splitter::drop_footprint_points(RegionPoints& pts, FpCache& fp) const {
   std::size_t w = 0;
   for (std::size_t k = 0; k < pts.pos.size(); ++k) {
-    if (footprint_of({pts.pos[k][0], pts.pos[k][1]}) != SIZE_MAX) continue;
+    if (footprint_of({pts.pos[k][0], pts.pos[k][1]}, fp) != SIZE_MAX) continue;
     pts.pos[w] = pts.pos[k];
     if (!pts.nrm.empty()) pts.nrm[w] = pts.nrm[k];
     if (!pts.rgb.empty()) pts.rgb[w] = pts.rgb[k];

@@ -90,6 +90,9 @@ struct SplitOptions {
   bool force = false;             ///< re-split even when up to date
   int min_footprint_points = 10;  ///< fewer -> the footprint's record is "skipped"
   SegmentParams seg;
+  /// Cells segmented at once (an execution setting: the chunks, the manifest and the
+  /// report do not depend on it; not in canonical()). 0 = all cores.
+  int threads = 0;
 
   /// Throws std::invalid_argument naming the option.
   void validate() const;
