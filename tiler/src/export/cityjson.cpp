@@ -337,6 +337,497 @@ void remove_collinear_spikes(std::vector<std::vector<std::uint32_t>>& faces, std
   col = std::move(c2);
 }
 
+/// One building's models as read: its report, the model files and meshes,
+/// the chain kept (indices into them, coarse -> fine) and its errors.
+struct Chain {
+  LodReport rep;
+  std::string report_path;
+  std::vector<ModelEntry> entries;
+  std::vector<io::TriangleMesh> meshes;
+  std::vector<std::size_t> kept;
+  std::vector<double> error_m;  // per kept model; empty with all_models
+};
+
+/// The models of `rec` and the chain to write: every model (all_models), the
+/// chain given (opt.chains), else the one choose_models keeps.
+Chain read_chain(const std::string& work, const ChunkRecord& rec, LodReport rep,
+                 const std::string& report_path, const CityJsonOptions& opt) {
+  Chain ch;
+  ch.rep = std::move(rep);
+  ch.report_path = report_path;
+  const std::string dir = lod_dir(work, rec.id);
+  ch.entries = model_entries(dir, ch.rep, report_path);
+  const std::vector<ModelEntry>& entries = ch.entries;
+  for (const ModelEntry& e : entries) ch.meshes.push_back(io::read_mesh(e.file));
+  if (opt.all_models) {
+    for (std::size_t i = 0; i < entries.size(); ++i) ch.kept.push_back(i);
+    std::sort(ch.kept.begin(), ch.kept.end(),
+              [&](std::size_t a, std::size_t b) { return entries[a].step < entries[b].step; });
+  } else {
+    const auto given = opt.chains ? opt.chains->find(rec.id) : decltype(opt.chains->end()){};
+    const bool reuse = opt.chains && given != opt.chains->end() &&
+                       std::all_of(given->second.kept.begin(), given->second.kept.end(),
+                                   [&](std::size_t k) { return k < entries.size(); });
+    const ModelChoice c =
+        reuse ? given->second
+              : choose_models(entries, ch.meshes, opt.min_change_m, opt.hausdorff_tolerance_m);
+    ch.kept = c.kept;
+    ch.error_m = c.error_m;
+  }
+  if (ch.kept.empty())
+    throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
+  return ch;
+}
+
+/// The semantic of each face of `pm` and the roof shape (g.sloped,
+/// g.roof_heights), in the model's own (ENU) frame. Returns the model's
+/// lowest point (z).
+double classify_faces(const io::PolygonMesh& pm, Geometry& g, std::vector<int>& sem) {
+  double zmin = std::numeric_limits<double>::infinity();
+  for (const auto& f : pm.faces)
+    for (auto i : f) zmin = std::min(zmin, pm.vertices[i][2]);
+  std::vector<double> roof_z;
+  for (const auto& f : pm.faces) {
+    const Vec3d n = newell(pm.vertices, f);
+    const io::SurfaceClass c = io::classify_normal(n);
+    double fz_max = -std::numeric_limits<double>::infinity(), fz_sum = 0;
+    for (auto i : f) {
+      fz_max = std::max(fz_max, pm.vertices[i][2]);
+      fz_sum += pm.vertices[i][2];
+    }
+    if (c == io::SurfaceClass::roof) {
+      sem.push_back(kRoof);
+      if (n[2] < kHorizontalNz)
+        g.sloped = true;
+      else
+        roof_z.push_back(fz_sum / double(f.size()));
+    } else if (c == io::SurfaceClass::base) {
+      sem.push_back(fz_max <= zmin + kGroundTolerance ? kGround : kCeiling);
+    } else {
+      sem.push_back(kWall);
+    }
+  }
+  std::sort(roof_z.begin(), roof_z.end());
+  for (std::size_t i = 0; i < roof_z.size(); ++i)
+    if (i == 0 || roof_z[i] - roof_z[i - 1] > kRoofHeightTolerance) ++g.roof_heights;
+  if (g.sloped) g.roof_heights = 0;
+  return zmin;
+}
+
+/// A model's faces over the feature's vertex pool (in the CRS, quantized).
+struct PooledModel {
+  std::vector<std::vector<std::uint32_t>> rings;                  // pool indices, per polygon
+  std::vector<std::array<std::uint32_t, 3>> tris;                 // pool indices, per PLY triangle
+  std::vector<std::uint32_t> used;                                // pool indices of both, repeated
+  std::vector<std::pair<std::size_t, std::size_t>> tris_of_ring;  // [first, last)
+};
+
+/// The polygons `pm` and the model's own triangles `mesh` (the PLY: the same
+/// surface as the polygons) to the CRS (scene ENU = chunk origin + file
+/// coordinates), quantized into `pool`.
+PooledModel to_pool(const io::PolygonMesh& pm, const io::TriangleMesh& mesh,
+                    const std::string& file, const ChunkRecord& rec, const SceneGeoref& georef,
+                    VertexPool& pool) {
+  PooledModel out;
+  std::vector<std::uint32_t> used;
+  {
+    std::vector<char> is_used(pm.vertices.size(), 0);
+    for (const auto& f : pm.faces)
+      for (auto i : f) is_used[i] = 1;
+    for (std::uint32_t i = 0; i < pm.vertices.size(); ++i)
+      if (is_used[i]) used.push_back(i);
+  }
+  Eigen::Matrix3Xd pts(3, long(used.size()));
+  for (std::size_t j = 0; j < used.size(); ++j)
+    for (int c = 0; c < 3; ++c)
+      pts(c, long(j)) = pm.vertices[used[j]][size_t(c)] + rec.origin[size_t(c)];
+  if (georef.has_crs()) georef.to_crs(pts);
+  std::vector<std::uint32_t> to_pool(pm.vertices.size(), 0);
+  for (std::size_t j = 0; j < used.size(); ++j)
+    to_pool[used[j]] = pool.add({pts(0, long(j)), pts(1, long(j)), pts(2, long(j))});
+  for (const auto& f : pm.faces) {
+    out.rings.emplace_back();
+    for (auto i : f) out.rings.back().push_back(to_pool[i]);
+  }
+  std::map<Vec3d, std::uint32_t> pool_of;
+  for (auto i : used) pool_of.emplace(pm.vertices[i], to_pool[i]);
+  for (const auto& t : mesh.triangles) {
+    std::array<std::uint32_t, 3> q;
+    for (int c = 0; c < 3; ++c) {
+      const auto it = pool_of.find(mesh.vertices[t[size_t(c)]]);
+      if (it == pool_of.end())
+        throw std::logic_error(file + ": a triangle vertex is not on the polygons");
+      q[size_t(c)] = it->second;
+    }
+    out.tris.push_back(q);
+  }
+  for (const auto& t : out.tris) out.used.insert(out.used.end(), t.begin(), t.end());
+  for (const auto& r : out.rings) out.used.insert(out.used.end(), r.begin(), r.end());
+  return out;
+}
+
+/// The triangles of each polygon: the PLY triangulates the OBJ's polygons
+/// in order, n - 2 triangles each (checked: each uses its polygon's
+/// vertices only; else none are known and a polygon is never split).
+std::vector<std::pair<std::size_t, std::size_t>> triangles_of_rings(
+    const std::vector<std::vector<std::uint32_t>>& rings,
+    const std::vector<std::array<std::uint32_t, 3>>& tris) {
+  std::vector<std::pair<std::size_t, std::size_t>> tris_of_ring;  // [first, last)
+  std::size_t at = 0;
+  for (const auto& ring : rings) {
+    const std::size_t n = ring.size() >= 3 ? ring.size() - 2 : 0;
+    bool ok = at + n <= tris.size();
+    for (std::size_t t = at; ok && t < at + n; ++t)
+      for (const std::uint32_t q : tris[t])
+        ok = ok && std::find(ring.begin(), ring.end(), q) != ring.end();
+    if (!ok) return {};
+    tris_of_ring.emplace_back(at, at + n);
+    at += n;
+  }
+  if (at != tris.size()) return {};
+  return tris_of_ring;
+}
+
+/// Faces of a solid with their semantics and colours, aligned.
+struct Faces {
+  std::vector<std::vector<std::uint32_t>> faces;
+  std::vector<int> sem;
+  std::vector<io::Rgba8> col;
+};
+
+/// The welded polygons (`faces`) with the ones a validator rejects alone
+/// (`errs`: a fold, a ring that touches itself) replaced by their welded
+/// triangles; `from`: each face's polygon.
+Faces polygons_and_triangles(const Faces& welded, const std::vector<int>& errs,
+                             const std::vector<std::size_t>& from, const PooledModel& m,
+                             const std::map<std::uint32_t, std::uint32_t>& to,
+                             const VertexPool& pool) {
+  Faces mixed;
+  for (std::size_t j = 0; j < welded.faces.size(); ++j) {
+    if (!errs[j]) {
+      mixed.faces.push_back(welded.faces[j]);
+      mixed.sem.push_back(welded.sem[j]);
+      mixed.col.push_back(welded.col[j]);
+      continue;
+    }
+    for (std::size_t t = m.tris_of_ring[from[j]].first; t < m.tris_of_ring[from[j]].second; ++t) {
+      const std::array<std::uint32_t, 3> w{to.at(m.tris[t][0]), to.at(m.tris[t][1]),
+                                           to.at(m.tris[t][2])};
+      if (w[0] == w[1] || w[1] == w[2] || w[0] == w[2]) continue;  // collapsed
+      mixed.faces.push_back({w[0], w[1], w[2]});
+      mixed.sem.push_back(welded.sem[j]);
+      mixed.col.push_back(welded.col[j]);
+    }
+  }
+  remove_collinear_spikes(mixed.faces, mixed.sem, mixed.col, pool);
+  return mixed;
+}
+
+/// The model's own triangles, welded (`to`), collapsed ones and fins dropped,
+/// each with its semantic (below zmin + kGroundTolerance: ground) and colour.
+Faces welded_triangles(const PooledModel& m, const io::TriangleMesh& mesh,
+                       const std::vector<io::Rgba8>& triangle_colours, double zmin,
+                       const std::map<std::uint32_t, std::uint32_t>& to, const VertexPool& pool) {
+  const bool tri_coloured = triangle_colours.size() == mesh.triangles.size();
+  std::vector<std::array<std::uint32_t, 3>> welded;
+  for (const auto& t : m.tris) welded.push_back({to.at(t[0]), to.at(t[1]), to.at(t[2])});
+  std::vector<std::size_t> from;
+  const std::vector<std::array<std::uint32_t, 3>> surviving =
+      io::drop_collapsed_and_fins(welded, from);
+  Faces out;
+  for (std::size_t i = 0; i < surviving.size(); ++i) {
+    out.faces.push_back({surviving[i][0], surviving[i][1], surviving[i][2]});
+    const auto& t = mesh.triangles[from[i]];
+    const Vec3d n = newell(mesh.vertices, {t[0], t[1], t[2]});
+    const io::SurfaceClass c3 = io::classify_normal(n);
+    double fz = -std::numeric_limits<double>::infinity();
+    for (auto v : t) fz = std::max(fz, mesh.vertices[v][2]);
+    out.col.push_back(tri_coloured ? triangle_colours[from[i]] : io::Rgba8{0, 0, 0, 0});
+    out.sem.push_back(c3 == io::SurfaceClass::roof    ? kRoof
+                      : c3 == io::SurfaceClass::wall  ? kWall
+                      : fz <= zmin + kGroundTolerance ? kGround
+                                                      : kCeiling);
+  }
+  remove_collinear_spikes(out.faces, out.sem, out.col, pool);
+  return out;
+}
+
+/// A solid the validator accepts at its tolerances (docs/cityjson.md,
+/// "Validity"): vertices welded within r > the snap tolerance (no two are
+/// then within it; spikes and collapsed faces go), written as the merged
+/// polygons when every one is a planar simple ring; else with the
+/// polygons a validator rejects alone (a fold, a ring that touches itself)
+/// as their triangles; else as the model's triangles; r grows until one of
+/// them is valid, else the model is left out (g.valid stays false). Returns
+/// why the first tries failed.
+std::string make_solid(Geometry& g, const PooledModel& m, const std::vector<int>& sem,
+                       const std::vector<io::Rgba8>& face_colours, bool from_obj, double zmin,
+                       const io::TriangleMesh& mesh, const std::vector<io::Rgba8>& tri_colours,
+                       const VertexPool& pool, const CityJsonOptions& opt) {
+  const lod::Tolerances tol;  // val3dity's defaults
+  const bool coloured = face_colours.size() == sem.size();
+  std::string why;
+  auto take = [&](Faces&& f, bool polygons, double snapped) {
+    as_solid(f.faces, pool, &g.shell);
+    g.faces = std::move(f.faces);
+    g.semantic = std::move(f.sem);
+    g.colour = std::move(f.col);
+    g.from_obj = polygons;
+    g.snapped = snapped;
+    g.valid = true;
+  };
+  for (const double factor : kWeldFactors) {
+    const auto r = std::uint32_t(std::ceil(factor * tol.snap / opt.scale));
+    const std::map<std::uint32_t, std::uint32_t> to = weld_map(m.used, pool, r);
+    const bool moved =
+        std::any_of(to.begin(), to.end(), [](const auto& p) { return p.first != p.second; });
+    const double snapped = moved ? double(r) * opt.scale : 0;
+    std::vector<std::size_t> from;
+    Faces welded;
+    welded.faces = weld_rings(m.rings, to, from);
+    {
+      const std::vector<std::size_t> kept_faces =
+          io::remove_collinear_spikes(welded.faces, integer_points(pool));
+      std::vector<std::size_t> f2;
+      for (const std::size_t x : kept_faces) f2.push_back(from[x]);
+      from = std::move(f2);
+    }
+    for (const std::size_t fi : from) {
+      welded.sem.push_back(sem[fi]);
+      welded.col.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
+    }
+    const lod::PolygonSolid solid = as_solid(welded.faces, pool);
+    lod::SolidCheck c = lod::check_solid(solid, tol);
+    if (c.valid()) {
+      take(std::move(welded), from_obj, snapped);
+      break;
+    }
+    if (why.empty()) why = "polygons: error " + std::to_string(c.error) + " (" + c.detail + ")";
+    // the polygons rejected alone, as their (welded) triangles
+    const std::vector<int> errs = lod::face_errors(solid, tol)[0];
+    if (!m.tris_of_ring.empty() && std::any_of(errs.begin(), errs.end(), [](int e) { return e; })) {
+      Faces mixed = polygons_and_triangles(welded, errs, from, m, to, pool);
+      c = lod::check_solid(as_solid(mixed.faces, pool), tol);
+      if (c.valid()) {
+        take(std::move(mixed), from_obj, snapped);
+        break;
+      }
+    }
+    // the model's triangles
+    Faces tris = welded_triangles(m, mesh, tri_colours, zmin, to, pool);
+    c = lod::check_solid(as_solid(tris.faces, pool), tol);
+    if (c.valid()) {
+      take(std::move(tris), false, snapped);
+      break;
+    }
+    if (why.find("triangles") == std::string::npos)
+      why += ", triangles: error " + std::to_string(c.error) + " (" + c.detail + ")";
+  }
+  return why;
+}
+
+/// Model `gi` of the chain as a Geometry: polygons and semantics (chunk
+/// frame), then the CRS, then the solid a validator accepts (welded,
+/// repaired) or none (g.valid false, a warning).
+Geometry model_geometry(const Chain& ch, std::size_t gi, const ChunkRecord& rec,
+                        const SceneGeoref& georef, VertexPool& pool, const CityJsonOptions& opt,
+                        std::vector<std::string>& warnings) {
+  const std::size_t k = ch.kept[gi];
+  const ModelRecord& mr = ch.rep.models[k];
+  const io::TriangleMesh& mesh = ch.meshes[k];
+  Geometry g;
+  g.step = mr.step;
+  g.fallback = ch.entries[k].kind == ModelKind::fallback;
+  bool from_obj = false;
+  io::PolygonMesh pm = model_polygons(ch.entries[k].file, mesh, from_obj);
+  std::vector<int> sem;
+  const double zmin = classify_faces(pm, g, sem);
+  PooledModel m = to_pool(pm, mesh, ch.entries[k].file, rec, georef, pool);
+  if (from_obj) m.tris_of_ring = triangles_of_rings(m.rings, m.tris);
+  // the input's colours of these faces (report.json), when they match
+  const std::vector<io::Rgba8>& face_colours = from_obj ? mr.polygon_colours : mr.triangle_colours;
+  const std::string why =
+      make_solid(g, m, sem, face_colours, from_obj, zmin, mesh, mr.triangle_colours, pool, opt);
+  if (!g.valid)
+    warnings.push_back(
+        "cityjson: " + rec.id + " model step " + std::to_string(mr.step) +
+        " left out: not a valid solid as written, even welded within " +
+        std::to_string(kWeldFactors[std::size(kWeldFactors) - 1] * lod::Tolerances().snap) +
+        " m (" + why + ")");
+  const std::set<int> classes(g.semantic.begin(), g.semantic.end());
+  g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
+
+  json a;
+  a["kind"] = io::to_string(mr.kind);
+  a["level"] = mr.level;
+  a["step"] = mr.step;
+  if (mr.e2 >= 0 && ch.rep.bbox_diagonal_m > 0)
+    a["rmse_m"] = round_to(mr.e2 / 100 * ch.rep.bbox_diagonal_m, 1e-4);
+  else
+    a["rmse_m"] = nullptr;
+  if (!ch.error_m.empty()) a["error_m"] = round_to(ch.error_m[gi], 1e-4);
+  a["triangles"] = mesh.triangles.size();
+  a["polygons"] = g.faces.size();
+  a["valid"] = g.valid;
+  if (g.snapped > 0) a["snapped_m"] = g.snapped;
+  g.attributes = std::move(a);
+  return g;
+}
+
+/// The lod of each written model; one geometry per lod on the Building
+/// (LoD1.2 the coarsest block, LoD1.3 the finest flat step model, LoD2.2 the
+/// finest model), the rest of the chain as +LodTreeModel children.
+void assign_lods(std::vector<Geometry>& geoms, std::vector<std::size_t>& on_building,
+                 std::vector<std::size_t>& children) {
+  std::size_t lod12 = geoms.size(), lod13 = geoms.size();
+  for (std::size_t i = 0; i < geoms.size(); ++i) {
+    Geometry& g = geoms[i];
+    g.lod = cityjson_lod(g.fallback, i + 1 == geoms.size(), g.sloped, g.roof_heights);
+    g.attributes["lod"] = g.lod;
+    if (g.lod == "1.2" && lod12 == geoms.size()) lod12 = i;
+    if (g.lod == "1.3") lod13 = i;
+  }
+  for (std::size_t i = 0; i < geoms.size(); ++i)
+    if (i == lod12 || i == lod13 || i + 1 == geoms.size())
+      on_building.push_back(i);
+    else
+      children.push_back(i);
+}
+
+/// The pool vertices a written face uses (those left by welding are not
+/// written), in pool order; the faces renumbered to them.
+std::vector<std::uint32_t> written_vertices(std::vector<Geometry>& geoms, const VertexPool& pool) {
+  std::vector<std::uint32_t> renum(pool.list().size(), 0);
+  std::vector<std::uint32_t> written;
+  std::vector<char> used_v(pool.list().size(), 0);
+  for (const Geometry& g : geoms)
+    for (const auto& f : g.faces)
+      for (auto i : f) used_v[i] = 1;
+  for (std::uint32_t i = 0; i < used_v.size(); ++i)
+    if (used_v[i]) {
+      renum[i] = std::uint32_t(written.size());
+      written.push_back(i);
+    }
+  for (Geometry& g : geoms)
+    for (auto& f : g.faces)
+      for (auto& i : f) i = renum[i];
+  return written;
+}
+
+/// The input's colours: one X3D material per distinct colour (first use
+/// order), theme "rgb" (docs/cityjson.md); `material_of` its index.
+json colour_materials(const std::vector<Geometry>& geoms, std::map<io::Rgba8, int>& material_of) {
+  json materials = json::array();
+  for (const Geometry& g : geoms)
+    for (const io::Rgba8& c : g.colour)
+      if (c[3] && material_of.emplace(c, int(materials.size())).second) {
+        char name[16];
+        std::snprintf(name, sizeof name, "rgb_%02x%02x%02x", c[0], c[1], c[2]);
+        materials.push_back({{"name", name},
+                             {"diffuseColor",
+                              {round_to(c[0] / 255.0, 1e-4), round_to(c[1] / 255.0, 1e-4),
+                               round_to(c[2] / 255.0, 1e-4)}}});
+      }
+  return materials;
+}
+
+/// A geometry as a CityJSON Solid, counted in `out`.
+json solid_json(const Geometry& g, const std::map<io::Rgba8, int>& material_of, Feature& out) {
+  // the shells (outer first, then cavities), each face one ring
+  json boundaries = json::array(), values = json::array(), colour_values = json::array();
+  for (std::size_t f = 0; f < g.faces.size(); ++f) {
+    const std::size_t sh = std::size_t(g.shell[f]);
+    while (boundaries.size() <= sh) {
+      boundaries.push_back(json::array());
+      values.push_back(json::array());
+      colour_values.push_back(json::array());
+    }
+    boundaries[sh].push_back(json::array({g.faces[f]}));
+    values[sh].push_back(g.semantic[f]);
+    colour_values[sh].push_back(g.colour[f][3] ? json(material_of.at(g.colour[f])) : json(nullptr));
+  }
+  std::set<int> present(g.semantic.begin(), g.semantic.end());
+  // surfaces: one object per class present, values index into them
+  json surfaces = json::array();
+  std::map<int, int> slot;
+  for (int c : present) {
+    slot[c] = int(surfaces.size());
+    surfaces.push_back({{"type", kSemanticType[c]}});
+  }
+  for (auto& sv : values)
+    for (auto& v : sv) v = slot[v.get<int>()];
+  json geo;
+  geo["type"] = "Solid";
+  geo["lod"] = g.lod;
+  geo["boundaries"] = boundaries;
+  geo["semantics"] = {{"surfaces", surfaces}, {"values", values}};
+  if (std::any_of(g.colour.begin(), g.colour.end(), [](const io::Rgba8& c) { return c[3]; })) {
+    geo["material"] = {{kColourTheme, {{"values", colour_values}}}};
+    ++out.coloured;
+  }
+  ++out.geometries;
+  out.triangulated += !g.from_obj;
+  out.full_semantics = out.full_semantics && g.full_semantics;
+  return geo;
+}
+
+/// The CityJSONFeature's text (out.line) and counts: the Building with its
+/// footprint's attributes and the geometries `on_building`, the `children`
+/// as +LodTreeModel objects, the vertices.
+void write_feature(Feature& out, std::vector<Geometry>& geoms,
+                   const std::vector<std::size_t>& on_building,
+                   const std::vector<std::size_t>& children, const ChunkRecord& rec,
+                   const LodReport& rep, const VertexPool& pool) {
+  const std::string& object_id = out.id;
+  const std::vector<std::uint32_t> written = written_vertices(geoms, pool);
+  std::map<io::Rgba8, int> material_of;
+  const json materials = colour_materials(geoms, material_of);
+  out.full_semantics = true;
+  json objects = json::object();
+  json obj;
+  obj["type"] = "Building";
+  json attrs = json::object();
+  // the footprint's own attributes (typed as read from its source), then ours
+  for (const auto& [key, v] : rec.attributes.items()) attrs[key] = v;
+  attrs["citylod_id"] = rec.id;
+  if (!rec.source.empty()) attrs["citylod_source"] = rec.source;
+  attrs["citylod_status"] = to_string(rep.status);
+  if (!rep.reason.empty()) attrs["citylod_reason"] = rep.reason;
+  json models = json::array(), geometry = json::array();
+  for (const std::size_t i : on_building) {
+    models.push_back(geoms[i].attributes);
+    geometry.push_back(solid_json(geoms[i], material_of, out));
+  }
+  attrs["citylod_models"] = models;
+  obj["attributes"] = attrs;
+  obj["geometry"] = geometry;
+  objects[object_id] = obj;
+  for (const std::size_t i : children) {
+    json child;
+    child["type"] = kChainObjectType;
+    json ca = geoms[i].attributes;
+    // not a child of the Building: validators (val3dity) read a Building's
+    // children as BuildingParts, which must not overlap
+    child["attributes"] = {{"citylod_building", object_id}, {"citylod_model", ca}};
+    child["geometry"] = json::array({solid_json(geoms[i], material_of, out)});
+    objects[chain_object_id(object_id, geoms[i].step)] = child;
+    ++out.chain_objects;
+  }
+  json verts = json::array();
+  for (const std::uint32_t i : written) {
+    verts.push_back(pool.list()[i]);
+    out.bbox.add(pool.absolute(i));
+  }
+  out.vertices = written.size();
+  json feat;
+  feat["type"] = "CityJSONFeature";
+  feat["id"] = object_id;
+  feat["CityObjects"] = objects;
+  feat["vertices"] = verts;
+  if (!materials.empty()) feat["appearance"] = {{"materials", materials}};
+  out.line = feat.dump();
+}
+
 /// One building -> its CityJSONFeature.
 Feature make_feature(const std::string& work, const ChunkRecord& rec, const std::string& object_id,
                      const SceneGeoref& georef, const Vec3d& translate,
@@ -351,422 +842,37 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
                     .what();
     return out;
   }
-  const LodReport rep = read_lod_report(report_path);
+  LodReport rep = read_lod_report(report_path);
   if (rep.models.empty()) {
     out.error = io::IoError(report_path, "building '" + rec.id + "' has no models (status \"" +
                                              to_string(rep.status) + "\")")
                     .what();
     return out;
   }
-  // ---- the models and the chain
-  const std::string dir = lod_dir(work, rec.id);
-  const std::vector<ModelEntry> entries = model_entries(dir, rep, report_path);
-  std::vector<io::TriangleMesh> meshes;
-  for (const ModelEntry& e : entries) meshes.push_back(io::read_mesh(e.file));
-  std::vector<std::size_t> kept;
-  std::vector<double> error_m;
-  if (opt.all_models) {
-    for (std::size_t i = 0; i < entries.size(); ++i) kept.push_back(i);
-    std::sort(kept.begin(), kept.end(),
-              [&](std::size_t a, std::size_t b) { return entries[a].step < entries[b].step; });
-  } else {
-    const auto given = opt.chains ? opt.chains->find(rec.id) : decltype(opt.chains->end()){};
-    const bool reuse = opt.chains && given != opt.chains->end() &&
-                       std::all_of(given->second.kept.begin(), given->second.kept.end(),
-                                   [&](std::size_t k) { return k < entries.size(); });
-    const ModelChoice c =
-        reuse ? given->second
-              : choose_models(entries, meshes, opt.min_change_m, opt.hausdorff_tolerance_m);
-    kept = c.kept;
-    error_m = c.error_m;
-  }
-  if (kept.empty())
-    throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
+  const Chain ch = read_chain(work, rec, std::move(rep), report_path, opt);
 
-  // ---- per model: polygons and semantics (chunk frame), then the CRS, then
-  // the solid a validator accepts (welded, repaired) or none
+  // ---- per model: its Geometry (the feature's vertices, in the CRS)
   VertexPool pool(translate, opt.scale);
-  const lod::Tolerances tol;  // val3dity's defaults
   std::vector<Geometry> geoms;
-  for (std::size_t gi = 0; gi < kept.size(); ++gi) {
-    const std::size_t k = kept[gi];
-    const ModelRecord& mr = rep.models[k];
-    Geometry g;
-    g.step = mr.step;
-    g.fallback = entries[k].kind == ModelKind::fallback;
-    bool from_obj = false;
-    io::PolygonMesh pm = model_polygons(entries[k].file, meshes[k], from_obj);
-    // semantics and roof shape, in the model's own (ENU) frame
-    double zmin = std::numeric_limits<double>::infinity();
-    for (const auto& f : pm.faces)
-      for (auto i : f) zmin = std::min(zmin, pm.vertices[i][2]);
-    std::vector<double> roof_z;
-    std::vector<int> sem;
-    for (const auto& f : pm.faces) {
-      const Vec3d n = newell(pm.vertices, f);
-      const io::SurfaceClass c = io::classify_normal(n);
-      double fz_max = -std::numeric_limits<double>::infinity(), fz_sum = 0;
-      for (auto i : f) {
-        fz_max = std::max(fz_max, pm.vertices[i][2]);
-        fz_sum += pm.vertices[i][2];
-      }
-      if (c == io::SurfaceClass::roof) {
-        sem.push_back(kRoof);
-        if (n[2] < kHorizontalNz)
-          g.sloped = true;
-        else
-          roof_z.push_back(fz_sum / double(f.size()));
-      } else if (c == io::SurfaceClass::base) {
-        sem.push_back(fz_max <= zmin + kGroundTolerance ? kGround : kCeiling);
-      } else {
-        sem.push_back(kWall);
-      }
-    }
-    std::sort(roof_z.begin(), roof_z.end());
-    for (std::size_t i = 0; i < roof_z.size(); ++i)
-      if (i == 0 || roof_z[i] - roof_z[i - 1] > kRoofHeightTolerance) ++g.roof_heights;
-    if (g.sloped) g.roof_heights = 0;
-
-    // to the CRS (scene ENU = chunk origin + file coordinates), quantized
-    std::vector<std::uint32_t> used;
-    {
-      std::vector<char> is_used(pm.vertices.size(), 0);
-      for (const auto& f : pm.faces)
-        for (auto i : f) is_used[i] = 1;
-      for (std::uint32_t i = 0; i < pm.vertices.size(); ++i)
-        if (is_used[i]) used.push_back(i);
-    }
-    Eigen::Matrix3Xd pts(3, long(used.size()));
-    for (std::size_t j = 0; j < used.size(); ++j)
-      for (int c = 0; c < 3; ++c)
-        pts(c, long(j)) = pm.vertices[used[j]][size_t(c)] + rec.origin[size_t(c)];
-    if (georef.has_crs()) georef.to_crs(pts);
-    std::vector<std::uint32_t> to_pool(pm.vertices.size(), 0);
-    for (std::size_t j = 0; j < used.size(); ++j)
-      to_pool[used[j]] = pool.add({pts(0, long(j)), pts(1, long(j)), pts(2, long(j))});
-    // the input's colours of these faces (report.json), when they match
-    const std::vector<io::Rgba8>& face_colours =
-        from_obj ? mr.polygon_colours : mr.triangle_colours;
-    const bool coloured = face_colours.size() == pm.faces.size();
-    std::vector<std::vector<std::uint32_t>> rings;  // pool indices, per polygon
-    for (const auto& f : pm.faces) {
-      rings.emplace_back();
-      for (auto i : f) rings.back().push_back(to_pool[i]);
-    }
-    // the model's own triangles (the PLY: the same surface as the polygons)
-    std::map<Vec3d, std::uint32_t> pool_of;
-    for (auto i : used) pool_of.emplace(pm.vertices[i], to_pool[i]);
-    std::vector<std::array<std::uint32_t, 3>> tris;  // pool indices, per PLY triangle
-    for (const auto& t : meshes[k].triangles) {
-      std::array<std::uint32_t, 3> q;
-      for (int c = 0; c < 3; ++c) {
-        const auto it = pool_of.find(meshes[k].vertices[t[size_t(c)]]);
-        if (it == pool_of.end())
-          throw std::logic_error(entries[k].file + ": a triangle vertex is not on the polygons");
-        q[size_t(c)] = it->second;
-      }
-      tris.push_back(q);
-    }
-    std::vector<std::uint32_t> used_q;
-    for (const auto& t : tris) used_q.insert(used_q.end(), t.begin(), t.end());
-    for (const auto& r : rings) used_q.insert(used_q.end(), r.begin(), r.end());
-
-    // The triangles of each polygon: the PLY triangulates the OBJ's polygons
-    // in order, n - 2 triangles each (checked: each uses its polygon's
-    // vertices only; else none are known and a polygon is never split).
-    std::vector<std::pair<std::size_t, std::size_t>> tris_of_ring;  // [first, last)
-    if (from_obj) {
-      std::size_t at = 0;
-      for (const auto& ring : rings) {
-        const std::size_t n = ring.size() >= 3 ? ring.size() - 2 : 0;
-        bool ok = at + n <= tris.size();
-        for (std::size_t t = at; ok && t < at + n; ++t)
-          for (const std::uint32_t q : tris[t])
-            ok = ok && std::find(ring.begin(), ring.end(), q) != ring.end();
-        if (!ok) {
-          tris_of_ring.clear();
-          break;
-        }
-        tris_of_ring.emplace_back(at, at + n);
-        at += n;
-      }
-      if (at != tris.size()) tris_of_ring.clear();
-    }
-
-    // A solid the validator accepts at its tolerances (docs/cityjson.md,
-    // "Validity"): vertices welded within r > the snap tolerance (no two are
-    // then within it; spikes and collapsed faces go), written as the merged
-    // polygons when every one is a planar simple ring; else with the
-    // polygons a validator rejects alone (a fold, a ring that touches itself)
-    // as their triangles; else as the model's triangles; r grows until one of
-    // them is valid, else the model is left out.
-    std::string why;
-    const bool tri_coloured = mr.triangle_colours.size() == meshes[k].triangles.size();
-    auto take = [&](std::vector<std::vector<std::uint32_t>>&& faces, std::vector<int>&& semantic,
-                    std::vector<io::Rgba8>&& colour, bool polygons, double snapped) {
-      as_solid(faces, pool, &g.shell);
-      g.faces = std::move(faces);
-      g.semantic = std::move(semantic);
-      g.colour = std::move(colour);
-      g.from_obj = polygons;
-      g.snapped = snapped;
-      g.valid = true;
-    };
-    for (const double factor : kWeldFactors) {
-      const auto r = std::uint32_t(std::ceil(factor * tol.snap / opt.scale));
-      const std::map<std::uint32_t, std::uint32_t> to = weld_map(used_q, pool, r);
-      const bool moved =
-          std::any_of(to.begin(), to.end(), [](const auto& p) { return p.first != p.second; });
-      const double snapped = moved ? double(r) * opt.scale : 0;
-      std::vector<std::size_t> from;
-      std::vector<std::vector<std::uint32_t>> faces = weld_rings(rings, to, from);
-      {
-        const std::vector<std::size_t> kept_faces =
-            io::remove_collinear_spikes(faces, integer_points(pool));
-        std::vector<std::size_t> f2;
-        for (const std::size_t x : kept_faces) f2.push_back(from[x]);
-        from = std::move(f2);
-      }
-      std::vector<int> fsem;
-      std::vector<io::Rgba8> fcol;
-      for (const std::size_t fi : from) {
-        fsem.push_back(sem[fi]);
-        fcol.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
-      }
-      const lod::PolygonSolid solid = as_solid(faces, pool);
-      lod::SolidCheck c = lod::check_solid(solid, tol);
-      if (c.valid()) {
-        take(std::move(faces), std::move(fsem), std::move(fcol), from_obj, snapped);
-        break;
-      }
-      if (why.empty()) why = "polygons: error " + std::to_string(c.error) + " (" + c.detail + ")";
-      // the polygons rejected alone, as their (welded) triangles
-      const std::vector<int> errs = lod::face_errors(solid, tol)[0];
-      if (!tris_of_ring.empty() && std::any_of(errs.begin(), errs.end(), [](int e) { return e; })) {
-        std::vector<std::vector<std::uint32_t>> mixed;
-        std::vector<int> msem;
-        std::vector<io::Rgba8> mcol;
-        for (std::size_t j = 0; j < faces.size(); ++j) {
-          if (!errs[j]) {
-            mixed.push_back(faces[j]);
-            msem.push_back(fsem[j]);
-            mcol.push_back(fcol[j]);
-            continue;
-          }
-          for (std::size_t t = tris_of_ring[from[j]].first; t < tris_of_ring[from[j]].second; ++t) {
-            const std::array<std::uint32_t, 3> w{to.at(tris[t][0]), to.at(tris[t][1]),
-                                                 to.at(tris[t][2])};
-            if (w[0] == w[1] || w[1] == w[2] || w[0] == w[2]) continue;  // collapsed
-            mixed.push_back({w[0], w[1], w[2]});
-            msem.push_back(fsem[j]);
-            mcol.push_back(fcol[j]);
-          }
-        }
-        remove_collinear_spikes(mixed, msem, mcol, pool);
-        c = lod::check_solid(as_solid(mixed, pool), tol);
-        if (c.valid()) {
-          take(std::move(mixed), std::move(msem), std::move(mcol), from_obj, snapped);
-          break;
-        }
-      }
-      // the model's triangles
-      std::vector<std::array<std::uint32_t, 3>> welded;
-      for (const auto& t : tris) welded.push_back({to.at(t[0]), to.at(t[1]), to.at(t[2])});
-      const std::vector<std::array<std::uint32_t, 3>> surviving =
-          io::drop_collapsed_and_fins(welded, from);
-      faces.clear();
-      fsem.clear();
-      fcol.clear();
-      for (std::size_t i = 0; i < surviving.size(); ++i) {
-        faces.push_back({surviving[i][0], surviving[i][1], surviving[i][2]});
-        const auto& t = meshes[k].triangles[from[i]];
-        const Vec3d n = newell(meshes[k].vertices, {t[0], t[1], t[2]});
-        const io::SurfaceClass c3 = io::classify_normal(n);
-        double fz = -std::numeric_limits<double>::infinity();
-        for (auto v : t) fz = std::max(fz, meshes[k].vertices[v][2]);
-        fcol.push_back(tri_coloured ? mr.triangle_colours[from[i]] : io::Rgba8{0, 0, 0, 0});
-        fsem.push_back(c3 == io::SurfaceClass::roof    ? kRoof
-                       : c3 == io::SurfaceClass::wall  ? kWall
-                       : fz <= zmin + kGroundTolerance ? kGround
-                                                       : kCeiling);
-      }
-      remove_collinear_spikes(faces, fsem, fcol, pool);
-      c = lod::check_solid(as_solid(faces, pool), tol);
-      if (c.valid()) {
-        take(std::move(faces), std::move(fsem), std::move(fcol), false, snapped);
-        break;
-      }
-      if (why.find("triangles") == std::string::npos)
-        why += ", triangles: error " + std::to_string(c.error) + " (" + c.detail + ")";
-    }
-    if (!g.valid)
-      out.warnings.push_back("cityjson: " + rec.id + " model step " + std::to_string(mr.step) +
-                             " left out: not a valid solid as written, even welded within " +
-                             std::to_string(kWeldFactors[std::size(kWeldFactors) - 1] * tol.snap) +
-                             " m (" + why + ")");
-    const std::set<int> classes(g.semantic.begin(), g.semantic.end());
-    g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
-
-    json a;
-    a["kind"] = io::to_string(mr.kind);
-    a["level"] = mr.level;
-    a["step"] = mr.step;
-    if (mr.e2 >= 0 && rep.bbox_diagonal_m > 0)
-      a["rmse_m"] = round_to(mr.e2 / 100 * rep.bbox_diagonal_m, 1e-4);
-    else
-      a["rmse_m"] = nullptr;
-    if (!error_m.empty()) a["error_m"] = round_to(error_m[gi], 1e-4);
-    a["triangles"] = meshes[k].triangles.size();
-    a["polygons"] = g.faces.size();
-    a["valid"] = g.valid;
-    if (g.snapped > 0) a["snapped_m"] = g.snapped;
-    g.attributes = std::move(a);
+  for (std::size_t gi = 0; gi < ch.kept.size(); ++gi) {
+    Geometry g = model_geometry(ch, gi, rec, georef, pool, opt, out.warnings);
     out.invalid += !g.valid;
     geoms.push_back(std::move(g));
   }
 
-  // ---- the lod of each written model; one geometry per lod on the Building
-  // (LoD1.2 the coarsest block, LoD1.3 the finest flat step model, LoD2.2 the
-  // finest model), the rest of the chain as +LodTreeModel children
+  // ---- the written models: their lods, which go on the Building
   geoms.erase(
       std::remove_if(geoms.begin(), geoms.end(), [](const Geometry& g) { return !g.valid; }),
       geoms.end());
   std::vector<std::size_t> on_building, children;
-  {
-    std::size_t lod12 = geoms.size(), lod13 = geoms.size();
-    for (std::size_t i = 0; i < geoms.size(); ++i) {
-      Geometry& g = geoms[i];
-      g.lod = cityjson_lod(g.fallback, i + 1 == geoms.size(), g.sloped, g.roof_heights);
-      g.attributes["lod"] = g.lod;
-      if (g.lod == "1.2" && lod12 == geoms.size()) lod12 = i;
-      if (g.lod == "1.3") lod13 = i;
-    }
-    for (std::size_t i = 0; i < geoms.size(); ++i)
-      if (i == lod12 || i == lod13 || i + 1 == geoms.size())
-        on_building.push_back(i);
-      else
-        children.push_back(i);
-  }
+  assign_lods(geoms, on_building, children);
   if (geoms.empty())
     out.warnings.push_back("cityjson: " + rec.id +
                            " has no model that is a valid solid as written: its Building "
                            "is written without geometry");
 
   // ---- the feature
-  // vertices no written face uses (left by welding) are not written
-  std::vector<std::uint32_t> renum(pool.list().size(), 0);
-  std::vector<std::uint32_t> written_vertices;
-  {
-    std::vector<char> used_v(pool.list().size(), 0);
-    for (const Geometry& g : geoms)
-      for (const auto& f : g.faces)
-        for (auto i : f) used_v[i] = 1;
-    for (std::uint32_t i = 0; i < used_v.size(); ++i)
-      if (used_v[i]) {
-        renum[i] = std::uint32_t(written_vertices.size());
-        written_vertices.push_back(i);
-      }
-  }
-  for (Geometry& g : geoms)
-    for (auto& f : g.faces)
-      for (auto& i : f) i = renum[i];
-  // the input's colours: one X3D material per distinct colour (first use
-  // order), theme "rgb" (docs/cityjson.md)
-  std::map<io::Rgba8, int> material_of;
-  json materials = json::array();
-  for (const Geometry& g : geoms)
-    for (const io::Rgba8& c : g.colour)
-      if (c[3] && material_of.emplace(c, int(materials.size())).second) {
-        char name[16];
-        std::snprintf(name, sizeof name, "rgb_%02x%02x%02x", c[0], c[1], c[2]);
-        materials.push_back({{"name", name},
-                             {"diffuseColor",
-                              {round_to(c[0] / 255.0, 1e-4), round_to(c[1] / 255.0, 1e-4),
-                               round_to(c[2] / 255.0, 1e-4)}}});
-      }
-  out.full_semantics = true;
-  auto solid_json = [&](const Geometry& g) {
-    // the shells (outer first, then cavities), each face one ring
-    json boundaries = json::array(), values = json::array(), colour_values = json::array();
-    for (std::size_t f = 0; f < g.faces.size(); ++f) {
-      const std::size_t sh = std::size_t(g.shell[f]);
-      while (boundaries.size() <= sh) {
-        boundaries.push_back(json::array());
-        values.push_back(json::array());
-        colour_values.push_back(json::array());
-      }
-      boundaries[sh].push_back(json::array({g.faces[f]}));
-      values[sh].push_back(g.semantic[f]);
-      colour_values[sh].push_back(g.colour[f][3] ? json(material_of.at(g.colour[f]))
-                                                 : json(nullptr));
-    }
-    std::set<int> present(g.semantic.begin(), g.semantic.end());
-    // surfaces: one object per class present, values index into them
-    json surfaces = json::array();
-    std::map<int, int> slot;
-    for (int c : present) {
-      slot[c] = int(surfaces.size());
-      surfaces.push_back({{"type", kSemanticType[c]}});
-    }
-    for (auto& sv : values)
-      for (auto& v : sv) v = slot[v.get<int>()];
-    json geo;
-    geo["type"] = "Solid";
-    geo["lod"] = g.lod;
-    geo["boundaries"] = boundaries;
-    geo["semantics"] = {{"surfaces", surfaces}, {"values", values}};
-    if (std::any_of(g.colour.begin(), g.colour.end(), [](const io::Rgba8& c) { return c[3]; })) {
-      geo["material"] = {{kColourTheme, {{"values", colour_values}}}};
-      ++out.coloured;
-    }
-    ++out.geometries;
-    out.triangulated += !g.from_obj;
-    out.full_semantics = out.full_semantics && g.full_semantics;
-    return geo;
-  };
-  json objects = json::object();
-  json obj;
-  obj["type"] = "Building";
-  json attrs = json::object();
-  // the footprint's own attributes (typed as read from its source), then ours
-  for (const auto& [key, v] : rec.attributes.items()) attrs[key] = v;
-  attrs["citylod_id"] = rec.id;
-  if (!rec.source.empty()) attrs["citylod_source"] = rec.source;
-  attrs["citylod_status"] = to_string(rep.status);
-  if (!rep.reason.empty()) attrs["citylod_reason"] = rep.reason;
-  json models = json::array(), geometry = json::array();
-  for (const std::size_t i : on_building) {
-    models.push_back(geoms[i].attributes);
-    geometry.push_back(solid_json(geoms[i]));
-  }
-  attrs["citylod_models"] = models;
-  obj["attributes"] = attrs;
-  obj["geometry"] = geometry;
-  objects[object_id] = obj;
-  for (const std::size_t i : children) {
-    json child;
-    child["type"] = kChainObjectType;
-    json ca = geoms[i].attributes;
-    // not a child of the Building: validators (val3dity) read a Building's
-    // children as BuildingParts, which must not overlap
-    child["attributes"] = {{"citylod_building", object_id}, {"citylod_model", ca}};
-    child["geometry"] = json::array({solid_json(geoms[i])});
-    objects[chain_object_id(object_id, geoms[i].step)] = child;
-    ++out.chain_objects;
-  }
-  json verts = json::array();
-  for (const std::uint32_t i : written_vertices) {
-    verts.push_back(pool.list()[i]);
-    out.bbox.add(pool.absolute(i));
-  }
-  out.vertices = written_vertices.size();
-  json feat;
-  feat["type"] = "CityJSONFeature";
-  feat["id"] = object_id;
-  feat["CityObjects"] = objects;
-  feat["vertices"] = verts;
-  if (!materials.empty()) feat["appearance"] = {{"materials", materials}};
-  out.line = feat.dump();
+  write_feature(out, geoms, on_building, children, rec, ch.rep, pool);
   return out;
 }
 
