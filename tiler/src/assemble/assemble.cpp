@@ -3,6 +3,7 @@
 #include "citylod/tiler/assemble.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -589,38 +590,36 @@ void check_output_dir(const fs::path& out, bool force) {
                       "exists and is not a tileset (no tileset.json); use --force to replace it");
 }
 
-}  // namespace
+// ------------------------------------------------------------ the stage's steps
+/// Progress of the stage's parallel loops: one report at a time.
+class Reporter {
+ public:
+  explicit Reporter(const ProgressFn& progress) : progress_(progress) {}
+  void operator()(double f, const char* stage) const {
+    notify_progress(progress_, "assemble", f, stage);
+  }
+  /// One more of `total` done, in a parallel loop: progress from + span * done / total.
+  void step(std::atomic<std::size_t>& done, std::size_t total, double from, double span,
+            const char* stage) {
+    if (!progress_) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    (*this)(from + span * double(++done) / double(total), stage);
+  }
 
-AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
-                       const AssembleParams& params, const ProgressFn& progress) {
-  params.validate();
-  AssembleStats st;
-  const auto t0 = Clock::now();
-  auto report = [&](double f, const char* stage) {
-    notify_progress(progress, "assemble", f, stage);
-  };
-  if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
-  fs::path out = fs::absolute(out_dir).lexically_normal();
-  if (out.filename().empty()) out = out.parent_path();  // "DIR/"
-  if (out.filename().empty() || out == out.root_path())
-    throw io::IoError(out_dir, "not a valid output directory");
-  // One writer: of the work directory (no LOD stage changes it meanwhile) and of the output.
-  const DirLock work_lock(work_dir), out_lock = DirLock::for_output(out.string());
-  const Manifest man = read_manifest(work_dir);
-  if (man.chunks.empty())
-    throw io::IoError(manifest_path(work_dir),
-                      "the manifest lists no buildings (nothing to assemble)");
-  require_valid_origin(man, work_dir);
-  const SceneGeoref georef(man, work_dir);
-  const auto& sc = man.scene;
-  check_output_dir(out, params.force);
+ private:
+  const ProgressFn& progress_;
+  std::mutex mutex_;
+};
 
-  // ---- 1. buildings
+/// 1. The buildings to model, read in parallel (load_building); a building
+/// that fails is an error, or skipped with a warning (skip_missing).
+std::vector<Building> read_buildings(const std::string& work_dir, const Manifest& man,
+                                     const AssembleParams& params, const SceneGeoref& georef,
+                                     Reporter& report, AssembleStats& st) {
   const std::vector<const ChunkRecord*> recs = buildings_to_model(man, work_dir, &st.skipped);
   std::vector<Building> loaded(recs.size());
   std::vector<std::string> errors(recs.size());
   std::atomic<std::size_t> done{0};
-  std::mutex progress_mutex;
   const int nthreads = resolve_threads(params.threads);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
   for (long i = 0; i < long(recs.size()); ++i) {
@@ -629,11 +628,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
     } catch (const std::exception& e) {
       errors[size_t(i)] = e.what();
     }
-    const std::size_t d = ++done;
-    if (progress) {
-      std::lock_guard<std::mutex> lock(progress_mutex);
-      report(0.5 * double(d) / double(recs.size()), "reading models");
-    }
+    report.step(done, recs.size(), 0, 0.5, "reading models");
   }
   std::vector<Building> buildings;
   for (std::size_t i = 0; i < recs.size(); ++i) {
@@ -651,21 +646,11 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   if (buildings.empty())
     throw io::IoError(work_dir, "no building has LOD models (nothing to assemble)");
   st.buildings = buildings.size();
-  st.seconds_read = seconds_since(t0);
+  return buildings;
+}
 
-  // ---- 2. tile tree
-  TreeBuilder tree(buildings, params);
-  tree.build();
-  const std::vector<TileNode>& tiles = tree.tiles;
-
-  // ---- 3. files, staged next to the output
-  const auto t1 = Clock::now();
-  const fs::path stage = out.string() + ".partial";
-  fs::remove_all(stage);
-  fs::create_directories(stage / "tiles");
-  if (params.building_models) fs::create_directories(stage / "buildings");
-  // the stage's files are written in place and made durable at once by publish_directory
-  const io::StagedDirectory staged(stage.string());
+/// The options of every glb of the tileset.
+io::GlbOptions glb_options(const AssembleParams& params, const std::vector<Building>& buildings) {
   io::GlbOptions gopt;
   gopt.quantize = params.quantize;
   {  // footprint attributes: one typed schema for every glb of the tileset
@@ -680,41 +665,54 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   gopt.snap_tolerance_m = lod::Tolerances().snap;
   // One schema for every glb (tiles/ and buildings/ are one level below it).
   gopt.schema_uri = "../schema.json";
-  io::atomic_write_file((stage / "schema.json").string(), io::glb_schema(gopt) + "\n");
+  return gopt;
+}
 
-  std::vector<std::size_t> glb_size(tiles.size(), 0);
-  std::vector<std::string> write_errors(tiles.size());
-  done = 0;
+/// Runs `write(i)` for i in [0, n) in parallel; the first error (by index)
+/// removes the stage and is thrown.
+template <typename Write>
+void write_in_parallel(std::size_t n, int nthreads, const fs::path& stage, Write write) {
+  std::vector<std::string> errors(n);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
-  for (long i = 0; i < long(tiles.size()); ++i) {
-    const TileNode& t = tiles[size_t(i)];
-    if (t.items.empty()) continue;
+  for (long i = 0; i < long(n); ++i) {
     try {
-      io::GlbBuilder g(rounded_centre(t.content_box), gopt);
-      for (const auto& it : t.items) {
-        const Building& b = buildings[it.b];
-        const auto [mesh, colours] =
-            read_model(b.models[it.m].file, b.origin, georef, b.models[it.m].colours);
-        g.add_feature(feature_of(b, it.m), mesh, colours);
-      }
-      if (!inside(g.stored_bounds(), t.content_box))
-        throw std::logic_error("tile " + t.name + ": stored positions leave the content box");
-      const std::string bytes = g.glb();
-      io::atomic_write_file((stage / "tiles" / (t.name + ".glb")).string(), bytes);
-      glb_size[size_t(i)] = bytes.size();
+      write(size_t(i));
     } catch (const std::exception& e) {
-      write_errors[size_t(i)] = e.what();
-    }
-    if (progress) {
-      std::lock_guard<std::mutex> lock(progress_mutex);
-      report(0.5 + 0.4 * double(++done) / double(tiles.size()), "writing tiles");
+      errors[size_t(i)] = e.what();
     }
   }
-  for (const auto& e : write_errors)
+  for (const auto& e : errors)
     if (!e.empty()) {
       fs::remove_all(stage);
       throw std::runtime_error(e);
     }
+}
+
+/// 3a. tiles/<name>.glb of every tile with content; their sizes, the budget
+/// warnings.
+void write_tiles(const fs::path& stage, const std::vector<TileNode>& tiles,
+                 const std::vector<Building>& buildings, const io::GlbOptions& gopt,
+                 const SceneGeoref& georef, const AssembleParams& params, Reporter& report,
+                 AssembleStats& st) {
+  std::vector<std::size_t> glb_size(tiles.size(), 0);
+  std::atomic<std::size_t> done{0};
+  write_in_parallel(tiles.size(), resolve_threads(params.threads), stage, [&](std::size_t i) {
+    const TileNode& t = tiles[i];
+    if (t.items.empty()) return;
+    io::GlbBuilder g(rounded_centre(t.content_box), gopt);
+    for (const auto& it : t.items) {
+      const Building& b = buildings[it.b];
+      const auto [mesh, colours] =
+          read_model(b.models[it.m].file, b.origin, georef, b.models[it.m].colours);
+      g.add_feature(feature_of(b, it.m), mesh, colours);
+    }
+    if (!inside(g.stored_bounds(), t.content_box))
+      throw std::logic_error("tile " + t.name + ": stored positions leave the content box");
+    const std::string bytes = g.glb();
+    io::atomic_write_file((stage / "tiles" / (t.name + ".glb")).string(), bytes);
+    glb_size[i] = bytes.size();
+    report.step(done, tiles.size(), 0.5, 0.4, "writing tiles");
+  });
   for (std::size_t i = 0; i < tiles.size(); ++i) {
     st.glb_bytes += glb_size[i];
     st.max_glb_bytes = std::max(st.max_glb_bytes, glb_size[i]);
@@ -727,10 +725,40 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
                               " triangles): a single building is too large");
     }
   }
+}
 
-  // Per-building glbs (every kept model as a node) + index for the viewer.
-  const geo::LocalFrame frame(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
-  const std::array<double, 16> root_transform = frame.enu_to_ecef_matrix();
+/// 3b. buildings/<stem>.glb: every kept model of a building as a node.
+/// Returns their sizes.
+std::vector<std::size_t> write_building_glbs(const fs::path& stage,
+                                             const std::vector<Building>& buildings,
+                                             const io::GlbOptions& gopt, const SceneGeoref& georef,
+                                             const AssembleParams& params, Reporter& report) {
+  std::vector<std::size_t> bsize(buildings.size(), 0);
+  std::atomic<std::size_t> done{0};
+  write_in_parallel(buildings.size(), resolve_threads(params.threads), stage, [&](std::size_t i) {
+    const Building& b = buildings[i];
+    io::GlbBuilder g(rounded_centre(b.bbox), gopt);
+    for (std::size_t m = 0; m < b.models.size(); ++m) {
+      g.begin_node("model_" + std::to_string(m));
+      const auto [mesh, colours] =
+          read_model(b.models[m].file, b.origin, georef, b.models[m].colours);
+      g.add_feature(feature_of(b, m), mesh, colours);
+    }
+    const std::string bytes = g.glb();
+    io::atomic_write_file((stage / "buildings" / (b.file_stem + ".glb")).string(), bytes);
+    bsize[i] = bytes.size();
+    report.step(done, buildings.size(), 0.9, 0.09, "writing building models");
+  });
+  return bsize;
+}
+
+/// 3c. buildings.json, the viewer's index: the scene's frame and, per
+/// building, its glb (`bsize`: their sizes) and its kept models.
+void write_buildings_index(const fs::path& stage, const std::vector<Building>& buildings,
+                           const std::vector<std::size_t>& bsize, const Manifest& man,
+                           const std::array<double, 16>& root_transform,
+                           const AssembleParams& params, AssembleStats& st) {
+  const auto& sc = man.scene;
   nlohmann::ordered_json index;
   index["version"] = 1;
   index["root_transform"] = root_transform;
@@ -738,38 +766,6 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
       {"longitude", sc.origin_lon}, {"latitude", sc.origin_lat}, {"height", sc.origin_h}};
   if (!sc.crs.empty()) index["crs"] = sc.crs;
   nlohmann::ordered_json blist = nlohmann::ordered_json::object();
-  std::vector<std::size_t> bsize(buildings.size(), 0);
-  std::vector<std::string> berrors(buildings.size());
-  std::atomic<std::size_t> bdone{0};
-  if (params.building_models) {
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
-    for (long i = 0; i < long(buildings.size()); ++i) {
-      const Building& b = buildings[size_t(i)];
-      try {
-        io::GlbBuilder g(rounded_centre(b.bbox), gopt);
-        for (std::size_t m = 0; m < b.models.size(); ++m) {
-          g.begin_node("model_" + std::to_string(m));
-          const auto [mesh, colours] =
-              read_model(b.models[m].file, b.origin, georef, b.models[m].colours);
-          g.add_feature(feature_of(b, m), mesh, colours);
-        }
-        const std::string bytes = g.glb();
-        io::atomic_write_file((stage / "buildings" / (b.file_stem + ".glb")).string(), bytes);
-        bsize[size_t(i)] = bytes.size();
-      } catch (const std::exception& e) {
-        berrors[size_t(i)] = e.what();
-      }
-      if (progress) {
-        std::lock_guard<std::mutex> lock(progress_mutex);
-        report(0.9 + 0.09 * double(++bdone) / double(buildings.size()), "writing building models");
-      }
-    }
-    for (const auto& e : berrors)
-      if (!e.empty()) {
-        fs::remove_all(stage);
-        throw std::runtime_error(e);
-      }
-  }
   for (std::size_t i = 0; i < buildings.size(); ++i) {
     const Building& b = buildings[i];
     st.building_glb_bytes += bsize[i];
@@ -798,7 +794,14 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   }
   index["buildings"] = blist;
   io::atomic_write_file((stage / "buildings.json").string(), index.dump(1) + "\n");
+}
 
+/// 3d. tileset.json and the external tilesets (tiles/<name>.json), the last
+/// files of the stage.
+void write_tilesets(const fs::path& stage, const TreeBuilder& tree, const std::string& crs,
+                    const std::array<double, 16>& root_transform, const AssembleParams& params,
+                    AssembleStats& st) {
+  const std::vector<TileNode>& tiles = tree.tiles;
   io::Tileset ts;
   TilesetWriter tw(tiles, params.max_tiles_per_file);
   std::size_t budget = params.max_tiles_per_file;
@@ -809,11 +812,64 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
   ts.root.refine = "REPLACE";
   ts.root.transform = root_transform;
   ts.geometric_error = std::max(tree.tileset_error, tiles[0].error);
-  ts.extras = {{"citylod", {{"buildings", "buildings.json"}, {"crs", sc.crs}}}};
+  ts.extras = {{"citylod", {{"buildings", "buildings.json"}, {"crs", crs}}}};
   io::write_tileset((stage / "tileset.json").string(), ts);  // last file of the stage
   st.tiles = tiles.size();
   st.depth = tree_depth(tiles, 0);
   st.root_error_m = tiles[0].error;
+}
+
+}  // namespace
+
+AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
+                       const AssembleParams& params, const ProgressFn& progress) {
+  params.validate();
+  AssembleStats st;
+  const auto t0 = Clock::now();
+  Reporter report(progress);
+  if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
+  fs::path out = fs::absolute(out_dir).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();  // "DIR/"
+  if (out.filename().empty() || out == out.root_path())
+    throw io::IoError(out_dir, "not a valid output directory");
+  // One writer: of the work directory (no LOD stage changes it meanwhile) and of the output.
+  const DirLock work_lock(work_dir), out_lock = DirLock::for_output(out.string());
+  const Manifest man = read_manifest(work_dir);
+  if (man.chunks.empty())
+    throw io::IoError(manifest_path(work_dir),
+                      "the manifest lists no buildings (nothing to assemble)");
+  require_valid_origin(man, work_dir);
+  const SceneGeoref georef(man, work_dir);
+  const auto& sc = man.scene;
+  check_output_dir(out, params.force);
+
+  // ---- 1. buildings
+  const std::vector<Building> buildings = read_buildings(work_dir, man, params, georef, report, st);
+  st.seconds_read = seconds_since(t0);
+
+  // ---- 2. tile tree
+  TreeBuilder tree(buildings, params);
+  tree.build();
+
+  // ---- 3. files, staged next to the output
+  const auto t1 = Clock::now();
+  const fs::path stage = out.string() + ".partial";
+  fs::remove_all(stage);
+  fs::create_directories(stage / "tiles");
+  if (params.building_models) fs::create_directories(stage / "buildings");
+  // the stage's files are written in place and made durable at once by publish_directory
+  const io::StagedDirectory staged(stage.string());
+  const io::GlbOptions gopt = glb_options(params, buildings);
+  io::atomic_write_file((stage / "schema.json").string(), io::glb_schema(gopt) + "\n");
+  write_tiles(stage, tree.tiles, buildings, gopt, georef, params, report, st);
+  // Per-building glbs (every kept model as a node) + index for the viewer.
+  const std::vector<std::size_t> bsize =
+      params.building_models ? write_building_glbs(stage, buildings, gopt, georef, params, report)
+                             : std::vector<std::size_t>(buildings.size(), 0);
+  const geo::LocalFrame frame(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
+  const std::array<double, 16> root_transform = frame.enu_to_ecef_matrix();
+  write_buildings_index(stage, buildings, bsize, man, root_transform, params, st);
+  write_tilesets(stage, tree, sc.crs, root_transform, params, st);
 
   // ---- 4. switch the staged directory in: fsync'd, then one atomic exchange
   // (the output is at every instant the previous or the new complete tileset)
