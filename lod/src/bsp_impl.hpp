@@ -2,7 +2,7 @@
 // Only bsp.cpp, bsp_adjacency.cpp and bsp_extract.cpp include this header (CGAL
 // stays inside them).
 //
-// Representation (Appendix B of the paper, DESIGN.md "Numeric robustness"):
+// Representation (Appendix B of the paper, ARCHITECTURE.md "Numeric robustness"):
 //  - a plane table of exact planes built from double coefficients (merged when
 //    equal within 1e-12); the 6 box planes first, then the support planes of
 //    the input polygons, then the "edge planes" bounding the input polygons;

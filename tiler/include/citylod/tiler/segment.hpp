@@ -93,9 +93,7 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
 /// axis (FLANN's L2_Simple<float>), is < float(double(float(tolerance))^2) (FLANN's radius
 /// test as PCL calls it); clusters are the connected sets, found from seeds in index
 /// order, each with its indices ascending; those of >= `min_size` points, sorted by size
-/// as PCL sorts them (largest first). FLANN opened an OpenMP parallel region and reserved
-/// 1024 results for every query point: split_bench, 16 copies of Delft without
-/// footprints, 10.7 -> 3.7 s (BENCHMARKS.md, "Splitting").
+/// as PCL sorts them (largest first). Why not PCL's kd-tree: BENCHMARKS.md, "Splitting".
 std::vector<std::vector<std::uint32_t>> euclidean_clusters(
     const std::vector<std::array<float, 3>>& points, double tolerance, std::size_t min_size);
 
