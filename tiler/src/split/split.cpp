@@ -2327,7 +2327,6 @@ void Splitter::run_cells(std::size_t n, std::size_t progress_from, double progre
       lock.unlock();
       gate.done(i, job.held);
       merged_cv.notify_all();
-      job.out = CellOutput{};
       release_free_memory();
     }
   };
