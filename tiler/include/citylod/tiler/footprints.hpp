@@ -2,8 +2,8 @@
 // io::read_footprints: GeoPackage, SQLite, Shapefile, GeoJSON, FlatGeobuf, PG:...)
 // and their geometry (area, containment, distance, convex hull; the ring
 // primitives are citylod/lod/polygon2d.hpp, shared with the LOD engine). Coordinates are whatever
-// the caller puts in: the reader returns them in the source's CRS units; split.cpp converts them
-// to scene ENU metres.
+// the caller puts in: the reader returns them in the source's CRS units; the split converts them
+// to scene ENU metres (split/split_footprints.cpp).
 #pragma once
 
 #include <array>

@@ -24,8 +24,8 @@
 // (<SRS>: EPSG:n, WKT or ENU:lat,lon) and an offset (<SRSOrigin>) added to the
 // coordinates; FILE.prj beside a file gives its CRS. --crs / --origin / --offset win.
 // Memory: a region that exceeds the budget is processed as four quarter cells (halved
-// while larger than kMinSplitCell, 10 m, in split.cpp); only a smallest cell whose region
-// (+ halo) still exceeds it fails, with one line saying so: a run that passes at one
+// while larger than kMinSplitCell, 10 m, in split_internal.hpp); only a smallest cell whose
+// region (+ halo) still exceeds it fails, with one line saying so: a run that passes at one
 // --memory-limit passes at every higher one.
 // The samples are segmented like points. Without footprints each triangle goes to the
 // cluster holding most of its samples, and a cluster with less than 20 % of its area in
@@ -35,7 +35,7 @@
 // else to the nearest footprint within footprint_buffer (eaves); a steeper face (wall) to the
 // footprint it bounds (holding the point footprint_buffer behind it, against its
 // outward normal; on a shared footprint edge not the one it faces); faces all on the
-// ground (DTM) are not claimed (see mesh_footprint_of() in split.cpp).
+// ground (DTM) are not claimed (see mesh_footprint_of() in split_footprints.cpp).
 // Everything is staged in WORK/.split.tmp.<pid>/ and published by rename; a
 // failed run leaves WORK as it was. Re-running with identical inputs (paths,
 // sizes, mtimes) and options returns up_to_date without touching WORK.

@@ -1,0 +1,137 @@
+// `citylod split`'s options: --memory-limit sizes, SplitOptions::validate() and the
+// canonical text of the options that the manifest records (the up-to-date check).
+#include <cctype>
+#include <cmath>
+#include <locale>
+#include <regex>
+#include <sstream>
+#include <stdexcept>
+
+#include "split_internal.hpp"
+
+namespace citylod::tiler {
+
+namespace split_detail {
+
+/// "X,Y[,Z]" (commas or blanks) -> numbers; nullopt when malformed or not finite.
+std::optional<io::Vec3d> parse_triple(const std::string& s) {
+  std::string t = s;
+  for (auto& c : t)
+    if (c == ',') c = ' ';
+  std::istringstream in(t);
+  in.imbue(std::locale::classic());
+  io::Vec3d v{0, 0, 0};
+  int n = 0;
+  double d;
+  while (in >> d) {
+    if (n == 3 || !std::isfinite(d)) return std::nullopt;
+    v[std::size_t(n++)] = d;
+  }
+  if (!in.eof() || n < 2) return std::nullopt;
+  return v;
+}
+
+}  // namespace split_detail
+
+using split_detail::parse_triple;
+
+std::uint64_t parse_memory_size(const std::string& s) {
+  std::size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(s, &used);
+  } catch (const std::exception&) {
+    throw std::invalid_argument("--memory-limit: '" + s + "' is not a size (e.g. 2G, 512M)");
+  }
+  std::string unit = s.substr(used);
+  for (auto& c : unit) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  double mul = 1;
+  if (unit.empty() || unit == "B")
+    mul = 1;
+  else if (unit == "K" || unit == "KB" || unit == "KIB")
+    mul = 1024.0;
+  else if (unit == "M" || unit == "MB" || unit == "MIB")
+    mul = 1024.0 * 1024;
+  else if (unit == "G" || unit == "GB" || unit == "GIB")
+    mul = 1024.0 * 1024 * 1024;
+  else if (unit == "T" || unit == "TB" || unit == "TIB")
+    mul = 1024.0 * 1024 * 1024 * 1024;
+  else
+    throw std::invalid_argument("--memory-limit: unknown unit '" + unit + "' in '" + s + "'");
+  if (!(v > 0) || !std::isfinite(v))
+    throw std::invalid_argument("--memory-limit: must be positive");
+  // 2^64 bytes and more do not fit the count (the conversion would wrap round)
+  if (!(v * mul < 18446744073709551616.0))
+    throw std::invalid_argument("--memory-limit: '" + s +
+                                "' is more than the largest size there is (16E = 2^64 bytes)");
+  return static_cast<std::uint64_t>(v * mul);
+}
+
+void SplitOptions::validate() const {
+  auto positive = [](double v, const char* name) {
+    if (!(v > 0) || !std::isfinite(v))
+      throw std::invalid_argument(std::string(name) + " must be a positive number");
+  };
+  if (inputs.empty()) throw std::invalid_argument("no input file");
+  if (work_dir.empty()) throw std::invalid_argument("--out WORK is required");
+  if (!crs.empty() && !origin.empty())
+    throw std::invalid_argument(
+        "--crs and --origin exclude each other (--origin is for data in a local metric frame)");
+  if (!geoid.empty() && geoid != "egm96")
+    throw std::invalid_argument("--geoid: only 'egm96' is supported, got '" + geoid + "'");
+  if (!geoid.empty() && !origin.empty())
+    throw std::invalid_argument(
+        "--geoid needs a CRS; with --origin heights are relative to the given ellipsoidal H");
+  if (!vertical.empty() && vertical != "auto" && vertical != "ellipsoidal" &&
+      vertical != "orthometric")
+    throw std::invalid_argument("--vertical: expected auto, ellipsoidal or orthometric, got '" +
+                                vertical + "'");
+  if (!vertical.empty() && vertical != "auto" && !origin.empty())
+    throw std::invalid_argument(
+        "--vertical needs a CRS; with --origin heights are relative to the given ellipsoidal H");
+  if (!geoid.empty() && vertical == "ellipsoidal")
+    throw std::invalid_argument(
+        "--geoid egm96 (orthometric heights) contradicts --vertical ellipsoidal");
+  if (footprints.empty() && (!footprints_layer.empty() || !footprints_id.empty()))
+    throw std::invalid_argument("--footprints-layer / --footprints-id need --footprints");
+  if (!offset.empty() && !parse_triple(offset))
+    throw std::invalid_argument("--offset: expected X,Y or X,Y,Z (numbers), got '" + offset + "'");
+  positive(cell_size, "--cell-size");
+  positive(halo, "--halo");
+  positive(seg.cluster_tolerance, "--cluster-tolerance");
+  positive(seg.dtm_resolution, "dtm resolution");
+  if (max_halo < halo) throw std::invalid_argument("--max-halo must be >= --halo");
+  if (footprint_buffer < 0) throw std::invalid_argument("--footprint-buffer must be >= 0");
+  if (memory_limit < (64ull << 20))
+    throw std::invalid_argument("--memory-limit must be at least 64M");
+  if (seg.min_height < 0) throw std::invalid_argument("--min-height must be >= 0");
+  if (seg.min_area < 0) throw std::invalid_argument("--min-area must be >= 0");
+}
+
+std::string SplitOptions::canonical() const {
+  std::ostringstream o;
+  o.precision(17);
+  // a "PG:" connection string's password stays out of the manifest
+  static const std::regex pw(R"((password\s*=\s*)('[^']*'|\S+))", std::regex::icase);
+  o << "v=3;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
+    << ";footprints=" << std::regex_replace(footprints, pw, "$1***")
+    << ";footprint_buffer=" << footprint_buffer << ";memory_limit=" << memory_limit
+    << ";cell=" << cell_size << ";halo=" << halo << ";max_halo=" << max_halo
+    << ";ignore_classes=" << ignore_classes << ";min_footprint_points=" << min_footprint_points
+    << ";dtm_res=" << seg.dtm_resolution << ";dtm_window=" << seg.dtm_window
+    << ";ground_tol=" << seg.ground_tolerance << ";min_height=" << seg.min_height
+    << ";tol=" << seg.cluster_tolerance << ";min_pts=" << seg.min_cluster_points
+    << ";min_area=" << seg.min_area << ";min_bh=" << seg.min_building_height
+    << ";k=" << seg.feature_neighbours << ";max_scatter=" << seg.max_scatter
+    << ";max_veg=" << seg.max_vegetation_ratio << ";min_planar=" << seg.min_planar_fraction
+    << ";min_width=" << seg.min_width << ";low=" << seg.low_height << ","
+    << seg.low_max_vegetation_ratio << "," << seg.low_min_planar_fraction;
+  // v=2: heights follow the CRS by default (RD New -> NAP); v=1 work directories split again
+  o << ";vertical=" << (vertical.empty() ? "auto" : vertical)
+    << ";footprints_layer=" << footprints_layer << ";footprints_id=" << footprints_id
+    << ";unmatched=" << (unmatched == Unmatched::segment ? "segment" : "drop");
+  if (!offset.empty()) o << ";offset=" << offset;
+  return o.str();
+}
+
+}  // namespace citylod::tiler
