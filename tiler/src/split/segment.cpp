@@ -266,6 +266,279 @@ GroundGrid build_dtm(const std::vector<io::Vec3d>& pos, const std::vector<std::u
   return g;
 }
 
+/// The region centre, the origin of the float coordinates given to FLANN and PCL.
+struct Centre {
+  double x, y, z;
+};
+
+/// PCA features of the points above the ground that may be building: planarity, and
+/// foliage (scatter above p.max_scatter) in out.foliage.
+void point_features(const std::vector<io::Vec3d>& pos, const std::vector<std::uint8_t>& cls,
+                    bool have_cls, const SegmentParams& p, const Centre& c, CellSegmentation& out,
+                    std::vector<float>& planarity) {
+  const std::size_t n = pos.size();
+  std::vector<std::uint32_t> idx;
+  for (std::size_t k = 0; k < n; ++k)
+    if (!out.ground[k] && out.hag[k] > p.ground_tolerance &&
+        !(have_cls && non_building_class(cls[k])))
+      idx.push_back(static_cast<std::uint32_t>(k));
+  const int kk = std::min<int>(p.feature_neighbours, static_cast<int>(idx.size()));
+  if (kk < 5) return;
+  // PCL's KdTreeFLANN::nearestKSearch, called on FLANN's index directly: the same
+  // index (KDTreeSingleIndex, 15 points per leaf), search parameters (exact, sorted)
+  // and result set as PCL's wrapper, without the OpenMP parallel region FLANN's
+  // knnSearch opens for every query point (mesh_city's split without footprints
+  // 2.9 -> 2.0 s; BENCHMARKS.md, "Splitting").
+  std::vector<float> xyz(3 * idx.size());
+  for (std::size_t m = 0; m < idx.size(); ++m) {
+    const auto& q = pos[idx[m]];
+    xyz[3 * m] = float(q[0] - c.x);
+    xyz[3 * m + 1] = float(q[1] - c.y);
+    xyz[3 * m + 2] = float(q[2] - c.z);
+  }
+  ::flann::KDTreeSingleIndex<::flann::L2_Simple<float>> tree(
+      ::flann::Matrix<float>(xyz.data(), idx.size(), 3), ::flann::KDTreeSingleIndexParams(15));
+  tree.buildIndex();
+  const ::flann::SearchParams sp(-1, 0.0f);  // PCL's: every leaf checked, exact, sorted
+  const std::size_t k = std::size_t(kk);
+  std::vector<std::size_t> nn(k);
+  std::vector<float> d2(k);
+  // the k nearest of point m into nn, sorted, by the result set NNIndex::knnSearch picks
+  ::flann::KNNSimpleResultSet<float> simple(k);
+  ::flann::KNNResultSet2<float> heap(k);
+  auto neighbours = [&](auto& rs, std::size_t m) {
+    rs.clear();
+    tree.findNeighbors(rs, &xyz[3 * m], sp);
+    rs.copy(nn.data(), d2.data(), std::min(rs.size(), k), sp.sorted);
+  };
+  auto point = [&](std::size_t i) {
+    return Eigen::Vector3d(double(xyz[3 * i]), double(xyz[3 * i + 1]), double(xyz[3 * i + 2]));
+  };
+  for (std::size_t m = 0; m < idx.size(); ++m) {
+    if (k > KNN_HEAP_THRESHOLD)
+      neighbours(heap, m);
+    else
+      neighbours(simple, m);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const std::size_t i : nn) mean += point(i);
+    mean /= double(k);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const std::size_t i : nn) {
+      const Eigen::Vector3d d = point(i) - mean;
+      cov += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
+    const Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0.0);  // ascending
+    const double l1 = std::max(ev[2], 1e-12);
+    const double scatter = ev[0] / l1;
+    planarity[idx[m]] = static_cast<float>((ev[1] - ev[0]) / l1);
+    if (scatter > p.max_scatter) out.foliage[idx[m]] = 1;
+  }
+}
+
+/// The points that may belong to a building: class 6 when the building class is
+/// trusted, else above p.min_height, not foliage, not of a non-building class.
+std::vector<std::uint32_t> building_candidates(const std::vector<std::uint8_t>& cls, ClassMode mode,
+                                               bool have_cls, const SegmentParams& p,
+                                               const CellSegmentation& out) {
+  std::vector<std::uint32_t> cand;
+  for (std::size_t k = 0; k < out.hag.size(); ++k) {
+    if (mode == ClassMode::buildings) {
+      if (cls[k] == 6) cand.push_back(static_cast<std::uint32_t>(k));
+      continue;
+    }
+    if (out.ground[k] || out.foliage[k] || out.hag[k] < p.min_height) continue;
+    if (have_cls && non_building_class(cls[k])) continue;
+    cand.push_back(static_cast<std::uint32_t>(k));
+  }
+  return cand;
+}
+
+/// The candidates' groups (point indices) and each point's group (-1: none).
+struct Groups {
+  std::vector<std::vector<std::uint32_t>> members;
+  std::vector<int> label;
+};
+
+/// The candidates clustered in 2D (euclidean_clusters). Edges and ridges look like
+/// foliage to the PCA (their neighbourhood spans two planes), which cuts walls from
+/// roofs and roof halves apart. Foliage-like points within reach of clustered points
+/// join them, and bridge the clusters they touch.
+Groups group_candidates(const std::vector<io::Vec3d>& pos, const std::vector<std::uint8_t>& cls,
+                        ClassMode mode, bool have_cls, const SegmentParams& p, const Centre& ce,
+                        const std::vector<std::uint32_t>& cand, const CellSegmentation& out) {
+  const std::size_t n = pos.size();
+  std::vector<std::array<float, 3>> flat(cand.size());
+  for (std::size_t m = 0; m < cand.size(); ++m) {
+    const auto& q = pos[cand[m]];
+    flat[m] = {float(q[0] - ce.x), float(q[1] - ce.y), 0.0f};
+  }
+  const std::vector<std::vector<std::uint32_t>> found =
+      euclidean_clusters(flat, p.cluster_tolerance, std::size_t(std::max(1, p.min_cluster_points)));
+
+  std::vector<int> parent(found.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
+  std::function<int(int)> root = [&](int i) {
+    return parent[std::size_t(i)] == i ? i : parent[std::size_t(i)] = root(parent[std::size_t(i)]);
+  };
+  std::vector<int> label(n, -1);
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (const std::uint32_t m : found[c]) label[cand[m]] = int(c);
+  std::vector<std::pair<std::uint32_t, int>> attached;  // foliage point -> cluster
+  if (mode != ClassMode::buildings && !found.empty()) {
+    pcl::PointCloud<pcl::PointXYZ>::Ptr c3(new pcl::PointCloud<pcl::PointXYZ>);
+    c3->resize(cand.size());
+    for (std::size_t m = 0; m < cand.size(); ++m) {
+      const auto& q = pos[cand[m]];
+      (*c3)[m] = pcl::PointXYZ(float(q[0] - ce.x), float(q[1] - ce.y), float(q[2] - ce.z));
+    }
+    pcl::KdTreeFLANN<pcl::PointXYZ> t3;
+    t3.setInputCloud(c3);
+    const double reach = 1.5 * p.cluster_tolerance;
+    std::vector<int> nn;
+    std::vector<float> d2;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!out.foliage[k] || out.hag[k] < p.min_height) continue;
+      if (have_cls && non_building_class(cls[k])) continue;
+      const pcl::PointXYZ q(float(pos[k][0] - ce.x), float(pos[k][1] - ce.y),
+                            float(pos[k][2] - ce.z));
+      if (t3.radiusSearch(q, reach, nn, d2) <= 0) continue;
+      int first = -1;
+      for (int m : nn) {
+        const int l = label[cand[std::size_t(m)]];
+        if (l < 0) continue;
+        if (first < 0)
+          first = l;
+        else if (root(l) != root(first))
+          parent[std::size_t(root(l))] = root(first);
+      }
+      if (first >= 0) attached.push_back({std::uint32_t(k), first});
+    }
+  }
+  Groups g;
+  g.members.resize(found.size());
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (const std::uint32_t m : found[c]) g.members[std::size_t(root(int(c)))].push_back(cand[m]);
+  for (const auto& [k, c] : attached) {
+    g.members[std::size_t(root(c))].push_back(k);
+    label[k] = root(c);
+  }
+  for (std::size_t c = 0; c < found.size(); ++c)
+    for (const std::uint32_t m : found[c]) label[cand[m]] = root(int(c));
+  g.label = std::move(label);
+  return g;
+}
+
+/// Foliage points above building height, bucketed for the vegetation ratio (none when
+/// the building class is trusted).
+struct FoliageBuckets {
+  double size = 2.0;  ///< m
+  int bx = 1, by = 1;
+  std::vector<std::vector<std::uint32_t>> cells;  ///< row-major, bx x by
+};
+
+FoliageBuckets foliage_buckets(const std::vector<io::Vec3d>& pos, ClassMode mode,
+                               const SegmentParams& p, const std::array<double, 4>& region,
+                               const CellSegmentation& out) {
+  FoliageBuckets b;
+  const double bucket = b.size;
+  const int bx = std::max(1, int(std::ceil((region[2] - region[0]) / bucket)) + 1);
+  const int by = std::max(1, int(std::ceil((region[3] - region[1]) / bucket)) + 1);
+  b.bx = bx;
+  b.by = by;
+  if (mode == ClassMode::buildings) return b;
+  b.cells.resize(std::size_t(bx) * std::size_t(by));
+  for (std::size_t k = 0; k < pos.size(); ++k)
+    if (out.foliage[k] && out.hag[k] >= p.min_height) {
+      const int i = std::clamp(int((pos[k][0] - region[0]) / bucket), 0, bx - 1);
+      const int j = std::clamp(int((pos[k][1] - region[1]) / bucket), 0, by - 1);
+      b.cells[std::size_t(j) * std::size_t(bx) + std::size_t(i)].push_back(std::uint32_t(k));
+    }
+  return b;
+}
+
+/// A group's cluster: members, anchor, centroid, hull, area, width, height, planar
+/// fraction (not yet the vegetation ratio and the verdict).
+Cluster describe_cluster(const std::vector<io::Vec3d>& pos, const CellSegmentation& out,
+                         const std::vector<float>& planarity,
+                         const std::vector<std::uint32_t>& group) {
+  Cluster c;
+  c.members.reserve(group.size());
+  std::vector<Vec2> xy;
+  xy.reserve(group.size());
+  double sx = 0, sy = 0, sz = 0;
+  std::size_t planar = 0;
+  c.anchor = pos[group.front()];
+  for (const std::uint32_t k : group) {
+    c.members.push_back(k);
+    if (pos[k] < c.anchor) c.anchor = pos[k];
+    sx += pos[k][0];
+    sy += pos[k][1];
+    sz += pos[k][2];
+    xy.push_back({pos[k][0], pos[k][1]});
+    c.height = std::max(c.height, double(out.hag[k]));
+    if (planarity[k] > 0.5f) ++planar;
+  }
+  std::sort(c.members.begin(), c.members.end());
+  const double cnt = double(c.members.size());
+  c.centroid = {sx / cnt, sy / cnt, sz / cnt};
+  c.hull = convex_hull(std::move(xy));
+  c.area = c.hull.size() >= 3 ? signed_area(c.hull) : 0.0;
+  c.width = hull_width(c.hull);
+  c.planar_fraction = double(planar) / cnt;
+  return c;
+}
+
+/// The share of foliage points of other groups inside cluster `g`'s hull, per member.
+double vegetation_ratio(const Cluster& c, int g, const std::vector<int>& label,
+                        const FoliageBuckets& b, const std::vector<io::Vec3d>& pos,
+                        const std::array<double, 4>& region) {
+  const double bucket = b.size;
+  const int bx = b.bx, by = b.by;
+  double xmin = 1e300, ymin = 1e300, xmax = -1e300, ymax = -1e300;
+  for (const auto& v : c.hull) {
+    xmin = std::min(xmin, v[0]);
+    ymin = std::min(ymin, v[1]);
+    xmax = std::max(xmax, v[0]);
+    ymax = std::max(ymax, v[1]);
+  }
+  const int i0 = std::clamp(int((xmin - region[0]) / bucket), 0, bx - 1);
+  const int i1 = std::clamp(int((xmax - region[0]) / bucket), 0, bx - 1);
+  const int j0 = std::clamp(int((ymin - region[1]) / bucket), 0, by - 1);
+  const int j1 = std::clamp(int((ymax - region[1]) / bucket), 0, by - 1);
+  std::size_t inside = 0;
+  for (int j = j0; j <= j1; ++j)
+    for (int i = i0; i <= i1; ++i)
+      for (std::uint32_t k : b.cells[std::size_t(j) * std::size_t(bx) + std::size_t(i)])
+        if (label[k] != g && point_in_ring(c.hull, {pos[k][0], pos[k][1]})) ++inside;
+  return double(inside) / double(c.members.size());
+}
+
+/// A building, or why not (c.reject_reason).
+void judge_cluster(Cluster& c, ClassMode mode, const SegmentParams& p) {
+  char why[160] = "";
+  if (c.area < p.min_area)
+    std::snprintf(why, sizeof why, "small (%.1f m2 < %.1f m2)", c.area, p.min_area);
+  else if (c.height < p.min_building_height)
+    std::snprintf(why, sizeof why, "low (%.1f m < %.1f m above ground)", c.height,
+                  p.min_building_height);
+  else if (c.width < p.min_width)
+    std::snprintf(why, sizeof why, "narrow (%.1f m < %.1f m wide)", c.width, p.min_width);
+  else if (mode != ClassMode::buildings && c.height < p.low_height &&
+           (c.vegetation_ratio > p.low_max_vegetation_ratio ||
+            c.planar_fraction < p.low_min_planar_fraction))
+    std::snprintf(why, sizeof why, "low object (%.1f m high, %.0f%% foliage, %.0f%% planar)",
+                  c.height, 100 * c.vegetation_ratio, 100 * c.planar_fraction);
+  else if (mode != ClassMode::buildings && c.vegetation_ratio > p.max_vegetation_ratio)
+    std::snprintf(why, sizeof why, "vegetation (%.0f%% foliage-like points in its outline)",
+                  100 * c.vegetation_ratio);
+  else if (mode != ClassMode::buildings && c.planar_fraction < p.min_planar_fraction)
+    std::snprintf(why, sizeof why, "vegetation (only %.0f%% planar points)",
+                  100 * c.planar_fraction);
+  c.reject_reason = why;
+  c.building = c.reject_reason.empty();
+}
+
 }  // namespace
 
 CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
@@ -286,228 +559,30 @@ CellSegmentation segment_cell(const std::vector<io::Vec3d>& pos,
   if (n == 0) return out;
 
   // Local frame for PCL (float): the region centre.
-  const double cx = 0.5 * (region[0] + region[2]);
-  const double cy = 0.5 * (region[1] + region[3]);
-  const double cz = out.dtm.at(cx, cy);
+  Centre c;
+  c.x = 0.5 * (region[0] + region[2]);
+  c.y = 0.5 * (region[1] + region[3]);
+  c.z = out.dtm.at(c.x, c.y);
 
   // ---- point features (not when the building class is trusted)
   std::vector<float> planarity(n, 1.0f);
-  if (mode != ClassMode::buildings) {
-    std::vector<std::uint32_t> idx;
-    for (std::size_t k = 0; k < n; ++k)
-      if (!out.ground[k] && out.hag[k] > p.ground_tolerance &&
-          !(have_cls && non_building_class(cls[k])))
-        idx.push_back(static_cast<std::uint32_t>(k));
-    const int kk = std::min<int>(p.feature_neighbours, static_cast<int>(idx.size()));
-    if (kk >= 5) {
-      // PCL's KdTreeFLANN::nearestKSearch, called on FLANN's index directly: the same
-      // index (KDTreeSingleIndex, 15 points per leaf), search parameters (exact, sorted)
-      // and result set as PCL's wrapper, without the OpenMP parallel region FLANN's
-      // knnSearch opens for every query point (mesh_city's split without footprints
-      // 2.9 -> 2.0 s; BENCHMARKS.md, "Splitting").
-      std::vector<float> xyz(3 * idx.size());
-      for (std::size_t m = 0; m < idx.size(); ++m) {
-        const auto& q = pos[idx[m]];
-        xyz[3 * m] = float(q[0] - cx);
-        xyz[3 * m + 1] = float(q[1] - cy);
-        xyz[3 * m + 2] = float(q[2] - cz);
-      }
-      ::flann::KDTreeSingleIndex<::flann::L2_Simple<float>> tree(
-          ::flann::Matrix<float>(xyz.data(), idx.size(), 3), ::flann::KDTreeSingleIndexParams(15));
-      tree.buildIndex();
-      const ::flann::SearchParams sp(-1, 0.0f);  // PCL's: every leaf checked, exact, sorted
-      const std::size_t k = std::size_t(kk);
-      std::vector<std::size_t> nn(k);
-      std::vector<float> d2(k);
-      // the k nearest of point m into nn, sorted, by the result set NNIndex::knnSearch picks
-      ::flann::KNNSimpleResultSet<float> simple(k);
-      ::flann::KNNResultSet2<float> heap(k);
-      auto neighbours = [&](auto& rs, std::size_t m) {
-        rs.clear();
-        tree.findNeighbors(rs, &xyz[3 * m], sp);
-        rs.copy(nn.data(), d2.data(), std::min(rs.size(), k), sp.sorted);
-      };
-      auto point = [&](std::size_t i) {
-        return Eigen::Vector3d(double(xyz[3 * i]), double(xyz[3 * i + 1]), double(xyz[3 * i + 2]));
-      };
-      for (std::size_t m = 0; m < idx.size(); ++m) {
-        if (k > KNN_HEAP_THRESHOLD)
-          neighbours(heap, m);
-        else
-          neighbours(simple, m);
-        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (const std::size_t i : nn) mean += point(i);
-        mean /= double(k);
-        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-        for (const std::size_t i : nn) {
-          const Eigen::Vector3d d = point(i) - mean;
-          cov += d * d.transpose();
-        }
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
-        const Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0.0);  // ascending
-        const double l1 = std::max(ev[2], 1e-12);
-        const double scatter = ev[0] / l1;
-        planarity[idx[m]] = static_cast<float>((ev[1] - ev[0]) / l1);
-        if (scatter > p.max_scatter) out.foliage[idx[m]] = 1;
-      }
-    }
-  }
+  if (mode != ClassMode::buildings) point_features(pos, cls, have_cls, p, c, out, planarity);
   if (!cluster) return out;
 
-  // ---- building candidates
-  std::vector<std::uint32_t> cand;
-  for (std::size_t k = 0; k < n; ++k) {
-    if (mode == ClassMode::buildings) {
-      if (cls[k] == 6) cand.push_back(static_cast<std::uint32_t>(k));
-      continue;
-    }
-    if (out.ground[k] || out.foliage[k] || out.hag[k] < p.min_height) continue;
-    if (have_cls && non_building_class(cls[k])) continue;
-    cand.push_back(static_cast<std::uint32_t>(k));
-  }
+  // ---- building candidates, clustered
+  const std::vector<std::uint32_t> cand = building_candidates(cls, mode, have_cls, p, out);
   if (cand.size() < static_cast<std::size_t>(std::max(1, p.min_cluster_points))) return out;
+  const Groups groups = group_candidates(pos, cls, mode, have_cls, p, c, cand, out);
 
-  std::vector<std::array<float, 3>> flat(cand.size());
-  for (std::size_t m = 0; m < cand.size(); ++m) {
-    const auto& q = pos[cand[m]];
-    flat[m] = {float(q[0] - cx), float(q[1] - cy), 0.0f};
-  }
-  const std::vector<std::vector<std::uint32_t>> found =
-      euclidean_clusters(flat, p.cluster_tolerance, std::size_t(std::max(1, p.min_cluster_points)));
-
-  // Edges and ridges look like foliage to the PCA (their neighbourhood spans two
-  // planes), which cuts walls from roofs and roof halves apart. Foliage-like points
-  // within reach of clustered points join them, and bridge the clusters they touch.
-  std::vector<int> parent(found.size());
-  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
-  std::function<int(int)> root = [&](int i) {
-    return parent[std::size_t(i)] == i ? i : parent[std::size_t(i)] = root(parent[std::size_t(i)]);
-  };
-  std::vector<int> label(n, -1);
-  for (std::size_t c = 0; c < found.size(); ++c)
-    for (const std::uint32_t m : found[c]) label[cand[m]] = int(c);
-  std::vector<std::pair<std::uint32_t, int>> attached;  // foliage point -> cluster
-  if (mode != ClassMode::buildings && !found.empty()) {
-    pcl::PointCloud<pcl::PointXYZ>::Ptr c3(new pcl::PointCloud<pcl::PointXYZ>);
-    c3->resize(cand.size());
-    for (std::size_t m = 0; m < cand.size(); ++m) {
-      const auto& q = pos[cand[m]];
-      (*c3)[m] = pcl::PointXYZ(float(q[0] - cx), float(q[1] - cy), float(q[2] - cz));
-    }
-    pcl::KdTreeFLANN<pcl::PointXYZ> t3;
-    t3.setInputCloud(c3);
-    const double reach = 1.5 * p.cluster_tolerance;
-    std::vector<int> nn;
-    std::vector<float> d2;
-    for (std::size_t k = 0; k < n; ++k) {
-      if (!out.foliage[k] || out.hag[k] < p.min_height) continue;
-      if (have_cls && non_building_class(cls[k])) continue;
-      const pcl::PointXYZ q(float(pos[k][0] - cx), float(pos[k][1] - cy), float(pos[k][2] - cz));
-      if (t3.radiusSearch(q, reach, nn, d2) <= 0) continue;
-      int first = -1;
-      for (int m : nn) {
-        const int l = label[cand[std::size_t(m)]];
-        if (l < 0) continue;
-        if (first < 0)
-          first = l;
-        else if (root(l) != root(first))
-          parent[std::size_t(root(l))] = root(first);
-      }
-      if (first >= 0) attached.push_back({std::uint32_t(k), first});
-    }
-  }
-  std::vector<std::vector<std::uint32_t>> groups(found.size());
-  for (std::size_t c = 0; c < found.size(); ++c)
-    for (const std::uint32_t m : found[c]) groups[std::size_t(root(int(c)))].push_back(cand[m]);
-  for (const auto& [k, c] : attached) {
-    groups[std::size_t(root(c))].push_back(k);
-    label[k] = root(c);
-  }
-  for (std::size_t c = 0; c < found.size(); ++c)
-    for (const std::uint32_t m : found[c]) label[cand[m]] = root(int(c));
-
-  // Foliage points above building height, bucketed for the vegetation ratio.
-  const double bucket = 2.0;
-  const int bx = std::max(1, int(std::ceil((region[2] - region[0]) / bucket)) + 1);
-  const int by = std::max(1, int(std::ceil((region[3] - region[1]) / bucket)) + 1);
-  std::vector<std::vector<std::uint32_t>> buckets;
-  if (mode != ClassMode::buildings) {
-    buckets.resize(std::size_t(bx) * std::size_t(by));
-    for (std::size_t k = 0; k < n; ++k)
-      if (out.foliage[k] && out.hag[k] >= p.min_height) {
-        const int i = std::clamp(int((pos[k][0] - region[0]) / bucket), 0, bx - 1);
-        const int j = std::clamp(int((pos[k][1] - region[1]) / bucket), 0, by - 1);
-        buckets[std::size_t(j) * std::size_t(bx) + std::size_t(i)].push_back(std::uint32_t(k));
-      }
-  }
-
-  for (std::size_t g = 0; g < groups.size(); ++g) {
-    if (groups[g].empty()) continue;
-    Cluster c;
-    c.members.reserve(groups[g].size());
-    std::vector<Vec2> xy;
-    xy.reserve(groups[g].size());
-    double sx = 0, sy = 0, sz = 0;
-    std::size_t planar = 0;
-    c.anchor = pos[groups[g].front()];
-    for (const std::uint32_t k : groups[g]) {
-      c.members.push_back(k);
-      if (pos[k] < c.anchor) c.anchor = pos[k];
-      sx += pos[k][0];
-      sy += pos[k][1];
-      sz += pos[k][2];
-      xy.push_back({pos[k][0], pos[k][1]});
-      c.height = std::max(c.height, double(out.hag[k]));
-      if (planarity[k] > 0.5f) ++planar;
-    }
-    std::sort(c.members.begin(), c.members.end());
-    const double cnt = double(c.members.size());
-    c.centroid = {sx / cnt, sy / cnt, sz / cnt};
-    c.hull = convex_hull(std::move(xy));
-    c.area = c.hull.size() >= 3 ? signed_area(c.hull) : 0.0;
-    c.width = hull_width(c.hull);
-    c.planar_fraction = double(planar) / cnt;
-    if (!buckets.empty() && c.hull.size() >= 3) {
-      double xmin = 1e300, ymin = 1e300, xmax = -1e300, ymax = -1e300;
-      for (const auto& v : c.hull) {
-        xmin = std::min(xmin, v[0]);
-        ymin = std::min(ymin, v[1]);
-        xmax = std::max(xmax, v[0]);
-        ymax = std::max(ymax, v[1]);
-      }
-      const int i0 = std::clamp(int((xmin - region[0]) / bucket), 0, bx - 1);
-      const int i1 = std::clamp(int((xmax - region[0]) / bucket), 0, bx - 1);
-      const int j0 = std::clamp(int((ymin - region[1]) / bucket), 0, by - 1);
-      const int j1 = std::clamp(int((ymax - region[1]) / bucket), 0, by - 1);
-      std::size_t inside = 0;
-      for (int j = j0; j <= j1; ++j)
-        for (int i = i0; i <= i1; ++i)
-          for (std::uint32_t k : buckets[std::size_t(j) * std::size_t(bx) + std::size_t(i)])
-            if (label[k] != int(g) && point_in_ring(c.hull, {pos[k][0], pos[k][1]})) ++inside;
-      c.vegetation_ratio = double(inside) / cnt;
-    }
-    char why[160] = "";
-    if (c.area < p.min_area)
-      std::snprintf(why, sizeof why, "small (%.1f m2 < %.1f m2)", c.area, p.min_area);
-    else if (c.height < p.min_building_height)
-      std::snprintf(why, sizeof why, "low (%.1f m < %.1f m above ground)", c.height,
-                    p.min_building_height);
-    else if (c.width < p.min_width)
-      std::snprintf(why, sizeof why, "narrow (%.1f m < %.1f m wide)", c.width, p.min_width);
-    else if (mode != ClassMode::buildings && c.height < p.low_height &&
-             (c.vegetation_ratio > p.low_max_vegetation_ratio ||
-              c.planar_fraction < p.low_min_planar_fraction))
-      std::snprintf(why, sizeof why, "low object (%.1f m high, %.0f%% foliage, %.0f%% planar)",
-                    c.height, 100 * c.vegetation_ratio, 100 * c.planar_fraction);
-    else if (mode != ClassMode::buildings && c.vegetation_ratio > p.max_vegetation_ratio)
-      std::snprintf(why, sizeof why, "vegetation (%.0f%% foliage-like points in its outline)",
-                    100 * c.vegetation_ratio);
-    else if (mode != ClassMode::buildings && c.planar_fraction < p.min_planar_fraction)
-      std::snprintf(why, sizeof why, "vegetation (only %.0f%% planar points)",
-                    100 * c.planar_fraction);
-    c.reject_reason = why;
-    c.building = c.reject_reason.empty();
-    out.clusters.push_back(std::move(c));
+  // ---- each group judged
+  const FoliageBuckets buckets = foliage_buckets(pos, mode, p, region, out);
+  for (std::size_t g = 0; g < groups.members.size(); ++g) {
+    if (groups.members[g].empty()) continue;
+    Cluster cl = describe_cluster(pos, out, planarity, groups.members[g]);
+    if (!buckets.cells.empty() && cl.hull.size() >= 3)
+      cl.vegetation_ratio = vegetation_ratio(cl, int(g), groups.label, buckets, pos, region);
+    judge_cluster(cl, mode, p);
+    out.clusters.push_back(std::move(cl));
   }
   return out;
 }
