@@ -317,6 +317,248 @@ std::string wkt_of(const OGRSpatialReference& srs) {
   return s;
 }
 
+/// The layer to read: opt.layer, else the source's only one (an error naming the
+/// layers when it has none or several).
+OGRLayer* choose_layer(GDALDataset& ds, const FootprintReadOptions& opt,
+                       const FootprintLayer& out) {
+  OGRLayer* layer = nullptr;
+  const std::vector<std::string> names = layer_names(ds);
+  if (!opt.layer.empty()) {
+    layer = ds.GetLayerByName(opt.layer.c_str());
+    if (!layer)
+      throw IoError(out.source, "has no layer '" + opt.layer + "' (layers: " +
+                                    (names.empty() ? std::string("none") : join(names)) + ")");
+  } else {
+    if (names.empty()) throw IoError(out.source, "has no layers");
+    if (names.size() > 1)
+      throw IoError(out.source, "has " + std::to_string(names.size()) +
+                                    " layers; choose one (--footprints-layer): " + join(names));
+    layer = ds.GetLayer(0);
+  }
+  return layer;
+}
+
+/// Where a feature's id comes from: an attribute, or the OGR FID.
+struct IdField {
+  int field = -1;
+  bool is_fid = true;
+};
+
+/// opt.id_attribute in the layer (its FID column too); an error listing the
+/// attributes when it has none of that name.
+IdField id_field_of(OGRLayer& layer, const FootprintReadOptions& opt, const FootprintLayer& out) {
+  OGRFeatureDefn* defn = layer.GetLayerDefn();
+  IdField id;
+  id.is_fid = opt.id_attribute.empty();
+  if (opt.id_attribute.empty()) return id;
+  id.field = defn->GetFieldIndex(opt.id_attribute.c_str());
+  if (id.field >= 0) return id;
+  const std::string fidcol = layer.GetFIDColumn() ? layer.GetFIDColumn() : "";
+  if (!fidcol.empty() && EQUAL(fidcol.c_str(), opt.id_attribute.c_str())) {
+    id.is_fid = true;
+    return id;
+  }
+  std::vector<std::string> fields;
+  for (int i = 0; i < defn->GetFieldCount(); ++i)
+    fields.emplace_back(defn->GetFieldDefn(i)->GetNameRef());
+  throw IoError(out.source, "layer '" + out.layer + "' has no attribute '" + opt.id_attribute +
+                                "' for the footprint ids (attributes: " +
+                                (fields.empty() ? std::string("none") : join(fields, 40)) + ")");
+}
+
+/// The CRS of the source (out.crs, crs_wkt, crs_epsg), and the reprojection into
+/// opt.target_crs (null when none is asked for); `target` holds the target CRS.
+std::unique_ptr<OGRCoordinateTransformation> reprojection(OGRLayer& layer,
+                                                          const FootprintReadOptions& opt,
+                                                          OGRSpatialReference& target,
+                                                          FootprintLayer& out) {
+  const OGRSpatialReference* src_srs = layer.GetSpatialRef();
+  std::unique_ptr<OGRCoordinateTransformation> ct;
+  if (!opt.target_crs.empty()) {
+    if (!src_srs)
+      throw IoError(out.source, "layer '" + out.layer + "' has no CRS; cannot reproject it to " +
+                                    opt.target_crs);
+    QuietGdal quiet;
+    if (target.SetFromUserInput(opt.target_crs.c_str()) != OGRERR_NONE)
+      throw IoError(out.source, "unknown target CRS '" + opt.target_crs + "'");
+    target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    OGRSpatialReference s(*src_srs);
+    s.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    ct.reset(OGRCreateCoordinateTransformation(&s, &target));
+    if (!ct)
+      throw IoError(out.source, "no transformation from the layer's CRS to " + opt.target_crs +
+                                    ": " + quiet.take_last());
+    out.crs = crs_code(target, &out.crs_epsg);
+    out.crs_wkt = wkt_of(target);
+  } else if (src_srs) {
+    out.crs = crs_code(*src_srs, &out.crs_epsg);
+    out.crs_wkt = wkt_of(*src_srs);
+  }
+  if (out.crs.empty()) out.crs = out.crs_wkt;
+  return ct;
+}
+
+/// A feature's id: its id attribute, or its FID (when the attribute is NULL: with a
+/// problem line).
+std::string feature_id(OGRFeature& f, const IdField& id, const FootprintReadOptions& opt,
+                       FootprintLayer& out) {
+  const std::int64_t fid = f.GetFID();
+  if (id.is_fid) return std::to_string(fid);
+  if (!f.IsFieldSetAndNotNull(id.field)) {
+    out.problems.push_back("feature " + std::to_string(fid) + ": attribute '" + opt.id_attribute +
+                           "' is NULL; its FID is the id");
+    return std::to_string(fid);
+  }
+  return f.GetFieldAsString(id.field);
+}
+
+/// A feature's geometry as linear 2D polygons in the target CRS; null, with `why`,
+/// when it has none.
+std::unique_ptr<OGRGeometry> feature_geometry(OGRFeature& f, OGRCoordinateTransformation* ct,
+                                              const FootprintReadOptions& opt, std::string& why) {
+  const OGRGeometry* g0 = f.GetGeometryRef();
+  if (!g0 || g0->IsEmpty()) {
+    why = "no geometry";
+    return nullptr;
+  }
+  std::unique_ptr<OGRGeometry> g(g0->hasCurveGeometry() ? g0->getLinearGeometry() : g0->clone());
+  if (!g) {
+    why = "geometry not convertible to polygons";
+    return nullptr;
+  }
+  g->flattenTo2D();
+  if (ct && g->transform(ct) != OGRERR_NONE) {
+    why = "cannot be reprojected to " + opt.target_crs;
+    return nullptr;
+  }
+  return g;
+}
+
+/// A feature's polygons cleaned; the ones GEOS calls invalid tested and repaired.
+struct CleanParts {
+  std::vector<std::vector<Ring>> parts;
+  int dropped_holes = 0, degenerate = 0;
+  bool repaired = false, unrepairable = false;
+  std::string repair_note;
+};
+
+CleanParts clean_polygons(const std::vector<const OGRPolygon*>& polys, bool can_repair,
+                          QuietGdal& quiet) {
+  CleanParts c;
+  for (const OGRPolygon* p : polys) {
+    const bool geos = footprint_repair_available();
+    std::vector<Ring> rings = polygon_rings(*p, &c.dropped_holes, !geos);
+    if (rings.empty()) {
+      ++c.degenerate;
+      continue;
+    }
+    if (!geos) {
+      c.parts.push_back(std::move(rings));
+      continue;
+    }
+    std::unique_ptr<OGRPolygon> clean = to_ogr(rings);
+    const std::size_t mark = quiet.messages.size();
+    if (clean->IsValid() && has_area(rings[0])) {
+      c.parts.push_back(std::move(rings));
+      continue;
+    }
+    std::string reason = quiet.take_last(mark);
+    if (reason.empty()) reason = "invalid polygon";
+    if (!can_repair) {
+      c.repair_note = reason;
+      ++c.degenerate;
+      continue;
+    }
+    std::unique_ptr<OGRGeometry> fixed(clean->MakeValid());
+    quiet.take_last(mark);
+    std::vector<const OGRPolygon*> fixed_polys;
+    std::string ignored;
+    if (fixed) collect_polygons(fixed.get(), fixed_polys, ignored);
+    std::size_t got = 0;
+    for (const OGRPolygon* fp : fixed_polys) {
+      std::vector<Ring> r = polygon_rings(*fp, &c.dropped_holes);
+      if (!r.empty()) {
+        c.parts.push_back(std::move(r));
+        ++got;
+      }
+    }
+    if (got == 0) {
+      c.repair_note = reason;
+      c.unrepairable = true;
+      ++c.degenerate;
+      continue;
+    }
+    c.repaired = true;
+    c.repair_note = "invalid polygon (" + reason + "), repaired into " + std::to_string(got) +
+                    (got == 1 ? " polygon" : " polygons");
+  }
+  return c;
+}
+
+/// The layer's reading state: what every feature is read with.
+struct FeatureReader {
+  IdField id;
+  OGRCoordinateTransformation* ct = nullptr;
+  bool can_repair = false;
+  const FootprintReadOptions* opt = nullptr;
+  QuietGdal* quiet = nullptr;
+};
+
+/// One source feature: its parts into out.features, or a problem line saying why not.
+void read_feature(OGRFeature& f, const FeatureReader& r, FootprintLayer& out) {
+  const FootprintReadOptions& opt = *r.opt;
+  const std::int64_t fid = f.GetFID();
+  const std::string sid = feature_id(f, r.id, opt, out);
+  const std::string who = "feature " + std::to_string(fid) + (r.id.is_fid ? "" : " (" + sid + ")");
+  auto skip = [&](const std::string& why) {
+    ++out.skipped;
+    out.problems.push_back(who + ": " + why + "; skipped");
+  };
+
+  std::string why;
+  const std::unique_ptr<OGRGeometry> g = feature_geometry(f, r.ct, opt, why);
+  if (!g) return skip(why);
+  std::vector<const OGRPolygon*> polys;
+  std::string other;
+  collect_polygons(g.get(), polys, other);
+  if (polys.empty())
+    return skip("not a polygon (" + (other.empty() ? std::string("empty") : other) + ")");
+
+  CleanParts c = clean_polygons(polys, r.can_repair, *r.quiet);
+  if (c.parts.empty()) {
+    why = "zero area";
+    if (!c.repair_note.empty()) {
+      why = "invalid polygon (" + c.repair_note + ")";
+      if (c.unrepairable) why += ", not repairable";
+      if (!r.can_repair) why += opt.repair ? ", and GEOS is not available" : ", repair off";
+    }
+    return skip(why);
+  }
+  if (c.repaired) {
+    ++out.repaired;
+    out.problems.push_back(who + ": " + c.repair_note);
+  }
+  if (c.degenerate > 0 && !c.repaired)
+    out.problems.push_back(who + ": " + std::to_string(c.degenerate) +
+                           " zero-area or invalid polygon part(s) dropped");
+  if (c.dropped_holes > 0)
+    out.problems.push_back(who + ": " + std::to_string(c.dropped_holes) +
+                           " zero-area hole(s) dropped");
+
+  const nlohmann::json attrs = attributes_of(f);
+  for (std::size_t k = 0; k < c.parts.size(); ++k) {
+    FootprintFeature ff;
+    ff.source_id = sid;
+    ff.part = static_cast<int>(k);
+    ff.id = k == 0 ? sid : sid + "-" + std::to_string(k);
+    ff.fid = fid;
+    ff.rings = std::move(c.parts[k]);
+    ff.attributes = attrs;
+    ff.repaired = c.repaired;
+    out.features.push_back(std::move(ff));
+  }
+}
+
 }  // namespace
 
 bool footprint_repair_available() {
@@ -339,72 +581,17 @@ FootprintLayer read_footprints(const std::string& source, const FootprintReadOpt
   out.source = mask_source(source);
   DatasetPtr ds = open_source(source, out.source);
   out.driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "";
-
-  OGRLayer* layer = nullptr;
-  const std::vector<std::string> names = layer_names(*ds);
-  if (!opt.layer.empty()) {
-    layer = ds->GetLayerByName(opt.layer.c_str());
-    if (!layer)
-      throw IoError(out.source, "has no layer '" + opt.layer + "' (layers: " +
-                                    (names.empty() ? std::string("none") : join(names)) + ")");
-  } else {
-    if (names.empty()) throw IoError(out.source, "has no layers");
-    if (names.size() > 1)
-      throw IoError(out.source, "has " + std::to_string(names.size()) +
-                                    " layers; choose one (--footprints-layer): " + join(names));
-    layer = ds->GetLayer(0);
-  }
+  OGRLayer* layer = choose_layer(*ds, opt, out);
   out.layer = layer->GetName();
-
-  OGRFeatureDefn* defn = layer->GetLayerDefn();
-  int id_field = -1;
-  bool id_is_fid = opt.id_attribute.empty();
-  if (!opt.id_attribute.empty()) {
-    id_field = defn->GetFieldIndex(opt.id_attribute.c_str());
-    if (id_field < 0) {
-      const std::string fidcol = layer->GetFIDColumn() ? layer->GetFIDColumn() : "";
-      if (!fidcol.empty() && EQUAL(fidcol.c_str(), opt.id_attribute.c_str())) {
-        id_is_fid = true;
-      } else {
-        std::vector<std::string> fields;
-        for (int i = 0; i < defn->GetFieldCount(); ++i)
-          fields.emplace_back(defn->GetFieldDefn(i)->GetNameRef());
-        throw IoError(out.source, "layer '" + out.layer + "' has no attribute '" +
-                                      opt.id_attribute + "' for the footprint ids (attributes: " +
-                                      (fields.empty() ? std::string("none") : join(fields, 40)) +
-                                      ")");
-      }
-    }
-  }
-
-  // CRS of the source, and the reprojection
-  const OGRSpatialReference* src_srs = layer->GetSpatialRef();
-  std::unique_ptr<OGRCoordinateTransformation> ct;
+  FeatureReader r;
+  r.id = id_field_of(*layer, opt, out);
   OGRSpatialReference target;
-  if (!opt.target_crs.empty()) {
-    if (!src_srs)
-      throw IoError(out.source, "layer '" + out.layer + "' has no CRS; cannot reproject it to " +
-                                    opt.target_crs);
-    QuietGdal quiet;
-    if (target.SetFromUserInput(opt.target_crs.c_str()) != OGRERR_NONE)
-      throw IoError(out.source, "unknown target CRS '" + opt.target_crs + "'");
-    target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    OGRSpatialReference s(*src_srs);
-    s.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    ct.reset(OGRCreateCoordinateTransformation(&s, &target));
-    if (!ct)
-      throw IoError(out.source, "no transformation from the layer's CRS to " + opt.target_crs +
-                                    ": " + quiet.take_last());
-    out.crs = crs_code(target, &out.crs_epsg);
-    out.crs_wkt = wkt_of(target);
-  } else if (src_srs) {
-    out.crs = crs_code(*src_srs, &out.crs_epsg);
-    out.crs_wkt = wkt_of(*src_srs);
-  }
-  if (out.crs.empty()) out.crs = out.crs_wkt;
-
-  const bool can_repair = opt.repair && footprint_repair_available();
+  const std::unique_ptr<OGRCoordinateTransformation> ct = reprojection(*layer, opt, target, out);
+  r.ct = ct.get();
+  r.can_repair = opt.repair && footprint_repair_available();
+  r.opt = &opt;
   QuietGdal quiet;
+  r.quiet = &quiet;
   layer->ResetReading();
   // A read error ends the layer like its last feature does: the error state
   // tells them apart (a damaged file read as a short one drops buildings
@@ -421,131 +608,7 @@ FootprintLayer read_footprints(const std::string& source, const FootprintReadOpt
   };
   for (OGRFeatureUniquePtr f = next_feature(); f; f = next_feature()) {
     ++out.source_features;
-    const std::int64_t fid = f->GetFID();
-    std::string sid;
-    if (id_is_fid) {
-      sid = std::to_string(fid);
-    } else if (!f->IsFieldSetAndNotNull(id_field)) {
-      sid = std::to_string(fid);
-      out.problems.push_back("feature " + std::to_string(fid) + ": attribute '" + opt.id_attribute +
-                             "' is NULL; its FID is the id");
-    } else {
-      sid = f->GetFieldAsString(id_field);
-    }
-    const std::string who = "feature " + std::to_string(fid) + (id_is_fid ? "" : " (" + sid + ")");
-    auto skip = [&](const std::string& why) {
-      ++out.skipped;
-      out.problems.push_back(who + ": " + why + "; skipped");
-    };
-
-    const OGRGeometry* g0 = f->GetGeometryRef();
-    if (!g0 || g0->IsEmpty()) {
-      skip("no geometry");
-      continue;
-    }
-    std::unique_ptr<OGRGeometry> g(g0->hasCurveGeometry() ? g0->getLinearGeometry() : g0->clone());
-    if (!g) {
-      skip("geometry not convertible to polygons");
-      continue;
-    }
-    g->flattenTo2D();
-    if (ct && g->transform(ct.get()) != OGRERR_NONE) {
-      skip("cannot be reprojected to " + opt.target_crs);
-      continue;
-    }
-    std::vector<const OGRPolygon*> polys;
-    std::string other;
-    collect_polygons(g.get(), polys, other);
-    if (polys.empty()) {
-      skip("not a polygon (" + (other.empty() ? std::string("empty") : other) + ")");
-      continue;
-    }
-
-    // clean every polygon; test and repair the ones GEOS calls invalid
-    std::vector<std::vector<Ring>> parts;
-    int dropped_holes = 0, degenerate = 0;
-    bool repaired = false, unrepairable = false;
-    std::string repair_note;
-    for (const OGRPolygon* p : polys) {
-      const bool geos = footprint_repair_available();
-      std::vector<Ring> rings = polygon_rings(*p, &dropped_holes, !geos);
-      if (rings.empty()) {
-        ++degenerate;
-        continue;
-      }
-      if (!geos) {
-        parts.push_back(std::move(rings));
-        continue;
-      }
-      std::unique_ptr<OGRPolygon> clean = to_ogr(rings);
-      const std::size_t mark = quiet.messages.size();
-      if (clean->IsValid() && has_area(rings[0])) {
-        parts.push_back(std::move(rings));
-        continue;
-      }
-      std::string reason = quiet.take_last(mark);
-      if (reason.empty()) reason = "invalid polygon";
-      if (!can_repair) {
-        repair_note = reason;
-        ++degenerate;
-        continue;
-      }
-      std::unique_ptr<OGRGeometry> fixed(clean->MakeValid());
-      quiet.take_last(mark);
-      std::vector<const OGRPolygon*> fixed_polys;
-      std::string ignored;
-      if (fixed) collect_polygons(fixed.get(), fixed_polys, ignored);
-      std::size_t got = 0;
-      for (const OGRPolygon* fp : fixed_polys) {
-        std::vector<Ring> r = polygon_rings(*fp, &dropped_holes);
-        if (!r.empty()) {
-          parts.push_back(std::move(r));
-          ++got;
-        }
-      }
-      if (got == 0) {
-        repair_note = reason;
-        unrepairable = true;
-        ++degenerate;
-        continue;
-      }
-      repaired = true;
-      repair_note = "invalid polygon (" + reason + "), repaired into " + std::to_string(got) +
-                    (got == 1 ? " polygon" : " polygons");
-    }
-    if (parts.empty()) {
-      std::string why = "zero area";
-      if (!repair_note.empty()) {
-        why = "invalid polygon (" + repair_note + ")";
-        if (unrepairable) why += ", not repairable";
-        if (!can_repair) why += opt.repair ? ", and GEOS is not available" : ", repair off";
-      }
-      skip(why);
-      continue;
-    }
-    if (repaired) {
-      ++out.repaired;
-      out.problems.push_back(who + ": " + repair_note);
-    }
-    if (degenerate > 0 && !repaired)
-      out.problems.push_back(who + ": " + std::to_string(degenerate) +
-                             " zero-area or invalid polygon part(s) dropped");
-    if (dropped_holes > 0)
-      out.problems.push_back(who + ": " + std::to_string(dropped_holes) +
-                             " zero-area hole(s) dropped");
-
-    const nlohmann::json attrs = attributes_of(*f);
-    for (std::size_t k = 0; k < parts.size(); ++k) {
-      FootprintFeature ff;
-      ff.source_id = sid;
-      ff.part = static_cast<int>(k);
-      ff.id = k == 0 ? sid : sid + "-" + std::to_string(k);
-      ff.fid = fid;
-      ff.rings = std::move(parts[k]);
-      ff.attributes = attrs;
-      ff.repaired = repaired;
-      out.features.push_back(std::move(ff));
-    }
+    read_feature(*f, r, out);
   }
   return out;
 }
