@@ -524,20 +524,14 @@ GlbDocument parse_glb(const std::string& bytes, const std::string& name) {
 
 namespace {
 
-GlbDocument parse_glb_in(const std::string& bytes, const std::string& name,
-                         const std::string& dir) {
-  check_container(bytes, name);
-  if (bytes.size() > std::numeric_limits<unsigned int>::max())
-    throw IoError(name, "glb larger than 4 GiB");
-  bool meshopt = false;
-  const std::string plain = decode_meshopt(bytes, name, meshopt);
-  tinygltf::Model model;
+/// The (plain) glb as a tinygltf model. Images are accepted as they are, never decoded;
+/// only what the glb holds is read: no external buffers or images (any file of the
+/// machine).
+void load_model(const std::string& plain, const std::string& name, tinygltf::Model& model) {
   tinygltf::TinyGLTF loader;
-  // Images are not needed (and never decoded): accept them as they are.
   loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
                            const unsigned char*, int, void*) { return true; },
                         nullptr);
-  // Only what the glb holds is read: no external buffers or images (any file of the machine).
   tinygltf::FsCallbacks fs_cb{};
   fs_cb.FileExists = [](const std::string&, void*) { return false; };
   fs_cb.ExpandFilePath = [](const std::string& p, void*) { return p; };
@@ -561,6 +555,119 @@ GlbDocument parse_glb_in(const std::string& bytes, const std::string& name,
     while (!e.empty() && e.back() == ' ') e.pop_back();
     throw IoError(name, "not a valid glb: " + e);
   }
+}
+
+/// The root nodes: the default scene's (else the first scene's); without scenes, the
+/// nodes no node has as a child.
+std::vector<int> scene_roots(const tinygltf::Model& model, const std::string& name) {
+  std::vector<int> roots;
+  const int scene = model.defaultScene >= 0 ? model.defaultScene : (model.scenes.empty() ? -1 : 0);
+  if (scene >= 0) {
+    if (std::size_t(scene) >= model.scenes.size())
+      throw IoError(name, "default scene does not exist");
+    roots = model.scenes[std::size_t(scene)].nodes;
+  } else {
+    std::set<int> children;
+    for (const auto& n : model.nodes) children.insert(n.children.begin(), n.children.end());
+    for (int i = 0; i < int(model.nodes.size()); ++i)
+      if (!children.count(i)) roots.push_back(i);
+  }
+  return roots;
+}
+
+/// A primitive's triangles: its indices (or 0..nv-1), a multiple of 3, each in range.
+void read_triangles(const Reader& rd, const tinygltf::Primitive& prim, std::size_t nv,
+                    const std::string& what, const std::string& name, GlbPrimitive& out) {
+  std::vector<double> idx;
+  if (prim.indices >= 0) {
+    idx = rd.accessor(prim.indices, 1, what + " indices");
+  } else {
+    idx.resize(nv);
+    for (std::size_t i = 0; i < nv; ++i) idx[i] = double(i);
+  }
+  if (idx.size() % 3)
+    throw IoError(name, what + ": " + std::to_string(idx.size()) + " indices, not a multiple of 3");
+  for (std::size_t i = 0; i + 2 < idx.size(); i += 3) {
+    std::array<std::uint32_t, 3> t;
+    for (int k = 0; k < 3; ++k) {
+      const double v = idx[i + std::size_t(k)];
+      if (!(v >= 0) || v >= double(nv))
+        throw IoError(name, what + ": index " + std::to_string((long long)v) +
+                                " is out of range (" + std::to_string(nv) + " vertices)");
+      t[std::size_t(k)] = std::uint32_t(v);
+    }
+    out.triangles.push_back(t);
+  }
+}
+
+/// EXT_mesh_features: the first feature id set of a primitive (`tables`: the property
+/// tables the glb has).
+void read_feature_ids(const Reader& rd, const tinygltf::Primitive& prim, std::size_t nv,
+                      std::size_t tables, const std::string& what, const std::string& name,
+                      GlbPrimitive& out) {
+  const auto fx = prim.extensions.find("EXT_mesh_features");
+  if (fx == prim.extensions.end()) return;
+  const tinygltf::Value& ids = member(fx->second, "featureIds");
+  if (ids.ArrayLen() == 0) return;
+  const tinygltf::Value& f = ids.Get(0);
+  out.property_table = int_member(f, "propertyTable", -1);
+  if (out.property_table >= int(tables))
+    throw IoError(name, what + ": feature ids refer to property table " +
+                            std::to_string(out.property_table) + " that does not exist");
+  const int attr = int_member(f, "attribute", -1);
+  if (attr >= 0) {
+    const auto a = prim.attributes.find("_FEATURE_ID_" + std::to_string(attr));
+    if (a == prim.attributes.end())
+      throw IoError(name, what + ": no attribute _FEATURE_ID_" + std::to_string(attr));
+    const std::vector<double> v =
+        rd.accessor(a->second, 1, what + " _FEATURE_ID_" + std::to_string(attr));
+    if (v.size() != nv) throw IoError(name, what + ": feature ids and positions differ in count");
+    out.feature_ids.reserve(nv);
+    for (double x : v)
+      out.feature_ids.push_back(std::isfinite(x) ? std::int64_t(std::llround(x)) : -1);
+  } else if (!member(f, "texture").IsObject()) {
+    for (std::size_t i = 0; i < nv; ++i)
+      out.feature_ids.push_back(std::int64_t(i));  // implicit ids
+  } else {
+    out.property_table = -1;  // feature ids in a texture: not read
+  }
+}
+
+/// Primitive `pi` of node `ni`'s mesh (a triangle primitive) with the node's transform `m`.
+GlbPrimitive read_primitive(const Reader& rd, const tinygltf::Node& node, int ni, const Mat4& m,
+                            const tinygltf::Primitive& prim, std::size_t pi, std::size_t tables,
+                            const std::string& name) {
+  const std::string what = "mesh " + std::to_string(node.mesh) + " primitive " + std::to_string(pi);
+  const auto pos = prim.attributes.find("POSITION");
+  if (pos == prim.attributes.end()) throw IoError(name, what + " has no POSITION");
+  GlbPrimitive out;
+  out.node = ni;
+  out.node_name = node.name;
+  out.matrix = m;
+  out.material = prim.material;
+  out.position_accessor = pos->second;
+  const std::vector<double> p = rd.accessor(pos->second, 3, what + " POSITION");
+  out.positions.resize(p.size() / 3);
+  for (std::size_t i = 0; i < out.positions.size(); ++i) {
+    out.positions[i] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
+    if (!std::isfinite(p[3 * i]) || !std::isfinite(p[3 * i + 1]) || !std::isfinite(p[3 * i + 2]))
+      throw IoError(name, what + ": position " + std::to_string(i) + " is not finite");
+  }
+  const std::size_t nv = out.positions.size();
+  read_triangles(rd, prim, nv, what, name, out);
+  read_feature_ids(rd, prim, nv, tables, what, name, out);
+  return out;
+}
+
+GlbDocument parse_glb_in(const std::string& bytes, const std::string& name,
+                         const std::string& dir) {
+  check_container(bytes, name);
+  if (bytes.size() > std::numeric_limits<unsigned int>::max())
+    throw IoError(name, "glb larger than 4 GiB");
+  bool meshopt = false;
+  const std::string plain = decode_meshopt(bytes, name, meshopt);
+  tinygltf::Model model;
+  load_model(plain, name, model);
   const Reader rd(model, name, bytes.size());
   GlbDocument doc;
   doc.extensions_used = model.extensionsUsed;
@@ -582,18 +689,7 @@ GlbDocument parse_glb_in(const std::string& bytes, const std::string& name,
   }
 
   // ---- nodes of the scene, depth first
-  std::vector<int> roots;
-  const int scene = model.defaultScene >= 0 ? model.defaultScene : (model.scenes.empty() ? -1 : 0);
-  if (scene >= 0) {
-    if (std::size_t(scene) >= model.scenes.size())
-      throw IoError(name, "default scene does not exist");
-    roots = model.scenes[std::size_t(scene)].nodes;
-  } else {
-    std::set<int> children;
-    for (const auto& n : model.nodes) children.insert(n.children.begin(), n.children.end());
-    for (int i = 0; i < int(model.nodes.size()); ++i)
-      if (!children.count(i)) roots.push_back(i);
-  }
+  const std::vector<int> roots = scene_roots(model, name);
   std::vector<std::pair<int, Mat4>> stack;
   for (auto it = roots.rbegin(); it != roots.rend(); ++it) stack.push_back({*it, kIdentity});
   std::size_t visits = 0;
@@ -615,77 +711,8 @@ GlbDocument parse_glb_in(const std::string& bytes, const std::string& name,
       const tinygltf::Primitive& prim = mesh.primitives[pi];
       if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1)
         continue;  // points, lines, strips: no surface
-      const std::string what =
-          "mesh " + std::to_string(node.mesh) + " primitive " + std::to_string(pi);
-      const auto pos = prim.attributes.find("POSITION");
-      if (pos == prim.attributes.end()) throw IoError(name, what + " has no POSITION");
-      GlbPrimitive out;
-      out.node = ni;
-      out.node_name = node.name;
-      out.matrix = m;
-      out.material = prim.material;
-      out.position_accessor = pos->second;
-      const std::vector<double> p = rd.accessor(pos->second, 3, what + " POSITION");
-      out.positions.resize(p.size() / 3);
-      for (std::size_t i = 0; i < out.positions.size(); ++i) {
-        out.positions[i] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
-        if (!std::isfinite(p[3 * i]) || !std::isfinite(p[3 * i + 1]) ||
-            !std::isfinite(p[3 * i + 2]))
-          throw IoError(name, what + ": position " + std::to_string(i) + " is not finite");
-      }
-      const std::size_t nv = out.positions.size();
-      std::vector<double> idx;
-      if (prim.indices >= 0) {
-        idx = rd.accessor(prim.indices, 1, what + " indices");
-      } else {
-        idx.resize(nv);
-        for (std::size_t i = 0; i < nv; ++i) idx[i] = double(i);
-      }
-      if (idx.size() % 3)
-        throw IoError(name,
-                      what + ": " + std::to_string(idx.size()) + " indices, not a multiple of 3");
-      for (std::size_t i = 0; i + 2 < idx.size(); i += 3) {
-        std::array<std::uint32_t, 3> t;
-        for (int k = 0; k < 3; ++k) {
-          const double v = idx[i + std::size_t(k)];
-          if (!(v >= 0) || v >= double(nv))
-            throw IoError(name, what + ": index " + std::to_string((long long)v) +
-                                    " is out of range (" + std::to_string(nv) + " vertices)");
-          t[std::size_t(k)] = std::uint32_t(v);
-        }
-        out.triangles.push_back(t);
-      }
-      // EXT_mesh_features: the first feature id set.
-      const auto fx = prim.extensions.find("EXT_mesh_features");
-      if (fx != prim.extensions.end()) {
-        const tinygltf::Value& ids = member(fx->second, "featureIds");
-        if (ids.ArrayLen() > 0) {
-          const tinygltf::Value& f = ids.Get(0);
-          out.property_table = int_member(f, "propertyTable", -1);
-          if (out.property_table >= int(doc.property_tables.size()))
-            throw IoError(name, what + ": feature ids refer to property table " +
-                                    std::to_string(out.property_table) + " that does not exist");
-          const int attr = int_member(f, "attribute", -1);
-          if (attr >= 0) {
-            const auto a = prim.attributes.find("_FEATURE_ID_" + std::to_string(attr));
-            if (a == prim.attributes.end())
-              throw IoError(name, what + ": no attribute _FEATURE_ID_" + std::to_string(attr));
-            const std::vector<double> v =
-                rd.accessor(a->second, 1, what + " _FEATURE_ID_" + std::to_string(attr));
-            if (v.size() != nv)
-              throw IoError(name, what + ": feature ids and positions differ in count");
-            out.feature_ids.reserve(nv);
-            for (double x : v)
-              out.feature_ids.push_back(std::isfinite(x) ? std::int64_t(std::llround(x)) : -1);
-          } else if (!member(f, "texture").IsObject()) {
-            for (std::size_t i = 0; i < nv; ++i)
-              out.feature_ids.push_back(std::int64_t(i));  // implicit ids
-          } else {
-            out.property_table = -1;  // feature ids in a texture: not read
-          }
-        }
-      }
-      doc.primitives.push_back(std::move(out));
+      doc.primitives.push_back(
+          read_primitive(rd, node, ni, m, prim, pi, doc.property_tables.size(), name));
     }
   }
   return doc;
