@@ -131,40 +131,91 @@ class LasReader final : public LasRecordReader {
              " points but the file holds only " + std::to_string(holds));
   }
 
+  /// What the header says of the point data and the records after it.
+  struct Layout {
+    int minor = 0;                  ///< LAS 1.minor
+    std::uint16_t header_size = 0;  ///< bytes
+    std::uint32_t point_offset = 0;
+    std::uint32_t n_vlr = 0;
+    std::uint8_t pf_raw = 0;  ///< point format byte (compression bits included)
+    int pf = 0;               ///< point format
+    std::uint16_t record_length = 0;
+    std::uint32_t legacy_count = 0;
+    std::uint64_t count = 0;  ///< points
+    std::uint64_t evlr_start = 0;
+    std::uint32_t n_evlr = 0;
+    std::uint64_t file = 0;  ///< file size
+    std::uint64_t end = 0;   ///< where the point data ends (the first EVLR, or the file's end)
+  };
+
   void parse_header() {
     unsigned char h[375] = {};
     std::size_t got = in_.read_some(h, sizeof h);
+    Layout l = read_header_fields(h, got);
+    read_point_format(l);
+    read_scale_and_box(h);
+    read_point_count(h, l);
+    read_vlrs(l);
+    // A LASzip-compressed file has the compression bits or the laszip VLR; a
+    // file merely named .laz without either is read as LAS.
+    if (info_.compressed && (l.pf_raw & 0xC0) == 0 && laz_vlr_.empty()) {
+      info_.compressed = false;
+      info_.format = Format::las;
+      info_.format_name = "LAS";
+    } else if (!laz_vlr_.empty() && !info_.compressed) {
+      info_.compressed = true;
+      info_.format = Format::laz;
+      info_.format_name = "LAZ";
+    }
+    check_point_data_size(l);
+    read_evlrs(l);
+    finish_crs();
+    in_.seek(l.point_offset);
+    if (info_.compressed) open_laz(l);
+    if (!info_.compressed && rgb_offset_ > 0) detect_rgb_depth(l.point_offset);
+  }
+
+  /// The signature, version, sizes and offsets of the header's first 227 bytes.
+  Layout read_header_fields(const unsigned char* h, std::size_t got) {
     if (got < 4 || std::memcmp(h, "LASF", 4) != 0) in_.fail("not a LAS file (no LASF signature)");
     if (got < 227)
       in_.fail("truncated: LAS header is " + std::to_string(got) + " bytes, needs at least 227");
     const int major = h[24], minor = h[25];
     info_.version = std::to_string(major) + "." + std::to_string(minor);
     if (major != 1 || minor > 4) in_.fail("unsupported LAS version " + info_.version);
-    const std::uint16_t header_size = le<std::uint16_t>(h + 94);
-    const std::uint32_t point_offset = le<std::uint32_t>(h + 96);
-    const std::uint32_t n_vlr = le<std::uint32_t>(h + 100);
-    const std::uint8_t pf_raw = h[104];
-    const std::uint16_t record_length = le<std::uint16_t>(h + 105);
-    const std::uint32_t legacy_count = le<std::uint32_t>(h + 107);
+    Layout l;
+    l.minor = minor;
+    l.header_size = le<std::uint16_t>(h + 94);
+    l.point_offset = le<std::uint32_t>(h + 96);
+    l.n_vlr = le<std::uint32_t>(h + 100);
+    l.pf_raw = h[104];
+    l.record_length = le<std::uint16_t>(h + 105);
+    l.legacy_count = le<std::uint32_t>(h + 107);
     info_.system_id = fixed_string(h + 26, 32);
     info_.generating_software = fixed_string(h + 58, 32);
-    if (header_size < 227) in_.fail("bad LAS header size " + std::to_string(header_size));
-    if (header_size > got)
-      in_.fail("truncated: LAS header declares " + std::to_string(header_size) + " bytes");
-    if (point_offset < header_size)
+    if (l.header_size < 227) in_.fail("bad LAS header size " + std::to_string(l.header_size));
+    if (l.header_size > got)
+      in_.fail("truncated: LAS header declares " + std::to_string(l.header_size) + " bytes");
+    if (l.point_offset < l.header_size)
       in_.fail("bad LAS header: point data offset lies inside the header");
+    return l;
+  }
 
-    info_.compressed = (pf_raw & 0xC0) != 0 || extension_of(info_.path) == "laz";
+  /// Compression (by the format bits or the name), the point format and what its
+  /// records hold.
+  void read_point_format(Layout& l) {
+    info_.compressed = (l.pf_raw & 0xC0) != 0 || extension_of(info_.path) == "laz";
     if (info_.compressed) {
       info_.format = Format::laz;
       info_.format_name = "LAZ";
     }
-    const int pf = pf_raw & 0x3F;
+    const int pf = l.pf_raw & 0x3F;
+    l.pf = pf;
     if (pf > 10) in_.fail("unsupported LAS point format " + std::to_string(pf));
     info_.las_point_format = pf;
-    info_.las_record_length = record_length;
-    if (record_length < kBaseRecord[pf])
-      in_.fail("bad LAS header: point record length " + std::to_string(record_length) +
+    info_.las_record_length = l.record_length;
+    if (l.record_length < kBaseRecord[pf])
+      in_.fail("bad LAS header: point record length " + std::to_string(l.record_length) +
                " is smaller than the " + std::to_string(kBaseRecord[pf]) +
                " bytes of point format " + std::to_string(pf));
     extended_ = pf >= 6;
@@ -178,8 +229,11 @@ class LasReader final : public LasRecordReader {
     if (pf != 0 && pf != 2) info_.extra_attributes.push_back("gps_time");
     if (pf == 8 || pf == 10) info_.extra_attributes.push_back("nir");
     if (pf == 4 || pf == 5 || pf == 9 || pf == 10) info_.extra_attributes.push_back("waveform");
-    if (record_length > kBaseRecord[pf]) info_.extra_attributes.push_back("extra_bytes");
+    if (l.record_length > kBaseRecord[pf]) info_.extra_attributes.push_back("extra_bytes");
+  }
 
+  /// Scale, offset (finite, non-zero scale) and bounding box (finite).
+  void read_scale_and_box(const unsigned char* h) {
     for (int a = 0; a < 3; ++a) {
       info_.scale[a] = le<double>(h + 131 + 8 * a);
       info_.offset[a] = le<double>(h + 155 + 8 * a);
@@ -194,99 +248,93 @@ class LasReader final : public LasRecordReader {
     for (int a = 0; a < 3; ++a)
       if (!std::isfinite(info_.bbox.min[a]) || !std::isfinite(info_.bbox.max[a]))
         in_.fail("bad LAS header: bounding box is not finite");
+  }
 
-    std::uint64_t count = legacy_count;
-    std::uint64_t evlr_start = 0;
-    std::uint32_t n_evlr = 0;
-    if (minor >= 4 && header_size >= 375) {
-      evlr_start = le<std::uint64_t>(h + 235);
-      n_evlr = le<std::uint32_t>(h + 243);
+  /// The point count (LAS 1.4: the 64-bit one, which the legacy one must match when
+  /// set) and where the EVLRs are.
+  void read_point_count(const unsigned char* h, Layout& l) {
+    l.count = l.legacy_count;
+    if (l.minor >= 4 && l.header_size >= 375) {
+      l.evlr_start = le<std::uint64_t>(h + 235);
+      l.n_evlr = le<std::uint32_t>(h + 243);
       const std::uint64_t count64 = le<std::uint64_t>(h + 247);
-      if (legacy_count != 0 && count64 != legacy_count)
-        in_.fail("bad LAS header: legacy point count " + std::to_string(legacy_count) +
+      if (l.legacy_count != 0 && count64 != l.legacy_count)
+        in_.fail("bad LAS header: legacy point count " + std::to_string(l.legacy_count) +
                  " and 64-bit point count " + std::to_string(count64) + " disagree");
-      count = count64;
+      l.count = count64;
     }
-    info_.point_count = count;
+    info_.point_count = l.count;
+  }
 
-    // VLRs between the header and the point data.
-    std::uint64_t pos = header_size;
-    for (std::uint32_t i = 0; i < n_vlr; ++i) {
-      if (pos + 54 > point_offset)
-        in_.fail("bad LAS header: VLR #" + std::to_string(i) + " of " + std::to_string(n_vlr) +
+  /// VLRs between the header and the point data.
+  void read_vlrs(const Layout& l) {
+    std::uint64_t pos = l.header_size;
+    for (std::uint32_t i = 0; i < l.n_vlr; ++i) {
+      if (pos + 54 > l.point_offset)
+        in_.fail("bad LAS header: VLR #" + std::to_string(i) + " of " + std::to_string(l.n_vlr) +
                  " extends beyond the point data offset");
       unsigned char vh[54];
       in_.seek(pos);
       in_.read_exact(vh, 54, "a VLR header");
       const std::uint64_t len = le<std::uint16_t>(vh + 20);
-      if (pos + 54 + len > point_offset)
+      if (pos + 54 + len > l.point_offset)
         in_.fail("bad LAS header: VLR #" + std::to_string(i) +
                  " extends beyond the point data offset");
       handle_vlr(fixed_string(vh + 2, 16), le<std::uint16_t>(vh + 18), pos + 54, len);
       pos += 54 + len;
     }
+  }
 
-    // A LASzip-compressed file has the compression bits or the laszip VLR; a
-    // file merely named .laz without either is read as LAS.
-    if (info_.compressed && (pf_raw & 0xC0) == 0 && laz_vlr_.empty()) {
-      info_.compressed = false;
-      info_.format = Format::las;
-      info_.format_name = "LAS";
-    } else if (!laz_vlr_.empty() && !info_.compressed) {
-      info_.compressed = true;
-      info_.format = Format::laz;
-      info_.format_name = "LAZ";
-    }
+  /// Point data size against the file size, before anything is allocated.
+  void check_point_data_size(Layout& l) {
+    l.file = in_.size();
+    l.end = l.file;
+    if (l.evlr_start != 0 && l.n_evlr > 0 && l.evlr_start <= l.file) l.end = l.evlr_start;
+    const std::uint64_t avail = l.end > l.point_offset ? l.end - l.point_offset : 0;
+    if (info_.compressed) return;
+    if (l.count > avail / l.record_length) truncated(avail / l.record_length);
+    const int pf = l.pf;
+    const bool waveform =
+        pf == 4 || pf == 5 || pf == 9 || pf == 10;  // packets may follow the points
+    if (l.n_evlr == 0 && !waveform && avail / l.record_length > l.count)
+      in_.fail("header declares " + std::to_string(l.count) + " points but the file holds " +
+               std::to_string(avail / l.record_length) + " (header point count is wrong)");
+  }
 
-    // Point data size against the file size, before anything is allocated.
-    const std::uint64_t file = in_.size();
-    std::uint64_t end = file;
-    if (evlr_start != 0 && n_evlr > 0 && evlr_start <= file) end = evlr_start;
-    const std::uint64_t avail = end > point_offset ? end - point_offset : 0;
-    if (!info_.compressed) {
-      if (count > avail / record_length) truncated(avail / record_length);
-      const bool waveform =
-          pf == 4 || pf == 5 || pf == 9 || pf == 10;  // packets may follow the points
-      if (n_evlr == 0 && !waveform && avail / record_length > count)
-        in_.fail("header declares " + std::to_string(count) + " points but the file holds " +
-                 std::to_string(avail / record_length) + " (header point count is wrong)");
+  /// EVLRs (LAS 1.4).
+  void read_evlrs(const Layout& l) {
+    std::uint64_t e = l.evlr_start;
+    for (std::uint32_t i = 0; i < l.n_evlr; ++i) {
+      if (e < l.point_offset || e + 60 > l.file)
+        in_.fail("bad LAS header: EVLR #" + std::to_string(i) + " lies outside the file");
+      unsigned char eh[60];
+      in_.seek(e);
+      in_.read_exact(eh, 60, "an EVLR header");
+      const std::uint64_t len = le<std::uint64_t>(eh + 20);
+      if (len > l.file - e - 60)
+        in_.fail("bad LAS header: EVLR #" + std::to_string(i) + " extends beyond the file");
+      handle_vlr(fixed_string(eh + 2, 16), le<std::uint16_t>(eh + 18), e + 60, len);
+      e += 60 + len;
     }
-    // EVLRs (LAS 1.4)
-    if (n_evlr > 0) {
-      std::uint64_t e = evlr_start;
-      for (std::uint32_t i = 0; i < n_evlr; ++i) {
-        if (e < point_offset || e + 60 > file)
-          in_.fail("bad LAS header: EVLR #" + std::to_string(i) + " lies outside the file");
-        unsigned char eh[60];
-        in_.seek(e);
-        in_.read_exact(eh, 60, "an EVLR header");
-        const std::uint64_t len = le<std::uint64_t>(eh + 20);
-        if (len > file - e - 60)
-          in_.fail("bad LAS header: EVLR #" + std::to_string(i) + " extends beyond the file");
-        handle_vlr(fixed_string(eh + 2, 16), le<std::uint16_t>(eh + 18), e + 60, len);
-        e += 60 + len;
-      }
+  }
+
+  /// The LAZ decoder of the point data (and the colour depth from its first points).
+  void open_laz(const Layout& l) {
+    if (laz_vlr_.empty())
+      in_.fail("bad LAZ: the compressed file has no laszip VLR (\"laszip encoded\", 22204)");
+    laz_source_.path = info_.path;
+    laz_source_.vlr = laz_vlr_;
+    laz_source_.point_offset = l.point_offset;
+    laz_source_.data_end = l.end;
+    laz_source_.file_size = l.file;
+    laz_source_.point_count = l.count;
+    laz_source_.record_length = l.record_length;
+    laz_source_.point_format = l.pf;
+    if (rgb_offset_ > 0) {
+      LazStream first(laz_source_, 1);
+      detect_rgb_depth_laz(first);
     }
-    finish_crs();
-    in_.seek(point_offset);
-    if (info_.compressed) {
-      if (laz_vlr_.empty())
-        in_.fail("bad LAZ: the compressed file has no laszip VLR (\"laszip encoded\", 22204)");
-      laz_source_.path = info_.path;
-      laz_source_.vlr = laz_vlr_;
-      laz_source_.point_offset = point_offset;
-      laz_source_.data_end = end;
-      laz_source_.file_size = file;
-      laz_source_.point_count = count;
-      laz_source_.record_length = record_length;
-      laz_source_.point_format = pf;
-      if (rgb_offset_ > 0) {
-        LazStream first(laz_source_, 1);
-        detect_rgb_depth_laz(first);
-      }
-      laz_ = std::make_unique<LazStream>(laz_source_, default_laz_threads());
-    }
-    if (!info_.compressed && rgb_offset_ > 0) detect_rgb_depth(point_offset);
+    laz_ = std::make_unique<LazStream>(laz_source_, default_laz_threads());
   }
 
   void detect_rgb_depth_laz(LazStream& s) {
