@@ -105,39 +105,30 @@ std::vector<Group> read_groups(const TilesetWalk::Content& c) {
   return out;
 }
 
-}  // namespace
-
-TilesetEval evaluate_tileset(const std::string& path, const std::string& work_dir,
-                             const EvalOptions& o, const ProgressFn& progress) {
-  TilesetEval r;
-  r.samples = o.samples;
-  r.work = work_dir;
-  fs::path ts = path;
-  if (fs::is_directory(ts)) ts /= "tileset.json";
-  r.tileset = ts.string();
-  const TilesetWalk w = walk_tileset(ts.string());
-  r.tiles = w.tiles;
-  r.depth = w.depth;
-  if (w.contents.empty()) throw io::IoError(r.tileset, "the tileset has no glb content");
-
-  // References: the manifest (scene frame, chunk origins).
+/// What the meshes are compared with: the work directory's manifest (scene frame, chunk
+/// origins); empty without a work directory.
+struct References {
   Manifest man;
-  std::map<std::string, const ChunkRecord*> chunks;
+  std::map<std::string, const ChunkRecord*> chunks;  ///< into man.chunks
   std::unique_ptr<geo::LocalFrame> frame;
-  std::unique_ptr<SceneGeoref> georef;  // ENU -> scene frame
-  if (!work_dir.empty()) {
-    if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
-    man = read_manifest(work_dir);
-    for (const auto& c : man.chunks) chunks[c.id] = &c;
-    require_valid_origin(man, work_dir);
-    const auto& sc = man.scene;
-    frame =
-        std::make_unique<geo::LocalFrame>(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
-    georef = std::make_unique<SceneGeoref>(man, work_dir);
-  }
-  const int threads = resolve_threads(o.threads);
+  std::unique_ptr<SceneGeoref> georef;  ///< ENU -> scene frame
+};
 
-  // ---- 1. read every glb (parallel over contents)
+void read_references(const std::string& work_dir, References& ref) {
+  if (work_dir.empty()) return;
+  if (!fs::is_directory(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
+  ref.man = read_manifest(work_dir);
+  for (const auto& c : ref.man.chunks) ref.chunks[c.id] = &c;
+  require_valid_origin(ref.man, work_dir);
+  const auto& sc = ref.man.scene;
+  ref.frame =
+      std::make_unique<geo::LocalFrame>(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
+  ref.georef = std::make_unique<SceneGeoref>(ref.man, work_dir);
+}
+
+/// Every glb's groups (parallel over contents); the first error in tree order is thrown.
+std::vector<std::vector<Group>> read_all_groups(const TilesetWalk& w, int threads,
+                                                const ProgressFn& progress) {
   std::vector<std::vector<Group>> groups(w.contents.size());
   std::vector<std::string> errors(w.contents.size());
   {
@@ -157,11 +148,19 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
   }
   for (const auto& e : errors)
     if (!e.empty()) throw std::runtime_error(e);  // the first in tree order
+  return groups;
+}
 
-  // ---- 2. rows, sorted by level, building, tile order
-  struct Row {
-    std::size_t content, group;
-  };
+/// A group of a content.
+struct Row {
+  std::size_t content, group;
+};
+
+/// r.contents, and r.meshes: one row per group, sorted by level, building, tile order.
+/// Returns the rows (r.meshes' order) and fills `by_building` (row indices).
+std::vector<Row> tabulate(const TilesetWalk& w, const std::vector<std::vector<Group>>& groups,
+                          const References& ref, const std::string& work_dir, TilesetEval& r,
+                          std::map<std::string, std::vector<std::size_t>>& by_building) {
   std::vector<Row> rows;
   for (std::size_t c = 0; c < groups.size(); ++c) {
     TileInfo ti;
@@ -181,7 +180,6 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
     return groups[a.content][a.group].building < groups[b.content][b.group].building;
   });
   r.meshes.resize(rows.size());
-  std::map<std::string, std::vector<std::size_t>> by_building;  // row indices
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const Group& g = groups[rows[i].content][rows[i].group];
     TileMeshEval& m = r.meshes[i];
@@ -194,14 +192,65 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
     m.triangles = g.mesh.triangles.size();
     m.vertices = g.mesh.vertices.size();
     by_building[g.building].push_back(i);
-    if (frame && !chunks.count(g.building))
+    if (ref.frame && !ref.chunks.count(g.building))
       throw io::IoError(
           manifest_path(work_dir),
           "building '" + g.building + "' of " + m.tile +
               " is not in the manifest (was the tileset assembled from this work directory?)");
   }
+  return rows;
+}
 
-  // ---- 3. per building (parallel): validity, and e1/e2 against its chunk
+/// One mesh against its building's chunk `ref` (loaded from `rec`), or, without a work
+/// directory (`ref` null), its checks alone. Validity as val3dity would judge it at its
+/// tolerances (content frame: metres).
+void evaluate_mesh(const Group& g, const Mat4& t, const References& refs, const ChunkRecord* rec,
+                   const LoadedBuilding* ref, const EvalOptions& o, TileMeshEval& m) {
+  {
+    const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [](const Vec3d& v) { return v; });
+    std::vector<std::vector<int>> faces;
+    for (const auto& tr : lm.triangles) faces.push_back({tr[0], tr[1], tr[2]});
+    m.val3dity_error = lod::check_solid(lod::make_solid(lm.vertices, faces)).error;
+  }
+  if (!ref) {
+    const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [](const Vec3d& v) { return v; });
+    m.check = lod::check_mesh(lm);
+    m.volume = lod::mesh_volume(lm);
+    return;
+  }
+  // content frame -> tileset world (ECEF) -> scene ENU -> chunk frame -> reference's local
+  // frame
+  const Vec3d& co = rec->origin;
+  const Vec3d& ro = ref->origin;
+  io::TriangleMesh scene = g.mesh;
+  for (auto& v : scene.vertices) {
+    const Vec3d world = io::transform_point(t, v);
+    const Eigen::Vector3d enu =
+        refs.frame->ecef_to_enu(Eigen::Vector3d(world[0], world[1], world[2]));
+    v = {enu.x(), enu.y(), enu.z()};
+  }
+  if (!scene.vertices.empty())
+    refs.georef->from_enu(Eigen::Map<Eigen::Matrix3Xd>(scene.vertices[0].data(), 3,
+                                                       Eigen::Index(scene.vertices.size())));
+  const lod::TriangleMesh lm = to_lod_mesh(scene, [&](const Vec3d& v) {
+    return Vec3d{v[0] - co[0] - ro[0], v[1] - co[1] - ro[1], v[2] - co[2] - ro[2]};
+  });
+  const lod::ModelEvaluation e = lod::evaluate_model(lm, ref->input, o.samples);
+  m.check = e.check;
+  m.volume = e.volume;
+  m.evaluated = true;
+  m.e1 = e.e1;
+  m.e2 = e.e2;
+  m.hausdorff = e.hausdorff;
+}
+
+/// Per building (parallel): validity, and e1/e2 against its chunk; the first error in
+/// id order is thrown.
+void evaluate_buildings(const TilesetWalk& w, const std::vector<std::vector<Group>>& groups,
+                        const std::vector<Row>& rows,
+                        const std::map<std::string, std::vector<std::size_t>>& by_building,
+                        const References& refs, const std::string& work_dir, const EvalOptions& o,
+                        int threads, const ProgressFn& progress, TilesetEval& r) {
   std::vector<std::string> ids;
   for (const auto& [id, v] : by_building) ids.push_back(id);
   std::vector<std::string> berrors(ids.size());
@@ -214,8 +263,8 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
       try {
         std::unique_ptr<LoadedBuilding> ref;
         const ChunkRecord* rec = nullptr;
-        if (frame) {
-          rec = chunks.at(id);
+        if (refs.frame) {
+          rec = refs.chunks.at(id);
           const std::string chunk = chunk_path(work_dir, id);
           if (!fs::exists(chunk))
             throw io::IoError(chunk, "chunk of building '" + id + "' is missing");
@@ -223,47 +272,10 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
           if (ref->input.points.empty())
             throw io::IoError(chunk, "chunk of building '" + id + "' is empty");
         }
-        for (std::size_t i : by_building.at(id)) {
-          const Group& g = groups[rows[i].content][rows[i].group];
-          TileMeshEval& m = r.meshes[i];
-          {  // as val3dity would judge it at its tolerances (content frame: metres)
-            const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [](const Vec3d& v) { return v; });
-            std::vector<std::vector<int>> faces;
-            for (const auto& t : lm.triangles) faces.push_back({t[0], t[1], t[2]});
-            m.val3dity_error = lod::check_solid(lod::make_solid(lm.vertices, faces)).error;
-          }
-          if (!ref) {
-            const lod::TriangleMesh lm = to_lod_mesh(g.mesh, [](const Vec3d& v) { return v; });
-            m.check = lod::check_mesh(lm);
-            m.volume = lod::mesh_volume(lm);
-            continue;
-          }
-          // content frame -> tileset world (ECEF) -> scene ENU -> chunk frame -> reference's local
-          // frame
-          const Mat4& t = w.contents[rows[i].content].transform;
-          const Vec3d& co = rec->origin;
-          const Vec3d& ro = ref->origin;
-          io::TriangleMesh scene = g.mesh;
-          for (auto& v : scene.vertices) {
-            const Vec3d world = io::transform_point(t, v);
-            const Eigen::Vector3d enu =
-                frame->ecef_to_enu(Eigen::Vector3d(world[0], world[1], world[2]));
-            v = {enu.x(), enu.y(), enu.z()};
-          }
-          if (!scene.vertices.empty())
-            georef->from_enu(Eigen::Map<Eigen::Matrix3Xd>(scene.vertices[0].data(), 3,
-                                                          Eigen::Index(scene.vertices.size())));
-          const lod::TriangleMesh lm = to_lod_mesh(scene, [&](const Vec3d& v) {
-            return Vec3d{v[0] - co[0] - ro[0], v[1] - co[1] - ro[1], v[2] - co[2] - ro[2]};
-          });
-          const lod::ModelEvaluation e = lod::evaluate_model(lm, ref->input, o.samples);
-          m.check = e.check;
-          m.volume = e.volume;
-          m.evaluated = true;
-          m.e1 = e.e1;
-          m.e2 = e.e2;
-          m.hausdorff = e.hausdorff;
-        }
+        for (std::size_t i : by_building.at(id))
+          evaluate_mesh(groups[rows[i].content][rows[i].group],
+                        w.contents[rows[i].content].transform, refs, rec, ref.get(), o,
+                        r.meshes[i]);
       } catch (const std::exception& e) {
         berrors[size_t(k)] = e.what();
       }
@@ -274,8 +286,10 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
   }
   for (const auto& e : berrors)
     if (!e.empty()) throw std::runtime_error(e);  // the first in id order
+}
 
-  // ---- 4. per level
+/// r.levels: per level, its tiles, meshes, buildings, checks and mean / max errors.
+void summarise_levels(TilesetEval& r) {
   std::map<int, LevelSummary> levels;
   std::map<int, std::set<std::string>> level_buildings;
   for (const auto& c : r.contents) {
@@ -313,6 +327,35 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
     }
     r.levels.push_back(l);
   }
+}
+
+}  // namespace
+
+TilesetEval evaluate_tileset(const std::string& path, const std::string& work_dir,
+                             const EvalOptions& o, const ProgressFn& progress) {
+  TilesetEval r;
+  r.samples = o.samples;
+  r.work = work_dir;
+  fs::path ts = path;
+  if (fs::is_directory(ts)) ts /= "tileset.json";
+  r.tileset = ts.string();
+  const TilesetWalk w = walk_tileset(ts.string());
+  r.tiles = w.tiles;
+  r.depth = w.depth;
+  if (w.contents.empty()) throw io::IoError(r.tileset, "the tileset has no glb content");
+
+  References refs;  // the manifest (scene frame, chunk origins)
+  read_references(work_dir, refs);
+  const int threads = resolve_threads(o.threads);
+  // ---- 1. read every glb (parallel over contents)
+  const std::vector<std::vector<Group>> groups = read_all_groups(w, threads, progress);
+  // ---- 2. rows, sorted by level, building, tile order
+  std::map<std::string, std::vector<std::size_t>> by_building;  // row indices
+  const std::vector<Row> rows = tabulate(w, groups, refs, work_dir, r, by_building);
+  // ---- 3. per building (parallel): validity, and e1/e2 against its chunk
+  evaluate_buildings(w, groups, rows, by_building, refs, work_dir, o, threads, progress, r);
+  // ---- 4. per level
+  summarise_levels(r);
   return r;
 }
 
