@@ -149,8 +149,9 @@ void declare_assemble_options(ArgParser& args) {
               "glb geometry: EXT_meshopt_compression with quantized positions and normals "
               "(meshopt), or plain accessors (none)",
               "meshopt");
-  args.flag("no-building-models", 0,
-            "do not write buildings/*.glb (the viewer's LOD slider needs them)");
+  args.flag("building-models", 0,
+            "also write buildings/*.glb, every kept model of a building in one file (the viewer's "
+            "LOD slider reads the models from the tiles)");
   args.flag("skip-missing", 0, "skip buildings without LOD models (warning) instead of failing");
 }
 
@@ -174,7 +175,7 @@ AssembleParams parse_assemble_options(const ArgParser& args) {
   p.hausdorff_tolerance_m = args.get_double("hausdorff-tolerance");
   p.quantize = args.has("quantize");
   usage_errors([&] { p.compression = io::compression_from_string(args.get("compression")); });
-  p.building_models = !args.has("no-building-models");
+  p.building_models = args.has("building-models");
   p.skip_missing = args.has("skip-missing");
   usage_errors([&] { p.validate(); });
   return p;

@@ -2,7 +2,7 @@
 // from `citylod tile`) replicated on a grid with shifted chunk origins until it
 // holds >= N buildings, then `assemble` on it (in this process).
 //
-//   city_tiles_bench WORK [--buildings N] [--out DIR] [--threads T] [--no-building-models]
+//   city_tiles_bench WORK [--buildings N] [--out DIR] [--threads T] [--building-models]
 //                    [--min-tile-extent M] [--min-leaf-bytes B] [--max-tiles-per-file N]
 //                    [--extent-factor F]
 //
@@ -34,7 +34,7 @@ int run(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: city_tiles_bench WORK [--buildings N] [--out DIR] [--threads T] "
-                 "[--no-building-models]\n");
+                 "[--building-models]\n");
     return 2;
   }
   const std::string work = argv[1];
@@ -64,8 +64,8 @@ int run(int argc, char** argv) {
       p.max_tiles_per_file = std::stoul(next());
     else if (a == "--extent-factor")
       p.tile_extent_factor = std::stod(next());
-    else if (a == "--no-building-models")
-      p.building_models = false;
+    else if (a == "--building-models")
+      p.building_models = true;
     else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
       return 2;

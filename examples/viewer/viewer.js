@@ -1,7 +1,8 @@
 // citylod viewer: streams a citylod tileset with CesiumJS (offline: no Ion,
 // imagery from Cesium's bundled NaturalEarthII), shows a building's metadata
 // on click and lets the user force one of the building's LOD models (the
-// paper's interactive phase) from buildings/<id>.glb.
+// paper's interactive phase): the model's tile glb (buildings.json names it)
+// shown alone with only that building's feature.
 //
 // URL parameters: ?tileset=<url of tileset.json> (default tileset/tileset.json).
 // State for scripts and tests: window.citylod (see `state` below).
@@ -88,7 +89,7 @@
     try {
       const index = await loadIndex();
       const entry = index.buildings[id];
-      if (!entry || !entry.glb) {
+      if (!entry || !entry.models.length) {
         lod.hidden = true;
         return;
       }
@@ -122,23 +123,35 @@
     applyStyle();
   }
 
-  /// Shows model `index` (0 = coarsest) of building `id` instead of the streamed one.
+  /// Shows model `index` (0 = coarsest) of building `id` instead of the streamed
+  /// one: the tile glb that holds it, with only that building's feature shown
+  /// (or, in a tileset written with --building-models and a model no tile
+  /// holds, the model's node of buildings/<id>.glb).
   async function forceModel(id, index) {
     const index_ = await loadIndex();
     const entry = index_.buildings[id];
-    if (!entry || !entry.glb) throw new Error('no per-building models for ' + id);
+    if (!entry) throw new Error('unknown building ' + id);
     if (index < 0 || index >= entry.models.length) throw new Error('model index out of range');
-    if (!forcedModel || state.forced.id !== id) {
+    const m = entry.models[index];
+    const url = m.tile || (m.node && entry.glb) || null;
+    if (!url) throw new Error('model ' + index + ' of ' + id + ' is in no tile');
+    if (!forcedModel || state.forced.id !== id || state.forced.url !== url) {
       unforce();
-      state.forced = { id, index, ready: false };
-      forcedModel = await Cesium.Model.fromGltfAsync({
-        url: new URL(entry.glb, baseUrl).href,
+      state.forced = { id, index, url, ready: false };
+      const model = await Cesium.Model.fromGltfAsync({
+        url: new URL(url, baseUrl).href,
         modelMatrix: rootTransform,
         // The axes of 3D Tiles content: y-up -> z-up only (Model's default
         // forwardAxis Z would add a quarter turn about the vertical).
         upAxis: Cesium.Axis.Y,
         forwardAxis: Cesium.Axis.X,
       });
+      if (!state.forced || state.forced.url !== url) {
+        // another call replaced this one while it loaded
+        model.destroy();
+        return;
+      }
+      forcedModel = model;
       viewer.scene.primitives.add(forcedModel);
       await new Promise((resolve) => {
         if (forcedModel.ready) resolve();
@@ -146,22 +159,21 @@
       });
     }
     state.forced.index = index;
-    for (let i = 0; i < entry.models.length; ++i) {
-      const node = forcedModel.getNode(entry.models[i].node);
-      if (node) node.show = i === index;
+    if (m.tile) {
+      forcedModel.style = new Cesium.Cesium3DTileStyle({ show: "${building_id} === '" + escapeStyle(id) + "'" });
+    } else {
+      for (let i = 0; i < entry.models.length; ++i) {
+        const node = forcedModel.getNode(entry.models[i].node);
+        if (node) node.show = i === index;
+      }
     }
     state.forced.ready = true;
-    // How far the forced model's centre is from the building's (a placement check).
-    const c = entry.centre;
-    const centre = Cesium.Matrix4.multiplyByPoint(rootTransform, new Cesium.Cartesian3(c[0], c[1], c[2]), new Cesium.Cartesian3());
-    state.forced.offset_m = Cesium.Cartesian3.distance(forcedModel.boundingSphere.center, centre);
     applyStyle();
     if (selectedId === id) {
       $('lod-auto').checked = false;
       $('lod-slider').disabled = false;
       $('lod-slider').value = String(index);
     }
-    const m = entry.models[index];
     showProperties(id, {
       building_id: id, lod_kind: m.kind, level: m.level, step: m.step, model_index: index,
       model_count: entry.models.length, height: m.height, footprint_area: entry.footprint_area,
@@ -266,7 +278,15 @@
         forceModel(selectedId, Number($('lod-slider').value)).catch((e) => fail(String(e)));
     });
 
-    Object.assign(state, { selectBuilding, forceModel, unforce, flyToBuilding, screenPositionOf, loadIndex });
+    /// What a click at window position `pos` picks: the building and whether it
+    /// is the forced model's (for scripts and tests).
+    function pickAt(pos) {
+      const picked = viewer.scene.pick(new Cesium.Cartesian2(pos.x, pos.y));
+      if (!picked || typeof picked.getProperty !== 'function') return null;
+      return { building_id: String(picked.getProperty('building_id')), forced: !!forcedModel && picked.primitive === forcedModel };
+    }
+
+    Object.assign(state, { selectBuilding, forceModel, unforce, flyToBuilding, screenPositionOf, loadIndex, pickAt });
     // Start far enough to see the whole scene with its coarse tiles.
     await viewer.zoomTo(tileset, new Cesium.HeadingPitchRange(0.3, -0.7, tileset.boundingSphere.radius * 2.5));
     await new Promise((resolve) => {

@@ -127,9 +127,15 @@ async function main() {
   await page.waitForTimeout(500);
   result.checks.forced = await page.evaluate(() => window.citylod.forced);
   log('forced:', JSON.stringify(result.checks.forced));
-  // The coarsest model's bounding sphere centre is near the building's centre
-  // (a wrong axis convention would swing it around the scene).
-  if (!(result.checks.forced.offset_m < 10)) throw new Error('forced model misplaced by ' + result.checks.forced.offset_m + ' m');
+  // The building's own feature of the forced model (its tile's glb, the
+  // building alone shown) is what a click at the building's centre picks: a
+  // wrong axis convention would swing it away from there.
+  const fpos = await page.evaluate((b) => window.citylod.screenPositionOf(b), id);
+  const hit = fpos && (await page.evaluate((p) => window.citylod.pickAt(p), fpos));
+  result.checks.forced_pick = hit;
+  log('forced pick:', JSON.stringify(hit));
+  if (!hit || !hit.forced || hit.building_id !== String(id))
+    throw new Error('the forced model of ' + id + ' is not at the building (picked ' + JSON.stringify(hit) + ')');
   await shot(page, '4-forced-coarsest.png');
   const final = await page.evaluate(() => window.citylod.failed);
   if (final.length) throw new Error('tileFailed: ' + JSON.stringify(final));

@@ -237,28 +237,37 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   std::set<int> features;
   for (const auto& v : glb_vertices(root)) features.insert(v.feature);
   EXPECT_EQ(features.size(), 50u);
+  // (building_id, model_index) of every feature of a glb's property table.
+  auto features_of = [](const GlbFile& g) {
+    const auto& pt = g.json["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
+    const auto& bv = g.json["bufferViews"];
+    const std::size_t n = pt["count"];
+    const auto& ids = bv[pt["properties"]["building_id"]["values"].get<size_t>()];
+    const auto& offs = bv[pt["properties"]["building_id"]["stringOffsets"].get<size_t>()];
+    const auto& idx = bv[pt["properties"]["model_index"]["values"].get<size_t>()];
+    // UINT16 string offsets (UINT32 only for more than 64 KiB of characters)
+    EXPECT_EQ(pt["properties"]["building_id"]["stringOffsetType"], "UINT16");
+    auto off = [&](std::size_t i) {
+      const std::size_t at = offs.value("byteOffset", 0u) + 2 * i;
+      return std::uint32_t(std::uint8_t(g.bin[at])) | std::uint32_t(std::uint8_t(g.bin[at + 1]))
+                                                          << 8;
+    };
+    std::vector<std::pair<std::string, std::uint32_t>> out;
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t a = off(i), b = off(i + 1);
+      out.emplace_back(g.bin.substr(ids.value("byteOffset", 0u) + a, b - a),
+                       u32(g.bin, idx.value("byteOffset", 0u) + 4 * i));
+    }
+    return out;
+  };
   // Every building appears in the leaves exactly once, with its finest model.
   std::map<std::string, int> leaf_count;
   std::function<void(const nlohmann::json&)> leaves = [&](const nlohmann::json& t) {
     if (!t.contains("children")) {
-      const GlbFile g = read_glb(out + "/" + t["content"]["uri"].get<std::string>());
-      const auto& pt = g.json["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
-      const auto& bv = g.json["bufferViews"];
-      const std::size_t n = pt["count"];
-      const auto& ids = bv[pt["properties"]["building_id"]["values"].get<size_t>()];
-      const auto& offs = bv[pt["properties"]["building_id"]["stringOffsets"].get<size_t>()];
-      const auto& idx = bv[pt["properties"]["model_index"]["values"].get<size_t>()];
-      // UINT16 string offsets (UINT32 only for more than 64 KiB of characters)
-      EXPECT_EQ(pt["properties"]["building_id"]["stringOffsetType"], "UINT16");
-      auto off = [&](std::size_t i) {
-        const std::size_t at = offs.value("byteOffset", 0u) + 2 * i;
-        return std::uint32_t(std::uint8_t(g.bin[at])) | std::uint32_t(std::uint8_t(g.bin[at + 1]))
-                                                            << 8;
-      };
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::uint32_t a = off(i), b = off(i + 1);
-        ++leaf_count[g.bin.substr(ids.value("byteOffset", 0u) + a, b - a)];
-        EXPECT_EQ(u32(g.bin, idx.value("byteOffset", 0u) + 4 * i), 2u);
+      for (const auto& [id, m] :
+           features_of(read_glb(out + "/" + t["content"]["uri"].get<std::string>()))) {
+        ++leaf_count[id];
+        EXPECT_EQ(m, 2u);
       }
       return;
     }
@@ -268,14 +277,41 @@ TEST(Assemble, SyntheticCityMakesAValidHierarchy) {
   EXPECT_EQ(leaf_count.size(), 50u);
   for (const auto& [id, n] : leaf_count) EXPECT_EQ(n, 1) << id;
 
-  // The viewer's per-building files.
+  // The viewer's index: each kept model names the tile glb that holds it
+  // (the LOD slider shows that feature alone); no per-building glbs by default.
   const auto index = nlohmann::json::parse(read_bytes(out + "/buildings.json"));
   ASSERT_EQ(index["buildings"].size(), 50u);
+  EXPECT_FALSE(fs::exists(out + "/buildings"));
+  EXPECT_EQ(st.building_glb_bytes, 0u);
+  for (const auto& [id, e] : index["buildings"].items()) {
+    EXPECT_FALSE(e.contains("glb")) << id;
+    ASSERT_EQ(e["models"].size(), 3u) << id;
+    for (std::uint32_t m = 0; m < 3; ++m) {
+      const auto& tile = e["models"][m]["tile"];
+      ASSERT_TRUE(tile.is_string()) << id << " model " << m;
+      const auto f = features_of(read_glb(out + "/" + tile.get<std::string>()));
+      EXPECT_EQ(std::count(f.begin(), f.end(), std::make_pair(id, m)), 1) << id << " " << tile;
+    }
+  }
   const auto& b0 = index["buildings"]["b-0000"];
-  ASSERT_EQ(b0["models"].size(), 3u);
   EXPECT_EQ(b0["models"][0]["kind"], "anchor");
   EXPECT_EQ(b0["models"][1]["kind"], "interpolation");
   EXPECT_EQ(b0["models"][2]["error_m"], 0.0);
+  EXPECT_EQ(b0["models"][0]["tile"], ts["root"]["content"]["uri"]);
+}
+
+TEST(Assemble, BuildingModelsOnRequest) {
+  const std::string work = tmp_dir("city_bglb");
+  write_work(work, synthetic_manifest(), synthetic_city(5, 3));
+  const std::string out = work + ".out";
+  AssembleParams p = quiet_params();
+  p.building_models = true;
+  const tiler::AssembleStats st = tiler::assemble(work, out, p);
+  EXPECT_GT(st.building_glb_bytes, 0u);
+  const auto index = nlohmann::json::parse(read_bytes(out + "/buildings.json"));
+  const auto& b0 = index["buildings"]["b-0000"];
+  EXPECT_TRUE(b0["models"][1]["tile"].is_string());
+  EXPECT_EQ(b0["models"][1]["node"], "model_1");
   const GlbFile bg = read_glb(out + "/" + b0["glb"].get<std::string>());
   EXPECT_EQ(bg.json["nodes"].size(), 3u);
   EXPECT_EQ(bg.json["nodes"][1]["name"], "model_1");
@@ -379,8 +415,8 @@ TEST(Assemble, EachModelIsStoredOnceAndLeavesGatherBuildings) {
     return st.content_tiles;
   };
   AssembleParams p = quiet_params();
-  p.building_models = false;
-  p.min_leaf_bytes = 0;  // leaves of their own for any finished buildings
+  p.building_models = false;  // (the default)
+  p.min_leaf_bytes = 0;       // leaves of their own for any finished buildings
   std::size_t leaves_factor = 0, leaves_blocks = 0;
   const std::size_t tiles_factor = count_tiles(p, leaves_factor);
   p.min_tile_extent_m = 1000;  // the whole synthetic city (8 x 8 buildings, 30 m apart)
@@ -402,7 +438,7 @@ TEST(Assemble, LargeTreesGoToExternalTilesets) {
   const std::string work = tmp_dir("external");
   write_work(work, synthetic_manifest(), synthetic_city(64, 3));
   AssembleParams p = quiet_params();
-  p.building_models = false;
+  p.building_models = false;  // (the default)
   p.max_tile_triangles = 60;  // a few buildings per tile: a deep, wide tree
   const auto one = tiler::assemble(work, work + ".one", p);
   EXPECT_EQ(one.tileset_files, 1u);
@@ -445,7 +481,7 @@ TEST(Assemble, TileBudgetSplitsTiles) {
   write_work(work, synthetic_manifest(), synthetic_city(64, 3));
   AssembleParams p = quiet_params();
   p.max_tile_triangles = 120;  // a few buildings per tile
-  p.building_models = false;
+  p.building_models = false;   // (the default)
   const auto st = tiler::assemble(work, work + ".out", p);
   EXPECT_LE(st.max_tile_triangles, 120u);
   const TilesetCheck chk = check_tileset(work + ".out");
@@ -461,6 +497,7 @@ TEST(Assemble, QuantizedOutputIsValidAndSmaller) {
   const std::string work = tmp_dir("quantized");
   write_work(work, synthetic_manifest(), synthetic_city(20, 3));
   AssembleParams p = quiet_params();
+  p.building_models = true;  // their glbs are checked too
   p.compression = io::Compression::none;
   const auto plain = tiler::assemble(work, work + ".plain", p);
   p.quantize = true;

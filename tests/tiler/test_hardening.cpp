@@ -218,6 +218,7 @@ TEST(Publication, AssembleKilledAtAnyStepLeavesThePreviousOrTheNewTileset) {
   const std::string work = (d / "work").string(), out = (d / "out").string();
   AssembleParams p;
   p.threads = 1;
+  p.building_models = true;  // more files in the stage: more steps to be killed at
   test::write_work(work, test::synthetic_manifest(), test::synthetic_city(6, 3));
   assemble(work, out, p);
   const auto before = test::dir_contents(out);

@@ -754,7 +754,20 @@ std::vector<std::size_t> write_building_glbs(const fs::path& stage,
 
 /// 3c. buildings.json, the viewer's index: the scene's frame and, per
 /// building, its glb (`bsize`: their sizes) and its kept models.
+/// Per building, per kept model: the first tile (in tile order) whose glb
+/// holds it, as a path under the tileset's root, or "" if no tile shows it.
+std::vector<std::vector<std::string>> tiles_of_models(const std::vector<TileNode>& tiles,
+                                                      const std::vector<Building>& buildings) {
+  std::vector<std::vector<std::string>> where(buildings.size());
+  for (std::size_t b = 0; b < buildings.size(); ++b) where[b].resize(buildings[b].models.size());
+  for (const TileNode& t : tiles)
+    for (const Item& it : t.items)
+      if (where[it.b][it.m].empty()) where[it.b][it.m] = "tiles/" + t.name + ".glb";
+  return where;
+}
+
 void write_buildings_index(const fs::path& stage, const std::vector<Building>& buildings,
+                           const std::vector<TileNode>& tiles,
                            const std::vector<std::size_t>& bsize, const Manifest& man,
                            const std::array<double, 16>& root_transform,
                            const AssembleParams& params, AssembleStats& st) {
@@ -766,6 +779,7 @@ void write_buildings_index(const fs::path& stage, const std::vector<Building>& b
       {"longitude", sc.origin_lon}, {"latitude", sc.origin_lat}, {"height", sc.origin_h}};
   if (!sc.crs.empty()) index["crs"] = sc.crs;
   nlohmann::ordered_json blist = nlohmann::ordered_json::object();
+  const std::vector<std::vector<std::string>> in_tile = tiles_of_models(tiles, buildings);
   for (std::size_t i = 0; i < buildings.size(); ++i) {
     const Building& b = buildings[i];
     st.building_glb_bytes += bsize[i];
@@ -777,17 +791,23 @@ void write_buildings_index(const fs::path& stage, const std::vector<Building>& b
     nlohmann::ordered_json ms = nlohmann::ordered_json::array();
     for (std::size_t m = 0; m < b.models.size(); ++m) {
       const KeptModel& km = b.models[m];
-      ms.push_back({{"node", "model_" + std::to_string(m)},
-                    {"kind", io::to_string(km.kind)},
-                    {"level", km.level},
-                    {"step", km.step},
-                    {"error_m", km.error_m},
-                    {"hausdorff_m", km.hausdorff_m},
-                    {"rmse_m", km.rmse_m >= 0 ? nlohmann::ordered_json(km.rmse_m) : nullptr},
-                    {"valid", km.valid},
-                    {"height", km.height_m},
-                    {"triangles", km.triangles},
-                    {"file", fs::path(km.file).filename().string()}});
+      nlohmann::ordered_json me;
+      // the model as streamed: the building's feature in that tile's glb
+      me["tile"] = in_tile[i][m].empty() ? nlohmann::ordered_json(nullptr)
+                                         : nlohmann::ordered_json(in_tile[i][m]);
+      if (params.building_models) me["node"] = "model_" + std::to_string(m);
+      me.update(nlohmann::ordered_json{
+          {"kind", io::to_string(km.kind)},
+          {"level", km.level},
+          {"step", km.step},
+          {"error_m", km.error_m},
+          {"hausdorff_m", km.hausdorff_m},
+          {"rmse_m", km.rmse_m >= 0 ? nlohmann::ordered_json(km.rmse_m) : nullptr},
+          {"valid", km.valid},
+          {"height", km.height_m},
+          {"triangles", km.triangles},
+          {"file", fs::path(km.file).filename().string()}});
+      ms.push_back(std::move(me));
     }
     e["models"] = ms;
     blist[b.id] = e;
@@ -868,7 +888,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
                              : std::vector<std::size_t>(buildings.size(), 0);
   const geo::LocalFrame frame(geo::LonLatH(sc.origin_lon, sc.origin_lat, sc.origin_h));
   const std::array<double, 16> root_transform = frame.enu_to_ecef_matrix();
-  write_buildings_index(stage, buildings, bsize, man, root_transform, params, st);
+  write_buildings_index(stage, buildings, tree.tiles, bsize, man, root_transform, params, st);
   write_tilesets(stage, tree, sc.crs, root_transform, params, st);
 
   // ---- 4. switch the staged directory in: fsync'd, then one atomic exchange

@@ -62,7 +62,10 @@ struct AssembleParams {
   /// EXT_meshopt_compression (quantized positions and normals, meshopt codecs)
   /// or plain accessors; docs/3dtiles.md.
   io::Compression compression = io::Compression::meshopt;
-  bool building_models = true;  ///< write buildings/<id>.glb + buildings.json (viewer's LOD slider)
+  /// Also write buildings/<id>.glb (every kept model of a building in one
+  /// file). Off by default: buildings.json names, for each kept model, the
+  /// tile glb that holds it, which is what the viewer's LOD slider loads.
+  bool building_models = false;
   bool skip_missing = false;  ///< buildings without models: skip with a warning instead of failing
   bool force = false;         ///< replace an existing OUT that is not a citylod tileset
   int threads = 0;            ///< 0 = OpenMP default; output does not depend on it
