@@ -95,7 +95,7 @@ std::string tileset_json(const Tileset& ts) {
   j["geometricError"] = ts.geometric_error;
   j["root"] = tile_json(ts.root, true);
   if (ts.extras.is_object() && !ts.extras.empty()) j["extras"] = ts.extras;
-  return j.dump(2) + "\n";
+  return j.dump() + "\n";  // compact: a client downloads it before any geometry
 }
 
 void write_tileset(const std::string& path, const Tileset& ts) {

@@ -253,7 +253,7 @@ TEST(ServeCli, ServesTilesetAndViewerOnLoopback) {
   const int port = std::stoi(line.substr(at + 17));
   const std::string ts = http_get(port, "/tileset/tileset.json");
   EXPECT_NE(ts.find("200 OK"), std::string::npos);
-  EXPECT_NE(ts.find("\"version\": \"1.1\""), std::string::npos);
+  EXPECT_NE(ts.find("\"version\":\"1.1\""), std::string::npos);
   EXPECT_NE(http_get(port, "/").find("citylod viewer"), std::string::npos);
   EXPECT_NE(http_get(port, "/tileset/tiles/r.glb").find("model/gltf-binary"), std::string::npos);
   EXPECT_NE(http_get(port, "/tileset/nope.json").find("404"), std::string::npos);

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <numeric>
 #include <sstream>
@@ -43,6 +44,11 @@ using io::Vec3d;
 
 namespace {
 
+/// Bytes of welded models kept in memory from reading to writing the glbs
+/// (~4.5 M triangles; the 8x8 replica of the Delft tile needs ~20 MB). Past
+/// it, the writers read and weld a model again: the same bytes either way.
+constexpr std::size_t kModelCacheBytes = std::size_t(128) << 20;
+
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
@@ -60,6 +66,9 @@ struct KeptModel {
   BBox3 bbox;          // scene ENU
   std::size_t triangles = 0, bytes = 0;
   std::size_t plain_bytes = 0;  // float32 estimate: the same whatever the compression
+  /// The model as the glbs store it (read_model's result), kept from reading
+  /// while the cache's budget lasts; else the glb writers read it again.
+  std::shared_ptr<const std::pair<io::TriangleMesh, std::vector<io::Rgba8>>> ready;
 };
 
 struct Building {
@@ -205,11 +214,10 @@ io::TriangleMesh weld_for_validators(const io::TriangleMesh& m, std::vector<std:
 
 /// A model in the tiles' frame, welded for validators, with its triangles'
 /// colours (`colours`: per input triangle, or empty) following it.
-std::pair<io::TriangleMesh, std::vector<io::Rgba8>> read_model(
-    const std::string& file, const Vec3d& origin, const SceneGeoref& georef,
-    const std::vector<io::Rgba8>& colours) {
+std::pair<io::TriangleMesh, std::vector<io::Rgba8>> welded_model(
+    const io::TriangleMesh& enu, const std::vector<io::Rgba8>& colours) {
   std::vector<std::size_t> source;
-  io::TriangleMesh m = weld_for_validators(to_enu(read_scene_model(file, origin), georef), source);
+  io::TriangleMesh m = weld_for_validators(enu, source);
   std::vector<io::Rgba8> c;
   if (!colours.empty())
     for (const std::size_t t : source)
@@ -217,9 +225,42 @@ std::pair<io::TriangleMesh, std::vector<io::Rgba8>> read_model(
   return {std::move(m), std::move(c)};
 }
 
+std::pair<io::TriangleMesh, std::vector<io::Rgba8>> read_model(
+    const std::string& file, const Vec3d& origin, const SceneGeoref& georef,
+    const std::vector<io::Rgba8>& colours) {
+  return welded_model(to_enu(read_scene_model(file, origin), georef), colours);
+}
+
+/// Memory budget of the models kept between reading and writing (KeptModel::ready).
+class ModelCache {
+ public:
+  explicit ModelCache(std::size_t budget) : left_(budget) {}
+  /// Claims room for `m`; false once the budget is spent.
+  bool take(const io::TriangleMesh& m, std::size_t colours) {
+    const std::size_t need = m.vertices.size() * sizeof(Vec3d) +
+                             m.triangles.size() * sizeof(m.triangles[0]) +
+                             colours * sizeof(io::Rgba8) + 256;
+    std::size_t left = left_.load();
+    while (left >= need)
+      if (left_.compare_exchange_weak(left, left - need)) return true;
+    return false;
+  }
+
+ private:
+  std::atomic<std::size_t> left_;
+};
+
+/// The kept model for the glb writers: cached, or read again.
+std::pair<io::TriangleMesh, std::vector<io::Rgba8>> kept_model(const KeptModel& km,
+                                                               const Vec3d& origin,
+                                                               const SceneGeoref& georef) {
+  if (km.ready) return *km.ready;
+  return read_model(km.file, origin, georef, km.colours);
+}
+
 /// Reads one building's report and models and chooses its kept chain.
 Building load_building(const std::string& work, const ChunkRecord& rec, const AssembleParams& p,
-                       const SceneGeoref& georef) {
+                       const SceneGeoref& georef, ModelCache& cache) {
   Building b;
   b.id = rec.id;
   b.file_stem = safe_stem(rec.id);
@@ -271,8 +312,11 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     km.triangles = s.triangles;
     km.bytes = s.bytes;
     km.plain_bytes = s.float_bytes;
+    if (cache.take(mesh, km.colours.size()))
+      km.ready = std::make_shared<const std::pair<io::TriangleMesh, std::vector<io::Rgba8>>>(
+          welded_model(mesh, km.colours));
     b.bbox.add(km.bbox);
-    b.models.push_back(km);
+    b.models.push_back(std::move(km));
   }
   const io::TriangleMesh finest = to_enu(meshes[choice.kept.back()], georef);
   b.footprint_area_m2 =
@@ -621,10 +665,11 @@ std::vector<Building> read_buildings(const std::string& work_dir, const Manifest
   std::vector<std::string> errors(recs.size());
   std::atomic<std::size_t> done{0};
   const int nthreads = resolve_threads(params.threads);
+  ModelCache cache(kModelCacheBytes);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
   for (long i = 0; i < long(recs.size()); ++i) {
     try {
-      loaded[size_t(i)] = load_building(work_dir, *recs[size_t(i)], params, georef);
+      loaded[size_t(i)] = load_building(work_dir, *recs[size_t(i)], params, georef, cache);
     } catch (const std::exception& e) {
       errors[size_t(i)] = e.what();
     }
@@ -702,8 +747,7 @@ void write_tiles(const fs::path& stage, const std::vector<TileNode>& tiles,
     io::GlbBuilder g(rounded_centre(t.content_box), gopt);
     for (const auto& it : t.items) {
       const Building& b = buildings[it.b];
-      const auto [mesh, colours] =
-          read_model(b.models[it.m].file, b.origin, georef, b.models[it.m].colours);
+      const auto [mesh, colours] = kept_model(b.models[it.m], b.origin, georef);
       g.add_feature(feature_of(b, it.m), mesh, colours);
     }
     if (!inside(g.stored_bounds(), t.content_box))
@@ -740,8 +784,7 @@ std::vector<std::size_t> write_building_glbs(const fs::path& stage,
     io::GlbBuilder g(rounded_centre(b.bbox), gopt);
     for (std::size_t m = 0; m < b.models.size(); ++m) {
       g.begin_node("model_" + std::to_string(m));
-      const auto [mesh, colours] =
-          read_model(b.models[m].file, b.origin, georef, b.models[m].colours);
+      const auto [mesh, colours] = kept_model(b.models[m], b.origin, georef);
       g.add_feature(feature_of(b, m), mesh, colours);
     }
     const std::string bytes = g.glb();
@@ -813,7 +856,8 @@ void write_buildings_index(const fs::path& stage, const std::vector<Building>& b
     blist[b.id] = e;
   }
   index["buildings"] = blist;
-  io::atomic_write_file((stage / "buildings.json").string(), index.dump(1) + "\n");
+  io::atomic_write_file((stage / "buildings.json").string(),
+                        index.dump() + "\n");  // compact (the viewer reads it)
 }
 
 /// 3d. tileset.json and the external tilesets (tiles/<name>.json), the last
