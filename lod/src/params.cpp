@@ -4,8 +4,10 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 namespace citylod::lod {
 
@@ -80,165 +82,162 @@ void parse(const std::string&, const std::string& s, std::string& out) {
   out = s;
 }
 
-/// Visits every parameter (fixed order) with its dotted name and a reference.
+/// Validation rules of the parameters (visit): ok(value, all parameters) and
+/// the message when it fails.
+struct Any {
+  template <class T>
+  bool ok(const T&, const LodParams&) const {
+    return true;
+  }
+  std::string why() const { return ""; }
+};
+/// A finite number in an interval; `lo_open` / `hi_open` exclude the ends.
+struct Range {
+  double lo, hi;
+  bool lo_open, hi_open;
+  bool ok(double v, const LodParams&) const {
+    return std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
+  }
+  std::string why() const {
+    if (std::isinf(hi)) return std::string("must be ") + (lo_open ? "> " : ">= ") + fmt_short(lo);
+    return "must be in " + std::string(lo_open ? "(" : "[") + fmt_short(lo) + ", " + fmt_short(hi) +
+           (hi_open ? ")" : "]");
+  }
+  static std::string fmt_short(double v) {
+    std::ostringstream o;
+    o << v;
+    return o.str();
+  }
+};
+constexpr double kInf = std::numeric_limits<double>::infinity();
+const Range kPositive{0, kInf, true, false};
+const Range kNonNegative{0, kInf, false, false};
+const Range kRatio{0, 1, true, false};        // (0, 1]
+const Range kUnitOpen{0, 1, false, true};     // [0, 1)
+const Range kAngle{0, 90, true, false};       // (0, 90] degrees
+const Range kAngleZero{0, 90, false, false};  // [0, 90] degrees
+/// An integer >= min.
+struct AtLeast {
+  int min;
+  bool ok(int v, const LodParams&) const { return v >= min; }
+  std::string why() const { return "must be >= " + std::to_string(min); }
+};
+/// One of a few words.
+struct OneOf {
+  std::vector<const char*> words;
+  const char* message;
+  bool ok(const std::string& v, const LodParams&) const {
+    for (const char* w : words)
+      if (v == w) return true;
+    return false;
+  }
+  std::string why() const { return message; }
+};
+/// A rule that reads other parameters.
+template <class T>
+struct Relation {
+  bool (*test)(const T&, const LodParams&);
+  const char* message;
+  bool ok(const T& v, const LodParams& p) const { return test(v, p); }
+  std::string why() const { return message; }
+};
+
+/// Visits every parameter (fixed order) with its dotted name, a reference and
+/// its validation rule: the one place a parameter's name is spelled.
 template <class P, class F>
 void visit(P& p, F&& f) {
-  f("normals.k_neighbors", p.normals.k_neighbors);
-  f("planes.epsilon", p.planes.epsilon);
-  f("planes.max_angle_deg", p.planes.max_angle_deg);
-  f("planes.min_region_size", p.planes.min_region_size);
-  f("planes.k_neighbors", p.planes.k_neighbors);
-  f("planes.max_planes", p.planes.max_planes);
-  f("alpha.alpha", p.alpha.alpha);
-  f("bsp.bbox_enlarge", p.bsp.bbox_enlarge);
-  f("bsp.max_cells", p.bsp.max_cells);
-  f("bsp.baseline", p.bsp.baseline);
-  f("labels.rays_per_cell", p.labels.rays_per_cell);
-  f("labels.origins_per_cell", p.labels.origins_per_cell);
-  f("ioview.separation_coverage", p.ioview.separation_coverage);
-  f("ioview.min_principal_area", p.ioview.min_principal_area);
-  f("ioview.covered_only", p.ioview.covered_only);
-  f("ioview.uncovered", p.ioview.uncovered);
-  f("cluster.area_bandwidth", p.cluster.area_bandwidth);
-  f("cluster.volume_bandwidth", p.cluster.volume_bandwidth);
-  f("cluster.volume_scale", p.cluster.volume_scale);
-  f("regularization.enabled", p.regularization.enabled);
-  f("regularization.principal_angle_deg", p.regularization.principal_angle_deg);
-  f("regularization.principal_distance", p.regularization.principal_distance);
-  f("regularization.secondary_angle_deg", p.regularization.secondary_angle_deg);
-  f("regularization.secondary_distance", p.regularization.secondary_distance);
-  f("regularization.vertical_host_deg", p.regularization.vertical_host_deg);
-  f("regularization.min_cutouts_for_templates", p.regularization.min_cutouts_for_templates);
-  f("tree.merge_k", p.tree.merge_k);
-  f("tree.label_volume_ratio", p.tree.label_volume_ratio);
-  f("tree.interpolation_ratio", p.tree.interpolation_ratio);
-  f("tree.interpolation_floor", p.tree.interpolation_floor);
-  f("budget.time_budget_s", p.budget.time_budget_s);
-  f("closure.enabled", p.closure.enabled);
-  f("closure.wall_fraction_min", p.closure.wall_fraction_min);
-  f("closure.outline_alpha", p.closure.outline_alpha);
-  f("closure.terrain", p.closure.terrain);
-  f("closure.plinth_depth", p.closure.plinth_depth);
-  f("closure.unknown_ground_depth", p.closure.unknown_ground_depth);
-  f("closure.footprint_walls", p.closure.footprint_walls);
-  f("closure.wall_profile", p.closure.wall_profile);
-  f("closure.wall_snap", p.closure.wall_snap);
-  f("airborne.mode", p.airborne.mode);
-  f("airborne.wall_fraction_max", p.airborne.wall_fraction_max);
-  f("airborne.cell", p.airborne.cell);
-  f("airborne.fill_radius", p.airborne.fill_radius);
-  f("airborne.step_min", p.airborne.step_min);
-  f("airborne.step_probe", p.airborne.step_probe);
-  f("airborne.step_alpha", p.airborne.step_alpha);
-  f("airborne.step_min_edge", p.airborne.step_min_edge);
-  f("airborne.origins_per_cell", p.airborne.origins_per_cell);
-  f("airborne.block", p.airborne.block);
-  f("airborne.min_region_size", p.airborne.min_region_size);
-  f("airborne.roof_refit", p.airborne.roof_refit);
-  f("airborne.roof_edge_margin", p.airborne.roof_edge_margin);
-  f("airborne.detail_level", p.airborne.detail_level);
-  f("orient.enabled", p.orient.enabled);
-  f("orient.points_per_plane", p.orient.points_per_plane);
-  f("orient.rays", p.orient.rays);
-  f("orient.offset", p.orient.offset);
-  f("orient.margin", p.orient.margin);
-  f("metrics.samples", p.metrics.samples);
-  f("colour.enabled", p.colour.enabled);
-  f("colour.distance", p.colour.distance);
-  f("colour.min_points", p.colour.min_points);
-  f("colour.max_angle_deg", p.colour.max_angle_deg);
-  f("threads", p.threads);
-}
-
-void check(bool ok, const char* name, const std::string& why) {
-  if (!ok) bad(name, why);
+  f("normals.k_neighbors", p.normals.k_neighbors, AtLeast{3});
+  f("planes.epsilon", p.planes.epsilon, kPositive);
+  f("planes.max_angle_deg", p.planes.max_angle_deg, kAngle);
+  f("planes.min_region_size", p.planes.min_region_size, AtLeast{3});
+  f("planes.k_neighbors", p.planes.k_neighbors, AtLeast{3});
+  f("planes.max_planes", p.planes.max_planes, AtLeast{1});
+  f("alpha.alpha", p.alpha.alpha, kPositive);
+  f("bsp.bbox_enlarge", p.bsp.bbox_enlarge, Range{0, 1, false, false});
+  f("bsp.max_cells", p.bsp.max_cells, AtLeast{1});
+  f("bsp.baseline", p.bsp.baseline, Any{});
+  f("labels.rays_per_cell", p.labels.rays_per_cell, AtLeast{1});
+  f("labels.origins_per_cell", p.labels.origins_per_cell,
+    Relation<int>{
+        [](const int& v, const LodParams& q) { return v >= 1 && v <= q.labels.rays_per_cell; },
+        "must be in [1, labels.rays_per_cell]"});
+  f("ioview.separation_coverage", p.ioview.separation_coverage, kRatio);
+  f("ioview.min_principal_area", p.ioview.min_principal_area, kNonNegative);
+  f("ioview.covered_only", p.ioview.covered_only, Any{});
+  f("ioview.uncovered", p.ioview.uncovered,
+    OneOf{{"noise", "s0", "last"}, "must be noise, s0 or last"});
+  f("cluster.area_bandwidth", p.cluster.area_bandwidth, kPositive);
+  f("cluster.volume_bandwidth", p.cluster.volume_bandwidth,
+    Relation<double>{[](const double& v, const LodParams& q) {
+                       return std::isfinite(v) && v > 0 &&
+                              (q.cluster.volume_scale == "m3" || v > 1.0);
+                     },
+                     "must be > 0, and > 1 (a factor) with "
+                     "cluster.volume_scale = ratio"});
+  f("cluster.volume_scale", p.cluster.volume_scale, OneOf{{"ratio", "m3"}, "must be ratio or m3"});
+  f("regularization.enabled", p.regularization.enabled, Any{});
+  f("regularization.principal_angle_deg", p.regularization.principal_angle_deg, kAngle);
+  f("regularization.principal_distance", p.regularization.principal_distance, kNonNegative);
+  f("regularization.secondary_angle_deg", p.regularization.secondary_angle_deg, kAngle);
+  f("regularization.secondary_distance", p.regularization.secondary_distance, kNonNegative);
+  f("regularization.vertical_host_deg", p.regularization.vertical_host_deg, kAngle);
+  f("regularization.min_cutouts_for_templates", p.regularization.min_cutouts_for_templates,
+    AtLeast{1});
+  f("tree.merge_k", p.tree.merge_k, AtLeast{1});
+  f("tree.label_volume_ratio", p.tree.label_volume_ratio, kRatio);
+  f("tree.interpolation_ratio", p.tree.interpolation_ratio, kRatio);
+  f("tree.interpolation_floor", p.tree.interpolation_floor, kUnitOpen);
+  f("budget.time_budget_s", p.budget.time_budget_s, kNonNegative);
+  f("closure.enabled", p.closure.enabled, Any{});
+  f("closure.wall_fraction_min", p.closure.wall_fraction_min, kRatio);
+  f("closure.outline_alpha", p.closure.outline_alpha, kPositive);
+  f("closure.terrain", p.closure.terrain, OneOf{{"plinth", "cut"}, "must be 'plinth' or 'cut'"});
+  f("closure.plinth_depth", p.closure.plinth_depth, kPositive);
+  f("closure.unknown_ground_depth", p.closure.unknown_ground_depth, kNonNegative);
+  f("closure.footprint_walls", p.closure.footprint_walls, Any{});
+  f("closure.wall_profile", p.closure.wall_profile, Any{});
+  f("closure.wall_snap", p.closure.wall_snap, kNonNegative);
+  f("airborne.mode", p.airborne.mode,
+    OneOf{{"auto", "on", "off"}, "must be 'auto', 'on' or 'off'"});
+  f("airborne.wall_fraction_max", p.airborne.wall_fraction_max, kRatio);
+  f("airborne.cell", p.airborne.cell, kPositive);
+  f("airborne.fill_radius", p.airborne.fill_radius, kNonNegative);
+  f("airborne.step_min", p.airborne.step_min, kPositive);
+  f("airborne.step_probe", p.airborne.step_probe, kPositive);
+  f("airborne.step_alpha", p.airborne.step_alpha, kPositive);
+  f("airborne.step_min_edge", p.airborne.step_min_edge, kPositive);
+  f("airborne.origins_per_cell", p.airborne.origins_per_cell, AtLeast{1});
+  f("airborne.block", p.airborne.block, Any{});
+  f("airborne.min_region_size", p.airborne.min_region_size, AtLeast{3});
+  f("airborne.roof_refit", p.airborne.roof_refit, Any{});
+  f("airborne.roof_edge_margin", p.airborne.roof_edge_margin, kNonNegative);
+  f("airborne.detail_level", p.airborne.detail_level, Any{});
+  f("orient.enabled", p.orient.enabled, Any{});
+  f("orient.points_per_plane", p.orient.points_per_plane, AtLeast{1});
+  f("orient.rays", p.orient.rays, AtLeast{2});
+  f("orient.offset", p.orient.offset, kPositive);
+  f("orient.margin", p.orient.margin, kUnitOpen);
+  f("metrics.samples", p.metrics.samples, AtLeast{1});
+  f("colour.enabled", p.colour.enabled, Any{});
+  f("colour.distance", p.colour.distance, kNonNegative);
+  f("colour.min_points", p.colour.min_points, AtLeast{1});
+  f("colour.max_angle_deg", p.colour.max_angle_deg, kAngleZero);
+  f("threads", p.threads,
+    Relation<int>{[](const int& v, const LodParams&) { return v >= 0; },
+                  "must be >= 0 (0 = all cores)"});
 }
 
 }  // namespace
 
 void LodParams::validate() const {
-  check(labels.origins_per_cell >= 1 && labels.origins_per_cell <= labels.rays_per_cell,
-        "labels.origins_per_cell", "must be in [1, labels.rays_per_cell]");
-  auto pos = [](double v) { return std::isfinite(v) && v > 0; };
-  auto ratio = [](double v) { return std::isfinite(v) && v > 0 && v <= 1; };
-  auto angle = [](double v) { return std::isfinite(v) && v > 0 && v <= 90; };
-  check(normals.k_neighbors >= 3, "normals.k_neighbors", "must be >= 3");
-  check(pos(planes.epsilon), "planes.epsilon", "must be > 0");
-  check(angle(planes.max_angle_deg), "planes.max_angle_deg", "must be in (0, 90]");
-  check(planes.min_region_size >= 3, "planes.min_region_size", "must be >= 3");
-  check(planes.k_neighbors >= 3, "planes.k_neighbors", "must be >= 3");
-  check(planes.max_planes >= 1, "planes.max_planes", "must be >= 1");
-  check(pos(alpha.alpha), "alpha.alpha", "must be > 0");
-  check(std::isfinite(bsp.bbox_enlarge) && bsp.bbox_enlarge >= 0 && bsp.bbox_enlarge <= 1,
-        "bsp.bbox_enlarge", "must be in [0, 1]");
-  check(bsp.max_cells >= 1, "bsp.max_cells", "must be >= 1");
-  check(labels.rays_per_cell >= 1, "labels.rays_per_cell", "must be >= 1");
-  check(ratio(ioview.separation_coverage), "ioview.separation_coverage", "must be in (0, 1]");
-  check(std::isfinite(ioview.min_principal_area) && ioview.min_principal_area >= 0,
-        "ioview.min_principal_area", "must be >= 0");
-  check(pos(cluster.area_bandwidth), "cluster.area_bandwidth", "must be > 0");
-  check(pos(cluster.volume_bandwidth), "cluster.volume_bandwidth", "must be > 0");
-  check(ioview.uncovered == "noise" || ioview.uncovered == "s0" || ioview.uncovered == "last",
-        "ioview.uncovered", "must be noise, s0 or last");
-  check(cluster.volume_scale == "ratio" || cluster.volume_scale == "m3", "cluster.volume_scale",
-        "must be ratio or m3");
-  check(cluster.volume_scale == "m3" || cluster.volume_bandwidth > 1.0, "cluster.volume_bandwidth",
-        "must be > 1 (a factor) with cluster.volume_scale = ratio");
-  check(angle(regularization.principal_angle_deg), "regularization.principal_angle_deg",
-        "must be in (0, 90]");
-  check(std::isfinite(regularization.principal_distance) && regularization.principal_distance >= 0,
-        "regularization.principal_distance", "must be >= 0");
-  check(angle(regularization.secondary_angle_deg), "regularization.secondary_angle_deg",
-        "must be in (0, 90]");
-  check(std::isfinite(regularization.secondary_distance) && regularization.secondary_distance >= 0,
-        "regularization.secondary_distance", "must be >= 0");
-  check(angle(regularization.vertical_host_deg), "regularization.vertical_host_deg",
-        "must be in (0, 90]");
-  check(regularization.min_cutouts_for_templates >= 1, "regularization.min_cutouts_for_templates",
-        "must be >= 1");
-  check(tree.merge_k >= 1, "tree.merge_k", "must be >= 1");
-  check(ratio(tree.label_volume_ratio), "tree.label_volume_ratio", "must be in (0, 1]");
-  check(ratio(tree.interpolation_ratio), "tree.interpolation_ratio", "must be in (0, 1]");
-  check(std::isfinite(tree.interpolation_floor) && tree.interpolation_floor >= 0 &&
-            tree.interpolation_floor < 1,
-        "tree.interpolation_floor", "must be in [0, 1)");
-  check(std::isfinite(budget.time_budget_s) && budget.time_budget_s >= 0, "budget.time_budget_s",
-        "must be >= 0");
-  check(ratio(closure.wall_fraction_min), "closure.wall_fraction_min", "must be in (0, 1]");
-  check(pos(closure.outline_alpha), "closure.outline_alpha", "must be > 0");
-  check(closure.terrain == "plinth" || closure.terrain == "cut", "closure.terrain",
-        "must be 'plinth' or 'cut'");
-  check(pos(closure.plinth_depth), "closure.plinth_depth", "must be > 0");
-  check(closure.unknown_ground_depth >= 0, "closure.unknown_ground_depth", "must be >= 0");
-  check(closure.wall_snap >= 0 && std::isfinite(closure.wall_snap), "closure.wall_snap",
-        "must be >= 0");
-  check(airborne.mode == "auto" || airborne.mode == "on" || airborne.mode == "off", "airborne.mode",
-        "must be 'auto', 'on' or 'off'");
-  check(ratio(airborne.wall_fraction_max), "airborne.wall_fraction_max", "must be in (0, 1]");
-  check(pos(airborne.cell), "airborne.cell", "must be > 0");
-  check(airborne.fill_radius >= 0, "airborne.fill_radius", "must be >= 0");
-  check(pos(airborne.step_min), "airborne.step_min", "must be > 0");
-  check(pos(airborne.step_probe), "airborne.step_probe", "must be > 0");
-  check(pos(airborne.step_alpha), "airborne.step_alpha", "must be > 0");
-  check(pos(airborne.step_min_edge), "airborne.step_min_edge", "must be > 0");
-  check(airborne.origins_per_cell >= 1, "airborne.origins_per_cell", "must be >= 1");
-  check(airborne.min_region_size >= 3, "airborne.min_region_size", "must be >= 3");
-  check(airborne.roof_edge_margin >= 0, "airborne.roof_edge_margin", "must be >= 0");
-  check(orient.points_per_plane >= 1, "orient.points_per_plane", "must be >= 1");
-  check(orient.rays >= 2, "orient.rays", "must be >= 2");
-  check(pos(orient.offset), "orient.offset", "must be > 0");
-  check(orient.margin >= 0 && orient.margin < 1, "orient.margin", "must be in [0, 1)");
-  check(metrics.samples >= 1, "metrics.samples", "must be >= 1");
-  check(colour.distance >= 0, "colour.distance", "must be >= 0");
-  check(colour.min_points >= 1, "colour.min_points", "must be >= 1");
-  check(colour.max_angle_deg >= 0 && colour.max_angle_deg <= 90, "colour.max_angle_deg",
-        "must be in [0, 90]");
-  check(threads >= 0, "threads", "must be >= 0 (0 = all cores)");
+  visit(*this, [&](const char* name, const auto& value, const auto& rule) {
+    if (!rule.ok(value, *this)) bad(name, rule.why());
+  });
 }
 
 void LodParams::set(const std::string& name, const std::string& value) {
   bool found = false;
-  visit(*this, [&](const char* n, auto& field) {
+  visit(*this, [&](const char* n, auto& field, const auto&) {
     if (found || name != n) return;
     found = true;
     parse(name, value, field);
@@ -248,7 +247,8 @@ void LodParams::set(const std::string& name, const std::string& value) {
 
 std::vector<std::pair<std::string, std::string>> LodParams::items() const {
   std::vector<std::pair<std::string, std::string>> out;
-  visit(*this, [&](const char* n, const auto& field) { out.emplace_back(n, fmt(field)); });
+  visit(*this,
+        [&](const char* n, const auto& field, const auto&) { out.emplace_back(n, fmt(field)); });
   return out;
 }
 

@@ -92,6 +92,32 @@ TEST(LodParams, ValidateNamesTheParameter) {
   expect_bad("closure.unknown_ground_depth", "-1");
   expect_bad("airborne.wall_fraction_max", "0");
   expect_bad("ioview.uncovered", "drop");
+  // the edges of the ranges, and rules that read another parameter
+  expect_bad("bsp.bbox_enlarge", "1.01");
+  expect_bad("tree.interpolation_floor", "1");
+  expect_bad("orient.margin", "1");
+  expect_bad("orient.rays", "1");
+  expect_bad("colour.max_angle_deg", "90.5");
+  expect_bad("airborne.mode", "maybe");
+  expect_bad("cluster.volume_scale", "m2");
+  expect_bad("labels.origins_per_cell", "101");  // > labels.rays_per_cell (100)
+  expect_bad("cluster.volume_bandwidth", "1");   // a factor (volume_scale = ratio) must be > 1
+  expect_bad("threads", "-1");
+  auto expect_good = [](const char* name, const char* value) {
+    LodParams p;
+    p.set(name, value);
+    EXPECT_NO_THROW(p.validate()) << name << "=" << value;
+  };
+  expect_good("bsp.bbox_enlarge", "1");
+  expect_good("tree.interpolation_floor", "0");
+  expect_good("colour.max_angle_deg", "0");
+  expect_good("labels.origins_per_cell", "100");
+  {
+    LodParams p;  // m3: the bandwidth is a volume, any positive value
+    p.set("cluster.volume_scale", "m3");
+    p.set("cluster.volume_bandwidth", "0.5");
+    EXPECT_NO_THROW(p.validate());
+  }
 }
 
 TEST(LodParams, ItemsRoundTrip) {
