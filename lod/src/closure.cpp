@@ -571,7 +571,7 @@ Closure close_building(const BuildingInput& in, const Samples& s, const ClosureP
   // walls up to the terrain along the scene's outline. The terrain has a hole
   // where the building stands; the ground floor's rays that escape through it
   // meet the plinth's base from inside.
-  const bool plinth = t.on_terrain && p.terrain == "plinth";
+  const bool plinth = t.on_terrain && p.terrain == lod::Terrain::Plinth;
   if (!cov.walls_missing && t.has_floor && !plinth) return res;
   // Cut: on a terrain sheet the base goes under the building only, at the
   // terrain's height (rays from the ground floor escaping through the hole in

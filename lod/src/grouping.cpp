@@ -100,7 +100,7 @@ Grouping group_structures(const IoView& view, const std::vector<Primitive>& prim
   // with bandwidth ln 4), so that the level sets do not depend on the unit
   // and a window (0.5 m^3) and a dormer (10 m^3) are not one mode.
   double bandwidth = p.volume_bandwidth;
-  if (p.volume_scale != "m3") {  // ratio
+  if (p.volume_scale == VolumeScale::Ratio) {
     for (double& v : vols) v = std::log(std::max(v, kMinClusterVolume));
     bandwidth = std::log(p.volume_bandwidth);
   }
@@ -149,9 +149,9 @@ SortedPrimitives sort_primitives(const std::vector<Primitive>& prims, const IoVi
   return s;
 }
 
-int place_uncovered(const std::vector<Primitive>& prims, const IoView& view,
-                    const std::string& rule, SortedPrimitives& sorted) {
-  if (rule == "noise") return 0;
+int place_uncovered(const std::vector<Primitive>& prims, const IoView& view, Uncovered rule,
+                    SortedPrimitives& sorted) {
+  if (rule == Uncovered::Noise) return 0;
   std::vector<int> add;
   for (size_t i = 0; i < view.on_surface.size() && i < prims.size(); ++i)
     if (view.on_surface[i] && !view.principal[i] && sorted.level_of[i] < 0) add.push_back(int(i));
@@ -159,7 +159,7 @@ int place_uncovered(const std::vector<Primitive>& prims, const IoView& view,
     return prims[size_t(a)].alpha_area > prims[size_t(b)].alpha_area;
   });
   if (add.empty()) return 0;
-  if (rule == "s0") {
+  if (rule == Uncovered::S0) {
     size_t at = 0;
     while (at < sorted.order.size() && sorted.level_of[size_t(sorted.order[at])] == 0) ++at;
     sorted.order.insert(sorted.order.begin() + std::ptrdiff_t(at), add.begin(), add.end());

@@ -43,10 +43,10 @@ SortedPrimitives sort_primitives(const std::vector<Primitive>& prims, const IoVi
                                  const Grouping& grouping);
 /// With ioview.covered_only: the primitives the V_in/V_out interface lies on
 /// (view.on_surface) whose alpha-shapes cover too little of it to be principal
-/// and that are in no level set, placed by `rule`: "noise" leaves them out of
-/// S, "s0" puts them in S0 after the principal primitives, "last" makes them
+/// and that are in no level set, placed by `rule`: Noise leaves them out of
+/// S, S0 puts them in S0 after the principal primitives, Last makes them
 /// one more, last level set (largest alpha-shape first). Returns how many.
-int place_uncovered(const std::vector<Primitive>& prims, const IoView& view,
-                    const std::string& rule, SortedPrimitives& sorted);
+int place_uncovered(const std::vector<Primitive>& prims, const IoView& view, Uncovered rule,
+                    SortedPrimitives& sorted);
 
 }  // namespace citylod::lod::detail

@@ -245,7 +245,7 @@ int drop_small_shells(LodModel& m, double min_fraction) {
 /// airborne.wall_fraction_max of its samples), or a city chunk with a
 /// footprint whose walls are inferred along it.
 bool airborne_input(const BuildingInput& in, const Samples& s, const LodParams& P) {
-  if (P.airborne.mode != "auto") return P.airborne.mode == "on";
+  if (P.airborne.mode != AirborneMode::Auto) return P.airborne.mode == AirborneMode::On;
   if (in.is_mesh() || !P.closure.enabled || s.points.empty()) return false;
   if (P.closure.footprint_walls && in.footprint.size() >= 3) return true;
   double wall = 0, total = 0;
@@ -334,7 +334,7 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
   // walls are inferred where the roof steps down.
   std::optional<HeightField>& heights = out.heights;
   const bool walls_inferred = c.what == Closure::Walls || c.what == Closure::FootprintWalls;
-  if (P.airborne.mode == "on" || (airborne && walls_inferred)) {
+  if (P.airborne.mode == AirborneMode::On || (airborne && walls_inferred)) {
     if (c.outline.size() < 3) throw LodError("airborne", "no outline to model the building on");
     heights.emplace(samples, c.outline, c.ground_z, P.airborne);
     const int refitted = refit_roof_planes(samples, c.outline, P.airborne, P.alpha, prims);
@@ -445,7 +445,7 @@ SortStep sort_step(const Samples& samples, Planes& planes, IoViewStep& io, const
   const int uncovered = place_uncovered(prims, view, P.ioview.uncovered, sorted);
   if (uncovered > 0)
     st.notes.push_back(std::to_string(uncovered) + " uncovered surface primitives placed (" +
-                       P.ioview.uncovered + ")");
+                       to_string(P.ioview.uncovered) + ")");
   if (planes.heights && P.airborne.detail_level) {
     const int added = append_detail_level(prims, sorted);
     if (added > 0)
@@ -639,7 +639,7 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   progress(0.0, "samples");
   // A city chunk of airborne LiDAR (a point cloud with walls along its
   // footprint) needs no normal propagation: its roofs face up.
-  const bool city_lidar = params.airborne.mode != "off" && !in.is_mesh() &&
+  const bool city_lidar = params.airborne.mode != AirborneMode::Off && !in.is_mesh() &&
                           params.closure.footprint_walls && in.footprint.size() >= 3;
   const Samples samples = make_samples(in, params.normals, !city_lidar);
   R.stats.normals_estimated = samples.normals_estimated;
@@ -668,7 +668,7 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
     // but gaps in them) is tried again as airborne LiDAR: walls on its outline,
     // cells labelled by its roof height field. Not after the budget or a cancel.
     const std::string why = e.what();
-    const bool retry = !in.is_mesh() && params.airborne.mode == "auto" &&
+    const bool retry = !in.is_mesh() && params.airborne.mode == AirborneMode::Auto &&
                        !airborne_input(in, samples, params) &&
                        why.find("time budget exceeded") == std::string::npos &&
                        why.find("cancelled") == std::string::npos;
@@ -676,7 +676,7 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
       fall_back(why);
     } else {
       LodParams as_airborne = params;
-      as_airborne.airborne.mode = "on";
+      as_airborne.airborne.mode = AirborneMode::On;
       R = fresh;
       R.stats.notes.push_back("the rays failed (" + why +
                               "): modelled as airborne LiDAR (walls on the outline, cells "

@@ -7,6 +7,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
 #include <vector>
 
 namespace citylod::lod {
@@ -25,6 +26,35 @@ const char* to_string(ModelKind k) {
 
 namespace {
 
+/// The words of an enum's values, in the order of its values.
+constexpr const char* kUncovered[] = {"noise", "s0", "last"};
+constexpr const char* kVolumeScale[] = {"ratio", "m3"};
+constexpr const char* kTerrain[] = {"plinth", "cut"};
+constexpr const char* kAirborneMode[] = {"auto", "on", "off"};
+
+template <class E, std::size_t N>
+const char* word(E v, const char* const (&words)[N]) {
+  const auto i = std::size_t(v);
+  return i < N ? words[i] : "unknown";
+}
+
+}  // namespace
+
+const char* to_string(Uncovered v) {
+  return word(v, kUncovered);
+}
+const char* to_string(VolumeScale v) {
+  return word(v, kVolumeScale);
+}
+const char* to_string(Terrain v) {
+  return word(v, kTerrain);
+}
+const char* to_string(AirborneMode v) {
+  return word(v, kAirborneMode);
+}
+
+namespace {
+
 std::string fmt(double v) {
   std::ostringstream o;
   o.precision(17);
@@ -37,8 +67,9 @@ std::string fmt(int v) {
 std::string fmt(bool v) {
   return v ? "true" : "false";
 }
-const std::string& fmt(const std::string& v) {
-  return v;
+template <class E, std::enable_if_t<std::is_enum_v<E>, int> = 0>
+std::string fmt(E v) {
+  return to_string(v);
 }
 
 [[noreturn]] void bad(const std::string& name, const std::string& why) {
@@ -78,8 +109,31 @@ void parse(const std::string& name, const std::string& s, bool& out) {
     bad(name, "not a boolean: '" + s + "'");
 }
 
-void parse(const std::string&, const std::string& s, std::string& out) {
-  out = s;
+/// One of the words of `words`; else the error names them.
+template <class E, std::size_t N>
+void parse_word(const std::string& name, const std::string& s, E& out,
+                const char* const (&words)[N]) {
+  for (std::size_t i = 0; i < N; ++i)
+    if (s == words[i]) {
+      out = E(i);
+      return;
+    }
+  std::string why = "must be ";
+  for (std::size_t i = 0; i < N; ++i)
+    why += std::string(i == 0 ? "'" : i + 1 == N ? " or '" : ", '") + words[i] + "'";
+  bad(name, why + ", got '" + s + "'");
+}
+void parse(const std::string& name, const std::string& s, Uncovered& out) {
+  parse_word(name, s, out, kUncovered);
+}
+void parse(const std::string& name, const std::string& s, VolumeScale& out) {
+  parse_word(name, s, out, kVolumeScale);
+}
+void parse(const std::string& name, const std::string& s, Terrain& out) {
+  parse_word(name, s, out, kTerrain);
+}
+void parse(const std::string& name, const std::string& s, AirborneMode& out) {
+  parse_word(name, s, out, kAirborneMode);
 }
 
 /// Validation rules of the parameters (visit): ok(value, all parameters) and
@@ -122,17 +176,6 @@ struct AtLeast {
   bool ok(int v, const LodParams&) const { return v >= min; }
   std::string why() const { return "must be >= " + std::to_string(min); }
 };
-/// One of a few words.
-struct OneOf {
-  std::vector<const char*> words;
-  const char* message;
-  bool ok(const std::string& v, const LodParams&) const {
-    for (const char* w : words)
-      if (v == w) return true;
-    return false;
-  }
-  std::string why() const { return message; }
-};
 /// A rule that reads other parameters.
 template <class T>
 struct Relation {
@@ -164,17 +207,16 @@ void visit(P& p, F&& f) {
   f("ioview.separation_coverage", p.ioview.separation_coverage, kRatio);
   f("ioview.min_principal_area", p.ioview.min_principal_area, kNonNegative);
   f("ioview.covered_only", p.ioview.covered_only, Any{});
-  f("ioview.uncovered", p.ioview.uncovered,
-    OneOf{{"noise", "s0", "last"}, "must be noise, s0 or last"});
+  f("ioview.uncovered", p.ioview.uncovered, Any{});
   f("cluster.area_bandwidth", p.cluster.area_bandwidth, kPositive);
   f("cluster.volume_bandwidth", p.cluster.volume_bandwidth,
     Relation<double>{[](const double& v, const LodParams& q) {
                        return std::isfinite(v) && v > 0 &&
-                              (q.cluster.volume_scale == "m3" || v > 1.0);
+                              (q.cluster.volume_scale == VolumeScale::M3 || v > 1.0);
                      },
                      "must be > 0, and > 1 (a factor) with "
                      "cluster.volume_scale = ratio"});
-  f("cluster.volume_scale", p.cluster.volume_scale, OneOf{{"ratio", "m3"}, "must be ratio or m3"});
+  f("cluster.volume_scale", p.cluster.volume_scale, Any{});
   f("regularization.enabled", p.regularization.enabled, Any{});
   f("regularization.principal_angle_deg", p.regularization.principal_angle_deg, kAngle);
   f("regularization.principal_distance", p.regularization.principal_distance, kNonNegative);
@@ -191,14 +233,13 @@ void visit(P& p, F&& f) {
   f("closure.enabled", p.closure.enabled, Any{});
   f("closure.wall_fraction_min", p.closure.wall_fraction_min, kRatio);
   f("closure.outline_alpha", p.closure.outline_alpha, kPositive);
-  f("closure.terrain", p.closure.terrain, OneOf{{"plinth", "cut"}, "must be 'plinth' or 'cut'"});
+  f("closure.terrain", p.closure.terrain, Any{});
   f("closure.plinth_depth", p.closure.plinth_depth, kPositive);
   f("closure.unknown_ground_depth", p.closure.unknown_ground_depth, kNonNegative);
   f("closure.footprint_walls", p.closure.footprint_walls, Any{});
   f("closure.wall_profile", p.closure.wall_profile, Any{});
   f("closure.wall_snap", p.closure.wall_snap, kNonNegative);
-  f("airborne.mode", p.airborne.mode,
-    OneOf{{"auto", "on", "off"}, "must be 'auto', 'on' or 'off'"});
+  f("airborne.mode", p.airborne.mode, Any{});
   f("airborne.wall_fraction_max", p.airborne.wall_fraction_max, kRatio);
   f("airborne.cell", p.airborne.cell, kPositive);
   f("airborne.fill_radius", p.airborne.fill_radius, kNonNegative);

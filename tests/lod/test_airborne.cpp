@@ -43,7 +43,7 @@ LodParams city_params() {
   LodParams p;
   p.metrics.samples = 2000;
   p.closure.footprint_walls = true;
-  p.closure.terrain = "cut";
+  p.closure.terrain = Terrain::Cut;
   return p;
 }
 
@@ -68,7 +68,7 @@ TEST(Airborne, LowerRoofBoundsItsOwnCells) {
   // The paper's ray labelling of the same points fills the annex up to the
   // main roof (nothing separates the cells above the lower roof).
   LodParams rays = city_params();
-  rays.airborne.mode = "off";
+  rays.airborne.mode = AirborneMode::Off;
   const LodResult q = build_lod_tree(b.input, rays);
   ASSERT_NE(test::last_anchor(q), nullptr);
   EXPECT_GT(test::last_anchor(q)->volume, 1280.0 * 1.05);
@@ -122,7 +122,7 @@ TEST(Airborne, ModeOffKeepsThePapersLabelling) {
   const auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(12, 8, 6));
   LodParams p;
   p.metrics.samples = 2000;
-  p.airborne.mode = "off";
+  p.airborne.mode = AirborneMode::Off;
   const LodResult r = build_lod_tree(b.input, p);
   ASSERT_EQ(r.status, "ok") << r.reason;
   EXPECT_FALSE(has_note(r, "airborne LiDAR"));

@@ -134,7 +134,7 @@ TEST(Colour, PipelineColoursEachRoofLevel) {
   LodParams p;
   p.metrics.samples = 2000;
   p.closure.footprint_walls = true;
-  p.closure.terrain = "cut";
+  p.closure.terrain = Terrain::Cut;
   const LodResult plain = build_lod_tree(b.input, p);
   ASSERT_EQ(plain.status, "ok") << plain.reason;
   for (const auto& m : plain.models) {

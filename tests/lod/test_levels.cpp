@@ -85,7 +85,7 @@ TEST(LevelSets, VolumesAreReadAsAFactor) {
   EXPECT_EQ(s.level_of[6], 2);
 
   // The literal reading (4 m^3 on V) puts all three clusters in one mode.
-  p.volume_scale = "m3";
+  p.volume_scale = VolumeScale::M3;
   const Grouping m3 = group_structures(t.view, t.prims, p);
   EXPECT_EQ(m3.num_level_sets, 1);
   EXPECT_EQ(levels(m3, 7), (std::vector<int>(7, 1)));
@@ -105,7 +105,7 @@ TEST(LevelSets, ThreeScalesGiveThreeLevelSetsLargestFirst) {
 
 TEST(LevelSets, ParamsCheckTheScale) {
   LodParams p;
-  EXPECT_EQ(p.cluster.volume_scale, "ratio");
+  EXPECT_EQ(p.cluster.volume_scale, VolumeScale::Ratio);
   p.set("cluster.volume_scale", "m3");
   EXPECT_NO_THROW(p.validate());
   p.set("cluster.volume_scale", "auto");
@@ -194,14 +194,14 @@ TEST(LevelSets, UncoveredSurfacePrimitivesArePlacedByRule) {
   start.cluster_of = {-1, -1, 0, -1, -1};
   start.num_levels = 2;
   SortedPrimitives noise = start, s0 = start, last = start;
-  EXPECT_EQ(place_uncovered(prims, view, "noise", noise), 0);
+  EXPECT_EQ(place_uncovered(prims, view, Uncovered::Noise, noise), 0);
   EXPECT_EQ(noise.order, start.order);
   EXPECT_EQ(noise.level_of, start.level_of);
-  EXPECT_EQ(place_uncovered(prims, view, "s0", s0), 2);
+  EXPECT_EQ(place_uncovered(prims, view, Uncovered::S0, s0), 2);
   EXPECT_EQ(s0.order, (std::vector<int>{0, 4, 1, 2}));
   EXPECT_EQ(s0.level_of, (std::vector<int>{0, 0, 1, -1, 0}));
   EXPECT_EQ(s0.num_levels, 2);
-  EXPECT_EQ(place_uncovered(prims, view, "last", last), 2);
+  EXPECT_EQ(place_uncovered(prims, view, Uncovered::Last, last), 2);
   EXPECT_EQ(last.order, (std::vector<int>{0, 2, 4, 1}));
   EXPECT_EQ(last.level_of, (std::vector<int>{0, 2, 1, -1, 2}));
   EXPECT_EQ(last.num_levels, 3);
@@ -245,6 +245,6 @@ TEST(LevelSets, DormerHouseAnchorsAddStructureLargestFirst) {
   EXPECT_EQ(anchors[1]->level, 1);
   EXPECT_EQ(anchors[2]->level, 2);
   // the literal reading of the bandwidth (4 m^3) gives one level set
-  p.cluster.volume_scale = "m3";
+  p.cluster.volume_scale = VolumeScale::M3;
   EXPECT_EQ(build_lod_tree(b.input, p).stats.level_sets, 1);
 }

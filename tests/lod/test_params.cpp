@@ -15,9 +15,10 @@ TEST(LodParams, DefaultsAreThePapers) {
   EXPECT_DOUBLE_EQ(p.alpha.alpha, 7.0);
   EXPECT_DOUBLE_EQ(p.cluster.area_bandwidth, 2.0);
   EXPECT_DOUBLE_EQ(p.cluster.volume_bandwidth, 4.0);
-  EXPECT_EQ(p.cluster.volume_scale, "ratio");  // ours: the paper gives no unit (a factor)
-  EXPECT_FALSE(p.ioview.covered_only);         // ours: the paper's rule fails cgal's e2 target
-  EXPECT_EQ(p.ioview.uncovered, "noise");      // ours: used with covered_only only
+  EXPECT_EQ(p.cluster.volume_scale,
+            VolumeScale::Ratio);                    // ours: the paper gives no unit (a factor)
+  EXPECT_FALSE(p.ioview.covered_only);              // ours: the paper's rule fails cgal's e2 target
+  EXPECT_EQ(p.ioview.uncovered, Uncovered::Noise);  // ours: used with covered_only only
   EXPECT_DOUBLE_EQ(p.regularization.principal_angle_deg, 5.0);
   EXPECT_DOUBLE_EQ(p.regularization.principal_distance, 0.01);
   EXPECT_DOUBLE_EQ(p.regularization.secondary_angle_deg, 15.0);
@@ -66,8 +67,8 @@ TEST(LodParams, SetRejectsUnknownAndMalformed) {
 TEST(LodParams, ValidateNamesTheParameter) {
   auto expect_bad = [](const char* name, const char* value) {
     LodParams p;
-    p.set(name, value);
     try {
+      p.set(name, value);  // a mode's unknown word is refused here
       p.validate();
       ADD_FAILURE() << name << "=" << value << " accepted";
     } catch (const std::invalid_argument& e) {
@@ -158,6 +159,28 @@ TEST(LodParams, ItemsRoundTrip) {
   EXPECT_EQ(q.items(), items);
   EXPECT_EQ(items.front().first, "normals.k_neighbors");
   EXPECT_EQ(items.back().first, "threads");
+}
+
+TEST(LodParams, ModesAreEnumsWithTheirWords) {
+  LodParams p;
+  EXPECT_EQ(p.closure.terrain, Terrain::Plinth);
+  p.set("closure.terrain", "cut");
+  EXPECT_EQ(p.closure.terrain, Terrain::Cut);
+  p.set("airborne.mode", "off");
+  EXPECT_EQ(p.airborne.mode, AirborneMode::Off);
+  p.set("ioview.uncovered", "s0");
+  EXPECT_EQ(p.ioview.uncovered, Uncovered::S0);
+  p.set("cluster.volume_scale", "m3");
+  EXPECT_EQ(p.cluster.volume_scale, VolumeScale::M3);
+  EXPECT_STREQ(to_string(AirborneMode::Auto), "auto");
+  EXPECT_STREQ(to_string(Uncovered::Last), "last");
+  try {
+    p.set("closure.terrain", "keep");
+    ADD_FAILURE() << "closure.terrain=keep accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "parameter closure.terrain: must be 'plinth' or 'cut', got 'keep'");
+  }
+  EXPECT_EQ(p.closure.terrain, Terrain::Cut);  // unchanged
 }
 
 TEST(LodParams, ModelKindNames) {

@@ -237,7 +237,7 @@ TEST(LodPipeline, OpenBottomIsClosedAtTheLowestSample) {
   EXPECT_LT(lowest, 0.1);
 }
 
-static LodParams terrain_params(const char* mode) {
+static LodParams terrain_params(Terrain mode) {
   LodParams p = fast_params();
   p.closure.terrain = mode;
   return p;
@@ -259,14 +259,14 @@ TEST(LodPipeline, TerrainSheetIsCutOrKeptAsAPlinth) {
   test::add_box(f, Vec3(0, 0, 0), Vec3(10, 6, 4), 16);                         // house, no bottom
   test::add_rect(f, Vec3(-10, -10, 0), Vec3::UnitX(), 30, Vec3::UnitY(), 26);  // terrain, faces up
   const auto b = test::finish(std::move(f), 240.0, 6, SynthOptions{}, false);
-  const LodResult r = build_lod_tree(b.input, terrain_params("cut"));
+  const LodResult r = build_lod_tree(b.input, terrain_params(Terrain::Cut));
   expect_valid_models(r);
   ASSERT_NE(last_anchor(r), nullptr);
   EXPECT_NEAR(test::lowest_z(*last_anchor(r)), 0.0, 1e-6);
   EXPECT_NEAR(last_anchor(r)->volume, 240.0, 0.01 * 240.0);
   EXPECT_FALSE(has_note(r, "plinth"));
 
-  const LodResult k = build_lod_tree(b.input, terrain_params("plinth"));
+  const LodResult k = build_lod_tree(b.input, terrain_params(Terrain::Plinth));
   expect_valid_models(k);
   ASSERT_NE(last_anchor(k), nullptr);
   EXPECT_TRUE(has_note(k, "plinth"));
@@ -296,7 +296,7 @@ TEST(LodPipeline, HouseInATerrainHoleIsSolidDownToTheGround) {
   test::add_rect(f, Vec3(-10, -10, 0), X, 30, Y, 26,
                  {{10, 20, 10, 16}});  // terrain minus the house
   const auto b = test::finish(std::move(f), 480.0, 6, SynthOptions{}, false);
-  const LodResult r = build_lod_tree(b.input, terrain_params("cut"));
+  const LodResult r = build_lod_tree(b.input, terrain_params(Terrain::Cut));
   expect_valid_models(r);
   ASSERT_NE(last_anchor(r), nullptr);
   EXPECT_NEAR(test::lowest_z(*last_anchor(r)), 0.0, 1e-6);
@@ -440,7 +440,7 @@ static test::SynthBuilding city_mesh_chunk(std::vector<test::Face> f, double vol
 static LodParams city_params() {
   LodParams p = fast_params();
   p.closure.footprint_walls = true;
-  p.closure.terrain = "cut";
+  p.closure.terrain = Terrain::Cut;
   return p;
 }
 

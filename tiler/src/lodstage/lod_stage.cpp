@@ -37,7 +37,7 @@ constexpr const char* kEngineVersion = "citylod-lod-10";
 // ------------------------------------------------------------ parameters
 lod::LodParams city_lod_params() {
   lod::LodParams p;
-  p.closure.terrain = "cut";
+  p.closure.terrain = lod::Terrain::Cut;
   p.closure.footprint_walls = true;
   return p;
 }

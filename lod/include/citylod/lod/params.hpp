@@ -7,6 +7,17 @@
 
 namespace citylod::lod {
 
+/// The modes of the parameters below, by the words params.json and --set use
+/// (to_string / LodParams::set).
+enum class Uncovered { Noise, S0, Last };   ///< ioview.uncovered
+enum class VolumeScale { Ratio, M3 };       ///< cluster.volume_scale
+enum class Terrain { Plinth, Cut };         ///< closure.terrain
+enum class AirborneMode { Auto, On, Off };  ///< airborne.mode
+const char* to_string(Uncovered v);         ///< noise, s0, last
+const char* to_string(VolumeScale v);       ///< ratio, m3
+const char* to_string(Terrain v);           ///< plinth, cut
+const char* to_string(AirborneMode v);      ///< auto, on, off
+
 /// Normal estimation when the input has none (points) — PCA over k neighbours.
 struct NormalParams {
   int k_neighbors = 12;  ///< neighbours for PCA normals
@@ -59,7 +70,7 @@ struct IoViewParams {
   /// "noise": left out of S; "s0": in S0 after the principal primitives;
   /// "last": one more, last level set. Not the default: with covered_only,
   /// cgal_building's finest e2 is 0.637 / 0.718 / 0.708 % (BENCHMARKS.md).
-  std::string uncovered = "noise";
+  Uncovered uncovered = Uncovered::Noise;
 };
 
 /// Two-stage mean-shift clustering (Section 4.1).
@@ -69,7 +80,7 @@ struct ClusterParams {
   /// mean shift on ln V with bandwidth ln 4 (mean volumes within a factor ~4
   /// share a level set); "m3": the literal reading, bandwidth 4 m^3 on V.
   double volume_bandwidth = 4.0;
-  std::string volume_scale = "ratio";  ///< ratio | m3
+  VolumeScale volume_scale = VolumeScale::Ratio;
 };
 
 /// Adaptive regularization (Section 4.1).
@@ -112,7 +123,7 @@ struct ClosureParams {
   /// gives: the model represents all of the input), "cut" leaves it out and
   /// closes the building at the terrain's height under its own outline (the
   /// city pipeline, whose chunks have no ground, sets this).
-  std::string terrain = "plinth";
+  Terrain terrain = Terrain::Plinth;
   /// Walls along a given footprint even when some walls were scanned
   /// (airborne LiDAR hits towers and facades in part; without them a tower's
   /// cells see the sky sideways and are lost). City runs set this; a single
@@ -144,7 +155,7 @@ struct ClosureParams {
 struct AirborneParams {
   /// auto: point clouds seeing less than `wall_fraction_max` of walls, and city chunks on a
   /// footprint; on: every input; off: none (rays label the cells)
-  std::string mode = "auto";
+  AirborneMode mode = AirborneMode::Auto;
   /// (ours) auto: a point cloud whose share of wall samples (|normal.z| < 0.3) is below this
   /// is airborne. City3D's AHN3 buildings reach 0.29 (p90 0.13), DALES 0.43 (p90 0.05); a
   /// terrestrial or MVS scan of facades 0.5 (cgal_building.ply). Was closure.wall_fraction_min
