@@ -108,10 +108,16 @@ TEST(LevelSets, ParamsCheckTheScale) {
   EXPECT_EQ(p.cluster.volume_scale, VolumeScale::Ratio);
   p.set("cluster.volume_scale", "m3");
   EXPECT_NO_THROW(p.validate());
-  p.set("cluster.volume_scale", "auto");
-  EXPECT_THROW(p.validate(), std::invalid_argument);
-  p.set("cluster.volume_scale", "log");
-  EXPECT_THROW(p.validate(), std::invalid_argument);
+  // An unknown word is refused where it is given, naming the choices, and
+  // leaves the parameter as it was.
+  try {
+    p.set("cluster.volume_scale", "auto");
+    ADD_FAILURE() << "set() took 'auto'";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'ratio' or 'm3'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(p.set("cluster.volume_scale", "log"), std::invalid_argument);
+  EXPECT_EQ(p.cluster.volume_scale, VolumeScale::M3);
   p.set("cluster.volume_scale", "ratio");
   p.set("cluster.volume_bandwidth", "0.5");  // a factor below 1 means nothing
   EXPECT_THROW(p.validate(), std::invalid_argument);
