@@ -7,7 +7,7 @@
 #include <string>
 
 #include "citylod/io/reader.hpp"
-#include "fixtures/las_writer.hpp"
+#include "support/las_write.hpp"
 
 namespace citylod::bench {
 

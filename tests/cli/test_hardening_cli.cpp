@@ -3,8 +3,8 @@
 // line naming the file, a non-zero exit, nothing touched outside the output.
 #include <gtest/gtest.h>
 
-#include "fixtures/las_writer.hpp"
 #include "support/cli_run.hpp"
+#include "support/las_write.hpp"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>

@@ -15,8 +15,8 @@
 #include "citylod/io/hash.hpp"
 #include "citylod/io/writers.hpp"
 #include "citylod/tiler/workdir.hpp"
-#include "fixtures/las_writer.hpp"
 #include "fixtures/synthetic_city.hpp"
+#include "support/las_write.hpp"
 
 namespace fs = std::filesystem;
 using namespace citylod;

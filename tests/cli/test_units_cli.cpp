@@ -3,8 +3,8 @@
 // one line naming the file, while the same data in its real unit passes.
 #include <gtest/gtest.h>
 
-#include "fixtures/las_writer.hpp"
 #include "support/cli_run.hpp"
+#include "support/las_write.hpp"
 
 #include <string>
 

@@ -2,7 +2,7 @@
 #include "citylod/geo/crs.hpp"
 #include "citylod/geo/georef.hpp"
 #include "citylod/geo/units.hpp"
-#include "las_scan.hpp"
+#include "support/las_read.hpp"
 
 #include <gtest/gtest.h>
 
@@ -144,10 +144,10 @@ TEST(Crs, GeoTiffUnitKeyOverridesEpsgUnit) {
 }
 
 TEST(Crs, AutzenWktFromLas) {
-  const auto las = test::scan_las(kAutzen);
+  const auto las = citylod::test::read_las(kAutzen);
   if (!las) GTEST_SKIP() << "shared data missing: " << kAutzen;
-  ASSERT_FALSE(las->wkt.empty());
-  const Crs crs = Crs::parse(las->wkt);
+  ASSERT_FALSE(las->wkt().empty());
+  const Crs crs = Crs::parse(las->wkt());
   EXPECT_TRUE(crs.is_projected());
   EXPECT_EQ(crs.horizontal_unit().to_si, 0.3048);
   EXPECT_EQ(crs.horizontal_unit().name, "foot");
@@ -155,8 +155,9 @@ TEST(Crs, AutzenWktFromLas) {
   EXPECT_FALSE(crs.utm());
   // The GeoTIFF keys of this file are user-defined (3072 = 32767): only the WKT is usable.
   GeoTiffKeys k;
-  for (size_t i = 4; i + 3 < las->geokeys.size(); i += 4)
-    if (las->geokeys[i] == 3072) k.projected_cs = las->geokeys[i + 3];
+  const auto keys = las->geokeys();
+  for (size_t i = 4; i + 3 < keys.size(); i += 4)
+    if (keys[i] == 3072) k.projected_cs = keys[i + 3];
   EXPECT_EQ(k.projected_cs, 32767);
   EXPECT_THROW(Crs::from_geotiff(k), GeoError);
 }
@@ -203,17 +204,18 @@ TEST(Units, AUnitThatMakesTheSceneSmallerThanABuildingIsNamed) {
 }
 
 TEST(Units, AutzenInFeetIsConsistent) {
-  const auto las = test::scan_las(kAutzen);
+  const auto las = citylod::test::read_las(kAutzen);
   if (!las) GTEST_SKIP() << "shared data missing: " << kAutzen;
-  const Crs crs = Crs::parse(las->wkt);
-  const auto& b = las->bbox;
-  const UnitReport r = check_units(crs, Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], b[2]),
-                                                            Eigen::Vector3d(b[3], b[4], b[5])));
+  const Crs crs = Crs::parse(las->wkt());
+  const auto &lo = las->min, &hi = las->max;
+  const UnitReport r = check_units(crs, Eigen::AlignedBox3d(Eigen::Vector3d(lo[0], lo[1], lo[2]),
+                                                            Eigen::Vector3d(hi[0], hi[1], hi[2])));
   EXPECT_EQ(r.horizontal_to_metre, 0.3048);
   EXPECT_EQ(r.vertical_to_metre, 0.3048);
   EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
   const UnitReport heights = check_units(
-      crs, Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], 0), Eigen::Vector3d(b[3], b[4], 40000)));
+      crs,
+      Eigen::AlignedBox3d(Eigen::Vector3d(lo[0], lo[1], 0), Eigen::Vector3d(hi[0], hi[1], 40000)));
   EXPECT_EQ(heights.warnings.size(), 1u);
 }
 

@@ -1,7 +1,7 @@
 // Transformer: PROJ and UTM paths, round trips, geoid, area checks, threads, throughput.
 #include "citylod/geo/georef.hpp"
 #include "citylod/geo/transformer.hpp"
-#include "las_scan.hpp"
+#include "support/las_read.hpp"
 
 #include <gtest/gtest.h>
 
@@ -41,9 +41,9 @@ std::vector<Case> round_trip_cases() {
       {"UTM 33S", "EPSG:32733", {300000, 7000000, 900}},
       {"CH1903+ LV95", "EPSG:2056", {2600000, 1200000, 540}},
   };
-  if (const auto las = test::scan_las(kAutzen)) {
-    const auto& f = las->first_point;
-    cases.push_back({"autzen WKT (ft)", las->wkt, {f[0], f[1], f[2]}});
+  if (const auto las = citylod::test::read_las(kAutzen)) {
+    const auto f = las->point(0).xyz;
+    cases.push_back({"autzen WKT (ft)", las->wkt(), {f[0], f[1], f[2]}});
   }
   return cases;
 }
@@ -97,17 +97,17 @@ TEST(Transformer, RoundTripsWithinOneMillimetre) {
 }
 
 TEST(Transformer, AutzenLandsInOregon) {
-  const auto las = test::scan_las(kAutzen);
+  const auto las = citylod::test::read_las(kAutzen);
   if (!las) GTEST_SKIP() << "shared data missing: " << kAutzen;
-  Transformer t(Crs::parse(las->wkt));
-  const auto& f = las->first_point;
+  Transformer t(Crs::parse(las->wkt()));
+  const auto f = las->point(0).xyz;
   const LonLatH g = t.to_wgs84(Eigen::Vector3d(f[0], f[1], f[2]));
   EXPECT_NEAR(g.y(), 44.05, 0.02);
   EXPECT_NEAR(g.x(), -123.07, 0.02);
   EXPECT_NEAR(g.z(), f[2] * 0.3048, 1e-9);  // feet heights become metres
-  const auto& b = las->bbox;
-  EXPECT_NO_THROW(t.check_in_area(
-      Eigen::AlignedBox3d(Eigen::Vector3d(b[0], b[1], b[2]), Eigen::Vector3d(b[3], b[4], b[5]))));
+  const auto &lo = las->min, &hi = las->max;
+  EXPECT_NO_THROW(t.check_in_area(Eigen::AlignedBox3d(Eigen::Vector3d(lo[0], lo[1], lo[2]),
+                                                      Eigen::Vector3d(hi[0], hi[1], hi[2]))));
 }
 
 TEST(Transformer, GeographicLibUtmAgreesWithProj) {

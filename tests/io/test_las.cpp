@@ -168,7 +168,7 @@ TEST(LasReader, TruncatedAndLyingCounts) {
 TEST(LasReader, BadHeaderFields) {
   LasSpec s;
   s.points = grid(3);
-  s.scale = 0.0;
+  s.scale = {0.0, 0.0, 0.0};
   expect_io_error([&] { PointReader::open(write_file("scale0.las", make_las(s))); },
                   "scale factor");
   LasSpec r;

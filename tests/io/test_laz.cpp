@@ -12,6 +12,7 @@
 #include "fixtures.hpp"
 #include "laz_arithmetic.hpp"
 #include "laz_decoder.hpp"
+#include "support/las_read.hpp"
 
 using namespace citylod::io;
 using namespace citylod::io::test;
@@ -154,22 +155,17 @@ TEST(Laz, ParallelAndSequentialDecodingAgree) {
     FileInfo h = read_header(p);
     std::vector<unsigned char> vlr;
     // the LazStream is private: rebuild its source from the file
-    const std::string s = read_file(p);
-    const std::uint16_t header_size = get<std::uint16_t>(s, 94);
-    const std::uint32_t offset = get<std::uint32_t>(s, 96), n_vlr = get<std::uint32_t>(s, 100);
-    std::size_t pos = header_size;
-    for (std::uint32_t i = 0; i < n_vlr; ++i) {
-      const std::uint16_t len = get<std::uint16_t>(s, pos + 20);
-      if (get<std::uint16_t>(s, pos + 18) == 22204)
-        vlr.assign(s.begin() + pos + 54, s.begin() + pos + 54 + len);
-      pos += 54 + len;
-    }
+    const auto las = citylod::test::read_las(p);
+    ASSERT_TRUE(las);
+    const citylod::test::LasVlr* laszip = las->vlr("laszip encoded", 22204);
+    ASSERT_TRUE(laszip);
+    vlr.assign(laszip->payload.begin(), laszip->payload.end());
     ASSERT_FALSE(vlr.empty());
     citylod::io::detail::LazSource src;
     src.path = p;
     src.vlr = vlr;
-    src.point_offset = offset;
-    src.file_size = src.data_end = s.size();
+    src.point_offset = las->point_offset;
+    src.file_size = src.data_end = las->bytes.size();
     src.point_count = h.point_count;
     src.record_length = h.las_record_length;
     src.point_format = h.las_point_format;

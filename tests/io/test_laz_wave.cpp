@@ -15,6 +15,7 @@
 #include "fixtures.hpp"
 #include "laz_chunk.hpp"
 #include "laz_decoder.hpp"
+#include "support/las_read.hpp"
 
 using namespace citylod::io;
 using namespace citylod::io::test;
@@ -31,18 +32,11 @@ std::string try_verify(const std::string& p) {
   return "";
 }
 
-// The payload of the VLR (user id, record id) of a LAS file, or "".
+// The payload of the VLR (user id, record id) of a LAS file's bytes, or "".
 std::string vlr_payload(const std::string& s, const char* user, std::uint16_t record) {
-  std::size_t pos = get<std::uint16_t>(s, 94);
-  const std::uint32_t n = get<std::uint32_t>(s, 100);
-  for (std::uint32_t i = 0; i < n && pos + 54 <= s.size(); ++i) {
-    const std::uint16_t len = get<std::uint16_t>(s, pos + 20);
-    if (s.compare(pos + 2, std::strlen(user), user) == 0 &&
-        get<std::uint16_t>(s, pos + 18) == record)
-      return s.substr(pos + 54, len);
-    pos += 54 + len;
-  }
-  return "";
+  const auto las = citylod::test::parse_las(s);
+  const citylod::test::LasVlr* v = las ? las->vlr(user, record) : nullptr;
+  return v ? v->payload : "";
 }
 
 // All decoded records of a LAZ file, through the private stream.

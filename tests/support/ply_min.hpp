@@ -1,10 +1,12 @@
 // Minimal readers for test data (lod tests cannot use io/): PLY (ascii and
 // binary_little_endian; vertex x/y/z [nx/ny/nz], faces as vertex_indices lists),
-// OFF (triangles/polygons fanned) and LAS 1.x point records (xyz + class).
+// OFF (triangles/polygons fanned), and LAS point records (xyz + class) through
+// support/las_read.hpp.
 // Header-only, for tests only: no validation beyond what the tests need.
 #pragma once
 
 #include "citylod/lod/types.hpp"
+#include "support/las_read.hpp"
 
 #include <cstdint>
 #include <cstring>
@@ -197,47 +199,19 @@ inline lod::BuildingInput read_off_min(const std::string& path) {
   return in;
 }
 
-/// Reads LAS 1.0-1.4 (legacy point count) xyz, keeping points of `cls` (or all
+/// Reads a LAS file's xyz (support/las_read.hpp), keeping points of `cls` (or all
 /// with cls < 0), re-centred on `origin_out` (set to the bbox centre of the kept points).
 inline lod::BuildingInput read_las_min(const std::string& path, int cls,
                                        lod::Vec3* origin_out = nullptr) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error("cannot open " + path);
-  std::vector<char> h(375, 0);
-  f.read(h.data(), 227);
-  auto u32 = [&](int o) {
-    std::uint32_t v;
-    std::memcpy(&v, &h[o], 4);
-    return v;
-  };
-  auto u16 = [&](int o) {
-    std::uint16_t v;
-    std::memcpy(&v, &h[o], 2);
-    return v;
-  };
-  auto f64 = [&](int o) {
-    double v;
-    std::memcpy(&v, &h[o], 8);
-    return v;
-  };
-  const std::uint32_t offset = u32(96);
-  const int fmt = static_cast<unsigned char>(h[104]) & 0x3f;
-  const std::uint16_t rec = u16(105);
-  const std::uint32_t n = u32(107);
-  const double sx = f64(131), sy = f64(139), sz = f64(147), ox = f64(155), oy = f64(163),
-               oz = f64(171);
-  f.seekg(offset);
-  std::vector<char> r(rec);
+  const auto las = read_las(path);
+  if (!las) throw std::runtime_error("cannot read " + path + " as LAS");
   std::vector<lod::Vec3> pts;
-  for (std::uint32_t i = 0; i < n && f.read(r.data(), rec); ++i) {
-    std::int32_t X, Y, Z;
-    std::memcpy(&X, &r[0], 4);
-    std::memcpy(&Y, &r[4], 4);
-    std::memcpy(&Z, &r[8], 4);
-    const int c =
-        fmt >= 6 ? static_cast<unsigned char>(r[16]) : (static_cast<unsigned char>(r[15]) & 31);
-    if (cls >= 0 && c != cls) continue;
-    pts.emplace_back(X * sx + ox, Y * sy + oy, Z * sz + oz);
+  for (std::uint64_t i = 0; i < las->point_count &&
+                            las->point_offset + (i + 1) * las->record_length <= las->bytes.size();
+       ++i) {
+    const LasRecord r = las->point(i);
+    if (cls >= 0 && r.cls != cls) continue;
+    pts.emplace_back(r.xyz[0], r.xyz[1], r.xyz[2]);
   }
   lod::Vec3 lo = pts.empty() ? lod::Vec3::Zero() : pts[0], hi = lo;
   for (const auto& p : pts) {
