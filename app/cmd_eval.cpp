@@ -6,6 +6,7 @@
 #include "citylod/io/error.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/tiler/eval.hpp"
+#include "citylod/tiler/workdir.hpp"
 #include "cli.hpp"
 #include "eval_format.hpp"
 #include "stage_options.hpp"
@@ -97,18 +98,18 @@ int cmd_eval(ArgParser& args) {
     const std::string ext = "." + io::extension_of(p);
     enum { work, tileset } form;
     if (fs::is_directory(p)) {
-      const bool has_manifest = fs::exists(fs::path(p) / "manifest.json");
-      const bool has_tileset = fs::exists(fs::path(p) / "tileset.json");
+      const bool has_manifest = fs::exists(tiler::manifest_path(p));
+      const bool has_tileset = fs::exists(tiler::tileset_json_path(p));
       if (has_manifest)
         form = work;
       else if (has_tileset)
         form = tileset;
       else {
         std::string hint;
-        if (fs::exists(fs::path(p) / "work" / "manifest.json") ||
-            fs::exists(fs::path(p) / "tileset" / "tileset.json"))
-          hint = " (a 'citylod tile' output: give " + (fs::path(p) / "work").string() + " or " +
-                 (fs::path(p) / "tileset").string() + ")";
+        if (fs::exists(tiler::manifest_path(tiler::run_work_dir(p))) ||
+            fs::exists(tiler::tileset_json_path(tiler::run_tileset_dir(p))))
+          hint = " (a 'citylod tile' output: give " + tiler::run_work_dir(p) + " or " +
+                 tiler::run_tileset_dir(p) + ")";
         throw io::IoError(
             p,
             "neither a work directory (no manifest.json) nor a tileset (no tileset.json)" + hint);

@@ -20,13 +20,13 @@ void print_summary(const tiler::BuildingLodResult& out, const std::string& dir) 
   int anchors = 0, interps = 0;
   const lod::LodModel* finest = nullptr;  // the last anchor
   for (const auto& m : r.models) {
-    anchors += m.kind == lod::ModelKind::Anchor;
-    interps += m.kind == lod::ModelKind::Interpolation;
-    if (m.kind == lod::ModelKind::Anchor) finest = &m;
+    anchors += m.kind == lod::ModelKind::anchor;
+    interps += m.kind == lod::ModelKind::interpolation;
+    if (m.kind == lod::ModelKind::anchor) finest = &m;
   }
   const auto& s = r.stats;
   std::string head = "lod: ";
-  if (r.status != "ok") head += "FALLBACK (" + r.reason + "): ";
+  if (r.status != lod::Status::ok) head += "FALLBACK (" + r.reason + "): ";
   log_info(head + std::to_string(r.models.size()) + " models (" + std::to_string(anchors) +
            " anchor" + (anchors == 1 ? "" : "s") + " = finished levels of detail, " +
            std::to_string(interps) + " interpolation" + (interps == 1 ? "" : "s") +

@@ -39,6 +39,7 @@
 #include <thread>
 #include <vector>
 
+#include "citylod/tiler/workdir.hpp"
 #include "cli.hpp"
 
 namespace citylod::app {
@@ -467,7 +468,7 @@ int cmd_serve(ArgParser& args) {
 
   Roots roots;
   roots.tileset = fs::absolute(args.positionals().at(0));
-  if (!fs::exists(roots.tileset / "tileset.json"))
+  if (!fs::exists(tiler::tileset_json_path(roots.tileset.string())))
     throw std::runtime_error(roots.tileset.string() +
                              ": no tileset.json (run 'citylod assemble' first)");
   roots.viewer = args.has("viewer")                  ? fs::path(args.get("viewer"))

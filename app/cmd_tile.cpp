@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "citylod/tiler/city_run.hpp"
+#include "citylod/tiler/workdir.hpp"
 #include "cli.hpp"
 #include "stage_options.hpp"
 
@@ -34,8 +35,8 @@ int cmd_tile(ArgParser& args) {
 
   tiler::CityRunOptions o;
   o.out_dir = args.get("out");
-  o.split =
-      parse_split_options(args, args.positionals(), o.out_dir + "/work");  // run_city sets it too
+  o.split = parse_split_options(args, args.positionals(),
+                                tiler::run_work_dir(o.out_dir));  // run_city sets it too
   o.split.force = args.has("force");
   o.lod = parse_lod_params(args, city_lod_params());
   o.threads = parse_threads(args);
@@ -69,10 +70,10 @@ int cmd_tile(ArgParser& args) {
            " s, total " + strf("%.1f", rep.seconds_total) + " s; peak memory " +
            strf("%.0f", double(rep.peak_rss_self) / (1 << 20)) + " MiB (this process), " +
            strf("%.0f", double(rep.peak_rss_children) / (1 << 20)) + " MiB (LOD stage)");
-  log_info("tile: wrote " + o.out_dir + "/tileset/tileset.json (" +
-           std::to_string(rep.assemble.tiles) + " tiles) and " + o.out_dir + "/run_report.json");
+  log_info("tile: wrote " + tiler::tileset_json_path(tiler::run_tileset_dir(o.out_dir)) + " (" +
+           std::to_string(rep.assemble.tiles) + " tiles) and " + tiler::run_report_path(o.out_dir));
   if (o.cityjson)
-    log_info("tile: wrote " + o.out_dir + "/buildings.city.jsonl (" +
+    log_info("tile: wrote " + tiler::run_cityjson_path(o.out_dir) + " (" +
              std::to_string(r.cityjson.buildings) + " buildings, " +
              std::to_string(r.cityjson.geometries) + " solids, " +
              std::to_string(r.cityjson.invalid) + " models left out as invalid" +

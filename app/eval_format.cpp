@@ -56,7 +56,7 @@ nlohmann::ordered_json to_json(const WorkEval& w) {
       for (const auto& m : b.models) {
         J jm = model_json(m.e, m.empty);
         J head{{"file", m.file},
-               {"kind", io::to_string(m.kind)},
+               {"kind", lod::to_string(m.kind)},
                {"level", m.level},
                {"step", m.step}};
         head.update(jm);
@@ -111,7 +111,8 @@ std::string to_text(const WorkEval& w) {
     if (!b.has_lod) continue;
     for (std::size_t i = 0; i < b.models.size(); ++i) {
       const WorkModelEval& m = b.models[i];
-      const std::string kind = std::string(io::to_string(m.kind)) + (int(i) == b.finest ? "*" : "");
+      const std::string kind =
+          std::string(lod::to_string(m.kind)) + (int(i) == b.finest ? "*" : "");
       if (m.empty) {
         out += strf("%-*s %4d %-13s %3d %9d %-6s %-8s %-8s %7s %6s %12s %8s %8s %11s\n", int(idw),
                     b.id.c_str(), m.step, kind.c_str(), m.level, 0, "-", "-", "-", "-", "-", "-",

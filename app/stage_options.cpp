@@ -65,9 +65,7 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
   o.work_dir = work_dir;
   o.crs = args.get("crs");
   o.origin = args.get("origin");
-  o.geoid = args.get("geoid");
   o.offset = args.get("offset");
-  o.vertical = args.get("vertical");
   o.footprints = args.get("footprints");
   o.footprints_layer = args.get("footprints-layer");
   o.footprints_id = args.get("footprints-id");
@@ -86,6 +84,8 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
   o.seg.dtm_window = args.get_double("dtm-window");
   o.ignore_classes = args.has("ignore-classes");
   usage_errors([&] {
+    o.geoid = parse_geoid(args.get("geoid"));
+    o.vertical = parse_vertical(args.get("vertical"));
     o.memory_limit = parse_memory_size(args.get("memory-limit"));
     // a lower bound: tiny cells multiply the grid (and split's work) without end
     if (!(o.cell_size >= 10))

@@ -255,7 +255,7 @@ int run_input(const InputSpec& spec, int samples, const std::string& out_dir) {
   std::printf(
       "- LOD engine (default parameters): status %s%s%s, %zu candidate models, bbox diagonal %.1f "
       "m\n",
-      r.status.c_str(), r.reason.empty() ? "" : ": ", r.reason.c_str(), r.models.size(),
+      lod::to_string(r.status), r.reason.empty() ? "" : ": ", r.reason.c_str(), r.models.size(),
       r.stats.bbox_diagonal);
   for (const auto& n : r.stats.notes) std::printf("- engine note: %s\n", n.c_str());
   if (!r.models.empty()) {

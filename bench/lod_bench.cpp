@@ -53,15 +53,15 @@ Row run_one(const std::string& path, int threads) {
   row.lod_cuts = s.lod_tree_cuts_to_finest;
   row.bsp_nodes = s.baseline_bsp_nodes;
   row.bsp_cuts = s.baseline_cuts_to_finest;
-  row.fallback = r.status != "ok";
+  row.fallback = r.status != lod::Status::ok;
   std::snprintf(row.reason, sizeof row.reason, "%s", r.reason.c_str());
   for (const auto& m : r.models) {
-    if (m.kind == lod::ModelKind::Anchor) {
+    if (m.kind == lod::ModelKind::anchor) {
       ++row.anchors;
       row.e1 = m.e1;
       row.e2 = m.e2;
     }
-    if (m.kind == lod::ModelKind::Interpolation) ++row.interps;
+    if (m.kind == lod::ModelKind::interpolation) ++row.interps;
   }
   return row;
 }

@@ -304,7 +304,7 @@ int main(int argc, char** argv) {
         rows.push_back(std::move(b));
         continue;
       }
-      b.status = tiler::to_string(rep->status);
+      b.status = lod::to_string(rep->status);
       double t = 0;
       for (const auto& [k, v] : rep->timings_s) t += v;
       b.t_ours_ms = 1000.0 * t;

@@ -51,6 +51,18 @@ VerticalMode parse_vertical_mode(const std::string& word) {
   throw GeoError("unknown vertical mode '" + word + "' (auto, ellipsoidal or orthometric)");
 }
 
+const char* to_string(VerticalMode m) {
+  switch (m) {
+    case VerticalMode::Auto:
+      return "auto";
+    case VerticalMode::Ellipsoidal:
+      return "ellipsoidal";
+    case VerticalMode::Orthometric:
+      return "orthometric";
+  }
+  return "auto";
+}
+
 const std::vector<ImpliedVertical>& implied_vertical_table() {
   static const std::vector<ImpliedVertical> table = {
       {28992, 5709, "NAP", false},

@@ -148,7 +148,7 @@ inline Value obj(Value::Object o) {
   return Value(std::move(o));
 }
 /// The EXT_structural_metadata schema: class "building" (our properties and the
-/// source attributes) and enum LodKind. Keys sorted (nlohmann::json).
+/// source attributes) and enum LodKind (lod::ModelKind). Keys sorted (nlohmann::json).
 nlohmann::json schema_json(const std::vector<GlbAttribute>& attributes);
 /// Puts the schema into the glb JSON's EXT_structural_metadata, first
 /// (`schema`, or `schemaUri` when `schema_uri` is set).

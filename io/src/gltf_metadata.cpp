@@ -145,9 +145,10 @@ nlohmann::json schema_json(const std::vector<GlbAttribute>& attributes) {
                      "the model is a valid solid: closed, oriented, no pinched vertex, one outer "
                      "shell, no self-intersection")},
   };
-  J values = J::array({{{"name", "anchor"}, {"value", 0}},
-                       {{"name", "interpolation"}, {"value", 1}},
-                       {{"name", "fallback"}, {"value", 2}}});
+  J values = J::array();
+  for (lod::ModelKind k :
+       {lod::ModelKind::anchor, lod::ModelKind::interpolation, lod::ModelKind::fallback})
+    values.push_back(J{{"name", lod::to_string(k)}, {"value", int(k)}});
   J enums{{"LodKind", {{"valueType", "UINT8"}, {"values", values}}}};
   for (const GlbAttribute& a : attributes) {
     J def{{"name", a.name}, {"description", "footprint attribute"}};
@@ -243,18 +244,6 @@ Value::Object property_table(BinWriter& w, const std::vector<GlbFeature>& featur
 }
 
 }  // namespace detail
-
-const char* to_string(LodKind k) {
-  switch (k) {
-    case LodKind::anchor:
-      return "anchor";
-    case LodKind::interpolation:
-      return "interpolation";
-    case LodKind::fallback:
-      return "fallback";
-  }
-  return "?";
-}
 
 std::vector<GlbAttribute> glb_attribute_schema(const std::vector<const nlohmann::json*>& objects) {
   struct Seen {

@@ -363,7 +363,7 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
   const double h = std::max(best_h, g + 0.5);
   const auto top_tris = ear_clip(ring);
   LodModel m;
-  m.kind = ModelKind::Anchor;
+  m.kind = ModelKind::anchor;
   m.level = 0;
   const int n = int(ring.size());
   m.polygons = prism_polygons(ring, g, h);

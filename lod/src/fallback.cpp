@@ -34,7 +34,7 @@ LodModel extruded_outline(const BuildingInput& in) {
   if (ztop - zmin < 0.5) ztop = std::max(zs.back(), zmin + 0.5);
 
   LodModel m;
-  m.kind = ModelKind::Fallback;
+  m.kind = ModelKind::fallback;
   m.polygons = prism_polygons(hull, zmin, ztop);
   m.mesh.vertices = m.polygons.vertices;
   for (const auto& f : m.polygons.faces)

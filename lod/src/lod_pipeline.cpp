@@ -532,7 +532,7 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
     m.polygons = std::move(surf.polygons);
     m.mesh = std::move(surf.triangles);
     const int shells = drop_small_shells(m, kMinShellFraction);
-    if (shells > 1 && c.kind == ModelKind::Interpolation) {
+    if (shells > 1 && c.kind == ModelKind::interpolation) {
       ++split_interpolations;  // (ours) a building in pieces is not worth streaming
       continue;
     }
@@ -563,7 +563,7 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
   for (size_t i = 0; i < R.models.size(); ++i) R.models[i].step = int(i);
   if (R.models.empty()) throw LodError("traversal", "no non-empty model");
   for (const auto& c : candidates)
-    if (c.kind == ModelKind::Anchor) st.lod_tree_cuts_to_finest = c.cuts;
+    if (c.kind == ModelKind::anchor) st.lod_tree_cuts_to_finest = c.cuts;
 }
 
 /// Plain BSP-Tree baseline: same primitives, area order, binary nodes.
@@ -614,7 +614,7 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
 
 LodResult fallback_result(const BuildingInput& in, const std::string& reason) {
   LodResult r;
-  r.status = "fallback";
+  r.status = Status::fallback;
   r.reason = reason;
   r.stats.input_points = int(in.points.size());
   r.stats.input_faces = int(in.triangles.size());

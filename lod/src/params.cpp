@@ -1,4 +1,4 @@
-// LodParams: validation, set-by-name, listing; to_string(ModelKind).
+// LodParams: validation, set-by-name, listing.
 #include "citylod/lod/params.hpp"
 #include "citylod/lod/lod.hpp"
 
@@ -11,18 +11,6 @@
 #include <vector>
 
 namespace citylod::lod {
-
-const char* to_string(ModelKind k) {
-  switch (k) {
-    case ModelKind::Anchor:
-      return "anchor";
-    case ModelKind::Interpolation:
-      return "interpolation";
-    case ModelKind::Fallback:
-      return "fallback";
-  }
-  return "unknown";
-}
 
 namespace {
 

@@ -182,10 +182,10 @@ std::vector<Candidate> traverse(const LodTree& tree, const Bsp& bsp, const TreeP
       throw LodError("traversal", "time budget exceeded");
     if (heap.empty()) {  // DiffSum(Q) == 0: an anchor
       if (!same_as_last()) {
-        extract(ModelKind::Anchor);
-      } else if (out.back().kind == ModelKind::Interpolation) {
+        extract(ModelKind::anchor);
+      } else if (out.back().kind == ModelKind::interpolation) {
         out.back().kind =
-            ModelKind::Anchor;  // the last interpolation already is this level's anchor
+            ModelKind::anchor;  // the last interpolation already is this level's anchor
         out.back().level = st.level;
         out.back().diff_sum = 0.0;
       }  // else: this level set changes nothing; the previous anchor stands for it
@@ -210,7 +210,7 @@ std::vector<Candidate> traverse(const LodTree& tree, const Bsp& bsp, const TreeP
     if (sum < 0) sum = 0;
     if (!heap.empty() && sum > eps && sum < p.interpolation_ratio * last_sum &&
         sum >= p.interpolation_floor * level_start_sum) {
-      extract(ModelKind::Interpolation);
+      extract(ModelKind::interpolation);
       last_sum = sum;
     }
   }

@@ -37,7 +37,7 @@ LodTree build_tree(const Bsp& bsp, const SortedPrimitives& sorted, const Groupin
 
 /// One candidate model as a labelled cut of the tree.
 struct Candidate {
-  ModelKind kind = ModelKind::Anchor;
+  ModelKind kind = ModelKind::anchor;
   int level = 0;
   int step = 0;
   int cuts = 0;

@@ -22,7 +22,7 @@
 namespace citylod::test {
 namespace {
 
-io::GlbFeature feature(const std::string& id, io::LodKind kind, int step, int index) {
+io::GlbFeature feature(const std::string& id, lod::ModelKind kind, int step, int index) {
   io::GlbFeature f;
   f.building_id = id;
   f.kind = kind;
@@ -61,8 +61,8 @@ void expect_round_trip(bool quantize, double tolerance,
   add_box(a, 990, 1995, 10, 1000, 2003, 16);
   add_house(c, 10, 8, 6, 3);
   for (auto& v : c.vertices) v = {v[0] + 1005, v[1] + 2001, v[2] + 10};
-  b.add_feature(feature("bldg-a", io::LodKind::anchor, 4, 2), a);
-  io::GlbFeature fc = feature("bldg-c", io::LodKind::interpolation, 7, 1);
+  b.add_feature(feature("bldg-a", lod::ModelKind::anchor, 4, 2), a);
+  io::GlbFeature fc = feature("bldg-c", lod::ModelKind::interpolation, 7, 1);
   fc.rmse_m = 0.375;
   fc.valid = false;
   b.add_feature(fc, c);
@@ -123,7 +123,7 @@ TEST(GlbReader, CorruptBytesNameTheFile) {
   TriangleMesh a;
   add_box(a, 0, 0, 0, 1, 1, 1);
   io::GlbBuilder b({0, 0, 0});
-  b.add_feature(feature("x", io::LodKind::anchor, 0, 0), a);
+  b.add_feature(feature("x", lod::ModelKind::anchor, 0, 0), a);
   const std::string good = b.glb();
   auto fails = [](const std::string& bytes, const std::string& what) {
     try {
@@ -170,8 +170,8 @@ TEST(GlbReader, QuantizationNeverMergesCornersOfAModel) {
   add_box(far, 900, 900, 0, 1000, 1000, 10);  // node extent 1000 m: step ~3 cm
   add_box(thin, 0, 0, 0, 10, 10, 0.004);      // 4 mm thick slab
   io::GlbBuilder merged(origin, opt);
-  merged.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
-  merged.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);
+  merged.add_feature(feature("far", lod::ModelKind::anchor, 1, 0), far);
+  merged.add_feature(feature("thin", lod::ModelKind::anchor, 1, 0), thin);
   const std::string bytes = merged.glb();
   EXPECT_EQ(bytes.find("KHR_mesh_quantization"), std::string::npos);
   const auto tris = triangles(io::parse_glb(bytes, "mem.glb"));
@@ -181,7 +181,7 @@ TEST(GlbReader, QuantizationNeverMergesCornersOfAModel) {
   EXPECT_NEAR(zmax, 0.004, 1e-6);  // the slab keeps its thickness
 
   io::GlbBuilder plain(origin, opt);
-  plain.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
+  plain.add_feature(feature("far", lod::ModelKind::anchor, 1, 0), far);
   EXPECT_NE(plain.glb().find("KHR_mesh_quantization"), std::string::npos);
 }
 
@@ -192,8 +192,8 @@ TEST(GlbReader, MeshoptKeepsOnlyTheDamagedFeaturesFloat) {
   add_box(far, 900, 900, 0, 1000, 1000, 10);  // node extent 1000 m: int16 step ~3 cm
   add_box(thin, 0, 0, 0, 10, 10, 0.004);      // 4 mm thick slab: int16 would flatten it
   io::GlbBuilder b({0, 0, 0}, opt);
-  b.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
-  b.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);
+  b.add_feature(feature("far", lod::ModelKind::anchor, 1, 0), far);
+  b.add_feature(feature("thin", lod::ModelKind::anchor, 1, 0), thin);
   const io::BBox3 stored = b.stored_bounds();
   const io::GlbDocument d = io::parse_glb(b.glb(), "mem.glb");
   EXPECT_NE(
@@ -265,8 +265,8 @@ TEST(GlbReader, MeshoptSnapsAModelWhenTheCheckAcceptsIt) {
   };
   {
     io::GlbBuilder b({0, 0, 0}, opt);
-    b.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
-    b.add_feature(feature("cube", io::LodKind::anchor, 1, 0), cube);
+    b.add_feature(feature("far", lod::ModelKind::anchor, 1, 0), far);
+    b.add_feature(feature("cube", lod::ModelKind::anchor, 1, 0), cube);
     const std::string bytes = b.glb();
     EXPECT_EQ(bytes.find("\"EXPONENTIAL\""), std::string::npos);  // no float part
     const auto tris = triangles(io::parse_glb(bytes, "mem.glb"));
@@ -295,8 +295,8 @@ TEST(GlbReader, MeshoptSnapsAModelWhenTheCheckAcceptsIt) {
   checked.clear();
   {
     io::GlbBuilder b({0, 0, 0}, opt);
-    b.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
-    b.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);
+    b.add_feature(feature("far", lod::ModelKind::anchor, 1, 0), far);
+    b.add_feature(feature("thin", lod::ModelKind::anchor, 1, 0), thin);
     const std::string bytes = b.glb();
     EXPECT_NE(bytes.find("\"EXPONENTIAL\""), std::string::npos);  // the slab stays float
     const auto tris = triangles(io::parse_glb(bytes, "mem.glb"));
@@ -323,10 +323,10 @@ TEST(GlbReader, MeshoptSharesViewsAndKeepsTheModels) {
     opt.compression = c;
     io::GlbBuilder b({0, 0, 0}, opt);
     b.begin_node("model_0");  // one int16 and one float mesh
-    b.add_feature(feature("far", io::LodKind::anchor, 1, 0), far);
-    b.add_feature(feature("thin", io::LodKind::anchor, 1, 0), thin);
+    b.add_feature(feature("far", lod::ModelKind::anchor, 1, 0), far);
+    b.add_feature(feature("thin", lod::ModelKind::anchor, 1, 0), thin);
     b.begin_node("model_1");  // one int16 mesh
-    b.add_feature(feature("house", io::LodKind::anchor, 1, 0), house);
+    b.add_feature(feature("house", lod::ModelKind::anchor, 1, 0), house);
     return b.glb();
   };
   const std::string mo = write(io::Compression::meshopt), none = write(io::Compression::none);
@@ -404,7 +404,7 @@ TEST(GlbReader, SchemaByUriAndFewStringsAsEnums) {
   add_box(box1, 0, 0, 0, 10, 10, 5);
   add_box(box2, 20, 0, 0, 30, 10, 8);
   io::GlbBuilder g({0, 0, 0}, opt);
-  io::GlbFeature f1 = feature("b1", io::LodKind::anchor, 1, 0), f2 = f1;
+  io::GlbFeature f1 = feature("b1", lod::ModelKind::anchor, 1, 0), f2 = f1;
   f1.attributes = a;
   f2.building_id = "b2";
   f2.attributes = b;
@@ -459,7 +459,7 @@ TEST(GlbReader, MissingStringsAreTheNoDataCharacter) {
   TriangleMesh box1;
   add_box(box1, 0, 0, 0, 10, 10, 5);
   io::GlbBuilder g({0, 0, 0}, opt);
-  io::GlbFeature f = feature("b1", io::LodKind::anchor, 1, 0);
+  io::GlbFeature f = feature("b1", lod::ModelKind::anchor, 1, 0);
   f.attributes = b;
   g.add_feature(f, box1);
   const std::string bytes = g.glb();
@@ -513,7 +513,7 @@ TEST(GlbReader, MeshoptParametersAreCheckedBeforeDecoding) {
   TriangleMesh box;
   add_box(box, 0, 0, 0, 10, 10, 5);
   io::GlbBuilder b({0, 0, 0}, opt);
-  b.add_feature(feature("b", io::LodKind::anchor, 1, 0), box);
+  b.add_feature(feature("b", lod::ModelKind::anchor, 1, 0), box);
   const std::string glb = b.glb();
   ASSERT_NO_THROW(io::parse_glb(glb, "ok.glb"));
   auto with = [&](const char* mode, const std::function<void(nlohmann::json&)>& change) {

@@ -26,7 +26,7 @@ TriangleMesh box(double x0, double y0, double z0, double x1, double y1, double z
 io::GlbFeature feature(const std::string& id, int index = 0) {
   io::GlbFeature f;
   f.building_id = id;
-  f.kind = index % 2 ? io::LodKind::interpolation : io::LodKind::anchor;
+  f.kind = index % 2 ? lod::ModelKind::interpolation : lod::ModelKind::anchor;
   f.level = 1;
   f.step = 2 + index;
   f.model_index = index;

@@ -55,7 +55,7 @@ TEST(Airborne, LowerRoofBoundsItsOwnCells) {
   o.noise_sigma = 0.02;
   const auto b = two_level(o);
   const LodResult r = build_lod_tree(b.input, city_params());
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   EXPECT_TRUE(has_note(r, "airborne LiDAR"));
   EXPECT_TRUE(has_note(r, "step walls inferred"));
   for (const auto& m : r.models) {
@@ -79,10 +79,10 @@ TEST(Airborne, CoarsestModelIsTheBlockAtTheBestFittingHeight) {
   o.spacing = 0.3;
   const auto b = two_level(o);
   const LodResult r = build_lod_tree(b.input, city_params());
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   ASSERT_FALSE(r.models.empty());
   const LodModel& block = r.models.front();
-  EXPECT_EQ(block.kind, ModelKind::Anchor);
+  EXPECT_EQ(block.kind, ModelKind::anchor);
   EXPECT_EQ(block.mesh.triangles.size(), 12u);  // a rectangle extruded: 2 + 2 + 4 x 2
   test::expect_closed_solid(block);
   // The roofs are 60 % at 8 m and 40 % at 4 m: the height closest to all
@@ -110,7 +110,7 @@ TEST(Airborne, OutliersDoNotLiftTheRoof) {
   if (!b.input.normals.empty())
     for (int k = 0; k < 6; ++k) b.input.normals.push_back(Vec3::UnitZ());
   const LodResult r = build_lod_tree(b.input, city_params());
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   for (const auto& m : r.models) test::expect_closed_solid(m);
   double top = 0;
   for (const auto& v : test::last_anchor(r)->mesh.vertices) top = std::max(top, v.z());
@@ -124,7 +124,7 @@ TEST(Airborne, ModeOffKeepsThePapersLabelling) {
   p.metrics.samples = 2000;
   p.airborne.mode = AirborneMode::Off;
   const LodResult r = build_lod_tree(b.input, p);
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   EXPECT_FALSE(has_note(r, "airborne LiDAR"));
   EXPECT_TRUE(r.stats.walls_inferred);
 }
@@ -201,9 +201,9 @@ TEST(Airborne, EveryRoofPlaneReachesTheFinestLevel) {
   LodParams off = city_params();
   off.airborne.detail_level = false;
   const LodResult q = build_lod_tree(b.input, off);
-  ASSERT_EQ(q.status, "ok") << q.reason;
+  ASSERT_EQ(q.status, lod::Status::ok) << q.reason;
   const LodResult r = build_lod_tree(b.input, city_params());
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   EXPECT_EQ(unsorted_roof_planes(r), 0);
   for (const auto& m : r.models) test::expect_closed_solid(m);
   if (unsorted_roof_planes(q) > 0) {

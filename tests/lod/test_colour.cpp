@@ -136,7 +136,7 @@ TEST(Colour, PipelineColoursEachRoofLevel) {
   p.closure.footprint_walls = true;
   p.closure.terrain = Terrain::Cut;
   const LodResult plain = build_lod_tree(b.input, p);
-  ASSERT_EQ(plain.status, "ok") << plain.reason;
+  ASSERT_EQ(plain.status, lod::Status::ok) << plain.reason;
   for (const auto& m : plain.models) {
     EXPECT_TRUE(m.polygon_colours.empty());
     EXPECT_TRUE(m.triangle_colours.empty());

@@ -221,7 +221,7 @@ TEST(LevelSets, DormerHouseAnchorsAddStructureLargestFirst) {
   LodParams p;
   p.metrics.samples = 4000;
   const LodResult r = build_lod_tree(b.input, p);
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   EXPECT_EQ(r.stats.add_ons, 3);
   EXPECT_EQ(r.stats.cut_outs, 4);
   EXPECT_EQ(r.stats.level_sets, 2);
@@ -239,7 +239,7 @@ TEST(LevelSets, DormerHouseAnchorsAddStructureLargestFirst) {
   std::vector<const LodModel*> anchors;
   for (const auto& m : r.models) {
     test::expect_closed_solid(m);
-    if (m.kind == ModelKind::Anchor) anchors.push_back(&m);
+    if (m.kind == ModelKind::anchor) anchors.push_back(&m);
   }
   ASSERT_EQ(anchors.size(), 3u);
   const double body = S::L * S::W * S::H, dormers = 2 * S::dw * S::dd * S::dh;

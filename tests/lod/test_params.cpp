@@ -184,7 +184,7 @@ TEST(LodParams, ModesAreEnumsWithTheirWords) {
 }
 
 TEST(LodParams, ModelKindNames) {
-  EXPECT_STREQ(to_string(ModelKind::Anchor), "anchor");
-  EXPECT_STREQ(to_string(ModelKind::Interpolation), "interpolation");
-  EXPECT_STREQ(to_string(ModelKind::Fallback), "fallback");
+  EXPECT_STREQ(to_string(ModelKind::anchor), "anchor");
+  EXPECT_STREQ(to_string(ModelKind::interpolation), "interpolation");
+  EXPECT_STREQ(to_string(ModelKind::fallback), "fallback");
 }

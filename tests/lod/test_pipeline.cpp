@@ -23,7 +23,7 @@ int count(const LodResult& r, ModelKind k) {
 /// Every model closed, oriented, edge-manifold, without self-intersections;
 /// face counts non-decreasing along the candidate set.
 void expect_valid_models(const LodResult& r) {
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   ASSERT_FALSE(r.models.empty());
   size_t last_faces = 0;
   for (const auto& m : r.models) {
@@ -65,7 +65,7 @@ TEST(LodPipeline, ChimneyAndWindowsAreSecondary) {
   EXPECT_EQ(r.stats.cut_outs, 4);
   // chimney (2 m^3) and windows (0.54 m^3) are within a factor 4 (ln 4 on ln V): one level set
   EXPECT_EQ(r.stats.level_sets, 1);
-  EXPECT_GE(count(r, ModelKind::Anchor), 2);
+  EXPECT_GE(count(r, ModelKind::anchor), 2);
   const LodModel* coarse = first_anchor(r);
   const LodModel* fine = last_anchor(r);
   ASSERT_TRUE(coarse && fine && coarse != fine);
@@ -94,7 +94,7 @@ TEST(LodPipeline, GableRoofWithDormer) {
   expect_valid_models(r);
   EXPECT_EQ(r.stats.principal, 7);  // 4 walls + floor + 2 roof planes
   EXPECT_EQ(r.stats.add_ons, 1);
-  EXPECT_GE(count(r, ModelKind::Anchor), 2);
+  EXPECT_GE(count(r, ModelKind::anchor), 2);
   EXPECT_NEAR(first_anchor(r)->volume, b.volume - 3 * 0.5 * (3.0 - 1.0) * 1.5, 0.02 * b.volume);
   EXPECT_NEAR(last_anchor(r)->volume, b.volume, 0.01 * b.volume);
 }
@@ -105,7 +105,7 @@ TEST(LodPipeline, MeshInputGivesTheSameAnchors) {
   const auto b = test::chimney_windows(o, /*mesh=*/true);
   const LodResult r = build_lod_tree(b.input, fast_params());
   expect_valid_models(r);
-  EXPECT_GE(count(r, ModelKind::Anchor), 2);
+  EXPECT_GE(count(r, ModelKind::anchor), 2);
   EXPECT_NEAR(last_anchor(r)->volume, b.volume, 0.01 * b.volume);
 }
 
@@ -117,7 +117,7 @@ TEST(LodPipeline, RobustToNoise) {
   const auto b = test::chimney_windows(o);
   const LodResult r = build_lod_tree(b.input, fast_params());
   expect_valid_models(r);
-  EXPECT_EQ(count(r, ModelKind::Anchor), count(clean, ModelKind::Anchor));
+  EXPECT_EQ(count(r, ModelKind::anchor), count(clean, ModelKind::anchor));
   EXPECT_EQ(first_anchor(r)->polygons.faces.size(), first_anchor(clean)->polygons.faces.size());
   EXPECT_NEAR(first_anchor(r)->volume, first_anchor(clean)->volume,
               0.02 * first_anchor(clean)->volume);
@@ -169,7 +169,7 @@ TEST(LodPipeline, BadInputFailsCleanlyOrFallsBack) {
   BuildingInput few;  // fewer than 15 points: fallback box
   for (int i = 0; i < 10; ++i) few.points.emplace_back(i % 3, i / 3, (i * 7) % 4);
   const LodResult r1 = build_lod_tree(few, fast_params());
-  EXPECT_EQ(r1.status, "fallback");
+  EXPECT_EQ(r1.status, lod::Status::fallback);
   ASSERT_EQ(r1.models.size(), 1u);
   EXPECT_TRUE(check_mesh(r1.models[0].mesh).closed);
 
@@ -189,7 +189,7 @@ TEST(LodPipeline, TimeBudgetGivesARecordedFallback) {
   LodParams p = fast_params();
   p.budget.time_budget_s = 1e-6;
   const LodResult r = build_lod_tree(test::chimney_windows().input, p);
-  EXPECT_EQ(r.status, "fallback");
+  EXPECT_EQ(r.status, lod::Status::fallback);
   EXPECT_NE(r.reason.find("budget"), std::string::npos) << r.reason;
   ASSERT_EQ(r.models.size(), 1u);
   EXPECT_TRUE(check_mesh(r.models[0].mesh).closed);

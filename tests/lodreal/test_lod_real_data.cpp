@@ -38,15 +38,15 @@ void check_building(BuildingInput in, double max_finest_e2, double max_overhang)
   LodParams p;
   p.budget.time_budget_s = 0;
   const LodResult r = build_lod_tree(in, p);
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   const auto box = test::input_box(in);
   for (const auto& m : r.models) {
     SCOPED_TRACE("model " + std::to_string(m.step));
     test::expect_closed_solid(m);
     EXPECT_LE(test::overhang(m, box), max_overhang);
   }
-  const int anchors = test::count_models(r, ModelKind::Anchor);
-  const int interps = test::count_models(r, ModelKind::Interpolation);
+  const int anchors = test::count_models(r, ModelKind::anchor);
+  const int interps = test::count_models(r, ModelKind::interpolation);
   EXPECT_GE(anchors, 2);
   EXPECT_GE(interps, 1);
   const LodModel* f = test::last_anchor(r);
@@ -92,7 +92,7 @@ TEST(LodRealData, City3dFlatShedWithoutGroundGetsAStorey) {
   const auto box = test::input_box(in);
   ASSERT_LT(box.hi.z() - box.lo.z(), 0.2);
   const LodResult r = build_lod_tree(in, LodParams{});
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   const LodModel* f = test::last_anchor(r);
   ASSERT_NE(f, nullptr);
   test::expect_closed_solid(*f);
@@ -109,7 +109,7 @@ TEST(LodRealData, City3dScanTheRaysCannotLabelIsModelledAsAirborne) {
   auto in = test::read_ply_min(path);
   recentre(in);
   const LodResult r = build_lod_tree(in, LodParams{});
-  ASSERT_EQ(r.status, "ok") << r.reason;
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   bool retried = false;
   for (const auto& n : r.stats.notes) retried = retried || n.find("the rays failed") == 0;
   EXPECT_TRUE(retried);

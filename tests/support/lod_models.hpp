@@ -12,7 +12,7 @@ namespace citylod::test {
 
 inline const lod::LodModel* first_anchor(const lod::LodResult& r) {
   for (const auto& m : r.models)
-    if (m.kind == lod::ModelKind::Anchor) return &m;
+    if (m.kind == lod::ModelKind::anchor) return &m;
   return nullptr;
 }
 
@@ -20,7 +20,7 @@ inline const lod::LodModel* first_anchor(const lod::LodResult& r) {
 inline const lod::LodModel* last_anchor(const lod::LodResult& r) {
   const lod::LodModel* a = nullptr;
   for (const auto& m : r.models)
-    if (m.kind == lod::ModelKind::Anchor) a = &m;
+    if (m.kind == lod::ModelKind::anchor) a = &m;
   return a;
 }
 

@@ -15,12 +15,30 @@
 #include "citylod/io/glb_reader.hpp"
 #include "citylod/io/gltf.hpp"
 #include "citylod/tiler/assemble.hpp"
+#include "citylod/tiler/workdir.hpp"
 #include "tiler/test_work_support.hpp"
 
 namespace citylod::test {
 namespace {
 
 using tiler::AssembleParams;
+
+/// A report's model of kind `k` (its file unused here).
+tiler::ModelRecord model(tiler::ModelKind k, int level, int step) {
+  tiler::ModelRecord m;
+  m.kind = k;
+  m.level = level;
+  m.step = step;
+  return m;
+}
+
+/// A report listing `models`; a model's e2 is its RMSE in metres (a 100 m diagonal).
+tiler::LodReport report_of(std::vector<tiler::ModelRecord> models) {
+  tiler::LodReport r;
+  r.bbox_diagonal_m = 100;
+  r.models = std::move(models);
+  return r;
+}
 
 std::string tmp_dir(const std::string& name) {
   const fs::path p = fs::path(CITYLOD_TEST_TMP) / "assemble" / name;
@@ -62,17 +80,17 @@ TEST(AssembleMetrics, HausdorffOfKnownShapes) {
 TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {
   // box (A) -> house (I) -> [I identical to the next anchor] -> house + annex (A) -> + chimney (A)
   const auto chain = lod_chain(12, 9, 8, 4);
-  std::vector<tiler::ModelEntry> entries;
+  std::vector<tiler::ModelRecord> entries;
   std::vector<TriangleMesh> meshes;
   for (const auto& m : chain) {
     entries.push_back(
-        {"x", m.kind == "anchor" ? tiler::ModelKind::anchor : tiler::ModelKind::interpolation,
-         m.level, m.step * 2});
+        model(m.kind == "anchor" ? tiler::ModelKind::anchor : tiler::ModelKind::interpolation,
+              m.level, m.step * 2));
     meshes.push_back(m.mesh);
   }
-  entries.insert(entries.begin() + 2, {"dup", tiler::ModelKind::interpolation, 1, 3});
+  entries.insert(entries.begin() + 2, model(tiler::ModelKind::interpolation, 1, 3));
   meshes.insert(meshes.begin() + 2, chain[2].mesh);
-  const tiler::ModelChoice c = tiler::choose_models(entries, meshes, 0.1, 0.05);
+  const tiler::ModelChoice c = tiler::choose_models(report_of(entries), meshes, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3, 4}));
   ASSERT_EQ(c.error_m.size(), 4u);
   // box: the chimney top is 4.5 m above its roof; house: the 4 m annex is
@@ -92,9 +110,9 @@ TEST(AssembleMetrics, DropsInterpolationsThatDoNotGetCloser) {
   TriangleMesh box_annex;
   add_box(box_annex, 0, 0, 0, 12, 9, 8);
   add_box(box_annex, 12, 0, 0, 16, 4.5, 4);
-  const auto c = tiler::choose_models({{"a", tiler::ModelKind::anchor, 0, 0},
-                                       {"b", tiler::ModelKind::interpolation, 1, 1},
-                                       {"c", tiler::ModelKind::anchor, 2, 2}},
+  const auto c = tiler::choose_models(report_of({model(tiler::ModelKind::anchor, 0, 0),
+                                                 model(tiler::ModelKind::interpolation, 1, 1),
+                                                 model(tiler::ModelKind::anchor, 2, 2)}),
                                       {c4[0].mesh, box_annex, c4[3].mesh}, 0.1, 0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 2}));
 }
@@ -104,9 +122,10 @@ TEST(AssembleMetrics, ErrorsStrictlyDecreaseEvenWhenDistancesDoNot) {
   // is charged the finer one's error + 1 cm. Identical anchors count once.
   const TriangleMesh fin = box_mesh(0, 0, 0, 10, 10, 10);
   const auto A = tiler::ModelKind::anchor;
-  std::vector<tiler::ModelEntry> e{{"a", A, 0, 0}, {"b", A, 1, 1}, {"c", A, 2, 2}, {"d", A, 3, 3}};
+  std::vector<tiler::ModelRecord> e{model(A, 0, 0), model(A, 1, 1), model(A, 2, 2), model(A, 3, 3)};
   const auto c = tiler::choose_models(
-      e, {box_mesh(2, 0, 0, 12, 10, 10), box_mesh(3, 0, 0, 13, 10, 10), fin, fin}, 0.1, 0.05);
+      report_of(e), {box_mesh(2, 0, 0, 12, 10, 10), box_mesh(3, 0, 0, 13, 10, 10), fin, fin}, 0.1,
+      0.05);
   EXPECT_EQ(c.kept, (std::vector<std::size_t>{0, 1, 3}));
   ASSERT_EQ(c.error_m.size(), 3u);
   EXPECT_NEAR(c.error_m[0], 3.01, 1e-9);
@@ -122,18 +141,18 @@ TEST(AssembleMetrics, KeptChainIsMonotoneInRmse) {
       box_mesh(6, 0, 0, 16, 10, 10), box_mesh(4, 0, 0, 14, 10, 10), box_mesh(2, 0, 0, 12, 10, 10),
       box_mesh(0, 0, 0, 10, 10, 10)};
   auto choose = [&](std::vector<double> rmse) {
-    std::vector<tiler::ModelEntry> e;
+    std::vector<tiler::ModelRecord> e;
     for (int i = 0; i < 4; ++i) {
-      e.push_back({"m", A, i, i});
-      e.back().rmse_m = rmse[std::size_t(i)];
+      e.push_back(model(A, i, i));
+      e.back().e2 = rmse[std::size_t(i)];  // % of a 100 m diagonal: metres
     }
-    return tiler::choose_models(e, meshes, 0.1, 0.05).kept;
+    return tiler::choose_models(report_of(e), meshes, 0.1, 0.05).kept;
   };
   using K = std::vector<std::size_t>;
   EXPECT_EQ(choose({0.5, 0.4, 0.3, 0.2}), (K{0, 1, 2, 3}));   // better and better
   EXPECT_EQ(choose({0.5, 2.8, 0.3, 0.2}), (K{0, 2, 3}));      // worse than the block: dropped
   EXPECT_EQ(choose({0.5, 0.54, 0.3, 0.2}), (K{0, 1, 2, 3}));  // within 5 cm
-  EXPECT_EQ(choose({0.5, 0.4, 0.9, 0.45}), (K{0, 1, 3}));     // 0.9 > 0.4 + 0.05
+  EXPECT_EQ(choose({0.5, 0.4, 0.9, 0.44}), (K{0, 1, 3}));     // 0.9 > 0.4 + 0.05
   // the finest stays; a coarser model better than it by more than 5 cm goes
   EXPECT_EQ(choose({0.3, 0.5, 0.6, 0.5}), (K{1, 3}));
   EXPECT_EQ(choose({0.5, 2.8, -1, 0.2}), (K{0, 2, 3}));    // not measured: not judged

@@ -1035,7 +1035,7 @@ TEST(SplitRealData, DelftHeightsFollowTheCrsUnlessToldOtherwise) {
   const SplitReport a = tiler::split_scene(o);
   EXPECT_NE(a.vertical.find("NAP"), std::string::npos) << a.vertical;
   EXPECT_EQ(tiler::read_manifest(o.work_dir).scene.vertical, a.vertical);
-  o.vertical = "ellipsoidal";
+  o.vertical = geo::VerticalMode::Ellipsoidal;
   o.work_dir = (dir / "ellipsoidal").string();
   const SplitReport e = tiler::split_scene(o);
   EXPECT_NE(e.vertical.find("ellipsoidal"), std::string::npos) << e.vertical;
@@ -1043,10 +1043,12 @@ TEST(SplitRealData, DelftHeightsFollowTheCrsUnlessToldOtherwise) {
               a.vertical.c_str(), e.origin_h);
   EXPECT_GT(a.origin_h - e.origin_h, 42.5);
   EXPECT_LT(a.origin_h - e.origin_h, 44.5);
-  o.vertical = "sideways";
-  EXPECT_THROW(o.validate(), std::invalid_argument);
-  o.vertical = "ellipsoidal";
-  o.geoid = "egm96";
+  EXPECT_THROW(tiler::parse_vertical("sideways"), std::invalid_argument);
+  EXPECT_EQ(tiler::parse_vertical(""), geo::VerticalMode::Auto);
+  EXPECT_EQ(tiler::parse_vertical("orthometric"), geo::VerticalMode::Orthometric);
+  EXPECT_THROW(tiler::parse_geoid("egm2008"), std::invalid_argument);
+  o.vertical = tiler::parse_vertical("ellipsoidal");
+  o.geoid = tiler::parse_geoid("egm96");
   EXPECT_THROW(o.validate(), std::invalid_argument);
 }
 

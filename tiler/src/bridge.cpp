@@ -169,24 +169,6 @@ io::PolygonMesh to_io_polygons(const lod::PolygonMesh& m, const io::Vec3d& o) {
   return out;
 }
 
-ModelKind to_model_kind(lod::ModelKind k) {
-  switch (k) {
-    case lod::ModelKind::Anchor:
-      return ModelKind::anchor;
-    case lod::ModelKind::Interpolation:
-      return ModelKind::interpolation;
-    case lod::ModelKind::Fallback:
-      return ModelKind::fallback;
-  }
-  return ModelKind::anchor;
-}
-
-Status to_status(const std::string& s) {
-  if (s == "ok") return Status::ok;
-  if (s == "fallback") return Status::fallback;
-  return Status::failed;
-}
-
 std::string model_stem(const lod::LodModel& m) {
   std::ostringstream s;
   s << "model_" << std::setw(2) << std::setfill('0') << m.step << '_' << lod::to_string(m.kind)
@@ -198,7 +180,7 @@ LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p,
                           const std::string& input) {
   LodReport j;
   j.input = input;
-  j.status = to_status(r.status);
+  j.status = r.status;
   j.reason = r.reason;
   for (const auto& [k, v] : p.items()) j.parameters[k] = v;
   const auto& s = r.stats;
@@ -225,7 +207,7 @@ LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p,
   for (const auto& m : r.models) {
     ModelRecord e;
     e.file = model_stem(m) + ".ply";
-    e.kind = to_model_kind(m.kind);
+    e.kind = m.kind;
     e.level = m.level;
     e.step = m.step;
     e.cuts = m.cuts;

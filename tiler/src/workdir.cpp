@@ -22,33 +22,22 @@ namespace citylod::tiler {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// ------------------------------------------------------------ enums
-const char* to_string(Status s) {
+void StatusCounts::add(Status s) {
   switch (s) {
-    case Status::pending:
-      return "pending";
     case Status::ok:
-      return "ok";
+      ++ok;
+      break;
     case Status::fallback:
-      return "fallback";
-    case Status::failed:
-      return "failed";
+      ++fallback;
+      break;
     case Status::skipped:
-      return "skipped";
+      ++skipped;
+      break;
+    case Status::pending:
+    case Status::failed:
+      ++failed;
+      break;
   }
-  return "failed";
-}
-
-Status status_from_string(const std::string& s) {
-  for (Status v : {Status::pending, Status::ok, Status::fallback, Status::failed, Status::skipped})
-    if (s == to_string(v)) return v;
-  throw std::invalid_argument("unknown status '" + s + "'");
-}
-
-ModelKind model_kind_from_string(const std::string& s) {
-  for (ModelKind k : {ModelKind::anchor, ModelKind::interpolation, ModelKind::fallback})
-    if (s == io::to_string(k)) return k;
-  throw std::invalid_argument("unknown kind '" + s + "'");
 }
 
 // ------------------------------------------------------------ ids and paths
@@ -94,23 +83,82 @@ void require_safe_id(const std::string& id, const std::string& file) {
                                 " characters of A-Z a-z 0-9 . _ -, no leading '.', no '..')");
 }
 
+// ------------------------------------------------------------ paths
+namespace {
+// The names of a `citylod tile -o DIR` output, as run_report.json records them too.
+constexpr const char* kWorkName = "work";
+constexpr const char* kTilesetName = "tileset";
+}  // namespace
+
+std::string run_work_dir(const std::string& d) {
+  return (fs::path(d) / kWorkName).string();
+}
+std::string run_tileset_dir(const std::string& d) {
+  return (fs::path(d) / kTilesetName).string();
+}
+std::string run_cityjson_path(const std::string& d) {
+  return (fs::path(d) / "buildings.city.jsonl").string();
+}
+std::string tileset_json_path(const std::string& t) {
+  return (fs::path(t) / "tileset.json").string();
+}
+std::string buildings_json_path(const std::string& t) {
+  return (fs::path(t) / "buildings.json").string();
+}
+std::string run_report_path(const std::string& d) {
+  return (fs::path(d) / "run_report.json").string();
+}
 std::string manifest_path(const std::string& w) {
   return (fs::path(w) / "manifest.json").string();
 }
+std::string chunks_dir(const std::string& w) {
+  return (fs::path(w) / "chunks").string();
+}
+std::string lod_root(const std::string& w) {
+  return (fs::path(w) / "lod").string();
+}
 std::string chunk_path(const std::string& w, const std::string& id) {
-  return (fs::path(w) / "chunks" / (checked_id(id) + ".ply")).string();
+  return (fs::path(chunks_dir(w)) / (checked_id(id) + ".ply")).string();
 }
 std::string lod_dir(const std::string& w, const std::string& id) {
-  return (fs::path(w) / "lod" / checked_id(id)).string();
+  return (fs::path(lod_root(w)) / checked_id(id)).string();
+}
+std::string report_file(const std::string& dir) {
+  return (fs::path(dir) / "report.json").string();
+}
+std::string params_file(const std::string& dir) {
+  return (fs::path(dir) / "params.json").string();
 }
 std::string lod_report_path(const std::string& w, const std::string& id) {
-  return (fs::path(lod_dir(w, id)) / "report.json").string();
+  return report_file(lod_dir(w, id));
 }
 std::string overrides_path(const std::string& w) {
   return (fs::path(w) / "overrides.json").string();
 }
-std::string run_report_path(const std::string& d) {
-  return (fs::path(d) / "run_report.json").string();
+
+namespace {
+const char* marker_suffix(LodMarker m) {
+  switch (m) {
+    case LodMarker::running:
+      return ".running";
+    case LodMarker::suspect:
+      return ".suspect";
+    case LodMarker::crashed:
+      return ".crashed";
+  }
+  return ".running";
+}
+}  // namespace
+
+std::string lod_marker_path(const std::string& w, const std::string& id, LodMarker m) {
+  return lod_dir(w, id) + marker_suffix(m);
+}
+std::string marker_id(const std::string& name, LodMarker m) {
+  const std::string suffix = marker_suffix(m);
+  if (name.size() <= suffix.size() ||
+      name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+    return "";
+  return name.substr(0, name.size() - suffix.size());
 }
 
 namespace {
@@ -213,7 +261,7 @@ std::vector<FaceColour> colours_from_runs(const json& runs, std::uint64_t expect
 
 json to_json(const ModelRecord& m) {
   json j = {{"file", m.file},
-            {"kind", io::to_string(m.kind)},
+            {"kind", lod::to_string(m.kind)},
             {"level", m.level},
             {"step", m.step},
             {"cuts", m.cuts},
@@ -410,9 +458,9 @@ Manifest read_manifest(const std::string& work_dir) {
   if (!fs::exists(work_dir)) throw io::IoError(work_dir, "work directory does not exist");
   if (!fs::exists(path)) throw io::IoError(path, "missing manifest (run 'citylod split' first)");
   // Its folders must be inside it: a symbolic link would lead deletions elsewhere.
-  for (const char* sub : {"chunks", "lod"}) {
+  for (const std::string& sub : {chunks_dir(work_dir), lod_root(work_dir)}) {
     std::error_code ec;
-    const fs::path p = fs::path(work_dir) / sub;
+    const fs::path p = sub;
     const auto st = fs::symlink_status(p, ec);
     if (!ec && fs::exists(st) && !fs::is_directory(st))
       throw io::IoError(p.string(), fs::is_symlink(st)
@@ -504,7 +552,7 @@ bool chunk_intact(const std::string& work_dir, const ChunkRecord& c) {
 }
 
 void require_own_chunks(const std::string& work_dir) {
-  const fs::path chunks = fs::path(work_dir) / "chunks";
+  const fs::path chunks = chunks_dir(work_dir);
   std::error_code ec;
   if (!fs::exists(chunks, ec) || fs::exists(manifest_path(work_dir), ec)) return;
   if (fs::is_directory(chunks, ec) && fs::is_empty(chunks, ec)) return;
@@ -552,6 +600,33 @@ bool write_lod_report(const std::string& path, const LodReport& r) {
   }
   io::atomic_write_file(path, text);
   return true;
+}
+
+BuildingModels read_building_models(
+    const std::string& work_dir, const std::string& id,
+    const std::function<io::TriangleMesh(const std::string& file)>& read) {
+  BuildingModels b;
+  b.report_path = lod_report_path(work_dir, id);
+  if (!fs::exists(b.report_path))
+    throw io::IoError(
+        b.report_path,
+        "building '" + id + "' has no LOD models (run 'citylod lod' on the work directory first)");
+  b.report = read_lod_report(b.report_path);
+  if (b.report.models.empty()) {
+    std::string why = "building '" + id + "' has no models in report.json (status \"" +
+                      std::string(to_string(b.report.status)) + "\"";
+    if (!b.report.reason.empty()) why += ": " + json(b.report.reason).dump();
+    throw io::IoError(b.report_path, why + ")");
+  }
+  const fs::path dir = lod_dir(work_dir, id);
+  for (const ModelRecord& m : b.report.models) {
+    const fs::path f = m.file;
+    b.files.push_back((f.is_absolute() ? f : dir / f).string());
+    if (!fs::exists(b.files.back()))
+      throw io::IoError(b.files.back(), "model listed in " + b.report_path + " is missing");
+  }
+  for (const std::string& f : b.files) b.meshes.push_back(read(f));
+  return b;
 }
 
 // ------------------------------------------------------------ overrides.json
@@ -621,8 +696,6 @@ RunReport read_run_report(const std::string& out_dir) {
     r.peak_rss_children = rss.value("children", std::uint64_t(0));
     if (j.contains("lod_params")) r.lod_params = string_map(j["lod_params"]);
     r.assemble_params = assemble_params_from_json(j.value("assemble_params", json::object()));
-    r.work = j.value("work", r.work);
-    r.tileset = j.value("tileset", r.tileset);
     for (const auto& b : j.value("buildings", json::array()))
       r.buildings.push_back(building_from_json(b));
     if (j.contains("last_rebuild")) {
@@ -656,8 +729,8 @@ void write_run_report(const std::string& out_dir, const RunReport& r) {
   j["lod_params"] = json::object();
   for (const auto& [k, v] : r.lod_params) j["lod_params"][k] = v;
   j["assemble_params"] = to_json(r.assemble_params);
-  j["work"] = r.work;
-  j["tileset"] = r.tileset;
+  j["work"] = kWorkName;  // where DIR's parts are, for a reader of the file
+  j["tileset"] = kTilesetName;
   json bs = json::array();
   for (const auto& b : r.buildings) bs.push_back(to_json(b));
   j["buildings"] = bs;

@@ -58,7 +58,7 @@ double seconds_since(Clock::time_point t) {
 struct KeptModel {
   std::string file;                // PLY path
   std::vector<io::Rgba8> colours;  // per PLY triangle (report.json), or empty
-  io::LodKind kind = io::LodKind::anchor;
+  lod::ModelKind kind = lod::ModelKind::anchor;
   int level = 0, step = 0;
   double error_m = 0, hausdorff_m = 0, height_m = 0;
   double rmse_m = -1;  // of the input points (report.json e2), -1 = not measured
@@ -266,43 +266,30 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
   b.file_stem = safe_stem(rec.id);
   b.origin = rec.origin;
   b.attributes = rec.attributes;
-  const std::string dir = lod_dir(work, rec.id);
-  const std::string report_path = lod_report_path(work, rec.id);
-  if (!fs::exists(report_path))
-    throw io::IoError(report_path,
-                      "building '" + rec.id +
-                          "' has no LOD models (run 'citylod lod' on the work directory first)");
-  const LodReport rep = read_lod_report(report_path);
-  if (rep.models.empty()) {
-    std::string why = "building '" + rec.id + "' has no models in report.json (status \"" +
-                      std::string(to_string(rep.status)) + "\"";
-    if (!rep.reason.empty()) why += ": " + nlohmann::json(rep.reason).dump();
-    throw io::IoError(report_path, why + ")");
-  }
-  const std::vector<ModelEntry> entries = model_entries(dir, rep, report_path);
-  std::vector<io::TriangleMesh> meshes;
   // the chain is chosen in the scene frame (as `citylod cityjson` chooses it)
-  for (const ModelEntry& e : entries) meshes.push_back(read_scene_model(e.file, rec.origin));
-  b.models_read = entries.size();
-  const ModelChoice choice =
-      choose_models(entries, meshes, p.min_change_m, p.hausdorff_tolerance_m);
+  const BuildingModels bm = read_building_models(
+      work, rec.id, [&](const std::string& f) { return read_scene_model(f, rec.origin); });
+  const LodReport& rep = bm.report;
+  const std::vector<io::TriangleMesh>& meshes = bm.meshes;
+  b.models_read = meshes.size();
+  const ModelChoice choice = choose_models(rep, meshes, p.min_change_m, p.hausdorff_tolerance_m);
   if (choice.kept.empty())
-    throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
+    throw io::IoError(bm.report_path, "building '" + rec.id + "': every model is empty");
   b.chain = choice;
   for (std::size_t i = 0; i < choice.kept.size(); ++i) {
     const std::size_t k = choice.kept[i];
     const io::TriangleMesh mesh = to_enu(meshes[k], georef);
     KeptModel km;
-    km.file = entries[k].file;
-    km.colours = rep.models[k].triangle_colours;
+    const ModelRecord& mr = rep.models[k];
+    km.file = bm.files[k];
+    km.colours = mr.triangle_colours;
     if (km.colours.size() != mesh.triangles.size()) km.colours.clear();  // a PLY edited since
-    km.kind = entries[k].kind;
-    km.level = entries[k].level;
-    km.step = entries[k].step;
+    km.kind = mr.kind;
+    km.level = mr.level;
+    km.step = mr.step;
     km.error_m = choice.error_m[i];
     km.hausdorff_m = choice.hausdorff_m[i];
-    const ModelRecord& mr = rep.models[k];
-    if (mr.e2 >= 0 && rep.bbox_diagonal_m > 0) km.rmse_m = mr.e2 / 100 * rep.bbox_diagonal_m;
+    km.rmse_m = rep.rmse_m(k);
     km.valid = lod::check_mesh(to_lod_mesh(mesh, rec.origin)).valid();
     for (const auto& t : mesh.triangles)
       for (auto v : t) km.bbox.add(mesh.vertices[v]);
@@ -624,12 +611,12 @@ int tree_depth(const std::vector<TileNode>& tiles, std::size_t id) {
 /// Replaces `out` by the staged directory. Refuses to delete a directory that
 /// is not a previous tileset unless `force`.
 void check_output_dir(const fs::path& out, bool force) {
-  if (fs::exists(fs::path(out.string() + ".old") / "tileset.json"))
+  if (fs::exists(tileset_json_path(out.string() + ".old")))
     io::recover_directory(out.string());  // killed mid-swap (file systems without exchange)
   if (!fs::exists(out)) return;
   if (!fs::is_directory(out)) throw io::IoError(out.string(), "exists and is not a directory");
   const bool empty = fs::directory_iterator(out) == fs::directory_iterator();
-  if (!empty && !fs::exists(out / "tileset.json") && !force)
+  if (!empty && !fs::exists(tileset_json_path(out.string())) && !force)
     throw io::IoError(out.string(),
                       "exists and is not a tileset (no tileset.json); use --force to replace it");
 }
@@ -840,7 +827,7 @@ void write_buildings_index(const fs::path& stage, const std::vector<Building>& b
                                          : nlohmann::ordered_json(in_tile[i][m]);
       if (params.building_models) me["node"] = "model_" + std::to_string(m);
       me.update(nlohmann::ordered_json{
-          {"kind", io::to_string(km.kind)},
+          {"kind", lod::to_string(km.kind)},
           {"level", km.level},
           {"step", km.step},
           {"error_m", km.error_m},
@@ -856,7 +843,7 @@ void write_buildings_index(const fs::path& stage, const std::vector<Building>& b
     blist[b.id] = e;
   }
   index["buildings"] = blist;
-  io::atomic_write_file((stage / "buildings.json").string(),
+  io::atomic_write_file(buildings_json_path(stage.string()),
                         index.dump() + "\n");  // compact (the viewer reads it)
 }
 
@@ -876,8 +863,9 @@ void write_tilesets(const fs::path& stage, const TreeBuilder& tree, const std::s
   ts.root.refine = "REPLACE";
   ts.root.transform = root_transform;
   ts.geometric_error = std::max(tree.tileset_error, tiles[0].error);
-  ts.extras = {{"citylod", {{"buildings", "buildings.json"}, {"crs", crs}}}};
-  io::write_tileset((stage / "tileset.json").string(), ts);  // last file of the stage
+  const std::string index = fs::path(buildings_json_path(stage.string())).filename().string();
+  ts.extras = {{"citylod", {{"buildings", index}, {"crs", crs}}}};
+  io::write_tileset(tileset_json_path(stage.string()), ts);  // last file of the stage
   st.tiles = tiles.size();
   st.depth = tree_depth(tiles, 0);
   st.root_error_m = tiles[0].error;

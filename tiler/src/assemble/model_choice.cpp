@@ -177,29 +177,12 @@ double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, 
   return best;
 }
 
-std::vector<ModelEntry> model_entries(const std::string& dir, const LodReport& report,
-                                      const std::string& report_path) {
-  std::vector<ModelEntry> entries;
-  for (const ModelRecord& m : report.models) {
-    ModelEntry e;
-    const std::filesystem::path f = m.file;
-    e.file = (f.is_absolute() ? f : std::filesystem::path(dir) / f).string();
-    e.kind = m.kind;
-    e.level = m.level;
-    e.step = m.step;
-    if (m.e2 >= 0 && report.bbox_diagonal_m > 0) e.rmse_m = m.e2 / 100 * report.bbox_diagonal_m;
-    if (!std::filesystem::exists(e.file))
-      throw io::IoError(e.file, "model listed in " + report_path + " is missing");
-    entries.push_back(std::move(e));
-  }
-  return entries;
-}
-
-ModelChoice choose_models(const std::vector<ModelEntry>& entries,
-                          const std::vector<io::TriangleMesh>& meshes, double min_change_m,
-                          double tolerance_m) {
+ModelChoice choose_models(const LodReport& report, const std::vector<io::TriangleMesh>& meshes,
+                          double min_change_m, double tolerance_m) {
+  const std::vector<ModelRecord>& entries = report.models;
   if (entries.size() != meshes.size())
-    throw std::invalid_argument("choose_models: entries and meshes differ in size");
+    throw std::invalid_argument("choose_models: models and meshes differ in size");
+  auto anchor = [&](std::size_t m) { return is_anchor(entries[m].kind); };
   ModelChoice out;
   if (entries.empty()) return out;
   std::vector<std::size_t> order(entries.size());
@@ -210,8 +193,8 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries,
   // models without triangles never count.
   std::ptrdiff_t finest_pos = -1;
   for (std::size_t i = 0; i < order.size(); ++i)
-    if (!meshes[order[i]].triangles.empty() && (entries[order[i]].anchor() || finest_pos < 0 ||
-                                                !entries[order[size_t(finest_pos)]].anchor()))
+    if (!meshes[order[i]].triangles.empty() &&
+        (anchor(order[i]) || finest_pos < 0 || !anchor(order[size_t(finest_pos)])))
       finest_pos = std::ptrdiff_t(i);
   if (finest_pos < 0) return out;
   order.resize(size_t(finest_pos) + 1);
@@ -224,7 +207,7 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries,
       to_finest[m] = hausdorff_distance(meshes[m], meshes[finest], tolerance_m);
   auto next_anchor_after = [&](std::size_t i) {
     for (std::size_t j = i + 1; j < order.size(); ++j)
-      if (entries[order[j]].anchor() && !meshes[order[j]].triangles.empty()) return order[j];
+      if (anchor(order[j]) && !meshes[order[j]].triangles.empty()) return order[j];
     return finest;
   };
   constexpr double kSame = 1e-3;  // metres: the same surface
@@ -239,7 +222,7 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries,
       continue;
     }
     const std::size_t next_anchor = next_anchor_after(i);
-    if (entries[m].anchor()) {
+    if (anchor(m)) {
       // Every anchor, unless it is the very same model as the next one.
       if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, kSame) >= kSame)
         kept.push_back(m);
@@ -262,11 +245,11 @@ ModelChoice choose_models(const std::vector<ModelEntry>& entries,
   // Monotone in RMSE: never worse than a coarser kept model by more than the
   // tolerance (the finest stays; models without an RMSE are not judged).
   {
-    const double finest_rmse = entries[finest].rmse_m;
+    const double finest_rmse = report.rmse_m(finest);
     std::vector<std::size_t> mono;
     double best = std::numeric_limits<double>::infinity();
     for (const std::size_t m : kept) {
-      const double r = entries[m].rmse_m;
+      const double r = report.rmse_m(m);
       if (m != finest && r >= 0 && finest_rmse >= 0 && r < finest_rmse - kChainMonotoneTolerance_m)
         continue;  // the finest would be worse than it
       if (m != finest && r >= 0 && r > best + kChainMonotoneTolerance_m) continue;

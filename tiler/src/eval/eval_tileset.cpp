@@ -337,7 +337,7 @@ TilesetEval evaluate_tileset(const std::string& path, const std::string& work_di
   r.samples = o.samples;
   r.work = work_dir;
   fs::path ts = path;
-  if (fs::is_directory(ts)) ts /= "tileset.json";
+  if (fs::is_directory(ts)) ts = tileset_json_path(ts.string());
   r.tileset = ts.string();
   const TilesetWalk w = walk_tileset(ts.string());
   r.tiles = w.tiles;

@@ -337,45 +337,38 @@ void remove_collinear_spikes(std::vector<std::vector<std::uint32_t>>& faces, std
   col = std::move(c2);
 }
 
-/// One building's models as read: its report, the model files and meshes,
-/// the chain kept (indices into them, coarse -> fine) and its errors.
-struct Chain {
-  LodReport rep;
-  std::string report_path;
-  std::vector<ModelEntry> entries;
-  std::vector<io::TriangleMesh> meshes;
+/// One building's models as read (report, files, meshes), the chain kept
+/// (indices into them, coarse -> fine) and its errors.
+struct Chain : BuildingModels {
   std::vector<std::size_t> kept;
   std::vector<double> error_m;  // per kept model; empty with all_models
 };
 
 /// The models of `rec` and the chain to write: every model (all_models), the
 /// chain given (opt.chains), else the one choose_models keeps.
-Chain read_chain(const std::string& work, const ChunkRecord& rec, LodReport rep,
-                 const std::string& report_path, const CityJsonOptions& opt) {
-  Chain ch;
-  ch.rep = std::move(rep);
-  ch.report_path = report_path;
-  const std::string dir = lod_dir(work, rec.id);
-  ch.entries = model_entries(dir, ch.rep, report_path);
-  const std::vector<ModelEntry>& entries = ch.entries;
-  for (const ModelEntry& e : entries) ch.meshes.push_back(io::read_mesh(e.file));
+Chain read_chain(const std::string& work, const ChunkRecord& rec, const CityJsonOptions& opt) {
+  Chain ch{
+      read_building_models(work, rec.id, [](const std::string& f) { return io::read_mesh(f); }),
+      {},
+      {}};
+  const std::vector<ModelRecord>& models = ch.report.models;
   if (opt.all_models) {
-    for (std::size_t i = 0; i < entries.size(); ++i) ch.kept.push_back(i);
+    for (std::size_t i = 0; i < models.size(); ++i) ch.kept.push_back(i);
     std::sort(ch.kept.begin(), ch.kept.end(),
-              [&](std::size_t a, std::size_t b) { return entries[a].step < entries[b].step; });
+              [&](std::size_t a, std::size_t b) { return models[a].step < models[b].step; });
   } else {
     const auto given = opt.chains ? opt.chains->find(rec.id) : decltype(opt.chains->end()){};
     const bool reuse = opt.chains && given != opt.chains->end() &&
                        std::all_of(given->second.kept.begin(), given->second.kept.end(),
-                                   [&](std::size_t k) { return k < entries.size(); });
+                                   [&](std::size_t k) { return k < models.size(); });
     const ModelChoice c =
         reuse ? given->second
-              : choose_models(entries, ch.meshes, opt.min_change_m, opt.hausdorff_tolerance_m);
+              : choose_models(ch.report, ch.meshes, opt.min_change_m, opt.hausdorff_tolerance_m);
     ch.kept = c.kept;
     ch.error_m = c.error_m;
   }
   if (ch.kept.empty())
-    throw io::IoError(report_path, "building '" + rec.id + "': every model is empty");
+    throw io::IoError(ch.report_path, "building '" + rec.id + "': every model is empty");
   return ch;
 }
 
@@ -633,16 +626,16 @@ Geometry model_geometry(const Chain& ch, std::size_t gi, const ChunkRecord& rec,
                         const SceneGeoref& georef, VertexPool& pool, const CityJsonOptions& opt,
                         std::vector<std::string>& warnings) {
   const std::size_t k = ch.kept[gi];
-  const ModelRecord& mr = ch.rep.models[k];
+  const ModelRecord& mr = ch.report.models[k];
   const io::TriangleMesh& mesh = ch.meshes[k];
   Geometry g;
   g.step = mr.step;
-  g.fallback = ch.entries[k].kind == ModelKind::fallback;
+  g.fallback = ch.report.models[k].kind == ModelKind::fallback;
   bool from_obj = false;
-  io::PolygonMesh pm = model_polygons(ch.entries[k].file, mesh, from_obj);
+  io::PolygonMesh pm = model_polygons(ch.files[k], mesh, from_obj);
   std::vector<int> sem;
   const double zmin = classify_faces(pm, g, sem);
-  PooledModel m = to_pool(pm, mesh, ch.entries[k].file, rec, georef, pool);
+  PooledModel m = to_pool(pm, mesh, ch.files[k], rec, georef, pool);
   if (from_obj) m.tris_of_ring = triangles_of_rings(m.rings, m.tris);
   // the input's colours of these faces (report.json), when they match
   const std::vector<io::Rgba8>& face_colours = from_obj ? mr.polygon_colours : mr.triangle_colours;
@@ -658,11 +651,11 @@ Geometry model_geometry(const Chain& ch, std::size_t gi, const ChunkRecord& rec,
   g.full_semantics = classes.count(kRoof) && classes.count(kWall) && classes.count(kGround);
 
   json a;
-  a["kind"] = io::to_string(mr.kind);
+  a["kind"] = lod::to_string(mr.kind);
   a["level"] = mr.level;
   a["step"] = mr.step;
-  if (mr.e2 >= 0 && ch.rep.bbox_diagonal_m > 0)
-    a["rmse_m"] = round_to(mr.e2 / 100 * ch.rep.bbox_diagonal_m, 1e-4);
+  if (mr.e2 >= 0 && ch.report.bbox_diagonal_m > 0)
+    a["rmse_m"] = round_to(mr.e2 / 100 * ch.report.bbox_diagonal_m, 1e-4);
   else
     a["rmse_m"] = nullptr;
   if (!ch.error_m.empty()) a["error_m"] = round_to(ch.error_m[gi], 1e-4);
@@ -834,22 +827,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
                      const CityJsonOptions& opt) {
   Feature out;
   out.id = object_id;
-  const std::string report_path = lod_report_path(work, rec.id);
-  if (!fs::exists(report_path)) {
-    out.error = io::IoError(report_path, "building '" + rec.id +
-                                             "' has no LOD models (run 'citylod lod' on the "
-                                             "work directory first)")
-                    .what();
-    return out;
-  }
-  LodReport rep = read_lod_report(report_path);
-  if (rep.models.empty()) {
-    out.error = io::IoError(report_path, "building '" + rec.id + "' has no models (status \"" +
-                                             to_string(rep.status) + "\")")
-                    .what();
-    return out;
-  }
-  const Chain ch = read_chain(work, rec, std::move(rep), report_path, opt);
+  const Chain ch = read_chain(work, rec, opt);
 
   // ---- per model: its Geometry (the feature's vertices, in the CRS)
   VertexPool pool(translate, opt.scale);
@@ -872,7 +850,7 @@ Feature make_feature(const std::string& work, const ChunkRecord& rec, const std:
                            "is written without geometry");
 
   // ---- the feature
-  write_feature(out, geoms, on_building, children, rec, ch.rep, pool);
+  write_feature(out, geoms, on_building, children, rec, ch.report, pool);
   return out;
 }
 

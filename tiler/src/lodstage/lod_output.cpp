@@ -51,10 +51,10 @@ std::vector<std::string> write_lod_output(const std::string& dir, const lod::Lod
   }
   nlohmann::json params = nlohmann::json::object();
   for (const auto& [k, v] : p.items()) params[k] = v;
-  const std::string ppath = (fs::path(dir) / "params.json").string();
+  const std::string ppath = params_file(dir);
   io::atomic_write_file(ppath, params.dump(2) + "\n");
   files.push_back(ppath);
-  const std::string rpath = (fs::path(dir) / "report.json").string();
+  const std::string rpath = report_file(dir);
   LodReport report = make_lod_report(r, p, input);
   report.id = id;
   report.key = key;

@@ -191,7 +191,7 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
                        : lod::build_lod_tree(in, p);
   } catch (const std::exception& e) {  // unreadable chunk, or no model at all (no points, no area)
     r = lod::LodResult{};
-    r.status = "failed";
+    r.status = Status::failed;
     r.reason = e.what();
   }
   {
@@ -199,14 +199,7 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
     write_lod_output(stage, r, p, chunk_path(work, c.id), {0, 0, 0}, false, c.id, key);
   }
   io::publish_directory(stage, dir);
-  return {to_status(r.status), r.reason};
-}
-
-bool strip_suffix(std::string& s, const std::string& suffix) {
-  if (s.size() <= suffix.size() || s.compare(s.size() - suffix.size(), suffix.size(), suffix) != 0)
-    return false;
-  s.resize(s.size() - suffix.size());
-  return true;
+  return {r.status, r.reason};
 }
 
 /// Removes what a run killed from outside (SIGKILL, a node's time limit) left in
@@ -221,12 +214,13 @@ void remove_stale_stages(const std::string& work, const LodStagePlan& plan) {
   for (const auto& it : plan.items) ids.insert(it.chunk->id);
   std::error_code ec;
   std::vector<fs::path> stale;
-  for (fs::directory_iterator e(fs::path(work) / "lod", ec), end; !ec && e != end;
-       e.increment(ec)) {
+  for (fs::directory_iterator e(lod_root(work), ec), end; !ec && e != end; e.increment(ec)) {
     const std::string name = e->path().filename().string();
-    std::string id = io::staged_for(name);
-    if (id.empty()) id = name;
-    if (!strip_suffix(id, ".running") && id == name) continue;  // neither staged nor a marker
+    const std::string staged = io::staged_for(name);  // "<id>" or "<id>.running", or ""
+    const std::string base = staged.empty() ? name : staged;
+    std::string id = marker_id(base, LodMarker::running);
+    if (id.empty()) id = staged;
+    if (id.empty()) continue;  // neither staged nor a marker
     if (ids.count(id)) stale.push_back(e->path());
   }
   for (const auto& p : stale) fs::remove_all(p, ec);
@@ -289,16 +283,16 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
   const LodStagePlan plan = plan_lod_stage(o);
   const LodStageLock lock(o);  // one writer (dir_lock.hpp); held already in a city run
   rep.total = plan.items.size();
-  fs::create_directories(fs::path(o.work_dir) / "lod");
+  fs::create_directories(lod_root(o.work_dir));
   remove_stale_stages(o.work_dir, plan);
 
   std::mutex mu;
   size_t done = 0;
   auto run_one = [&](const LodStagePlan::Item& item) {
     const ChunkRecord& c = *item.chunk;
-    const std::string dir = lod_dir(o.work_dir, c.id);
-    const std::string running = dir + ".running", suspect = dir + ".suspect",
-                      crashed = dir + ".crashed";
+    const std::string running = lod_marker_path(o.work_dir, c.id, LodMarker::running),
+                      suspect = lod_marker_path(o.work_dir, c.id, LodMarker::suspect),
+                      crashed = lod_marker_path(o.work_dir, c.id, LodMarker::crashed);
     Outcome out;
     bool reused = false;
     if (item.up_to_date) {
@@ -319,12 +313,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
     }
     std::lock_guard<std::mutex> lock(mu);
     (reused ? rep.reused : rep.computed)++;
-    if (out.status == Status::ok)
-      ++rep.ok;
-    else if (out.status == Status::fallback)
-      ++rep.fallback;
-    else
-      ++rep.failed;
+    rep.add(out.status == Status::skipped ? Status::failed : out.status);
     if (out.status != Status::ok) rep.problems.emplace_back(c.id, out.reason);
     ++done;
     notify_count(progress, "lod", done, rep.total, "buildings");
@@ -334,7 +323,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
   // supervisor (supervise.hpp) marks it crashed.
   std::vector<const LodStagePlan::Item*> rest;
   for (const auto& it : plan.items) {
-    if (fs::exists(lod_dir(o.work_dir, it.chunk->id) + ".suspect"))
+    if (fs::exists(lod_marker_path(o.work_dir, it.chunk->id, LodMarker::suspect)))
       run_one(it);
     else
       rest.push_back(&it);

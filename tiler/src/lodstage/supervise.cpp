@@ -1,6 +1,7 @@
 #include "citylod/tiler/supervise.hpp"
 
 #include "citylod/tiler/log.hpp"
+#include "citylod/tiler/workdir.hpp"
 
 #include <csignal>
 #include <cstring>
@@ -88,16 +89,17 @@ int supervise(const std::string& work_dir, const std::function<int()>& work, int
     const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
     if (sig == SIGKILL || sig == SIGTERM || sig == SIGINT) return 128 + sig;  // killed from outside
     // A crash: mark what was running.
-    std::vector<fs::path> running;
-    const fs::path lod = fs::path(work_dir) / "lod";
+    std::vector<std::string> running;  // building ids
+    const fs::path lod = lod_root(work_dir);
     if (fs::exists(lod))
-      for (const auto& e : fs::directory_iterator(lod))
-        if (e.path().extension() == ".running") running.push_back(e.path());
-    for (const auto& r : running) {
-      fs::path target = r;
-      target.replace_extension(running.size() == 1 ? ".crashed" : ".suspect");
-      fs::rename(r, target);
-    }
+      for (const auto& e : fs::directory_iterator(lod)) {
+        std::string id = marker_id(e.path().filename().string(), LodMarker::running);
+        if (!id.empty()) running.push_back(std::move(id));
+      }
+    for (const auto& id : running)
+      fs::rename(lod_marker_path(work_dir, id, LodMarker::running),
+                 lod_marker_path(work_dir, id,
+                                 running.size() == 1 ? LodMarker::crashed : LodMarker::suspect));
     log_warn("lod stage crashed (" + std::string(::strsignal(sig)) + ") with " +
              std::to_string(running.size()) + " building(s) running; " +
              (running.size() == 1 ? "it gets its fallback" : "retrying them one at a time"));

@@ -91,12 +91,7 @@ CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& pr
     } catch (const std::exception& e) {
       why = e.what();
     }
-    if (st == Status::ok)
-      ++s.ok;
-    else if (st == Status::fallback)
-      ++s.fallback;
-    else
-      ++s.failed;
+    s.add(st == Status::skipped ? Status::failed : st);
     if (st != Status::ok) s.problems.emplace_back(it.chunk->id, why);
   }
   std::sort(s.problems.begin(), s.problems.end());
@@ -214,8 +209,8 @@ SplitReport split_checked(SplitOptions so, const ProgressFn& progress) {
 CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   const auto t_start = std::chrono::steady_clock::now();
   const std::string dir = opt.out_dir;
-  const std::string work = (fs::path(dir) / "work").string();
-  const std::string tileset = (fs::path(dir) / "tileset").string();
+  const std::string work = run_work_dir(dir);
+  const std::string tileset = run_tileset_dir(dir);
   const int threads = resolve_threads(opt.threads);
   SplitOptions so = opt.split;
   so.work_dir = work;
@@ -274,22 +269,14 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
     co.skip_missing = ap.skip_missing;
     co.threads = threads;
     co.chains = &st.chains;  // the tileset's chains, not chosen again
-    res.cityjson =
-        write_cityjson(work, (fs::path(dir) / "buildings.city.jsonl").string(), co, progress);
+    res.cityjson = write_cityjson(work, run_cityjson_path(dir), co, progress);
     for (const auto& w : res.cityjson.warnings) log_warn(w);
   }
 
   // ---- summary + run report
   report.buildings = building_records(work, overrides);
   for (const auto& b : report.buildings) {
-    if (b.status == Status::ok)
-      ++report.ok;
-    else if (b.status == Status::fallback)
-      ++report.fallback;
-    else if (b.status == Status::skipped)
-      ++report.skipped;
-    else
-      ++report.failed;
+    report.add(b.status);
     if (b.status == Status::fallback || b.status == Status::failed)
       res.problems.push_back(b.id + " (" + to_string(b.status) + "): " + b.reason);
   }

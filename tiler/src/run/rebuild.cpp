@@ -82,8 +82,8 @@ std::vector<int> parse_select(const std::string& s) {
 RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
   const fs::path dir = o.dir;
   const std::string& id = o.building;
-  const std::string work = (dir / "work").string();
-  const fs::path tileset = dir / "tileset";
+  const std::string work = run_work_dir(dir.string());
+  const fs::path tileset = run_tileset_dir(dir.string());
   RunReport run = read_run_report(dir.string());
   const DirLock dir_lock(dir.string()), work_lock(work);  // one writer (dir_lock.hpp)
   run = read_run_report(dir.string());                    // as the lock holder sees it
@@ -166,7 +166,7 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
   res.added = d.added;
   res.removed = d.removed;
   // The CityJSON of a `tile` output follows (docs/cityjson.md).
-  const fs::path cj = dir / "buildings.city.jsonl";
+  const fs::path cj = run_cityjson_path(dir.string());
   if (fs::exists(cj)) {
     CityJsonOptions co;
     co.min_change_m = ap.min_change_m;

@@ -57,7 +57,7 @@ Staging::Staging(const fs::path& work) : work_(work) {
   dir_ = work_ / (".split.tmp." + std::to_string(::getpid()));
   fs::remove_all(dir_, ec);
   fs::create_directories(dir_ / "spill", ec);
-  fs::create_directories(dir_ / "chunks", ec);
+  fs::create_directories(chunks(), ec);
   fs::create_directories(dir_ / "faces", ec);
   if (ec) throw IoError(dir_.string(), "cannot create staging directory: " + ec.message());
   // Chunks written in place (no temp file, fsync or rename each), made durable by one
@@ -72,7 +72,7 @@ Staging::~Staging() {
 }
 
 void Staging::commit(const Manifest& m) {
-  const fs::path live = work_ / "chunks";
+  const fs::path live = chunks_dir(work_.string());
   const fs::path old = dir_ / "chunks.old";
   io::sync_file_system(chunks().string());
   std::error_code ec;

@@ -251,7 +251,7 @@ class Staging {
   fs::path spill() const { return dir_ / "spill"; }
   /// A scratch file of the staging directory (removed with it).
   fs::path scratch(const std::string& name) const { return dir_ / name; }
-  fs::path chunks() const { return dir_ / "chunks"; }
+  fs::path chunks() const { return chunks_dir(dir_.string()); }  ///< becomes WORK/chunks
   void drop_spill() {
     std::error_code ec;
     fs::remove_all(spill(), ec);

@@ -90,15 +90,14 @@ void Splitter::georeference() {
         const std::string conflict = unit_conflict(*crs_, in.info);
         if (!conflict.empty()) throw IoError(in.path, conflict);
       }
-    if (opt_.geoid == "egm96") {  // the explicit model wins over the CRS's (implied) datum
+    if (opt_.geoid ==
+        SplitOptions::Geoid::egm96) {  // the explicit model wins over the CRS's (implied) datum
       geo::TransformOptions to;
       to.height = geo::HeightMode::Egm96;
       georef_.emplace(geo::Georef::from_crs_bbox(*crs_, to_eigen(bbox_crs_), to));
       rep_.vertical = "heights orthometric (--geoid egm96) -> ellipsoidal via EGM96";
     } else {
-      const geo::VerticalMode mode =
-          opt_.vertical.empty() ? geo::VerticalMode::Auto : geo::parse_vertical_mode(opt_.vertical);
-      geo::VerticalChoice vc = geo::choose_vertical(*crs_, mode);
+      geo::VerticalChoice vc = geo::choose_vertical(*crs_, opt_.vertical);
       georef_.emplace(
           vc.transformer
               ? geo::Georef::from_transformer_bbox(std::move(vc.transformer), to_eigen(bbox_crs_))

@@ -67,6 +67,25 @@ std::uint64_t parse_memory_size(const std::string& s) {
   return static_cast<std::uint64_t>(v * mul);
 }
 
+SplitOptions::Geoid parse_geoid(const std::string& word) {
+  if (word.empty()) return SplitOptions::Geoid::none;
+  if (word == to_string(SplitOptions::Geoid::egm96)) return SplitOptions::Geoid::egm96;
+  throw std::invalid_argument("--geoid: only 'egm96' is supported, got '" + word + "'");
+}
+
+const char* to_string(SplitOptions::Geoid g) {
+  return g == SplitOptions::Geoid::egm96 ? "egm96" : "";
+}
+
+geo::VerticalMode parse_vertical(const std::string& word) {
+  for (geo::VerticalMode m :
+       {geo::VerticalMode::Auto, geo::VerticalMode::Ellipsoidal, geo::VerticalMode::Orthometric})
+    if (word == geo::to_string(m)) return m;
+  if (word.empty()) return geo::VerticalMode::Auto;
+  throw std::invalid_argument("--vertical: expected auto, ellipsoidal or orthometric, got '" +
+                              word + "'");
+}
+
 void SplitOptions::validate() const {
   auto positive = [](double v, const char* name) {
     if (!(v > 0) || !std::isfinite(v))
@@ -77,19 +96,13 @@ void SplitOptions::validate() const {
   if (!crs.empty() && !origin.empty())
     throw std::invalid_argument(
         "--crs and --origin exclude each other (--origin is for data in a local metric frame)");
-  if (!geoid.empty() && geoid != "egm96")
-    throw std::invalid_argument("--geoid: only 'egm96' is supported, got '" + geoid + "'");
-  if (!geoid.empty() && !origin.empty())
+  if (geoid != Geoid::none && !origin.empty())
     throw std::invalid_argument(
         "--geoid needs a CRS; with --origin heights are relative to the given ellipsoidal H");
-  if (!vertical.empty() && vertical != "auto" && vertical != "ellipsoidal" &&
-      vertical != "orthometric")
-    throw std::invalid_argument("--vertical: expected auto, ellipsoidal or orthometric, got '" +
-                                vertical + "'");
-  if (!vertical.empty() && vertical != "auto" && !origin.empty())
+  if (vertical != geo::VerticalMode::Auto && !origin.empty())
     throw std::invalid_argument(
         "--vertical needs a CRS; with --origin heights are relative to the given ellipsoidal H");
-  if (!geoid.empty() && vertical == "ellipsoidal")
+  if (geoid != Geoid::none && vertical == geo::VerticalMode::Ellipsoidal)
     throw std::invalid_argument(
         "--geoid egm96 (orthometric heights) contradicts --vertical ellipsoidal");
   if (footprints.empty() && (!footprints_layer.empty() || !footprints_id.empty()))
@@ -113,7 +126,7 @@ std::string SplitOptions::canonical() const {
   o.precision(17);
   // a "PG:" connection string's password stays out of the manifest
   static const std::regex pw(R"((password\s*=\s*)('[^']*'|\S+))", std::regex::icase);
-  o << "v=3;crs=" << crs << ";origin=" << origin << ";geoid=" << geoid
+  o << "v=3;crs=" << crs << ";origin=" << origin << ";geoid=" << to_string(geoid)
     << ";footprints=" << std::regex_replace(footprints, pw, "$1***")
     << ";footprint_buffer=" << footprint_buffer << ";memory_limit=" << memory_limit
     << ";cell=" << cell_size << ";halo=" << halo << ";max_halo=" << max_halo
@@ -127,8 +140,8 @@ std::string SplitOptions::canonical() const {
     << ";min_width=" << seg.min_width << ";low=" << seg.low_height << ","
     << seg.low_max_vegetation_ratio << "," << seg.low_min_planar_fraction;
   // v=2: heights follow the CRS by default (RD New -> NAP); v=1 work directories split again
-  o << ";vertical=" << (vertical.empty() ? "auto" : vertical)
-    << ";footprints_layer=" << footprints_layer << ";footprints_id=" << footprints_id
+  o << ";vertical=" << geo::to_string(vertical) << ";footprints_layer=" << footprints_layer
+    << ";footprints_id=" << footprints_id
     << ";unmatched=" << (unmatched == Unmatched::segment ? "segment" : "drop");
   if (!offset.empty()) o << ";offset=" << offset;
   return o.str();

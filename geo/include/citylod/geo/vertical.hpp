@@ -27,6 +27,8 @@ enum class VerticalMode {
 
 /// Parses "auto", "ellipsoidal", "orthometric". Throws GeoError naming the accepted words.
 VerticalMode parse_vertical_mode(const std::string& word);
+/// "auto" | "ellipsoidal" | "orthometric".
+const char* to_string(VerticalMode m);
 
 /// A vertical datum a horizontal CRS implies by national practice.
 struct ImpliedVertical {

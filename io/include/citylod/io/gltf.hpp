@@ -24,20 +24,17 @@
 
 #include <nlohmann/json.hpp>
 
+#include "citylod/lod/kinds.hpp"
+
 #include "citylod/io/types.hpp"
 
 namespace citylod::io {
-
-/// Kind of a LOD model; `fallback` is the extruded outline the LOD engine
-/// writes when a building's reconstruction fails.
-enum class LodKind : std::uint8_t { anchor = 0, interpolation = 1, fallback = 2 };
-const char* to_string(LodKind k);  ///< "anchor" | "interpolation" | "fallback"
 
 /// One row of the glb's property table (class "building" of schema "citylod").
 /// A feature is one LOD model of one building.
 struct GlbFeature {
   std::string building_id;
-  LodKind kind = LodKind::anchor;
+  lod::ModelKind kind = lod::ModelKind::anchor;
   int level = 0;        ///< LOD-Tree level set of the model
   int step = 0;         ///< traversal step that produced it (report.json)
   int model_index = 0;  ///< position in the building's kept chain, 0 = coarsest

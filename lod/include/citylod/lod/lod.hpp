@@ -2,6 +2,7 @@
 // for one building. Entry point: build_lod_tree().
 #pragma once
 
+#include "citylod/lod/kinds.hpp"
 #include "citylod/lod/params.hpp"
 #include "citylod/lod/types.hpp"
 
@@ -22,12 +23,9 @@ class LodError : public std::runtime_error {
   std::string stage_;
 };
 
-enum class ModelKind { Anchor, Interpolation, Fallback };
-const char* to_string(ModelKind k);
-
 /// One candidate LOD model of the set M.
 struct LodModel {
-  ModelKind kind = ModelKind::Anchor;
+  ModelKind kind = ModelKind::anchor;
   int level = 0;  ///< level set index k (anchor: finished level; interpolation: level in progress)
   int step = 0;   ///< number of coarser models in M before this one
   int cuts = 0;   ///< BSP-node splits needed to reach this model
@@ -85,7 +83,7 @@ struct LodStats {
 };
 
 struct LodResult {
-  std::string status = "ok";     ///< "ok" or "fallback"
+  Status status = Status::ok;    ///< ok or fallback (the engine returns no other)
   std::string reason;            ///< why a fallback was used
   std::vector<LodModel> models;  ///< candidate set M, coarse to fine
   std::vector<PlaneReport> planes;

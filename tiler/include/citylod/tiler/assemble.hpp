@@ -121,25 +121,7 @@ AssembleStats assemble(const std::string& work_dir, const std::string& out_dir,
 double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, double tolerance,
                           double stop_above = std::numeric_limits<double>::infinity());
 
-/// One model listed in report.json.
-struct ModelEntry {
-  std::string file;                        ///< path of the PLY
-  io::LodKind kind = io::LodKind::anchor;  ///< a fallback (the outline written when reconstruction
-                                           ///< fails) counts as an anchor
-  int level = 0, step = 0;
-  /// RMSE of the building's points to the model, metres (report.json's e2 x
-  /// the bbox diagonal / 100); < 0: not measured.
-  double rmse_m = -1;
-  bool anchor() const { return kind != io::LodKind::interpolation; }
-};
-
 struct LodReport;  // workdir.hpp (which includes this header)
-
-/// The models one building's report lists, paths made absolute against the
-/// building's LOD directory `dir`, with their RMSE; a listed file that does
-/// not exist is an IoError naming it and `report_path`.
-std::vector<ModelEntry> model_entries(const std::string& dir, const LodReport& report,
-                                      const std::string& report_path);
 
 /// A kept model is never worse (RMSE of the points) than a coarser kept model
 /// by more than this (metres): zooming in never makes a building worse.
@@ -155,8 +137,8 @@ constexpr double kChainMonotoneTolerance_m = 0.05;
 /// than the tolerance is dropped, and coarse -> fine a model worse than the
 /// best kept coarser one by more than the tolerance is dropped.
 /// error_m = max(Hausdorff to the finest, next kept error + 1 cm).
-ModelChoice choose_models(const std::vector<ModelEntry>& entries,
-                          const std::vector<io::TriangleMesh>& meshes, double min_change_m,
-                          double tolerance_m);
+/// `meshes[i]` is `report.models[i]` (kind, step and RMSE read from the report).
+ModelChoice choose_models(const LodReport& report, const std::vector<io::TriangleMesh>& meshes,
+                          double min_change_m, double tolerance_m);
 
 }  // namespace citylod::tiler

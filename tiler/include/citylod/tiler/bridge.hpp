@@ -38,10 +38,6 @@ lod::TriangleMesh to_lod_mesh(const io::TriangleMesh& m,
 io::TriangleMesh to_io_mesh(const lod::TriangleMesh& m, const io::Vec3d& origin);
 io::PolygonMesh to_io_polygons(const lod::PolygonMesh& m, const io::Vec3d& origin);
 
-ModelKind to_model_kind(lod::ModelKind k);
-/// "ok" | "fallback" | "failed" of a LodResult.
-Status to_status(const std::string& lod_status);
-
 /// "model_<step>_<kind>_L<level>": the file stem of a model.
 std::string model_stem(const lod::LodModel& m);
 /// The report.json record of a building's LOD result (models listed as <stem>.ply).

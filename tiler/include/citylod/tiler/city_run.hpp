@@ -30,9 +30,8 @@ namespace citylod::tiler {
 // ------------------------------------------------------------ the LOD stage, supervised
 
 /// Outcome of the LOD stage over the buildings it covers (a shard, or all).
-struct CityLodSummary {
+struct CityLodSummary : StatusCounts {  ///< ok / fallback / failed
   std::size_t buildings = 0, computed = 0, reused = 0, restarts = 0;
-  std::size_t ok = 0, fallback = 0, failed = 0;
   std::vector<std::pair<std::string, std::string>>
       problems;  ///< (id, reason), fallback/failed, id order
   double seconds = 0;

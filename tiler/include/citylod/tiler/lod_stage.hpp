@@ -102,10 +102,9 @@ struct LodStagePlan {
 LodStagePlan plan_lod_stage(const LodStageOptions& o);
 
 /// Counts of one run of the stage (this process).
-struct LodStageReport {
-  std::size_t total = 0;  ///< chunks in this shard
+struct LodStageReport : StatusCounts {  ///< ok / fallback / failed
+  std::size_t total = 0;                ///< chunks in this shard
   std::size_t computed = 0, reused = 0;
-  std::size_t ok = 0, fallback = 0, failed = 0;
   std::vector<std::pair<std::string, std::string>> problems;  ///< (id, reason) for fallback/failed
   double seconds = 0;
 };

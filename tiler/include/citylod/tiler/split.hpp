@@ -50,6 +50,7 @@
 #include <string>
 #include <vector>
 
+#include "citylod/geo/vertical.hpp"
 #include "citylod/io/types.hpp"
 #include "citylod/tiler/progress.hpp"
 #include "citylod/tiler/segment.hpp"
@@ -61,13 +62,14 @@ struct SplitOptions {
   std::string work_dir;             ///< WORK
   std::string crs;                  ///< --crs; "" = the CRS inside the (LAS) file
   std::string origin;               ///< --origin "LAT,LON,H": data already in local ENU metres
-  std::string geoid;                ///< "" or "egm96" (orthometric heights -> ellipsoidal)
+  /// --geoid: input heights are orthometric on this model (-> ellipsoidal); none: not said.
+  enum class Geoid { none, egm96 } geoid = Geoid::none;
   /// --offset "X,Y[,Z]": added to every input coordinate before the CRS (tiles written in
   /// a shifted frame); "" = none, or the <SRSOrigin> of a ContextCapture metadata.xml.
   std::string offset;
-  /// --vertical: "" or "auto" (from the CRS: geo::choose_vertical; RD New -> NAP),
-  /// "ellipsoidal", "orthometric". Tilesets always carry ellipsoidal heights.
-  std::string vertical;
+  /// --vertical: Auto (from the CRS: geo::choose_vertical; RD New -> NAP), Ellipsoidal,
+  /// Orthometric. Tilesets always carry ellipsoidal heights.
+  geo::VerticalMode vertical = geo::VerticalMode::Auto;
   /// Footprints: any OGR source (GeoPackage, SQLite, Shapefile, GeoJSON, FlatGeobuf,
   /// "PG:..."); "" = cluster the points. Reprojected from the source's CRS to the scene's.
   std::string footprints;
@@ -135,6 +137,12 @@ struct SplitReport {
 };
 
 SplitReport split_scene(const SplitOptions& options, const ProgressFn& progress = {});
+
+/// The words of --geoid ("" = none, "egm96") and --vertical ("" or "auto",
+/// "ellipsoidal", "orthometric"); std::invalid_argument naming the option and the choices.
+SplitOptions::Geoid parse_geoid(const std::string& word);
+const char* to_string(SplitOptions::Geoid g);  ///< "" | "egm96"
+geo::VerticalMode parse_vertical(const std::string& word);
 
 /// "2G", "512M", "1.5GiB", "1073741824" -> bytes; throws std::invalid_argument.
 std::uint64_t parse_memory_size(const std::string& s);

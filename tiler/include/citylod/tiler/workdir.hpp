@@ -31,6 +31,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -39,28 +40,29 @@
 #include <nlohmann/json.hpp>
 
 #include "citylod/io/gltf.hpp"
+#include "citylod/lod/kinds.hpp"
 #include "citylod/tiler/assemble.hpp"
 
 namespace citylod::tiler {
 
 // ------------------------------------------------------------ enums
 
-/// The outcome of one building, in the manifest, report.json and run_report.json.
-/// JSON spelling: "pending" | "ok" | "fallback" | "failed" | "skipped".
-enum class Status { pending, ok, fallback, failed, skipped };
-const char* to_string(Status s);
-/// Throws std::invalid_argument for an unknown spelling.
-Status status_from_string(const std::string& s);
+// A building's outcome (Status: in the manifest, report.json and run_report.json)
+// and a model's kind (ModelKind: in report.json, buildings.json and the glb
+// features) are the LOD engine's words, spelled once (lod/kinds.hpp). In the
+// records a fallback counts as an anchor (is_anchor).
+using lod::is_anchor;
+using lod::model_kind_from_string;
+using lod::ModelKind;
+using lod::Status;
+using lod::status_from_string;
 
-/// The kind of a candidate model: the glb writer's enum is the one spelling
-/// (lod::ModelKind converts through bridge.hpp). JSON: "anchor" |
-/// "interpolation" | "fallback". A fallback counts as an anchor.
-using ModelKind = io::LodKind;
-/// Throws std::invalid_argument for an unknown spelling.
-ModelKind model_kind_from_string(const std::string& s);
-inline bool is_anchor(ModelKind k) {
-  return k != ModelKind::interpolation;
-}
+/// How many buildings ended how: the one tally of the LOD stage, its supervised
+/// summary and the run report. `pending` (never written) counts as failed.
+struct StatusCounts {
+  std::size_t ok = 0, fallback = 0, failed = 0, skipped = 0;
+  void add(Status s);
+};
 
 // ------------------------------------------------------------ manifest.json
 
@@ -134,11 +136,39 @@ bool is_safe_id(const std::string& id);
 /// Throws io::IoError(file, "building id '<id>' is not a safe name ...") unless is_safe_id(id).
 void require_safe_id(const std::string& id, const std::string& file);
 
+// ------------------------------------------------------------ paths
+// Every file and folder name of a run is spelled here, in workdir.cpp, alone:
+//   DIR/work  DIR/tileset  DIR/buildings.city.jsonl  DIR/run_report.json   (`citylod tile -o DIR`)
+//   TILESET/tileset.json  TILESET/buildings.json                              (assemble)
+//   WORK/manifest.json  WORK/chunks/<id>.ply  WORK/overrides.json
+//   WORK/lod/<id>/report.json  WORK/lod/<id>/params.json
+//   WORK/lod/<id>.running | .suspect | .crashed                      (LodMarker)
+
+std::string run_work_dir(const std::string& out_dir);       ///< DIR/work
+std::string run_tileset_dir(const std::string& out_dir);    ///< DIR/tileset
+std::string run_cityjson_path(const std::string& out_dir);  ///< DIR/buildings.city.jsonl
+/// A tileset folder's root file (DIR/tileset/tileset.json; its buildings.json beside it).
+std::string tileset_json_path(const std::string& tileset_dir);
+std::string buildings_json_path(const std::string& tileset_dir);
 std::string manifest_path(const std::string& work_dir);
+std::string chunks_dir(const std::string& work_dir);  ///< WORK/chunks
+std::string lod_root(const std::string& work_dir);    ///< WORK/lod
 // The paths of one building; throw std::invalid_argument when !is_safe_id(id).
 std::string chunk_path(const std::string& work_dir, const std::string& id);
 std::string lod_dir(const std::string& work_dir, const std::string& id);
 std::string lod_report_path(const std::string& work_dir, const std::string& id);
+/// report.json and params.json of a LOD output folder (WORK/lod/<id>, or `citylod lod -o DIR`).
+std::string report_file(const std::string& lod_output_dir);
+std::string params_file(const std::string& lod_output_dir);
+
+/// The LOD stage's marker beside WORK/lod/<id>: `running` while the engine works on
+/// the building; after a crash the supervisor renames it `crashed` (the only building
+/// running: it gets its fallback) or `suspect` (one of several: retried alone).
+enum class LodMarker { running, suspect, crashed };
+std::string lod_marker_path(const std::string& work_dir, const std::string& id, LodMarker m);
+/// The building id of a marker's file name ("<id>.running" -> "<id>"); "" when
+/// `file_name` is not a marker of kind `m`.
+std::string marker_id(const std::string& file_name, LodMarker m);
 
 // ------------------------------------------------------------ lod/<id>/report.json
 
@@ -184,6 +214,12 @@ struct LodReport {
 
   /// The models before any selection.
   const std::vector<ModelRecord>& all_models() const { return models_all ? *models_all : models; }
+  /// RMSE of the building's points to models[i], metres (its e2 x the bbox
+  /// diagonal / 100); -1: not measured.
+  double rmse_m(std::size_t i) const {
+    const double e2 = models.at(i).e2;
+    return e2 >= 0 && bbox_diagonal_m > 0 ? e2 / 100 * bbox_diagonal_m : -1;
+  }
 };
 
 /// Throws io::IoError naming the file when it is missing, not JSON, or malformed.
@@ -192,6 +228,23 @@ LodReport read_lod_report(const std::string& path);
 std::optional<LodReport> find_lod_report(const std::string& work_dir, const std::string& id);
 /// Atomic. Returns false (and writes nothing) when the file already holds exactly these bytes.
 bool write_lod_report(const std::string& path, const LodReport& r);
+
+/// A building's LOD output as assemble and the CityJSON writer read it: its
+/// report, the files of its models (absolute, in the order of report.models)
+/// and their meshes.
+struct BuildingModels {
+  LodReport report;
+  std::string report_path;
+  std::vector<std::string> files;
+  std::vector<io::TriangleMesh> meshes;
+};
+/// Reads WORK/lod/<id>/report.json and every model it lists, each with `read`
+/// (which chooses the frame). io::IoError naming the report when it is missing
+/// or lists no model (with its status and reason), or naming a listed model
+/// file that does not exist.
+BuildingModels read_building_models(
+    const std::string& work_dir, const std::string& id,
+    const std::function<io::TriangleMesh(const std::string& file)>& read);
 
 // ------------------------------------------------------------ overrides.json
 
@@ -220,7 +273,8 @@ struct BuildingRecord {
   std::vector<int> select;
 };
 
-struct RunReport {
+/// The counts (StatusCounts) are its "summary".
+struct RunReport : StatusCounts {
   std::string command = "tile";
   std::vector<std::string> inputs;
   int threads = 1;
@@ -246,12 +300,10 @@ struct RunReport {
     int depth = 0;
     std::vector<std::string> warnings;
   } assemble;
-  std::size_t ok = 0, fallback = 0, failed = 0, skipped = 0;  ///< "summary"
   double seconds_total = 0;
   std::uint64_t peak_rss_self = 0, peak_rss_children = 0;  ///< bytes
   std::map<std::string, std::string> lod_params;           ///< without "threads"
   AssembleParams assemble_params;                          ///< threads and force are not recorded
-  std::string work = "work", tileset = "tileset";
   std::vector<BuildingRecord> buildings;
   struct LastRebuild {
     std::string building;
@@ -272,7 +324,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Lod, seconds, buildin
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RunReport::Assemble, seconds, buildings, tiles,
                                                 glb_bytes, models_kept, depth, warnings)
 
-std::string run_report_path(const std::string& out_dir);
+std::string run_report_path(const std::string& out_dir);  ///< DIR/run_report.json
 /// Throws std::runtime_error naming the file when it is missing or malformed.
 RunReport read_run_report(const std::string& out_dir);
 void write_run_report(const std::string& out_dir, const RunReport& r);  ///< atomic
