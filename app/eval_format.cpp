@@ -194,7 +194,7 @@ nlohmann::ordered_json to_json(const TilesetEval& t) {
     J j{{"building", m.building}, {"level", m.level}, {"tile", m.tile}};
     j["model_index"] = m.model_index >= 0 ? J(m.model_index) : J(nullptr);
     j["step"] = m.step >= 0 ? J(m.step) : J(nullptr);
-    j["kind"] = m.kind.empty() ? J(nullptr) : J(m.kind);
+    j["kind"] = m.kind ? J(lod::to_string(*m.kind)) : J(nullptr);
     j["triangles"] = m.triangles;
     j["vertices"] = m.vertices;
     put_check(j, m.check);
@@ -253,9 +253,9 @@ std::string to_text(const TilesetEval& t) {
     const std::string model = m.model_index >= 0 ? std::to_string(m.model_index) : "-";
     out +=
         strf("%-*s %5d %-*s %5s %-13s %9zu %-6s %-8s %-8s %8s %12.3f", int(idw), m.building.c_str(),
-             m.level, int(tw), m.tile.c_str(), model.c_str(), m.kind.empty() ? "-" : m.kind.c_str(),
-             m.triangles, yes_no(m.check.closed), yes_no(m.check.edge_manifold),
-             yes_no(m.check.self_intersecting),
+             m.level, int(tw), m.tile.c_str(), model.c_str(),
+             m.kind ? lod::to_string(*m.kind) : "-", m.triangles, yes_no(m.check.closed),
+             yes_no(m.check.edge_manifold), yes_no(m.check.self_intersecting),
              m.val3dity_error == 0 ? "valid" : std::to_string(m.val3dity_error).c_str(), m.volume);
     if (ev) out += strf(" %8.3f %8.3f %11.3f", m.e1, m.e2, m.hausdorff);
     out += "\n";

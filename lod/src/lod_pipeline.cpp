@@ -65,7 +65,7 @@ class Progress {
  public:
   Progress(ProgressFn fn, void* user) : fn_(fn), user_(user) {}
   void operator()(double f, const char* stage) const {
-    if (fn_ && !fn_(f, stage, user_)) throw LodError(stage, "cancelled");
+    if (fn_ && !fn_(f, stage, user_)) throw LodCancelled(stage);
   }
 
  private:
@@ -661,17 +661,18 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   const LodResult fresh = R;
   try {
     run_method(in, samples, params, progress, budget, R);
+  } catch (const LodCancelled&) {
+    throw;  // asked to stop: no model, not even the fallback
   } catch (const std::bad_alloc& e) {
     fall_back(e.what());
   } catch (const std::exception& e) {
     // (ours) A point cloud the rays could not label (a scan with many wall points
     // but gaps in them) is tried again as airborne LiDAR: walls on its outline,
-    // cells labelled by its roof height field. Not after the budget or a cancel.
+    // cells labelled by its roof height field. Not after the budget.
     const std::string why = e.what();
     const bool retry = !in.is_mesh() && params.airborne.mode == AirborneMode::Auto &&
                        !airborne_input(in, samples, params) &&
-                       why.find("time budget exceeded") == std::string::npos &&
-                       why.find("cancelled") == std::string::npos;
+                       why.find("time budget exceeded") == std::string::npos;
     if (!retry) {
       fall_back(why);
     } else {
@@ -683,6 +684,8 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
                               "labelled by the roof height field)");
       try {
         run_method(in, samples, as_airborne, progress, budget, R);
+      } catch (const LodCancelled&) {
+        throw;
       } catch (const std::exception& e2) {
         fall_back(why + "; as airborne LiDAR, " + e2.what());
       }

@@ -195,6 +195,31 @@ TEST(LodPipeline, TimeBudgetGivesARecordedFallback) {
   EXPECT_TRUE(check_mesh(r.models[0].mesh).closed);
 }
 
+// Cancelling (the progress callback returns false) stops the building with
+// LodCancelled from the stage it was in: no fallback model is made first.
+TEST(LodPipeline, CancelThrowsFromTheStageWithoutAFallback) {
+  struct Seen {
+    std::vector<std::string> stages;
+  } seen;
+  const ProgressFn stop_at_traversal = [](double, const char* stage, void* user) {
+    static_cast<Seen*>(user)->stages.push_back(stage);
+    return std::string(stage) != "traversal";
+  };
+  try {
+    build_lod_tree(test::chimney_windows().input, fast_params(), stop_at_traversal, &seen);
+    ADD_FAILURE() << "a cancelled building returned a result";
+  } catch (const LodCancelled& e) {
+    EXPECT_EQ(e.stage(), "traversal");
+    EXPECT_NE(std::string(e.what()).find("cancelled"), std::string::npos) << e.what();
+  }
+  ASSERT_FALSE(seen.stages.empty());
+  EXPECT_EQ(seen.stages.back(), "traversal");  // nothing ran after the cancel (no metrics)
+  // A callback that never cancels changes nothing.
+  const ProgressFn go_on = [](double, const char*, void*) { return true; };
+  const LodResult r = build_lod_tree(test::chimney_windows().input, fast_params(), go_on, nullptr);
+  EXPECT_EQ(r.status, lod::Status::ok) << r.reason;
+}
+
 // A wall whose input normals point into the building (as on patches of real
 // scans) is turned round before IO-View; the model is the box.
 TEST(LodPipeline, WallWithInwardNormalsIsTurnedRound) {

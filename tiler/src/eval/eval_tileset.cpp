@@ -38,7 +38,7 @@ namespace {
 struct Group {
   std::string building;
   int model_index = -1, step = -1;
-  std::string kind;
+  std::optional<ModelKind> kind;
   io::TriangleMesh
       mesh;  // content frame, z-up (node transforms and the y-up -> z-up rotation applied)
 };
@@ -68,7 +68,7 @@ std::vector<Group> read_groups(const TilesetWalk::Content& c) {
       if (found == by_feature.end()) {
         std::string id = f >= 0 ? "feature-" + std::to_string(f) : "(no feature id)";
         int model_index = -1, step = -1;
-        std::string kind;
+        std::optional<ModelKind> kind;
         if (table && f >= 0 && std::size_t(f) < table->count) {
           const auto s = table->strings.find("building_id");
           if (s != table->strings.end()) id = s->second[std::size_t(f)];
@@ -77,7 +77,10 @@ std::vector<Group> read_groups(const TilesetWalk::Content& c) {
           const auto st = table->numbers.find("step");
           if (st != table->numbers.end()) step = int(st->second[std::size_t(f)]);
           const auto k = table->strings.find("lod_kind");
-          if (k != table->strings.end()) kind = k->second[std::size_t(f)];
+          if (k != table->strings.end()) try {
+              kind = model_kind_from_string(k->second[std::size_t(f)]);
+            } catch (const std::invalid_argument&) {  // not one of ours: no kind
+            }
         }
         auto [it, fresh] = groups.try_emplace(id);
         if (fresh) {

@@ -23,6 +23,13 @@ class LodError : public std::runtime_error {
   std::string stage_;
 };
 
+/// Thrown when the progress callback asks to stop (ProgressFn returned false):
+/// a cancelled building has no result at all, not a fallback.
+class LodCancelled : public LodError {
+ public:
+  explicit LodCancelled(const std::string& stage) : LodError(stage, "cancelled") {}
+};
+
 /// One candidate LOD model of the set M.
 struct LodModel {
   ModelKind kind = ModelKind::anchor;
@@ -92,7 +99,8 @@ struct LodResult {
 
 /// The method for one building, top to bottom. Never throws for geometric
 /// trouble inside the pipeline: a fallback model with a reason is returned.
-/// Throws LodError only for input that is not a building at all (empty, NaN).
+/// Throws LodError only for input that is not a building at all (empty, NaN),
+/// and LodCancelled when `progress` returns false.
 LodResult build_lod_tree(const BuildingInput& input, const LodParams& params,
                          ProgressFn progress = nullptr, void* user = nullptr);
 

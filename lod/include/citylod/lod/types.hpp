@@ -48,8 +48,8 @@ struct TriangleMesh {
 };
 
 /// Progress and cancellation: called with a fraction in [0,1] and a stage
-/// name; return false to cancel (the engine then throws LodError with the
-/// stage and "cancelled").
+/// name; return false to cancel (the engine then throws LodCancelled, a
+/// LodError naming the stage and "cancelled", from the stage it was in).
 using ProgressFn = bool (*)(double fraction, const char* stage, void* user);
 
 }  // namespace citylod::lod

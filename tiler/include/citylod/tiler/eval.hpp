@@ -21,6 +21,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -101,7 +102,9 @@ struct TileMeshEval {
   int level = 0;         ///< depth of the tile (root = 0)
   std::string tile;      ///< content file, relative to the tileset directory
   int model_index = -1, step = -1;
-  std::string kind;
+  /// The feature's lod_kind; none without a property table or with a spelling
+  /// citylod does not write (a tileset from elsewhere).
+  std::optional<lod::ModelKind> kind;
   std::size_t triangles = 0, vertices = 0;  ///< after welding equal stored positions
   lod::MeshCheck check;
   /// lod::check_solid at val3dity's tolerances of the mesh as decoded (triangles as
