@@ -123,32 +123,37 @@ int parse_threads(const ArgParser& args) {
 
 // ------------------------------------------------------------ assemble
 void declare_assemble_options(ArgParser& args) {
-  args.option("max-triangles", 0, "N", "triangle budget of one tile glb", "250000");
-  args.option("max-bytes", 0, "BYTES", "geometry byte budget of one tile glb", "4194304");
+  const AssembleParams d;  // the defaults, declared once (assemble.hpp)
+  args.option("max-triangles", 0, "N", "triangle budget of one tile glb",
+              std::to_string(d.max_tile_triangles));
+  args.option("max-bytes", 0, "BYTES", "geometry byte budget of one tile glb",
+              std::to_string(d.max_tile_bytes));
   args.option(
       "extent-factor", 0, "F",
       "children of a tile with error e span at most F*e metres each (0 = only the budgets split)",
-      "50");
+      num(d.tile_extent_factor));
   args.option("min-tile-extent", 0, "M",
-              "... but at least M metres: leaves gather the buildings of such a block", "0");
+              "... but at least M metres: leaves gather the buildings of such a block",
+              num(d.min_tile_extent_m));
   args.option("max-tiles-per-file", 0, "N",
               "tileset JSON files of at most about N tiles (larger subtrees: external tilesets)",
-              "1000");
+              std::to_string(d.max_tiles_per_file));
   args.option("min-leaf-bytes", 0, "B",
               "buildings reaching their finest model get leaves of their own (stored once) when "
               "they total >= B bytes of geometry (else they are repeated down the chain)",
-              "65536");
+              std::to_string(d.min_leaf_bytes));
   args.option("min-change", 0, "M",
               "keep an interpolation model only if it differs by >= M metres (Hausdorff) from its "
               "kept neighbours",
-              "0.1");
+              num(d.min_change_m));
   args.option("hausdorff-tolerance", 0, "M",
-              "accuracy of the Hausdorff distances between models, metres", "0.1");
+              "accuracy of the Hausdorff distances between models, metres",
+              num(d.hausdorff_tolerance_m));
   args.flag("quantize", 0, "KHR_mesh_quantization: int16 positions and normals (smaller glbs)");
   args.option("compression", 0, "none|meshopt",
               "glb geometry: EXT_meshopt_compression with quantized positions and normals "
               "(meshopt), or plain accessors (none)",
-              "meshopt");
+              io::to_string(d.compression));
   args.flag("building-models", 0,
             "also write buildings/*.glb, every kept model of a building in one file (the viewer's "
             "LOD slider reads the models from the tiles)");
