@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -149,6 +150,42 @@ const char* marker_suffix(LodMarker m) {
   return ".running";
 }
 }  // namespace
+
+std::string dir_lock_path(const std::string& d) {
+  return (fs::path(d) / ".citylod.lock").string();
+}
+std::string shard_lock_path(const std::string& d, int index, int count) {
+  return (fs::path(d) /
+          (".citylod.shard-" + std::to_string(index) + "-of-" + std::to_string(count) + ".lock"))
+      .string();
+}
+std::string output_lock_path(const std::string& out) {
+  fs::path p = fs::absolute(out).lexically_normal();
+  if (p.filename().empty()) p = p.parent_path();
+  return (p.parent_path() / ("." + p.filename().string() + ".citylod.lock")).string();
+}
+
+namespace {
+constexpr const char* kSplitStaging = ".split.tmp.";
+}  // namespace
+
+std::string split_staging_dir(const std::string& w, long pid) {
+  return (fs::path(w) / (kSplitStaging + std::to_string(pid))).string();
+}
+long split_staging_pid(const std::string& name) {
+  const std::string prefix = kSplitStaging;
+  if (name.rfind(prefix, 0) != 0) return -1;
+  return std::max(0L, std::strtol(name.c_str() + prefix.size(), nullptr, 10));
+}
+std::string split_spill_dir(const std::string& s) {
+  return (fs::path(s) / "spill").string();
+}
+std::string split_faces_dir(const std::string& s) {
+  return (fs::path(s) / "faces").string();
+}
+std::string split_old_chunks_dir(const std::string& s) {
+  return (fs::path(s) / "chunks.old").string();
+}
 
 std::string lod_marker_path(const std::string& w, const std::string& id, LodMarker m) {
   return lod_dir(w, id) + marker_suffix(m);

@@ -1,5 +1,6 @@
 // One writer per directory (dir_lock.hpp): flock(2) on a lock file, counted per process.
 #include "citylod/tiler/dir_lock.hpp"
+#include "citylod/tiler/workdir.hpp"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -59,22 +60,16 @@ DirBusy::DirBusy(const std::string& dir, long pid)
                          "; wait for it to finish or use another directory"),
       pid_(pid) {}
 
-DirLock::DirLock(const std::string& dir, Mode mode)
-    : DirLock((fs::path(dir) / ".citylod.lock").string(), dir, mode) {}
+DirLock::DirLock(const std::string& dir, Mode mode) : DirLock(dir_lock_path(dir), dir, mode) {}
 
 DirLock DirLock::for_shard(const std::string& dir, int index, int count) {
-  return DirLock((fs::path(dir) / (".citylod.shard-" + std::to_string(index) + "-of-" +
-                                   std::to_string(count) + ".lock"))
-                     .string(),
+  return DirLock(shard_lock_path(dir, index, count),
                  dir + " (shard " + std::to_string(index) + "/" + std::to_string(count) + ")",
                  Mode::exclusive);
 }
 
 DirLock DirLock::for_output(const std::string& out) {
-  fs::path p = fs::absolute(out).lexically_normal();
-  if (p.filename().empty()) p = p.parent_path();
-  return DirLock((p.parent_path() / ("." + p.filename().string() + ".citylod.lock")).string(), out,
-                 Mode::exclusive);
+  return DirLock(output_lock_path(out), out, Mode::exclusive);
 }
 
 DirLock::DirLock(const std::string& lock_file, const std::string& what, Mode mode) {

@@ -54,11 +54,11 @@ Staging::Staging(const fs::path& work) : work_(work) {
   fs::create_directories(work_, ec);
   if (ec) throw IoError(work_.string(), "cannot create work directory: " + ec.message());
   remove_stale();
-  dir_ = work_ / (".split.tmp." + std::to_string(::getpid()));
+  dir_ = split_staging_dir(work_.string(), long(::getpid()));
   fs::remove_all(dir_, ec);
-  fs::create_directories(dir_ / "spill", ec);
+  fs::create_directories(spill(), ec);
   fs::create_directories(chunks(), ec);
-  fs::create_directories(dir_ / "faces", ec);
+  fs::create_directories(faces(), ec);
   if (ec) throw IoError(dir_.string(), "cannot create staging directory: " + ec.message());
   // Chunks written in place (no temp file, fsync or rename each), made durable by one
   // syncfs in commit(): a chunk's fsync was 7 % of a replica's split and most of its wait.
@@ -73,7 +73,7 @@ Staging::~Staging() {
 
 void Staging::commit(const Manifest& m) {
   const fs::path live = chunks_dir(work_.string());
-  const fs::path old = dir_ / "chunks.old";
+  const fs::path old = split_old_chunks_dir(dir_.string());
   io::sync_file_system(chunks().string());
   std::error_code ec;
   const bool had_live = fs::exists(live);
@@ -100,10 +100,8 @@ void Staging::commit(const Manifest& m) {
 void Staging::remove_stale() {
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(work_, ec)) {
-    const std::string name = e.path().filename().string();
-    const std::string prefix = ".split.tmp.";
-    if (name.rfind(prefix, 0) != 0) continue;
-    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    const long pid = split_staging_pid(e.path().filename().string());
+    if (pid < 0) continue;  // not a staging folder
     if (pid > 0 && pid != ::getpid() && ::kill(static_cast<pid_t>(pid), 0) == 0)
       throw IoError(work_.string(), "another 'citylod split' (pid " + std::to_string(pid) +
                                         ") is writing this work directory");

@@ -248,7 +248,7 @@ class Staging {
   Staging(const Staging&) = delete;
   Staging& operator=(const Staging&) = delete;
 
-  fs::path spill() const { return dir_ / "spill"; }
+  fs::path spill() const { return split_spill_dir(dir_.string()); }
   /// A scratch file of the staging directory (removed with it).
   fs::path scratch(const std::string& name) const { return dir_ / name; }
   fs::path chunks() const { return chunks_dir(dir_.string()); }  ///< becomes WORK/chunks
@@ -257,7 +257,7 @@ class Staging {
     fs::remove_all(spill(), ec);
   }
   /// Mesh scenes: face records, chunk claims and won triangles.
-  fs::path faces() const { return dir_ / "faces"; }
+  fs::path faces() const { return split_faces_dir(dir_.string()); }
   void drop_faces() {
     std::error_code ec;
     fs::remove_all(faces(), ec);

@@ -143,6 +143,8 @@ void require_safe_id(const std::string& id, const std::string& file);
 //   WORK/manifest.json  WORK/chunks/<id>.ply  WORK/overrides.json
 //   WORK/lod/<id>/report.json  WORK/lod/<id>/params.json
 //   WORK/lod/<id>.running | .suspect | .crashed                      (LodMarker)
+//   WORK/.split.tmp.<pid>/{spill,faces,chunks,chunks.old}               (split's staging)
+//   DIR/.citylod.lock  DIR/.citylod.shard-<i>-of-<n>.lock  PARENT/.<name>.citylod.lock
 
 std::string run_work_dir(const std::string& out_dir);       ///< DIR/work
 std::string run_tileset_dir(const std::string& out_dir);    ///< DIR/tileset
@@ -160,6 +162,25 @@ std::string lod_report_path(const std::string& work_dir, const std::string& id);
 /// report.json and params.json of a LOD output folder (WORK/lod/<id>, or `citylod lod -o DIR`).
 std::string report_file(const std::string& lod_output_dir);
 std::string params_file(const std::string& lod_output_dir);
+
+/// The locks of dir_lock.hpp: DIR/.citylod.lock (a directory written in place),
+/// DIR/.citylod.shard-<i>-of-<n>.lock (a LOD shard), PARENT/.<name>.citylod.lock
+/// (an output switched as a whole, beside it).
+std::string dir_lock_path(const std::string& dir);
+std::string shard_lock_path(const std::string& dir, int index, int count);
+std::string output_lock_path(const std::string& out);
+
+/// The split's staging folder WORK/.split.tmp.<pid> and what it holds: spill/
+/// (points by cell), faces/ (mesh triangles by cell), chunks/ (becomes
+/// WORK/chunks; chunks_dir of the staging folder) and chunks.old (the previous
+/// WORK/chunks while they are swapped).
+std::string split_staging_dir(const std::string& work_dir, long pid);
+/// The pid of a split staging folder's name (".split.tmp.<pid>"; 0 when the rest is not
+/// a number); -1 when `file_name` is not a split staging folder's.
+long split_staging_pid(const std::string& file_name);
+std::string split_spill_dir(const std::string& staging_dir);
+std::string split_faces_dir(const std::string& staging_dir);
+std::string split_old_chunks_dir(const std::string& staging_dir);
 
 /// The LOD stage's marker beside WORK/lod/<id>: `running` while the engine works on
 /// the building; after a crash the supervisor renames it `crashed` (the only building
