@@ -134,6 +134,11 @@ ArgParser& ArgParser::usage(const std::string& s) {
   synopsis_ = s;
   return *this;
 }
+ArgParser& ArgParser::epilog(const std::string& s) {
+  epilog_ = s;
+  return *this;
+}
+
 ArgParser& ArgParser::describe(const std::string& s) {
   description_ = s;
   return *this;
@@ -325,6 +330,7 @@ std::string ArgParser::help_text() const {
       if (!o.def.empty()) help += " (default: " + o.def + ")";
       s += row(left, help);
     }
+  if (!epilog_.empty()) s += "\n" + epilog_;
   return s;
 }
 

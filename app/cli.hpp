@@ -95,6 +95,8 @@ class ArgParser {
 
   ArgParser& usage(const std::string& positional_synopsis);  ///< e.g. "FILE..."
   ArgParser& describe(const std::string& text);              ///< shown under the usage line
+  /// Text printed after the options in --help (e.g. a table of parameters).
+  ArgParser& epilog(const std::string& s);
   /// A boolean switch.
   ArgParser& flag(const std::string& name, char short_name, const std::string& help);
   /// An option with a value; `def` is shown in --help and returned by get() when absent.
@@ -133,7 +135,7 @@ class ArgParser {
 
   std::string command_;
   std::vector<std::string> args_;
-  std::string synopsis_, description_;
+  std::string synopsis_, description_, epilog_;
   std::vector<Opt> opts_;
   std::vector<Pos> pos_;
   std::map<std::string, std::string> values_;

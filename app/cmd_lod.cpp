@@ -66,7 +66,8 @@ int cmd_lod(ArgParser& args) {
   args.option("shard", 0, "I/N",
               "work directory: process only shard I of N (0-based), e.g. for Slurm arrays");
   args.option("building", 'b', "ID", "work directory: recompute only this building");
-  declare_lod_param_options(args);
+  const lod::LodParams city = city_lod_params();
+  declare_lod_param_options(args, lod::LodParams{}, &city);
   declare_threads_option(args,
                          "threads (single building: inside it; work directory: buildings at once)");
   args.flag("dump-planes", 0, "write planes.ply: plane inliers coloured by level set");

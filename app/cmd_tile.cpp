@@ -21,7 +21,7 @@ int cmd_tile(ArgParser& args) {
           "Per-building changes: 'citylod rebuild DIR --building ID'.");
   args.option("out", 'o', "DIR", "output directory (work/, tileset/, run_report.json)");
   declare_split_options(args);
-  declare_lod_param_options(args);
+  declare_lod_param_options(args, city_lod_params());
   declare_threads_option(args,
                          "cells segmented at once (split), buildings processed at once (LOD stage) "
                          "and assemble's threads");

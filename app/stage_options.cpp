@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 
 namespace citylod::app {
@@ -97,10 +98,38 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
 }
 
 // ------------------------------------------------------------ lod
-void declare_lod_param_options(ArgParser& args) {
+void declare_lod_param_options(ArgParser& args, const lod::LodParams& defaults,
+                               const lod::LodParams* city) {
   args.option("set", 's', "NAME=VALUE[,...]",
               "override parameters, e.g. planes.epsilon=0.2,tree.merge_k=8");
   args.option("config", 'c', "FILE", "JSON object of parameters (as written to params.json)");
+  // The parameters' table, from their one declaration (lod/src/params.cpp: visit).
+  std::string t = "LOD parameters (--set NAME=VALUE; the paper's defaults";
+  t += city ? "; a work directory's buildings start from the city values):\n"
+            : ", as this command uses them):\n";
+  const std::vector<lod::ParamInfo> d = defaults.describe();
+  const std::vector<lod::ParamInfo> c = city ? city->describe() : d;
+  // 0.15, not params.json's round-trip 0.14999999999999999
+  const auto shown = [](const std::string& v) {
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (v.empty() || *end != '\0') return v;
+    char b[32];
+    std::snprintf(b, sizeof b, "%.10g", x);
+    return std::string(b);
+  };
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    std::string left = d[i].name + " = " + shown(d[i].value);
+    if (!d[i].unit.empty()) left += " " + d[i].unit;
+    if (c[i].value != d[i].value) left += " (city: " + shown(c[i].value) + ")";
+    left = "  " + left;
+    if (left.size() < 50)
+      left.resize(50, ' ');
+    else
+      left += "\n" + std::string(50, ' ');
+    t += left + d[i].rule + "\n";
+  }
+  args.epilog(t);
 }
 
 lod::LodParams parse_lod_params(const ArgParser& args, lod::LodParams params) {

@@ -31,7 +31,11 @@ SplitOptions parse_split_options(const ArgParser& args, const std::vector<std::s
                                  const std::string& work_dir);
 
 /// --set NAME=VALUE[,...] and --config FILE.
-void declare_lod_param_options(ArgParser& args);
+/// --set and --config, and the parameters' table for --help: `defaults` (the values
+/// the command starts from) and, when the command also runs work directories, the
+/// city values that differ (`city`).
+void declare_lod_param_options(ArgParser& args, const lod::LodParams& defaults,
+                               const lod::LodParams* city = nullptr);
 /// `base` + --config + --set (not validated: the caller sets threads etc. first).
 /// A bad --set throws UsageError; a bad --config file std::runtime_error.
 lod::LodParams parse_lod_params(const ArgParser& args, lod::LodParams base = {});

@@ -97,6 +97,36 @@ void parse(const std::string& name, const std::string& s, bool& out) {
     bad(name, "not a boolean: '" + s + "'");
 }
 
+/// "'a', 'b' or 'c'".
+template <std::size_t N>
+std::string one_of(const char* const (&words)[N]) {
+  std::string out;
+  for (std::size_t i = 0; i < N; ++i)
+    out += std::string(i == 0 ? "'" : i + 1 == N ? " or '" : ", '") + words[i] + "'";
+  return out;
+}
+
+/// The values a switch or a mode takes ("" for numbers, whose rule says it).
+template <class T>
+std::string choices(const T&) {
+  return "";
+}
+std::string choices(const bool&) {
+  return "true or false";
+}
+std::string choices(const Uncovered&) {
+  return one_of(kUncovered);
+}
+std::string choices(const VolumeScale&) {
+  return one_of(kVolumeScale);
+}
+std::string choices(const Terrain&) {
+  return one_of(kTerrain);
+}
+std::string choices(const AirborneMode&) {
+  return one_of(kAirborneMode);
+}
+
 /// One of the words of `words`; else the error names them.
 template <class E, std::size_t N>
 void parse_word(const std::string& name, const std::string& s, E& out,
@@ -106,10 +136,7 @@ void parse_word(const std::string& name, const std::string& s, E& out,
       out = E(i);
       return;
     }
-  std::string why = "must be ";
-  for (std::size_t i = 0; i < N; ++i)
-    why += std::string(i == 0 ? "'" : i + 1 == N ? " or '" : ", '") + words[i] + "'";
-  bad(name, why + ", got '" + s + "'");
+  bad(name, "must be " + one_of(words) + ", got '" + s + "'");
 }
 void parse(const std::string& name, const std::string& s, Uncovered& out) {
   parse_word(name, s, out, kUncovered);
@@ -173,100 +200,104 @@ struct Relation {
   std::string why() const { return message; }
 };
 
-/// Visits every parameter (fixed order) with its dotted name, a reference and
-/// its validation rule: the one place a parameter's name is spelled.
+/// Visits every parameter (fixed order) with its dotted name, a reference, its
+/// validation rule and its unit ("" for switches and modes): the one place a
+/// parameter's name is spelled.
 template <class P, class F>
 void visit(P& p, F&& f) {
-  f("normals.k_neighbors", p.normals.k_neighbors, AtLeast{3});
-  f("planes.epsilon", p.planes.epsilon, kPositive);
-  f("planes.max_angle_deg", p.planes.max_angle_deg, kAngle);
-  f("planes.min_region_size", p.planes.min_region_size, AtLeast{3});
-  f("planes.k_neighbors", p.planes.k_neighbors, AtLeast{3});
-  f("planes.max_planes", p.planes.max_planes, AtLeast{1});
-  f("alpha.alpha", p.alpha.alpha, kPositive);
-  f("bsp.bbox_enlarge", p.bsp.bbox_enlarge, Range{0, 1, false, false});
-  f("bsp.max_cells", p.bsp.max_cells, AtLeast{1});
-  f("bsp.baseline", p.bsp.baseline, Any{});
-  f("labels.rays_per_cell", p.labels.rays_per_cell, AtLeast{1});
+  f("normals.k_neighbors", p.normals.k_neighbors, AtLeast{3}, "points");
+  f("planes.epsilon", p.planes.epsilon, kPositive, "m");
+  f("planes.max_angle_deg", p.planes.max_angle_deg, kAngle, "deg");
+  f("planes.min_region_size", p.planes.min_region_size, AtLeast{3}, "points");
+  f("planes.k_neighbors", p.planes.k_neighbors, AtLeast{3}, "points");
+  f("planes.max_planes", p.planes.max_planes, AtLeast{1}, "planes");
+  f("alpha.alpha", p.alpha.alpha, kPositive, "m");
+  f("bsp.bbox_enlarge", p.bsp.bbox_enlarge, Range{0, 1, false, false}, "ratio");
+  f("bsp.max_cells", p.bsp.max_cells, AtLeast{1}, "cells");
+  f("bsp.baseline", p.bsp.baseline, Any{}, "");
+  f("labels.rays_per_cell", p.labels.rays_per_cell, AtLeast{1}, "rays");
   f("labels.origins_per_cell", p.labels.origins_per_cell,
     Relation<int>{
         [](const int& v, const LodParams& q) { return v >= 1 && v <= q.labels.rays_per_cell; },
-        "must be in [1, labels.rays_per_cell]"});
-  f("ioview.separation_coverage", p.ioview.separation_coverage, kRatio);
-  f("ioview.min_principal_area", p.ioview.min_principal_area, kNonNegative);
-  f("ioview.covered_only", p.ioview.covered_only, Any{});
-  f("ioview.uncovered", p.ioview.uncovered, Any{});
-  f("cluster.area_bandwidth", p.cluster.area_bandwidth, kPositive);
+        "must be in [1, labels.rays_per_cell]"},
+    "points");
+  f("ioview.separation_coverage", p.ioview.separation_coverage, kRatio, "ratio");
+  f("ioview.min_principal_area", p.ioview.min_principal_area, kNonNegative, "m^2");
+  f("ioview.covered_only", p.ioview.covered_only, Any{}, "");
+  f("ioview.uncovered", p.ioview.uncovered, Any{}, "");
+  f("cluster.area_bandwidth", p.cluster.area_bandwidth, kPositive, "m^2");
   f("cluster.volume_bandwidth", p.cluster.volume_bandwidth,
     Relation<double>{[](const double& v, const LodParams& q) {
                        return std::isfinite(v) && v > 0 &&
                               (q.cluster.volume_scale == VolumeScale::M3 || v > 1.0);
                      },
                      "must be > 0, and > 1 (a factor) with "
-                     "cluster.volume_scale = ratio"});
-  f("cluster.volume_scale", p.cluster.volume_scale, Any{});
-  f("regularization.enabled", p.regularization.enabled, Any{});
-  f("regularization.principal_angle_deg", p.regularization.principal_angle_deg, kAngle);
-  f("regularization.principal_distance", p.regularization.principal_distance, kNonNegative);
-  f("regularization.secondary_angle_deg", p.regularization.secondary_angle_deg, kAngle);
-  f("regularization.secondary_distance", p.regularization.secondary_distance, kNonNegative);
-  f("regularization.vertical_host_deg", p.regularization.vertical_host_deg, kAngle);
+                     "cluster.volume_scale = ratio"},
+    "factor | m^3");
+  f("cluster.volume_scale", p.cluster.volume_scale, Any{}, "");
+  f("regularization.enabled", p.regularization.enabled, Any{}, "");
+  f("regularization.principal_angle_deg", p.regularization.principal_angle_deg, kAngle, "deg");
+  f("regularization.principal_distance", p.regularization.principal_distance, kNonNegative, "m");
+  f("regularization.secondary_angle_deg", p.regularization.secondary_angle_deg, kAngle, "deg");
+  f("regularization.secondary_distance", p.regularization.secondary_distance, kNonNegative, "m");
+  f("regularization.vertical_host_deg", p.regularization.vertical_host_deg, kAngle, "deg");
   f("regularization.min_cutouts_for_templates", p.regularization.min_cutouts_for_templates,
-    AtLeast{1});
-  f("tree.merge_k", p.tree.merge_k, AtLeast{1});
-  f("tree.label_volume_ratio", p.tree.label_volume_ratio, kRatio);
-  f("tree.interpolation_ratio", p.tree.interpolation_ratio, kRatio);
-  f("tree.interpolation_floor", p.tree.interpolation_floor, kUnitOpen);
-  f("budget.time_budget_s", p.budget.time_budget_s, kNonNegative);
-  f("closure.enabled", p.closure.enabled, Any{});
-  f("closure.wall_fraction_min", p.closure.wall_fraction_min, kRatio);
-  f("closure.outline_alpha", p.closure.outline_alpha, kPositive);
-  f("closure.terrain", p.closure.terrain, Any{});
-  f("closure.plinth_depth", p.closure.plinth_depth, kPositive);
-  f("closure.unknown_ground_depth", p.closure.unknown_ground_depth, kNonNegative);
-  f("closure.footprint_walls", p.closure.footprint_walls, Any{});
-  f("closure.wall_profile", p.closure.wall_profile, Any{});
-  f("closure.wall_snap", p.closure.wall_snap, kNonNegative);
-  f("airborne.mode", p.airborne.mode, Any{});
-  f("airborne.wall_fraction_max", p.airborne.wall_fraction_max, kRatio);
-  f("airborne.cell", p.airborne.cell, kPositive);
-  f("airborne.fill_radius", p.airborne.fill_radius, kNonNegative);
-  f("airborne.step_min", p.airborne.step_min, kPositive);
-  f("airborne.step_probe", p.airborne.step_probe, kPositive);
-  f("airborne.step_alpha", p.airborne.step_alpha, kPositive);
-  f("airborne.step_min_edge", p.airborne.step_min_edge, kPositive);
-  f("airborne.origins_per_cell", p.airborne.origins_per_cell, AtLeast{1});
-  f("airborne.block", p.airborne.block, Any{});
-  f("airborne.min_region_size", p.airborne.min_region_size, AtLeast{3});
-  f("airborne.roof_refit", p.airborne.roof_refit, Any{});
-  f("airborne.roof_edge_margin", p.airborne.roof_edge_margin, kNonNegative);
-  f("airborne.detail_level", p.airborne.detail_level, Any{});
-  f("orient.enabled", p.orient.enabled, Any{});
-  f("orient.points_per_plane", p.orient.points_per_plane, AtLeast{1});
-  f("orient.rays", p.orient.rays, AtLeast{2});
-  f("orient.offset", p.orient.offset, kPositive);
-  f("orient.margin", p.orient.margin, kUnitOpen);
-  f("metrics.samples", p.metrics.samples, AtLeast{1});
-  f("colour.enabled", p.colour.enabled, Any{});
-  f("colour.distance", p.colour.distance, kNonNegative);
-  f("colour.min_points", p.colour.min_points, AtLeast{1});
-  f("colour.max_angle_deg", p.colour.max_angle_deg, kAngleZero);
+    AtLeast{1}, "cut-outs");
+  f("tree.merge_k", p.tree.merge_k, AtLeast{1}, "primitives");
+  f("tree.label_volume_ratio", p.tree.label_volume_ratio, kRatio, "ratio");
+  f("tree.interpolation_ratio", p.tree.interpolation_ratio, kRatio, "ratio");
+  f("tree.interpolation_floor", p.tree.interpolation_floor, kUnitOpen, "ratio");
+  f("budget.time_budget_s", p.budget.time_budget_s, kNonNegative, "s");
+  f("closure.enabled", p.closure.enabled, Any{}, "");
+  f("closure.wall_fraction_min", p.closure.wall_fraction_min, kRatio, "ratio");
+  f("closure.outline_alpha", p.closure.outline_alpha, kPositive, "m");
+  f("closure.terrain", p.closure.terrain, Any{}, "");
+  f("closure.plinth_depth", p.closure.plinth_depth, kPositive, "m");
+  f("closure.unknown_ground_depth", p.closure.unknown_ground_depth, kNonNegative, "m");
+  f("closure.footprint_walls", p.closure.footprint_walls, Any{}, "");
+  f("closure.wall_profile", p.closure.wall_profile, Any{}, "");
+  f("closure.wall_snap", p.closure.wall_snap, kNonNegative, "m");
+  f("airborne.mode", p.airborne.mode, Any{}, "");
+  f("airborne.wall_fraction_max", p.airborne.wall_fraction_max, kRatio, "ratio");
+  f("airborne.cell", p.airborne.cell, kPositive, "m");
+  f("airborne.fill_radius", p.airborne.fill_radius, kNonNegative, "m");
+  f("airborne.step_min", p.airborne.step_min, kPositive, "m");
+  f("airborne.step_probe", p.airborne.step_probe, kPositive, "m");
+  f("airborne.step_alpha", p.airborne.step_alpha, kPositive, "m");
+  f("airborne.step_min_edge", p.airborne.step_min_edge, kPositive, "m");
+  f("airborne.origins_per_cell", p.airborne.origins_per_cell, AtLeast{1}, "points");
+  f("airborne.block", p.airborne.block, Any{}, "");
+  f("airborne.min_region_size", p.airborne.min_region_size, AtLeast{3}, "points");
+  f("airborne.roof_refit", p.airborne.roof_refit, Any{}, "");
+  f("airborne.roof_edge_margin", p.airborne.roof_edge_margin, kNonNegative, "m");
+  f("airborne.detail_level", p.airborne.detail_level, Any{}, "");
+  f("orient.enabled", p.orient.enabled, Any{}, "");
+  f("orient.points_per_plane", p.orient.points_per_plane, AtLeast{1}, "points");
+  f("orient.rays", p.orient.rays, AtLeast{2}, "rays");
+  f("orient.offset", p.orient.offset, kPositive, "m");
+  f("orient.margin", p.orient.margin, kUnitOpen, "ratio");
+  f("metrics.samples", p.metrics.samples, AtLeast{1}, "samples");
+  f("colour.enabled", p.colour.enabled, Any{}, "");
+  f("colour.distance", p.colour.distance, kNonNegative, "m");
+  f("colour.min_points", p.colour.min_points, AtLeast{1}, "points");
+  f("colour.max_angle_deg", p.colour.max_angle_deg, kAngleZero, "deg");
   f("threads", p.threads,
     Relation<int>{[](const int& v, const LodParams&) { return v >= 0; },
-                  "must be >= 0 (0 = all cores)"});
+                  "must be >= 0 (0 = all cores)"},
+    "threads");
 }
 
 }  // namespace
 
 void LodParams::validate() const {
-  visit(*this, [&](const char* name, const auto& value, const auto& rule) {
+  visit(*this, [&](const char* name, const auto& value, const auto& rule, const char*) {
     if (!rule.ok(value, *this)) bad(name, rule.why());
   });
 }
 
 void LodParams::set(const std::string& name, const std::string& value) {
   bool found = false;
-  visit(*this, [&](const char* n, auto& field, const auto&) {
+  visit(*this, [&](const char* n, auto& field, const auto&, const char*) {
     if (found || name != n) return;
     found = true;
     parse(name, value, field);
@@ -274,10 +305,21 @@ void LodParams::set(const std::string& name, const std::string& value) {
   if (!found) throw std::invalid_argument("unknown parameter: " + name);
 }
 
+std::vector<ParamInfo> LodParams::describe() const {
+  std::vector<ParamInfo> out;
+  visit(*this, [&](const char* n, const auto& field, const auto& rule, const char* unit) {
+    std::string r = rule.why();
+    if (r.empty()) r = choices(field);
+    out.push_back({n, fmt(field), unit, r});
+  });
+  return out;
+}
+
 std::vector<std::pair<std::string, std::string>> LodParams::items() const {
   std::vector<std::pair<std::string, std::string>> out;
-  visit(*this,
-        [&](const char* n, const auto& field, const auto&) { out.emplace_back(n, fmt(field)); });
+  visit(*this, [&](const char* n, const auto& field, const auto&, const char*) {
+    out.emplace_back(n, fmt(field));
+  });
   return out;
 }
 

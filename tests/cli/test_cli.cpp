@@ -237,6 +237,21 @@ TEST(Cli, InfoBadInputsFailWithOneLine) {
 // A single building keeps a terrain sheet as a plinth (the model represents
 // all of its input); a work directory's buildings (city runs: chunks without
 // ground, with a footprint) cut it off and get walls along their footprint.
+// `citylod lod --help` lists every LOD parameter from its one declaration: value,
+// unit, rule, and the city value where a work directory's buildings differ.
+TEST(Cli, LodHelpListsTheParameters) {
+  const Result r = run("lod --help");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("LOD parameters (--set NAME=VALUE"), std::string::npos) << r.out;
+  const auto at = r.out.find("  planes.epsilon = 0.15 m ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_NE(r.out.substr(at, r.out.find('\n', at) - at).find("must be > 0"), std::string::npos);
+  EXPECT_NE(r.out.find("  closure.terrain = plinth (city: cut) "), std::string::npos) << r.out;
+  const Result t = run("tile --help");
+  ASSERT_EQ(t.code, 0) << t.err;
+  EXPECT_NE(t.out.find("  closure.terrain = cut "), std::string::npos) << t.out;
+}
+
 TEST(Cli, LodTerrainDefaultsDependOnTheInput) {
   const Result one = run("lod --print-params");
   ASSERT_EQ(one.code, 0) << one.err;

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <set>
 #include <stdexcept>
 
@@ -159,6 +160,40 @@ TEST(LodParams, ItemsRoundTrip) {
   EXPECT_EQ(q.items(), items);
   EXPECT_EQ(items.front().first, "normals.k_neighbors");
   EXPECT_EQ(items.back().first, "threads");
+}
+
+// describe() is items() with each parameter's unit and rule (or the words a mode
+// takes): what `citylod lod --help` lists.
+TEST(LodParams, DescribeGivesUnitAndRuleOfEveryItem) {
+  LodParams p;
+  p.set("planes.epsilon", "0.25");
+  const auto items = p.items();
+  const auto info = p.describe();
+  ASSERT_EQ(info.size(), items.size());
+  std::map<std::string, ParamInfo> by;
+  for (std::size_t i = 0; i < info.size(); ++i) {
+    EXPECT_EQ(info[i].name, items[i].first);
+    EXPECT_EQ(info[i].value, items[i].second);
+    by[info[i].name] = info[i];
+  }
+  EXPECT_EQ(by["planes.epsilon"].value, "0.25");
+  EXPECT_EQ(by["planes.epsilon"].unit, "m");
+  EXPECT_EQ(by["planes.epsilon"].rule, "must be > 0");
+  EXPECT_EQ(by["planes.max_angle_deg"].unit, "deg");
+  EXPECT_EQ(by["planes.max_angle_deg"].rule, "must be in (0, 90]");
+  EXPECT_EQ(by["tree.merge_k"].rule, "must be >= 1");
+  EXPECT_EQ(by["closure.terrain"].unit, "");
+  EXPECT_EQ(by["closure.terrain"].rule, "'plinth' or 'cut'");
+  EXPECT_EQ(by["airborne.mode"].rule, "'auto', 'on' or 'off'");
+  EXPECT_EQ(by["bsp.baseline"].rule, "true or false");
+  EXPECT_EQ(by["labels.origins_per_cell"].rule, "must be in [1, labels.rays_per_cell]");
+  // every number has a unit and a rule; every switch and mode its words
+  for (const auto& d : info) {
+    EXPECT_FALSE(d.rule.empty()) << d.name;
+    if (d.value != "true" && d.value != "false" && d.value.find_first_of("0123456789") == 0) {
+      EXPECT_FALSE(d.unit.empty()) << d.name;
+    }
+  }
 }
 
 TEST(LodParams, ModesAreEnumsWithTheirWords) {

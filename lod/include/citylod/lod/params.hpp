@@ -219,6 +219,12 @@ struct ColourParams {
   int min_points = 5;
 };
 
+/// One parameter described: dotted name, value (as items() writes it), unit ("" for
+/// switches and modes) and the rule it must meet (or the words it takes).
+struct ParamInfo {
+  std::string name, value, unit, rule;
+};
+
 struct LodParams {
   NormalParams normals;
   PlaneParams planes;
@@ -244,6 +250,8 @@ struct LodParams {
   void set(const std::string& name, const std::string& value);
   /// All parameters as (dotted name, value) pairs, in a fixed order.
   std::vector<std::pair<std::string, std::string>> items() const;
+  /// All parameters as `citylod lod --help` lists them, in the order of items().
+  std::vector<ParamInfo> describe() const;
 };
 
 }  // namespace citylod::lod
