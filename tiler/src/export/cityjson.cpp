@@ -654,10 +654,8 @@ Geometry model_geometry(const Chain& ch, std::size_t gi, const ChunkRecord& rec,
   a["kind"] = lod::to_string(mr.kind);
   a["level"] = mr.level;
   a["step"] = mr.step;
-  if (mr.e2 >= 0 && ch.report.bbox_diagonal_m > 0)
-    a["rmse_m"] = round_to(mr.e2 / 100 * ch.report.bbox_diagonal_m, 1e-4);
-  else
-    a["rmse_m"] = nullptr;
+  const double rmse = ch.report.rmse_m(k);
+  a["rmse_m"] = rmse >= 0 ? json(round_to(rmse, 1e-4)) : json(nullptr);
   if (!ch.error_m.empty()) a["error_m"] = round_to(ch.error_m[gi], 1e-4);
   a["triangles"] = mesh.triangles.size();
   a["polygons"] = g.faces.size();
