@@ -313,7 +313,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
     }
     std::lock_guard<std::mutex> lock(mu);
     (reused ? rep.reused : rep.computed)++;
-    rep.add(out.status == Status::skipped ? Status::failed : out.status);
+    rep.add_lod_outcome(out.status);
     if (out.status != Status::ok) rep.problems.emplace_back(c.id, out.reason);
     ++done;
     notify_count(progress, "lod", done, rep.total, "buildings");

@@ -91,7 +91,7 @@ CityLodSummary run_lod_supervised(const LodStageOptions& o, const ProgressFn& pr
     } catch (const std::exception& e) {
       why = e.what();
     }
-    s.add(st == Status::skipped ? Status::failed : st);
+    s.add_lod_outcome(st);
     if (st != Status::ok) s.problems.emplace_back(it.chunk->id, why);
   }
   std::sort(s.problems.begin(), s.problems.end());

@@ -62,6 +62,11 @@ using lod::status_from_string;
 struct StatusCounts {
   std::size_t ok = 0, fallback = 0, failed = 0, skipped = 0;
   void add(Status s);
+  /// A LOD outcome (report.json's status): the stage skips no building, so a
+  /// skipped or pending status there is a failure.
+  void add_lod_outcome(Status s) {
+    add(s == Status::ok || s == Status::fallback ? s : Status::failed);
+  }
 };
 
 // ------------------------------------------------------------ manifest.json
