@@ -81,7 +81,6 @@ int cmd_lod(ArgParser& args) {
       !args.positionals().empty() && std::filesystem::is_directory(args.positionals()[0]);
   lod::LodParams params = parse_lod_params(args, work_dir ? city_lod_params() : lod::LodParams{});
   const int threads = tiler::resolve_threads(parse_threads(args));
-  params.threads = threads;
   if (args.has("baseline")) params.bsp.baseline = true;
   usage_errors([&] { params.validate(); });
   if (args.has("print-params")) {
@@ -108,6 +107,7 @@ int cmd_lod(ArgParser& args) {
   o.input = input;
   o.out_dir = args.get("out");
   o.params = params;
+  o.threads = threads;
   o.dump_planes = args.has("dump-planes");
   const tiler::BuildingLodResult r = tiler::build_building_lod(o, bars.fn());
   bars.finish();

@@ -34,11 +34,12 @@ Row run_one(const std::string& path, int threads) {
   Row row;
   const auto b = tiler::load_building(path);
   lod::LodParams p;
-  p.threads = threads;
   p.bsp.baseline = true;
   p.budget.time_budget_s = 0;
   const auto t0 = std::chrono::steady_clock::now();
-  const lod::LodResult r = lod::build_lod_tree(b.input, p);
+  lod::LodExecution exec;
+  exec.threads = threads;
+  const lod::LodResult r = lod::build_lod_tree(b.input, p, exec);
   row.total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto& s = r.stats;
   row.F = s.input_faces;

@@ -291,16 +291,15 @@ struct Planes {
 /// Closure planes for roof-only LiDAR, the airborne height field, refitted
 /// roofs and step walls; planes with inward normals turned round.
 Planes planar_primitives(const BuildingInput& in, const Samples& samples, const LodParams& P,
-                         LodStats& st) {
+                         int threads, LodStats& st) {
   Planes out;
   std::vector<Primitive>& prims = out.prims;
   const bool airborne = airborne_input(in, samples, P);
   PlaneParams plane_params = P.planes;
-  plane_params.threads = P.threads;
   if (airborne)
     plane_params.min_region_size =
         std::min(plane_params.min_region_size, P.airborne.min_region_size);
-  prims = detect_planes(in, samples, plane_params, P.alpha, &st.planes_found);
+  prims = detect_planes(in, samples, plane_params, P.alpha, threads, &st.planes_found);
   st.planes_detected = int(prims.size());
   if (st.planes_found > st.planes_detected)  // a cap, recorded (counts.planes_found)
     st.notes.push_back("planes.max_planes = " + std::to_string(P.planes.max_planes) +
@@ -350,9 +349,7 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
   // (ours) Planes whose input normals point into the building are turned round
   // (the ray labelling needs it; the height field does not).
   if (!heights) {
-    OrientParams op = P.orient;
-    op.threads = P.threads;
-    st.planes_turned = orient_primitives(prims, samples, op);
+    st.planes_turned = orient_primitives(prims, samples, P.orient, threads);
     if (st.planes_turned > 0)
       st.notes.push_back(std::to_string(st.planes_turned) +
                          " planes turned round (normals pointed inside)");
@@ -372,7 +369,7 @@ struct IoViewStep {
 /// 2. IO-View: BSP by the hulls, largest first; ray labels (or the height
 /// field's); regions, principal primitives, secondary structures.
 IoViewStep io_view_step(const Samples& samples, const Planes& planes, const LodParams& P,
-                        const Budget& budget, LodStats& st) {
+                        int threads, const Budget& budget, LodStats& st) {
   const std::vector<Primitive>& prims = planes.prims;
   const std::optional<HeightField>& heights = planes.heights;
   const SceneBox box = scene_box(samples, prims, P.bsp.bbox_enlarge);
@@ -399,7 +396,7 @@ IoViewStep io_view_step(const Samples& samples, const Planes& planes, const LodP
   } else {
     const RayLabeller io_labeller(alpha_triangles(prims, all_level0), P.labels.rays_per_cell);
     io_leaf_labels =
-        io_labeller.label(leaf_ray_origins(io_bsp, P.labels.origins_per_cell), 1, P.threads);
+        io_labeller.label(leaf_ray_origins(io_bsp, P.labels.origins_per_cell), 1, threads);
   }
   clear_pad_leaves(io_bsp, box, io_leaf_labels);
   for (const auto& l : io_leaf_labels) io_labels.push_back(l[0]);
@@ -469,7 +466,7 @@ struct TreeStep {
 
 /// 4. LOD-Tree: BSP in the order S, per-level leaf labels, LOD-nodes.
 TreeStep tree_step(const Planes& planes, const SceneBox& box, const SortStep& S, const LodParams& P,
-                   const Budget& budget, LodStats& st) {
+                   int threads, const Budget& budget, LodStats& st) {
   const std::vector<Primitive>& prims = planes.prims;
   const std::optional<HeightField>& heights = planes.heights;
   const SortedPrimitives& sorted = S.sorted;
@@ -488,7 +485,7 @@ TreeStep tree_step(const Planes& planes, const SceneBox& box, const SortStep& S,
   } else {
     const RayLabeller labeller(alpha_triangles(prims, sorted.level_of), P.labels.rays_per_cell);
     leaf_labels = labeller.label(leaf_ray_origins(bsp, P.labels.origins_per_cell),
-                                 sorted.num_levels, P.threads);
+                                 sorted.num_levels, threads);
   }
   clear_pad_leaves(bsp, box, leaf_labels);
   LodTree tree = build_tree(bsp, sorted, S.grouping, leaf_labels, P.tree);
@@ -500,7 +497,8 @@ TreeStep tree_step(const Planes& planes, const SceneBox& box, const SortStep& S,
 /// 5. Traversal (Algorithm 1) and a watertight mesh per candidate; for
 /// airborne LiDAR the LoD1.2 block first.
 void models_step(const Samples& samples, const Planes& planes, const TreeStep& T,
-                 const LodParams& P, const Progress& progress, const Budget& budget, LodResult& R) {
+                 const LodParams& P, int threads, const Progress& progress, const Budget& budget,
+                 LodResult& R) {
   auto& st = R.stats;
   const std::optional<HeightField>& heights = planes.heights;
   const Bsp& bsp = T.bsp;
@@ -512,7 +510,7 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
   std::set<int> repaired;
   int split_interpolations = 0;
   ExtractCache extract_cache;  // planes whose faces did not change are not recomputed
-  extract_cache.threads = P.threads;
+  extract_cache.threads = threads;
   for (size_t i = 0; i < candidates.size(); ++i) {
     progress(0.6 + 0.3 * double(i) / double(candidates.size()), "extraction");
     budget.check("extraction");
@@ -581,30 +579,30 @@ void baseline_step(const std::vector<Primitive>& prims, const SceneBox& box,
 }
 
 /// The whole method; throws on any failure (caught by build_lod_tree).
-void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P,
+void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P, int threads,
                 const Progress& progress, const Budget& budget, LodResult& R) {
   auto& st = R.stats;
   const auto t1 = Clock::now();
 
   progress(0.0, "planes");
-  Planes planes = planar_primitives(in, samples, P, st);
+  Planes planes = planar_primitives(in, samples, P, threads, st);
   budget.check("planes");
 
   progress(0.1, "io-view");
-  IoViewStep io = io_view_step(samples, planes, P, budget, st);
+  IoViewStep io = io_view_step(samples, planes, P, threads, budget, st);
   const SortStep S = sort_step(samples, planes, io, P, R);
   st.t_ioview = seconds_since(t1);
   budget.check("io-view");
 
   progress(0.4, "lod-tree");
   const auto t2 = Clock::now();
-  const TreeStep T = tree_step(planes, io.box, S, P, budget, st);
+  const TreeStep T = tree_step(planes, io.box, S, P, threads, budget, st);
   st.t_tree = seconds_since(t2);
   budget.check("lod-tree");
 
   progress(0.6, "traversal");
   const auto t3 = Clock::now();
-  models_step(samples, planes, T, P, progress, budget, R);
+  models_step(samples, planes, T, P, threads, progress, budget, R);
   st.t_traversal = seconds_since(t3);
 
   if (P.bsp.baseline) baseline_step(planes.prims, io.box, S.sorted, P, st);
@@ -622,14 +620,15 @@ LodResult fallback_result(const BuildingInput& in, const std::string& reason) {
   return r;
 }
 
-LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, ProgressFn progress_fn,
-                         void* user) {
+LodResult build_lod_tree(const BuildingInput& in, const LodParams& params,
+                         const LodExecution& exec) {
   params.validate();
   check_input(in);
   LodResult R;
   R.stats.input_points = int(in.points.size());
   R.stats.input_faces = int(in.triangles.size());
-  const Progress progress(progress_fn, user);
+  const Progress progress(exec.progress, exec.user);
+  const int threads = std::max(1, exec.threads);
   const auto start = Clock::now();
   Budget budget{params.budget.time_budget_s > 0
                     ? start + std::chrono::duration_cast<Clock::duration>(
@@ -660,7 +659,7 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   };
   const LodResult fresh = R;
   try {
-    run_method(in, samples, params, progress, budget, R);
+    run_method(in, samples, params, threads, progress, budget, R);
   } catch (const LodCancelled&) {
     throw;  // asked to stop: no model, not even the fallback
   } catch (const std::bad_alloc& e) {
@@ -683,7 +682,7 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
                               "): modelled as airborne LiDAR (walls on the outline, cells "
                               "labelled by the roof height field)");
       try {
-        run_method(in, samples, as_airborne, progress, budget, R);
+        run_method(in, samples, as_airborne, threads, progress, budget, R);
       } catch (const LodCancelled&) {
         throw;
       } catch (const std::exception& e2) {
@@ -695,20 +694,20 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params, Progr
   progress(0.9, "metrics");
   const auto tm = Clock::now();
   const FidelityMeter meter(in, samples, diag, params.metrics.samples);
-  const long nm = long(R.models.size());
-#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, params.threads))
-  for (long i = 0; i < nm; ++i) {
-    auto& m = R.models[size_t(i)];
-    const Fidelity f = meter.measure(m.mesh);
-    m.e1 = f.e1;
-    m.e2 = f.e2;
-    m.hausdorff = f.hausdorff;
+  std::vector<const TriangleMesh*> meshes;
+  for (const auto& m : R.models) meshes.push_back(&m.mesh);
+  const std::vector<Fidelity> fidelity = meter.measure_all(meshes, threads);
+  for (size_t i = 0; i < R.models.size(); ++i) {
+    auto& m = R.models[i];
+    m.e1 = fidelity[i].e1;
+    m.e2 = fidelity[i].e2;
+    m.hausdorff = fidelity[i].hausdorff;
     if (m.volume == 0.0) m.volume = mesh_volume(m.mesh);
   }
   R.stats.t_metrics = seconds_since(tm);
   // The input's colours (if any) onto the faces of every model.
   const auto tc = Clock::now();
-  colour_models(in, samples, params.colour, R.models, params.threads);
+  colour_models(in, samples, params.colour, R.models, threads);
   R.stats.t_colour = seconds_since(tc);
   progress(1.0, "done");
   return R;

@@ -27,7 +27,8 @@ void turn_round(Primitive& p) {
 
 }  // namespace
 
-int orient_primitives(std::vector<Primitive>& prims, const Samples& s, const OrientParams& p) {
+int orient_primitives(std::vector<Primitive>& prims, const Samples& s, const OrientParams& p,
+                      int threads) {
   if (!p.enabled || prims.size() < 2) return 0;
   LevelTriangles tris;
   for (const auto& pr : prims)
@@ -38,7 +39,7 @@ int orient_primitives(std::vector<Primitive>& prims, const Samples& s, const Ori
   const RayLabeller labeller(tris, p.rays);
   std::vector<char> flip(prims.size(), 0);
   const long n = long(prims.size());
-#pragma omp parallel for schedule(dynamic, 4) num_threads(std::max(1, p.threads))
+#pragma omp parallel for schedule(dynamic, 4) num_threads(std::max(1, threads))
   for (long i = 0; i < n; ++i) {
     const Primitive& pr = prims[size_t(i)];
     if (pr.inferred || pr.inliers.empty()) continue;

@@ -281,10 +281,6 @@ void visit(P& p, F&& f) {
   f("colour.distance", p.colour.distance, kNonNegative, "m");
   f("colour.min_points", p.colour.min_points, AtLeast{1}, "points");
   f("colour.max_angle_deg", p.colour.max_angle_deg, kAngleZero, "deg");
-  f("threads", p.threads,
-    Relation<int>{[](const int& v, const LodParams&) { return v >= 0; },
-                  "must be >= 0 (0 = all cores)"},
-    "threads");
 }
 
 }  // namespace

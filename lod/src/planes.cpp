@@ -90,7 +90,8 @@ class Cached_neighbor_query {
   std::vector<std::vector<std::size_t>> lists_;
 };
 
-std::vector<std::vector<std::size_t>> regions_on_points(const Samples& s, const PlaneParams& p) {
+std::vector<std::vector<std::size_t>> regions_on_points(const Samples& s, const PlaneParams& p,
+                                                        int threads) {
   PwnVec pts;
   pts.reserve(s.points.size());
   for (std::size_t i = 0; i < s.points.size(); ++i)
@@ -100,7 +101,7 @@ std::vector<std::vector<std::size_t>> regions_on_points(const Samples& s, const 
   using RT = SD::Point_set::Least_squares_plane_fit_region<K, PwnVec, PMap, NMap>;
   using Sorting = SD::Point_set::Least_squares_plane_fit_sorting<K, PwnVec, NQ, PMap>;
   using RG = SD::Region_growing<PwnVec, NQ, RT, Sorting::Seed_map>;
-  NQ nq(KNQ(pts, static_cast<std::size_t>(std::max(3, p.k_neighbors))), pts.size(), p.threads);
+  NQ nq(KNQ(pts, static_cast<std::size_t>(std::max(3, p.k_neighbors))), pts.size(), threads);
   RT rt(pts, p.epsilon, std::min(90.0, p.max_angle_deg),
         static_cast<std::size_t>(std::max(3, p.min_region_size)));
   Sorting sorting(pts, nq);
@@ -342,7 +343,8 @@ void compute_shape(Primitive& prim, const Samples& s, const AlphaParams& p) {
 // ---------------------------------------------------------------- detection
 
 std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
-                                     const PlaneParams& p, const AlphaParams& alpha, int* found) {
+                                     const PlaneParams& p, const AlphaParams& alpha, int threads,
+                                     int* found) {
   std::vector<Primitive> prims;
   if (s.points.size() < 3) return prims;
   std::vector<std::vector<int>> regions;  // sample indices
@@ -365,7 +367,7 @@ std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
     }
   }
   if (!done) {
-    for (auto& r : regions_on_points(s, p)) {
+    for (auto& r : regions_on_points(s, p, threads)) {
       std::vector<int> ri(r.begin(), r.end());
       std::sort(ri.begin(), ri.end());
       regions.push_back(std::move(ri));

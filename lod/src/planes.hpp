@@ -31,10 +31,11 @@ void plane_frame(const Vec3& n, Vec3& u, Vec3& v);
 /// Region growing (CGAL Shape_detection): on the points of a cloud, on the
 /// faces of a mesh. Deterministic. Largest planes first; at most p.max_planes
 /// (`*found`, when given, receives the number of regions found before the cap).
-/// Shapes (alpha-shapes, hulls) with `alpha`.
+/// Shapes (alpha-shapes, hulls) with `alpha`. The neighbour lists of a cloud
+/// are found on `threads` threads (the regions do not depend on it).
 std::vector<Primitive> detect_planes(const BuildingInput& in, const Samples& s,
                                      const PlaneParams& p, const AlphaParams& alpha = {},
-                                     int* found = nullptr);
+                                     int threads = 1, int* found = nullptr);
 
 /// (Re)computes centroid, u/v, hull and alpha-shape of a primitive from its
 /// inliers projected on its current plane.

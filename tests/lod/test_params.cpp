@@ -42,7 +42,6 @@ TEST(LodParams, SetByDottedName) {
   p.set("labels.rays_per_cell", "50");
   p.set("regularization.enabled", "false");
   p.set("closure.enabled", "0");
-  p.set("threads", "3");
   EXPECT_DOUBLE_EQ(p.planes.epsilon, 0.2);
   EXPECT_DOUBLE_EQ(p.alpha.alpha, 3.5);
   EXPECT_EQ(p.tree.merge_k, 4);
@@ -50,7 +49,6 @@ TEST(LodParams, SetByDottedName) {
   EXPECT_EQ(p.labels.rays_per_cell, 50);
   EXPECT_FALSE(p.regularization.enabled);
   EXPECT_FALSE(p.closure.enabled);
-  EXPECT_EQ(p.threads, 3);
   EXPECT_NO_THROW(p.validate());
 }
 
@@ -58,6 +56,8 @@ TEST(LodParams, SetRejectsUnknownAndMalformed) {
   LodParams p;
   EXPECT_THROW(p.set("planes.epsilonx", "1"), std::invalid_argument);
   EXPECT_THROW(p.set("epsilon", "1"), std::invalid_argument);
+  // Threads are how a building runs (LodExecution), not what the method computes.
+  EXPECT_THROW(p.set("threads", "3"), std::invalid_argument);
   EXPECT_THROW(p.set("planes.epsilon", "abc"), std::invalid_argument);
   EXPECT_THROW(p.set("planes.epsilon", "1.0x"), std::invalid_argument);
   EXPECT_THROW(p.set("tree.merge_k", "2.5"), std::invalid_argument);
@@ -104,7 +104,6 @@ TEST(LodParams, ValidateNamesTheParameter) {
   expect_bad("cluster.volume_scale", "m2");
   expect_bad("labels.origins_per_cell", "101");  // > labels.rays_per_cell (100)
   expect_bad("cluster.volume_bandwidth", "1");   // a factor (volume_scale = ratio) must be > 1
-  expect_bad("threads", "-1");
   auto expect_good = [](const char* name, const char* value) {
     LodParams p;
     p.set(name, value);
@@ -128,38 +127,25 @@ TEST(LodParams, ItemsRoundTrip) {
   std::set<std::string> names;
   for (const auto& kv : items)
     EXPECT_TRUE(names.insert(kv.first).second) << "duplicate " << kv.first;
-  for (const char* n : {"planes.epsilon",
-                        "alpha.alpha",
-                        "tree.merge_k",
-                        "tree.interpolation_ratio",
-                        "labels.rays_per_cell",
-                        "regularization.enabled",
-                        "threads",
-                        "closure.outline_alpha",
-                        "metrics.samples",
-                        "bsp.max_cells",
-                        "budget.time_budget_s",
-                        "normals.k_neighbors",
-                        "bsp.baseline",
-                        "tree.interpolation_floor",
-                        "airborne.mode",
-                        "airborne.step_min",
-                        "airborne.block",
-                        "colour.enabled",
-                        "colour.distance",
-                        "colour.max_angle_deg",
-                        "closure.wall_profile",
-                        "closure.wall_snap",
-                        "colour.min_points"})
+  for (const char* n :
+       {"planes.epsilon",           "alpha.alpha",          "tree.merge_k",
+        "tree.interpolation_ratio", "labels.rays_per_cell", "regularization.enabled",
+        "closure.outline_alpha",    "metrics.samples",      "bsp.max_cells",
+        "budget.time_budget_s",     "normals.k_neighbors",  "bsp.baseline",
+        "tree.interpolation_floor", "airborne.mode",        "airborne.step_min",
+        "airborne.block",           "colour.enabled",       "colour.distance",
+        "colour.max_angle_deg",     "closure.wall_profile", "closure.wall_snap",
+        "colour.min_points"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 65u);  // one per field of every parameter struct
+  EXPECT_EQ(items.size(), 64u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");
   for (const auto& kv : items) q.set(kv.first, kv.second);
   EXPECT_EQ(q.items(), items);
   EXPECT_EQ(items.front().first, "normals.k_neighbors");
-  EXPECT_EQ(items.back().first, "threads");
+  EXPECT_EQ(items.back().first, "colour.max_angle_deg");
+  EXPECT_FALSE(names.count("threads"));
 }
 
 // describe() is items() with each parameter's unit and rule (or the words a mode

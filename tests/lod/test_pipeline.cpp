@@ -143,11 +143,12 @@ TEST(LodPipeline, RoofOnlyLidarIsClosedByInferredWalls) {
 
 TEST(LodPipeline, DeterministicWhateverTheThreadCount) {
   const auto b = test::chimney_windows();
-  LodParams p1 = fast_params(), p2 = fast_params();
-  p2.threads = 2;
-  const LodResult a = build_lod_tree(b.input, p1);
-  const LodResult c = build_lod_tree(b.input, p1);
-  const LodResult d = build_lod_tree(b.input, p2);
+  const LodParams p = fast_params();
+  LodExecution two;
+  two.threads = 2;
+  const LodResult a = build_lod_tree(b.input, p);
+  const LodResult c = build_lod_tree(b.input, p);
+  const LodResult d = build_lod_tree(b.input, p, two);
   for (const LodResult* other : {&c, &d}) {
     ASSERT_EQ(a.models.size(), other->models.size());
     for (size_t i = 0; i < a.models.size(); ++i) {
@@ -206,7 +207,7 @@ TEST(LodPipeline, CancelThrowsFromTheStageWithoutAFallback) {
     return std::string(stage) != "traversal";
   };
   try {
-    build_lod_tree(test::chimney_windows().input, fast_params(), stop_at_traversal, &seen);
+    build_lod_tree(test::chimney_windows().input, fast_params(), {1, stop_at_traversal, &seen});
     ADD_FAILURE() << "a cancelled building returned a result";
   } catch (const LodCancelled& e) {
     EXPECT_EQ(e.stage(), "traversal");
@@ -216,7 +217,8 @@ TEST(LodPipeline, CancelThrowsFromTheStageWithoutAFallback) {
   EXPECT_EQ(seen.stages.back(), "traversal");  // nothing ran after the cancel (no metrics)
   // A callback that never cancels changes nothing.
   const ProgressFn go_on = [](double, const char*, void*) { return true; };
-  const LodResult r = build_lod_tree(test::chimney_windows().input, fast_params(), go_on, nullptr);
+  const LodResult r =
+      build_lod_tree(test::chimney_windows().input, fast_params(), {1, go_on, nullptr});
   EXPECT_EQ(r.status, lod::Status::ok) << r.reason;
 }
 

@@ -101,6 +101,7 @@ TEST(WorkDir, LodReportRoundTripsByteForByte) {
   r.id = "fp-1";
   r.key = "0123456789abcdef";
   r.parameters = {{"planes.epsilon", "0.15"}};
+  r.threads = 3;
   r.counts = {{"P", 12}, {"models", 2}};
   r.timings_s = {{"T1_ioview", 0.25}};
   r.notes = {"a note"};
@@ -119,6 +120,11 @@ TEST(WorkDir, LodReportRoundTripsByteForByte) {
   const std::string bytes = slurp(path);
   const LodReport back = read_lod_report(path);
   EXPECT_EQ(back.status, Status::fallback);
+  // The threads sit among the recorded parameters (the format's place for them)
+  // and come back as the execution setting, not as a parameter.
+  EXPECT_NE(bytes.find("\"threads\": \"3\""), std::string::npos) << bytes;
+  EXPECT_EQ(back.threads, 3);
+  EXPECT_EQ(back.parameters, r.parameters);
   EXPECT_EQ(back.models.size(), 1u);
   ASSERT_TRUE(back.models_all.has_value());
   EXPECT_EQ(back.all_models()[1].kind, ModelKind::interpolation);

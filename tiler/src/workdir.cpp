@@ -367,6 +367,7 @@ json to_json(const LodReport& r) {
   if (!r.key.empty()) j["key"] = r.key;
   j["parameters"] = json::object();
   for (const auto& [k, v] : r.parameters) j["parameters"][k] = v;
+  j["parameters"][kThreadsKey] = std::to_string(r.threads);
   j["counts"] = json::object();
   for (const auto& [k, v] : r.counts) j["counts"][k] = v;
   j["lod_tree_vs_bsp_tree"] = json::object();
@@ -404,6 +405,10 @@ LodReport lod_report_from_json(const json& j, const std::string& path) {
     if (!r.id.empty()) require_safe_id(r.id, path);
     r.key = j.value("key", std::string());
     if (j.contains("parameters")) r.parameters = string_map(j["parameters"]);
+    if (const auto t = r.parameters.find(kThreadsKey); t != r.parameters.end()) {
+      r.threads = std::atoi(t->second.c_str());
+      r.parameters.erase(t);
+    }
     if (j.contains("counts"))
       for (const auto& [k, v] : j["counts"].items()) r.counts[k] = v.get<std::int64_t>();
     if (j.contains("lod_tree_vs_bsp_tree"))
@@ -626,6 +631,14 @@ std::optional<LodReport> find_lod_report(const std::string& work_dir, const std:
   const std::string path = lod_report_path(work_dir, id);
   if (!fs::exists(path)) return std::nullopt;
   return read_lod_report(path);
+}
+
+void write_params_record(const std::string& dir,
+                         const std::map<std::string, std::string>& parameters, int threads) {
+  json j = json::object();
+  for (const auto& [k, v] : parameters) j[k] = v;
+  j[kThreadsKey] = std::to_string(threads);
+  io::atomic_write_file(params_file(dir), j.dump(2) + "\n");
 }
 
 bool write_lod_report(const std::string& path, const LodReport& r) {

@@ -1,9 +1,6 @@
 // One building's LOD output folder: models as OBJ/PLY, report.json, params.json, planes.ply.
 #include <filesystem>
 
-#include <nlohmann/json.hpp>
-
-#include "citylod/io/atomic_file.hpp"
 #include "citylod/io/writers.hpp"
 #include "citylod/tiler/bridge.hpp"
 #include "citylod/tiler/lod_stage.hpp"
@@ -26,9 +23,10 @@ io::Rgb8 level_colour(int level) {
 }  // namespace
 
 std::vector<std::string> write_lod_output(const std::string& dir, const lod::LodResult& r,
-                                          const lod::LodParams& p, const std::string& input,
-                                          const io::Vec3d& origin, bool dump_planes,
-                                          const std::string& id, const std::string& key) {
+                                          const lod::LodParams& p, int threads,
+                                          const std::string& input, const io::Vec3d& origin,
+                                          bool dump_planes, const std::string& id,
+                                          const std::string& key) {
   fs::create_directories(dir);
   std::vector<std::string> files;
   for (const auto& m : r.models) {
@@ -49,13 +47,11 @@ std::vector<std::string> write_lod_output(const std::string& dir, const lod::Lod
     io::write_ply(path, pts);
     files.push_back(path);
   }
-  nlohmann::json params = nlohmann::json::object();
-  for (const auto& [k, v] : p.items()) params[k] = v;
-  const std::string ppath = params_file(dir);
-  io::atomic_write_file(ppath, params.dump(2) + "\n");
-  files.push_back(ppath);
-  const std::string rpath = report_file(dir);
   LodReport report = make_lod_report(r, p, input);
+  report.threads = threads;
+  write_params_record(dir, report.parameters, threads);
+  files.push_back(params_file(dir));
+  const std::string rpath = report_file(dir);
   report.id = id;
   report.key = key;
   write_lod_report(rpath, report);

@@ -62,6 +62,7 @@ void apply_lod_config(lod::LodParams& p, const std::string& path) {
   const nlohmann::json j = io::read_json_file(path);
   if (!j.is_object()) throw std::runtime_error(path + ": expected a JSON object of parameters");
   for (const auto& [k, v] : j.items()) {
+    if (k == kThreadsKey) continue;  // a params.json records the threads it ran on
     try {
       p.set(k, v.is_string() ? v.get<std::string>() : v.dump());
     } catch (const std::invalid_argument& e) {
@@ -80,8 +81,7 @@ lod::LodParams params_for(const lod::LodParams& global, const Overrides& o, cons
 
 std::string lod_key(const std::string& content_hash, const lod::LodParams& p) {
   std::string s = std::string(kEngineVersion) + "|" + content_hash;
-  for (const auto& [k, v] : p.items())
-    if (k != "threads") s += "|" + k + "=" + v;
+  for (const auto& [k, v] : p.items()) s += "|" + k + "=" + v;
   return io::hash_hex(s.data(), s.size());
 }
 
@@ -112,9 +112,11 @@ BuildingLodResult build_building_lod(const BuildingLodOptions& o, const Progress
   struct Ctx {
     const ProgressFn* fn;
   } ctx{&progress};
-  lod::ProgressFn cb = nullptr;
+  lod::LodExecution exec;
+  exec.threads = o.threads;
+  exec.user = &ctx;
   if (progress)
-    cb = [](double f, const char* stage, void* user) {
+    exec.progress = [](double f, const char* stage, void* user) {
       const ProgressFn& fn = *static_cast<Ctx*>(user)->fn;
       ProgressEvent e;
       e.task = "lod";
@@ -123,12 +125,13 @@ BuildingLodResult build_building_lod(const BuildingLodOptions& o, const Progress
       return fn(e);
     };
   try {
-    out.result = lod::build_lod_tree(b.input, o.params, cb, &ctx);
+    out.result = lod::build_lod_tree(b.input, o.params, exec);
   } catch (const lod::LodError& e) {
     throw std::runtime_error(o.input + ": " + e.what());
   }
   notify_finished(progress, "lod");
-  out.files = write_lod_output(o.out_dir, out.result, o.params, o.input, b.origin, o.dump_planes);
+  out.files = write_lod_output(o.out_dir, out.result, o.params, exec.threads, o.input, b.origin,
+                               o.dump_planes);
   return out;
 }
 
@@ -196,7 +199,7 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
   }
   {
     const io::StagedDirectory staged(stage);  // its files written in place, synced once below
-    write_lod_output(stage, r, p, chunk_path(work, c.id), {0, 0, 0}, false, c.id, key);
+    write_lod_output(stage, r, p, 1, chunk_path(work, c.id), {0, 0, 0}, false, c.id, key);
   }
   io::publish_directory(stage, dir);
   return {r.status, r.reason};
@@ -247,8 +250,7 @@ LodStageLock::LodStageLock(const LodStageOptions& o)
 LodStagePlan plan_lod_stage(const LodStageOptions& o) {
   LodStagePlan plan;
   plan.manifest = read_manifest(o.work_dir);
-  lod::LodParams params = o.params;
-  params.threads = 1;  // parallelism is across buildings; results do not depend on it
+  const lod::LodParams& params = o.params;  // one thread per building: parallel across them
   params.validate();
   const Overrides overrides = read_overrides(o.work_dir);
   // This shard's chunks (rank in id order, so every shard agrees), largest first.
@@ -269,7 +271,6 @@ LodStagePlan plan_lod_stage(const LodStageOptions& o) {
     LodStagePlan::Item it;
     it.chunk = c;
     it.params = params_for(params, overrides, c->id);
-    it.params.threads = 1;
     it.key = lod_key(c->content_hash, it.params);
     it.up_to_date = o.only.empty() && recorded_key(o.work_dir, c->id) == it.key;
     plan.items.push_back(std::move(it));

@@ -215,8 +215,7 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   SplitOptions so = opt.split;
   so.work_dir = work;
   so.threads = threads;
-  lod::LodParams params = opt.lod;
-  params.threads = 1;
+  const lod::LodParams& params = opt.lod;
   params.validate();
   AssembleParams ap = opt.assemble;
   ap.threads = threads;
@@ -283,8 +282,7 @@ CityRunResult run_city(const CityRunOptions& opt, const ProgressFn& progress) {
   report.seconds_total = since(t_start);
   report.peak_rss_self = max_rss_bytes(RUSAGE_SELF);
   report.peak_rss_children = max_rss_bytes(RUSAGE_CHILDREN);
-  for (const auto& [k, v] : params.items())
-    if (k != "threads") report.lod_params[k] = v;
+  for (const auto& [k, v] : params.items()) report.lod_params[k] = v;
   report.assemble_params = ap;
   write_run_report(dir, report);
   return res;

@@ -97,12 +97,20 @@ struct LodResult {
   LodStats stats;
 };
 
+/// How build_lod_tree runs, as opposed to what it computes (LodParams): the
+/// result does not depend on any of it.
+struct LodExecution {
+  int threads = 1;                ///< OpenMP threads inside the building (< 1 means 1)
+  ProgressFn progress = nullptr;  ///< told each stage; returning false cancels
+  void* user = nullptr;           ///< passed to `progress`
+};
+
 /// The method for one building, top to bottom. Never throws for geometric
 /// trouble inside the pipeline: a fallback model with a reason is returned.
 /// Throws LodError only for input that is not a building at all (empty, NaN),
-/// and LodCancelled when `progress` returns false.
+/// and LodCancelled when `exec.progress` returns false.
 LodResult build_lod_tree(const BuildingInput& input, const LodParams& params,
-                         ProgressFn progress = nullptr, void* user = nullptr);
+                         const LodExecution& exec = {});
 
 /// The fallback result alone (outline extruded to the roof height) with
 /// `reason`, for a building the caller decides not to run (e.g. it crashed the

@@ -30,7 +30,6 @@ struct PlaneParams {
   int min_region_size = 15;     ///< points (or faces) per plane
   int k_neighbors = 12;         ///< neighbourhood for point clouds
   int max_planes = 400;         ///< cap: the largest planes are kept, the rest dropped (recorded)
-  int threads = 1;              ///< set from LodParams::threads
 };
 
 /// Alpha-shapes of the planar primitives (paper: alpha = 7 m).
@@ -196,7 +195,6 @@ struct OrientParams {
   int rays = 100;            ///< ray directions (half of them per side)
   double offset = 0.1;       ///< m, probe distance in front of / behind the plane
   double margin = 0.2;       ///< front in-fraction must exceed the back's by this much
-  int threads = 1;           ///< set from LodParams::threads
 };
 
 /// Evaluation (e1/e2 RMSE).
@@ -241,7 +239,6 @@ struct LodParams {
   OrientParams orient;
   MetricParams metrics;
   ColourParams colour;
-  int threads = 1;  ///< OpenMP threads inside one building (results do not depend on it)
 
   /// Throws std::invalid_argument naming the offending parameter.
   void validate() const;

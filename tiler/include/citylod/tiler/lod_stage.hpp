@@ -44,7 +44,7 @@ void apply_lod_settings(lod::LodParams& p, const std::string& list);
 void apply_lod_config(lod::LodParams& p, const std::string& path);
 /// The global parameters with the building's overrides applied.
 lod::LodParams params_for(const lod::LodParams& global, const Overrides& o, const std::string& id);
-/// The resume key of a building: chunk content hash + parameters (not threads) + engine version.
+/// The resume key of a building: chunk content hash + parameters + engine version.
 std::string lod_key(const std::string& content_hash, const lod::LodParams& p);
 /// Parses "i/N" (0 <= i < N); throws std::invalid_argument.
 void parse_shard(const std::string& s, int& index, int& count);
@@ -54,7 +54,8 @@ void parse_shard(const std::string& s, int& index, int& count);
 /// `citylod lod INPUT --out DIR`.
 struct BuildingLodOptions {
   std::string input, out_dir;
-  lod::LodParams params;  ///< params.threads: threads inside the building (resolved, >= 1)
+  lod::LodParams params;
+  int threads = 1;  ///< threads inside the building (resolved, >= 1)
   bool dump_planes = false;
 };
 struct BuildingLodResult {
@@ -69,17 +70,19 @@ BuildingLodResult build_building_lod(const BuildingLodOptions& o, const Progress
 /// Writes DIR/model_<step>_<kind>_L<level>.{obj,ply}, DIR/report.json,
 /// DIR/params.json and, when dump_planes, DIR/planes.ply (inliers coloured by
 /// level set). All files atomically. Returns the list of files written.
-/// `id` and `key` (city runs) are recorded in report.json.
+/// `threads` (those inside the building), `id` and `key` (city runs) are
+/// recorded in report.json.
 std::vector<std::string> write_lod_output(const std::string& dir, const lod::LodResult& r,
-                                          const lod::LodParams& p, const std::string& input,
-                                          const io::Vec3d& origin, bool dump_planes,
-                                          const std::string& id = "", const std::string& key = "");
+                                          const lod::LodParams& p, int threads,
+                                          const std::string& input, const io::Vec3d& origin,
+                                          bool dump_planes, const std::string& id = "",
+                                          const std::string& key = "");
 
 // ------------------------------------------------------------ a work directory
 
 struct LodStageOptions {
   std::string work_dir;
-  lod::LodParams params;  ///< per building (params.threads is forced to 1 inside a city run)
+  lod::LodParams params;  ///< per building (each runs on one thread inside a city run)
   int threads = 1;        ///< buildings processed at once (std::threads), >= 1
   int shard_index = 0, shard_count = 1;  ///< process the chunks with (rank % count) == index
   std::vector<std::string> only;  ///< if not empty: these building ids only (and always recomputed)
@@ -91,7 +94,7 @@ struct LodStageOptions {
 struct LodStagePlan {
   struct Item {
     const ChunkRecord* chunk = nullptr;
-    lod::LodParams params;  ///< the building's (overrides applied, threads = 1)
+    lod::LodParams params;  ///< the building's (overrides applied)
     std::string key;
     bool up_to_date = false;  ///< reused: its report.json has this key (never with `only`)
   };

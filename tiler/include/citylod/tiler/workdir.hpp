@@ -227,7 +227,8 @@ struct LodReport {
   std::string reason;   ///< why fallback / failed
   std::string id, key;  ///< city runs: building id and resume key ("" otherwise)
   std::map<std::string, std::string> parameters;  ///< every LOD parameter (LodParams::items())
-  std::map<std::string, std::int64_t> counts;     ///< input_points, P, S, principal, ..., models
+  int threads = 1;  ///< threads inside the building when it ran (not a parameter; kThreadsKey)
+  std::map<std::string, std::int64_t> counts;  ///< input_points, P, S, principal, ..., models
   std::map<std::string, std::int64_t> lod_tree_vs_bsp_tree;
   double bbox_diagonal_m = 0;
   bool normals_estimated = false, walls_inferred = false;
@@ -248,12 +249,21 @@ struct LodReport {
   }
 };
 
+/// report.json and params.json record the threads a building ran on under this
+/// key among its parameters, as the format always had it; it is an execution
+/// setting (lod::LodExecution), not a parameter, and the readers take it out.
+inline constexpr const char* kThreadsKey = "threads";
+
 /// Throws io::IoError naming the file when it is missing, not JSON, or malformed.
 LodReport read_lod_report(const std::string& path);
 /// nullopt when WORK/lod/<id>/report.json does not exist; throws like read_lod_report otherwise.
 std::optional<LodReport> find_lod_report(const std::string& work_dir, const std::string& id);
 /// Atomic. Returns false (and writes nothing) when the file already holds exactly these bytes.
 bool write_lod_report(const std::string& path, const LodReport& r);
+/// params.json of a LOD output folder: `parameters` (LodParams::items()) and
+/// the threads the building ran on (kThreadsKey). Atomic.
+void write_params_record(const std::string& lod_output_dir,
+                         const std::map<std::string, std::string>& parameters, int threads);
 
 /// A building's LOD output as assemble and the CityJSON writer read it: its
 /// report, the files of its models (absolute, in the order of report.models)
@@ -328,7 +338,7 @@ struct RunReport : StatusCounts {
   } assemble;
   double seconds_total = 0;
   std::uint64_t peak_rss_self = 0, peak_rss_children = 0;  ///< bytes
-  std::map<std::string, std::string> lod_params;           ///< without "threads"
+  std::map<std::string, std::string> lod_params;           ///< LodParams::items()
   AssembleParams assemble_params;                          ///< threads and force are not recorded
   std::vector<BuildingRecord> buildings;
   struct LastRebuild {
