@@ -727,6 +727,23 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
       if (cache) cache->impl->byplane.clear();  // entries of the failed pass are unfinished
       std::rethrow_exception(e);
     }
+  // A BSP vertex or crossing point met again (on another plane's loop) is the
+  // point welded before: looked up by its vertex id or plane triple instead of
+  // an exact comparison of the lifted points (same ids, no exact arithmetic).
+  std::unordered_map<int, int> by_vid;
+  std::map<std::array<int, 3>, int> by_def;
+  auto lifted_id = [&](const EvPt& ep) {
+    if (ep.vid >= 0) {
+      auto it = by_vid.find(ep.vid);
+      if (it != by_vid.end()) return it->second;
+      const auto& c = pc.coords(ep.vid);
+      return by_vid.emplace(ep.vid, gid(Point3(c[0], c[1], c[2]))).first->second;
+    }
+    auto it = by_def.find(ep.def);
+    if (it != by_def.end()) return it->second;
+    const auto& c = pc.crossing(ep.def);
+    return by_def.emplace(ep.def, gid(Point3(c[0], c[1], c[2]))).first->second;
+  };
   for (const auto& [pl, regions] : planes) {
     const auto& loops = regions->loops;
     const int k = dominant_axis(I.dplanes[pl]);
@@ -741,14 +758,7 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
         std::vector<int> ids;
         ids.reserve(loop.size());
         for (const EvPt& ep : loop) {
-          int id;
-          if (ep.vid >= 0) {
-            const auto& c = pc.coords(ep.vid);
-            id = gid(Point3(c[0], c[1], c[2]));
-          } else {
-            const auto& c = pc.crossing(ep.def);
-            id = gid(Point3(c[0], c[1], c[2]));
-          }
+          const int id = lifted_id(ep);
           G.p2.emplace(id, ep.p);
           ids.push_back(id);
         }

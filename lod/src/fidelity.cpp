@@ -15,8 +15,11 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <optional>
+#include <unordered_map>
+#include <vector>
 
 namespace citylod::lod::detail {
 
@@ -156,17 +159,15 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
 
 FidelityMeter::~FidelityMeter() = default;
 
-Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
-  const auto& I = *impl_;
-  Fidelity f;
-  const TriVec mtris = triangles_of(model.vertices, model.triangles);
-  if (mtris.empty() || I.e2_points.empty()) {
-    f.e1 = f.e2 = f.hausdorff = -1;
-    return f;
-  }
-  // e1: model -> input, area-uniform samples of the model.
+namespace {
+
+/// e1 of the model `mtris` (area-uniform samples of it, each to its nearest
+/// input point or triangle) in % of the diagonal; the largest squared
+/// distance in `max1`.
+double model_to_input(const FidelityMeter::Impl& I, const TriVec& mtris, double& max1) {
   const std::vector<P3> msamples = sample_triangles(mtris, I.samples);
-  double sum1 = 0, max1 = 0;
+  double sum1 = 0;
+  max1 = 0;
   std::uint32_t near = BoxTree::kNoHint;  // consecutive samples are near each other
   for (const auto& q : msamples) {
     double d2;
@@ -181,26 +182,159 @@ Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
     sum1 += d2;
     max1 = std::max(max1, d2);
   }
-  f.e1 = std::sqrt(sum1 / double(msamples.size())) * I.scale;
-  // e2: input -> model, the least squared distance to a model triangle.
-  const BoxTree mbox = triangle_tree(mtris);
-  std::uint32_t near_tri = BoxTree::kNoHint;  // the input samples come in scan order
-  auto model_d2 = [&](const P3& q) {
-    return mbox.nearest2(
-        box_of(q),
-        [&](std::uint32_t i) { return CGAL::to_double(CGAL::squared_distance(q, mtris[i])); },
-        &near_tri, near_tri);
-  };
-  double sum2 = 0, wsum = 0, max2 = 0;
-  for (std::size_t i = 0; i < I.e2_points.size(); ++i) {
-    const double d2 = model_d2(I.e2_points[i]);
-    sum2 += I.e2_weights[i] * d2;
+  return std::sqrt(sum1 / double(msamples.size())) * I.scale;
+}
+
+/// e2 in % of the diagonal from the input samples' squared distances to the
+/// model (weighted, summed in sample order); the largest one in `max2`.
+double input_to_model(const FidelityMeter::Impl& I, const std::vector<double>& d2, double& max2) {
+  double sum2 = 0, wsum = 0;
+  max2 = 0;
+  for (std::size_t i = 0; i < d2.size(); ++i) {
+    sum2 += I.e2_weights[i] * d2[i];
     wsum += I.e2_weights[i];
-    max2 = std::max(max2, d2);
+    max2 = std::max(max2, d2[i]);
   }
-  f.e2 = wsum > 0 ? std::sqrt(sum2 / wsum) * I.scale : -1;
-  f.hausdorff = std::sqrt(std::max(max1, max2));
-  return f;
+  return wsum > 0 ? std::sqrt(sum2 / wsum) * I.scale : -1;
+}
+
+/// The least squared distance from q to the triangles of `box` (`tris[i]`).
+double nearest_triangle2(const BoxTree& box, const TriVec& tris, const P3& q, std::uint32_t& near) {
+  std::uint32_t which = near;
+  const double d2 = box.nearest2(
+      box_of(q),
+      [&](std::uint32_t i) { return CGAL::to_double(CGAL::squared_distance(q, tris[i])); }, &which,
+      near);
+  near = which;
+  return d2;
+}
+
+/// A triangle by the bits of its vertices' coordinates, in order: two
+/// triangles with the same key are at the same squared distance from any point.
+struct TriKey {
+  std::array<std::uint64_t, 9> bits{};
+  bool operator==(const TriKey& o) const { return bits == o.bits; }
+};
+struct TriKeyHash {
+  std::size_t operator()(const TriKey& k) const {
+    std::uint64_t h = 1469598103934665603ull;
+    for (const std::uint64_t b : k.bits) h = (h ^ b) * 1099511628211ull;
+    return std::size_t(h ^ (h >> 29));
+  }
+};
+TriKey key_of(const Tri& t) {
+  TriKey k;
+  for (int v = 0; v < 3; ++v)
+    for (int c = 0; c < 3; ++c) {
+      const double x = t[v][c];
+      std::memcpy(&k.bits[std::size_t(3 * v + c)], &x, sizeof x);
+    }
+  return k;
+}
+
+/// e2's squared distances of consecutive models of one building. Each input
+/// sample keeps its least squared distance to the last model and the
+/// triangle that gives it; while that triangle is in the next model, the
+/// next least distance is the smaller of it and the distance to the triangles
+/// new in that model (the others were in the last model, none nearer). Only
+/// the samples whose triangle is gone search the whole model. The values are
+/// those of a search of the whole model: minima over the same triangles.
+class E2Cache {
+ public:
+  explicit E2Cache(std::size_t n) : d2_(n), key_(n) {}
+
+  /// The squared distance of every input sample to the model `tris`.
+  const std::vector<double>& distances(const FidelityMeter::Impl& I, const TriVec& tris,
+                                       int threads) {
+    std::unordered_map<TriKey, std::uint32_t, TriKeyHash> cur;
+    cur.reserve(tris.size() * 2);
+    std::vector<TriKey> keys(tris.size());
+    TriVec added;
+    std::vector<std::uint32_t> added_id;
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      keys[i] = key_of(tris[i]);
+      cur.emplace(keys[i], std::uint32_t(i));
+      if (!have_ || !last_.count(keys[i])) {
+        added.push_back(tris[i]);
+        added_id.push_back(std::uint32_t(i));
+      }
+    }
+    const std::size_t n = d2_.size();
+    std::vector<char> kept(n, 0);
+    bool any_lost = false;
+    for (std::size_t j = 0; j < n; ++j) {
+      kept[j] = have_ && cur.count(key_[j]) ? 1 : 0;
+      any_lost |= !kept[j];
+    }
+    const std::optional<BoxTree> whole =
+        any_lost ? std::optional<BoxTree>(triangle_tree(tris)) : std::nullopt;
+    const std::optional<BoxTree> fresh =
+        added.empty() ? std::nullopt : std::optional<BoxTree>(triangle_tree(added));
+    const long nl = long(n);
+#pragma omp parallel num_threads(std::max(1, threads)) if (threads > 1)
+    {
+      std::uint32_t near = BoxTree::kNoHint, near_new = BoxTree::kNoHint;
+#pragma omp for schedule(static)
+      for (long jl = 0; jl < nl; ++jl) {
+        const std::size_t j = std::size_t(jl);
+        const P3& q = I.e2_points[j];
+        if (!kept[j]) {
+          d2_[j] = nearest_triangle2(*whole, tris, q, near);
+          key_[j] = keys[near];
+        } else if (fresh) {
+          const double d = nearest_triangle2(*fresh, added, q, near_new);
+          if (d < d2_[j]) {
+            d2_[j] = d;
+            key_[j] = keys[added_id[near_new]];
+          }
+        }
+      }
+    }
+    last_.swap(cur);
+    have_ = true;
+    return d2_;
+  }
+
+ private:
+  std::vector<double> d2_;
+  std::vector<TriKey> key_;
+  std::unordered_map<TriKey, std::uint32_t, TriKeyHash> last_;
+  bool have_ = false;
+};
+
+}  // namespace
+
+Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
+  return measure_all({&model}, 1).front();
+}
+
+std::vector<Fidelity> FidelityMeter::measure_all(const std::vector<const TriangleMesh*>& models,
+                                                 int threads) const {
+  const auto& I = *impl_;
+  const long nm = long(models.size());
+  std::vector<TriVec> tris(models.size());
+  std::vector<Fidelity> out(models.size());
+  std::vector<double> max1(models.size(), 0);
+  // e1: model -> input, each model on its own.
+#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, threads)) if (threads > 1)
+  for (long i = 0; i < nm; ++i) {
+    const TriangleMesh& m = *models[size_t(i)];
+    tris[size_t(i)] = triangles_of(m.vertices, m.triangles);
+    if (tris[size_t(i)].empty() || I.e2_points.empty())
+      out[size_t(i)].e1 = out[size_t(i)].e2 = out[size_t(i)].hausdorff = -1;
+    else
+      out[size_t(i)].e1 = model_to_input(I, tris[size_t(i)], max1[size_t(i)]);
+  }
+  // e2: input -> model, the least squared distance to a model triangle, the
+  // models in order (each after the last one measured).
+  E2Cache cache(I.e2_points.size());
+  for (std::size_t i = 0; i < models.size(); ++i) {
+    if (tris[i].empty() || I.e2_points.empty()) continue;
+    double max2 = 0;
+    out[i].e2 = input_to_model(I, cache.distances(I, tris[i], threads), max2);
+    out[i].hausdorff = std::sqrt(std::max(max1[i], max2));
+  }
+  return out;
 }
 
 Fidelity measure_fidelity(const TriangleMesh& model, const BuildingInput& in, const Samples& s,
