@@ -128,6 +128,7 @@ void declare_lod_param_options(ArgParser& args, const lod::LodParams& defaults,
     else
       left += "\n" + std::string(50, ' ');
     t += left + d[i].rule + "\n";
+    t += "      " + d[i].doc + "\n";  // what it does, on a line of its own
   }
   args.epilog(t);
 }

@@ -201,31 +201,49 @@ struct Relation {
 };
 
 /// Visits every parameter (fixed order) with its dotted name, a reference, its
-/// validation rule and its unit ("" for switches and modes): the one place a
-/// parameter's name is spelled.
+/// validation rule, its unit ("" for switches and modes) and a one-line doc of
+/// what it does (no unit: `citylod lod --help` shows it beside): the one place
+/// a parameter's name, unit, rule and doc are written (its default is the
+/// field's initialiser in params.hpp).
 template <class P, class F>
 void visit(P& p, F&& f) {
-  f("normals.k_neighbors", p.normals.k_neighbors, AtLeast{3}, "points");
-  f("planes.epsilon", p.planes.epsilon, kPositive, "m");
-  f("planes.max_angle_deg", p.planes.max_angle_deg, kAngle, "deg");
-  f("planes.min_region_size", p.planes.min_region_size, AtLeast{3}, "points");
-  f("planes.k_neighbors", p.planes.k_neighbors, AtLeast{3}, "points");
-  f("planes.max_planes", p.planes.max_planes, AtLeast{1}, "planes");
-  f("alpha.alpha", p.alpha.alpha, kPositive, "m");
-  f("bsp.bbox_enlarge", p.bsp.bbox_enlarge, Range{0, 1, false, false}, "ratio");
-  f("bsp.max_cells", p.bsp.max_cells, AtLeast{1}, "cells");
-  f("bsp.baseline", p.bsp.baseline, Any{}, "");
-  f("labels.rays_per_cell", p.labels.rays_per_cell, AtLeast{1}, "rays");
+  f("normals.k_neighbors", p.normals.k_neighbors, AtLeast{3}, "points",
+    "neighbours of a point's PCA normal when the input has none");
+  f("planes.epsilon", p.planes.epsilon, kPositive, "m",
+    "max point-to-plane distance of a plane's inliers");
+  f("planes.max_angle_deg", p.planes.max_angle_deg, kAngle, "deg",
+    "max deviation of an inlier's normal from the plane's");
+  f("planes.min_region_size", p.planes.min_region_size, AtLeast{3}, "points",
+    "smallest plane: its points (or mesh faces)");
+  f("planes.k_neighbors", p.planes.k_neighbors, AtLeast{3}, "points",
+    "neighbourhood of region growing on point clouds");
+  f("planes.max_planes", p.planes.max_planes, AtLeast{1}, "planes",
+    "cap: the largest planes are kept, the rest dropped (recorded)");
+  f("alpha.alpha", p.alpha.alpha, kPositive, "m",
+    "alpha radius of the primitives' alpha-shapes (CGAL's is its square)");
+  f("bsp.bbox_enlarge", p.bsp.bbox_enlarge, Range{0, 1, false, false}, "ratio",
+    "share of the bbox diagonal added to the BSP's box on every side");
+  f("bsp.max_cells", p.bsp.max_cells, AtLeast{1}, "cells",
+    "cap on leaf cells per BSP (fallback when hit)");
+  f("bsp.baseline", p.bsp.baseline, Any{}, "",
+    "also build the plain BSP-Tree (area order, binary) for comparison");
+  f("labels.rays_per_cell", p.labels.rays_per_cell, AtLeast{1}, "rays",
+    "rays cast from a cell to label it in or out");
   f("labels.origins_per_cell", p.labels.origins_per_cell,
     Relation<int>{
         [](const int& v, const LodParams& q) { return v >= 1 && v <= q.labels.rays_per_cell; },
         "must be in [1, labels.rays_per_cell]"},
-    "points");
-  f("ioview.separation_coverage", p.ioview.separation_coverage, kRatio, "ratio");
-  f("ioview.min_principal_area", p.ioview.min_principal_area, kNonNegative, "m^2");
-  f("ioview.covered_only", p.ioview.covered_only, Any{}, "");
-  f("ioview.uncovered", p.ioview.uncovered, Any{}, "");
-  f("cluster.area_bandwidth", p.cluster.area_bandwidth, kPositive, "m^2");
+    "points", "ray origins per cell: 1 = its centre (the paper), more spread them");
+  f("ioview.separation_coverage", p.ioview.separation_coverage, kRatio, "ratio",
+    "share of a shared face an alpha-shape covers to separate its cells");
+  f("ioview.min_principal_area", p.ioview.min_principal_area, kNonNegative, "m^2",
+    "V_in/V_out interface on its plane that makes a primitive principal");
+  f("ioview.covered_only", p.ioview.covered_only, Any{}, "",
+    "a face counts for a plane only where its alpha-shape covers it (paper)");
+  f("ioview.uncovered", p.ioview.uncovered, Any{}, "",
+    "with covered_only: the uncovered interface primitives' place in S");
+  f("cluster.area_bandwidth", p.cluster.area_bandwidth, kPositive, "m^2",
+    "stage 1 mean shift: bandwidth of the area projected on the host");
   f("cluster.volume_bandwidth", p.cluster.volume_bandwidth,
     Relation<double>{[](const double& v, const LodParams& q) {
                        return std::isfinite(v) && v > 0 &&
@@ -233,67 +251,112 @@ void visit(P& p, F&& f) {
                      },
                      "must be > 0, and > 1 (a factor) with "
                      "cluster.volume_scale = ratio"},
-    "factor | m^3");
-  f("cluster.volume_scale", p.cluster.volume_scale, Any{}, "");
-  f("regularization.enabled", p.regularization.enabled, Any{}, "");
-  f("regularization.principal_angle_deg", p.regularization.principal_angle_deg, kAngle, "deg");
-  f("regularization.principal_distance", p.regularization.principal_distance, kNonNegative, "m");
-  f("regularization.secondary_angle_deg", p.regularization.secondary_angle_deg, kAngle, "deg");
-  f("regularization.secondary_distance", p.regularization.secondary_distance, kNonNegative, "m");
-  f("regularization.vertical_host_deg", p.regularization.vertical_host_deg, kAngle, "deg");
+    "factor | m^3", "stage 2 mean shift: bandwidth of the clusters' mean volumes");
+  f("cluster.volume_scale", p.cluster.volume_scale, Any{}, "",
+    "stage 2 on ln V (ratio: the bandwidth is a factor) or on V (m3)");
+  f("regularization.enabled", p.regularization.enabled, Any{}, "",
+    "adaptive regularization of the primitives");
+  f("regularization.principal_angle_deg", p.regularization.principal_angle_deg, kAngle, "deg",
+    "parallelism/orthogonality tolerance of principal primitives");
+  f("regularization.principal_distance", p.regularization.principal_distance, kNonNegative, "m",
+    "coplanarity tolerance of principal primitives");
+  f("regularization.secondary_angle_deg", p.regularization.secondary_angle_deg, kAngle, "deg",
+    "angle tolerance of secondary primitives, to their host");
+  f("regularization.secondary_distance", p.regularization.secondary_distance, kNonNegative, "m",
+    "coplanarity tolerance of secondary primitives");
+  f("regularization.vertical_host_deg", p.regularization.vertical_host_deg, kAngle, "deg",
+    "a host counts as a wall within this angle of vertical");
   f("regularization.min_cutouts_for_templates", p.regularization.min_cutouts_for_templates,
-    AtLeast{1}, "cut-outs");
-  f("tree.merge_k", p.tree.merge_k, AtLeast{1}, "primitives");
-  f("tree.label_volume_ratio", p.tree.label_volume_ratio, kRatio, "ratio");
-  f("tree.interpolation_ratio", p.tree.interpolation_ratio, kRatio, "ratio");
-  f("tree.interpolation_floor", p.tree.interpolation_floor, kUnitOpen, "ratio");
-  f("budget.time_budget_s", p.budget.time_budget_s, kNonNegative, "s");
-  f("closure.enabled", p.closure.enabled, Any{}, "");
-  f("closure.wall_fraction_min", p.closure.wall_fraction_min, kRatio, "ratio");
-  f("closure.outline_alpha", p.closure.outline_alpha, kPositive, "m");
-  f("closure.terrain", p.closure.terrain, Any{}, "");
-  f("closure.plinth_depth", p.closure.plinth_depth, kPositive, "m");
-  f("closure.unknown_ground_depth", p.closure.unknown_ground_depth, kNonNegative, "m");
-  f("closure.footprint_walls", p.closure.footprint_walls, Any{}, "");
-  f("closure.wall_profile", p.closure.wall_profile, Any{}, "");
-  f("closure.wall_snap", p.closure.wall_snap, kNonNegative, "m");
-  f("airborne.mode", p.airborne.mode, Any{}, "");
-  f("airborne.wall_fraction_max", p.airborne.wall_fraction_max, kRatio, "ratio");
-  f("airborne.cell", p.airborne.cell, kPositive, "m");
-  f("airborne.fill_radius", p.airborne.fill_radius, kNonNegative, "m");
-  f("airborne.step_min", p.airborne.step_min, kPositive, "m");
-  f("airborne.step_probe", p.airborne.step_probe, kPositive, "m");
-  f("airborne.step_alpha", p.airborne.step_alpha, kPositive, "m");
-  f("airborne.step_min_edge", p.airborne.step_min_edge, kPositive, "m");
-  f("airborne.origins_per_cell", p.airborne.origins_per_cell, AtLeast{1}, "points");
-  f("airborne.block", p.airborne.block, Any{}, "");
-  f("airborne.min_region_size", p.airborne.min_region_size, AtLeast{3}, "points");
-  f("airborne.roof_refit", p.airborne.roof_refit, Any{}, "");
-  f("airborne.roof_edge_margin", p.airborne.roof_edge_margin, kNonNegative, "m");
-  f("airborne.detail_level", p.airborne.detail_level, Any{}, "");
-  f("orient.enabled", p.orient.enabled, Any{}, "");
-  f("orient.points_per_plane", p.orient.points_per_plane, AtLeast{1}, "points");
-  f("orient.rays", p.orient.rays, AtLeast{2}, "rays");
-  f("orient.offset", p.orient.offset, kPositive, "m");
-  f("orient.margin", p.orient.margin, kUnitOpen, "ratio");
-  f("metrics.samples", p.metrics.samples, AtLeast{1}, "samples");
-  f("colour.enabled", p.colour.enabled, Any{}, "");
-  f("colour.distance", p.colour.distance, kNonNegative, "m");
-  f("colour.min_points", p.colour.min_points, AtLeast{1}, "points");
-  f("colour.max_angle_deg", p.colour.max_angle_deg, kAngleZero, "deg");
+    AtLeast{1}, "cut-outs",
+    "cut-outs of a cluster on a wall host that give cuboid window templates");
+  f("tree.merge_k", p.tree.merge_k, AtLeast{1}, "primitives",
+    "K: a cluster with < K primitives per structure is one multi-branch node");
+  f("tree.label_volume_ratio", p.tree.label_volume_ratio, kRatio, "ratio",
+    "a node is in when this share of its leaf volume is in");
+  f("tree.interpolation_ratio", p.tree.interpolation_ratio, kRatio, "ratio",
+    "new interpolation model when the diff sum < this x the last one's");
+  f("tree.interpolation_floor", p.tree.interpolation_floor, kUnitOpen, "ratio",
+    "no interpolation below this share of the level's first diff sum");
+  f("budget.time_budget_s", p.budget.time_budget_s, kNonNegative, "s",
+    "wall-clock time per building, then a fallback (0 = none)");
+  f("closure.enabled", p.closure.enabled, Any{}, "",
+    "add ground + outline walls when walls are missing");
+  f("closure.wall_fraction_min", p.closure.wall_fraction_min, kRatio, "ratio",
+    "walls are inferred when vertical-normal samples are under this share");
+  f("closure.outline_alpha", p.closure.outline_alpha, kPositive, "m",
+    "2D alpha radius of the outline of the points");
+  f("closure.terrain", p.closure.terrain, Any{}, "",
+    "terrain sheet around the building: kept as a plinth, or cut away");
+  f("closure.plinth_depth", p.closure.plinth_depth, kPositive, "m",
+    "plinth bottom below the lowest sample");
+  f("closure.unknown_ground_depth", p.closure.unknown_ground_depth, kNonNegative, "m",
+    "no ground given and roof-only: ground this far below the lowest");
+  f("closure.footprint_walls", p.closure.footprint_walls, Any{}, "",
+    "walls along a given footprint even where some walls were scanned");
+  f("closure.wall_profile", p.closure.wall_profile, Any{}, "",
+    "meshes on a footprint: inferred walls follow the roof's profile");
+  f("closure.wall_snap", p.closure.wall_snap, kNonNegative, "m",
+    "meshes on a footprint: an inferred wall this near a seen one takes it");
+  f("airborne.mode", p.airborne.mode, Any{}, "",
+    "2.5D labelling by a roof height field: auto, every input or none");
+  f("airborne.wall_fraction_max", p.airborne.wall_fraction_max, kRatio, "ratio",
+    "auto: a point cloud under this share of wall samples is airborne");
+  f("airborne.cell", p.airborne.cell, kPositive, "m", "height-field cell size");
+  f("airborne.fill_radius", p.airborne.fill_radius, kNonNegative, "m",
+    "height-field gaps filled from neighbours up to this far");
+  f("airborne.step_min", p.airborne.step_min, kPositive, "m",
+    "roof drop across a roof plane's edge that makes a step wall");
+  f("airborne.step_probe", p.airborne.step_probe, kPositive, "m",
+    "how far beyond the edge the lower roof is probed");
+  f("airborne.step_alpha", p.airborne.step_alpha, kPositive, "m",
+    "2D alpha radius of a roof plane's outline");
+  f("airborne.step_min_edge", p.airborne.step_min_edge, kPositive, "m",
+    "shortest edge that gets a step wall");
+  f("airborne.origins_per_cell", p.airborne.origins_per_cell, AtLeast{1}, "points",
+    "height-test points per cell (centre + halfway to vertices)");
+  f("airborne.block", p.airborne.block, Any{}, "", "the LoD1.2 block as the coarsest model");
+  f("airborne.min_region_size", p.airborne.min_region_size, AtLeast{3}, "points",
+    "smallest plane on airborne input");
+  f("airborne.roof_refit", p.airborne.roof_refit, Any{}, "",
+    "roof planes refitted robustly (Tukey, outline points weighted down)");
+  f("airborne.roof_edge_margin", p.airborne.roof_edge_margin, kNonNegative, "m",
+    "points this near the outline weigh less in the roof refit");
+  f("airborne.detail_level", p.airborne.detail_level, Any{}, "",
+    "roof planes outside every structure form a last level set");
+  f("orient.enabled", p.orient.enabled, Any{}, "",
+    "turn round planes whose normals point into the building");
+  f("orient.points_per_plane", p.orient.points_per_plane, AtLeast{1}, "points",
+    "inlier positions probed per plane");
+  f("orient.rays", p.orient.rays, AtLeast{2}, "rays",
+    "ray directions per probe (half of them per side)");
+  f("orient.offset", p.orient.offset, kPositive, "m",
+    "probe distance in front of / behind the plane");
+  f("orient.margin", p.orient.margin, kUnitOpen, "ratio",
+    "a plane's front in-fraction must exceed its back's by this much");
+  f("metrics.samples", p.metrics.samples, AtLeast{1}, "samples",
+    "samples on each model for e1; at most this many input samples for e2");
+  f("colour.enabled", p.colour.enabled, Any{}, "",
+    "input colours onto the models' faces (inputs with colours only)");
+  f("colour.distance", p.colour.distance, kNonNegative, "m",
+    "a point colours the nearest face within this distance");
+  f("colour.min_points", p.colour.min_points, AtLeast{1}, "points",
+    "points a plane region needs to take their median colour");
+  f("colour.max_angle_deg", p.colour.max_angle_deg, kAngleZero, "deg",
+    "max angle of a point's normal to the face's outward normal");
 }
 
 }  // namespace
 
 void LodParams::validate() const {
-  visit(*this, [&](const char* name, const auto& value, const auto& rule, const char*) {
-    if (!rule.ok(value, *this)) bad(name, rule.why());
-  });
+  visit(*this,
+        [&](const char* name, const auto& value, const auto& rule, const char*, const char*) {
+          if (!rule.ok(value, *this)) bad(name, rule.why());
+        });
 }
 
 void LodParams::set(const std::string& name, const std::string& value) {
   bool found = false;
-  visit(*this, [&](const char* n, auto& field, const auto&, const char*) {
+  visit(*this, [&](const char* n, auto& field, const auto&, const char*, const char*) {
     if (found || name != n) return;
     found = true;
     parse(name, value, field);
@@ -303,17 +366,18 @@ void LodParams::set(const std::string& name, const std::string& value) {
 
 std::vector<ParamInfo> LodParams::describe() const {
   std::vector<ParamInfo> out;
-  visit(*this, [&](const char* n, const auto& field, const auto& rule, const char* unit) {
-    std::string r = rule.why();
-    if (r.empty()) r = choices(field);
-    out.push_back({n, fmt(field), unit, r});
-  });
+  visit(*this,
+        [&](const char* n, const auto& field, const auto& rule, const char* unit, const char* doc) {
+          std::string r = rule.why();
+          if (r.empty()) r = choices(field);
+          out.push_back({n, fmt(field), unit, r, doc});
+        });
   return out;
 }
 
 std::vector<std::pair<std::string, std::string>> LodParams::items() const {
   std::vector<std::pair<std::string, std::string>> out;
-  visit(*this, [&](const char* n, const auto& field, const auto&, const char*) {
+  visit(*this, [&](const char* n, const auto& field, const auto&, const char*, const char*) {
     out.emplace_back(n, fmt(field));
   });
   return out;

@@ -245,7 +245,11 @@ TEST(Cli, LodHelpListsTheParameters) {
   EXPECT_NE(r.out.find("LOD parameters (--set NAME=VALUE"), std::string::npos) << r.out;
   const auto at = r.out.find("  planes.epsilon = 0.15 m ");
   ASSERT_NE(at, std::string::npos) << r.out;
-  EXPECT_NE(r.out.substr(at, r.out.find('\n', at) - at).find("must be > 0"), std::string::npos);
+  const auto eol = r.out.find('\n', at);
+  EXPECT_NE(r.out.substr(at, eol - at).find("must be > 0"), std::string::npos);
+  // its doc on the next line, indented under it
+  const std::string doc = "      max point-to-plane distance of a plane's inliers\n";
+  EXPECT_EQ(r.out.compare(eol + 1, doc.size(), doc), 0) << r.out;
   EXPECT_NE(r.out.find("  closure.terrain = plinth (city: cut) "), std::string::npos) << r.out;
   const Result t = run("tile --help");
   ASSERT_EQ(t.code, 0) << t.err;

@@ -148,9 +148,9 @@ TEST(LodParams, ItemsRoundTrip) {
   EXPECT_FALSE(names.count("threads"));
 }
 
-// describe() is items() with each parameter's unit and rule (or the words a mode
-// takes): what `citylod lod --help` lists.
-TEST(LodParams, DescribeGivesUnitAndRuleOfEveryItem) {
+// describe() is items() with each parameter's unit, rule (or the words a mode
+// takes) and doc: what `citylod lod --help` lists.
+TEST(LodParams, DescribeGivesUnitRuleAndDocOfEveryItem) {
   LodParams p;
   p.set("planes.epsilon", "0.25");
   const auto items = p.items();
@@ -173,9 +173,14 @@ TEST(LodParams, DescribeGivesUnitAndRuleOfEveryItem) {
   EXPECT_EQ(by["airborne.mode"].rule, "'auto', 'on' or 'off'");
   EXPECT_EQ(by["bsp.baseline"].rule, "true or false");
   EXPECT_EQ(by["labels.origins_per_cell"].rule, "must be in [1, labels.rays_per_cell]");
-  // every number has a unit and a rule; every switch and mode its words
+  EXPECT_EQ(by["planes.epsilon"].doc, "max point-to-plane distance of a plane's inliers");
+  // every number has a unit and a rule; every switch and mode its words; every
+  // parameter a one-line doc that fits the help's table
   for (const auto& d : info) {
     EXPECT_FALSE(d.rule.empty()) << d.name;
+    EXPECT_FALSE(d.doc.empty()) << d.name;
+    EXPECT_LE(d.doc.size(), 80u) << d.name;
+    EXPECT_EQ(d.doc.find('\n'), std::string::npos) << d.name;
     if (d.value != "true" && d.value != "false" && d.value.find_first_of("0123456789") == 0) {
       EXPECT_FALSE(d.unit.empty()) << d.name;
     }

@@ -1,5 +1,5 @@
 // Parameters of every stage of the LOD-Tree method, one struct per stage, with
-// the defaults of the paper (Section 4 and appendices B-C). Units in comments.
+// the defaults of the paper (Section 4 and appendices B-C).
 #pragma once
 
 #include <string>
@@ -20,33 +20,33 @@ const char* to_string(AirborneMode v);      ///< auto, on, off
 
 /// Normal estimation when the input has none (points) — PCA over k neighbours.
 struct NormalParams {
-  int k_neighbors = 12;  ///< neighbours for PCA normals
+  int k_neighbors = 12;
 };
 
 /// Plane detection by region growing (paper: eps 0.15 m, theta 40 deg, sigma 15).
 struct PlaneParams {
-  double epsilon = 0.15;        ///< m, max point-to-plane distance
-  double max_angle_deg = 40.0;  ///< deg, max normal deviation from the plane
-  int min_region_size = 15;     ///< points (or faces) per plane
-  int k_neighbors = 12;         ///< neighbourhood for point clouds
-  int max_planes = 400;         ///< cap: the largest planes are kept, the rest dropped (recorded)
+  double epsilon = 0.15;
+  double max_angle_deg = 40.0;
+  int min_region_size = 15;
+  int k_neighbors = 12;
+  int max_planes = 400;
 };
 
 /// Alpha-shapes of the planar primitives (paper: alpha = 7 m).
 struct AlphaParams {
-  double alpha = 7.0;  ///< m, alpha radius (CGAL's squared alpha = alpha^2)
+  double alpha = 7.0;
 };
 
 /// BSP of the enlarged bounding box (Appendix B).
 struct BspParams {
-  double bbox_enlarge = 0.05;  ///< fraction of the bbox diagonal added on every side
-  int max_cells = 60000;       ///< cap on leaf cells per BSP (fallback when hit)
-  bool baseline = false;  ///< also build the plain BSP-Tree (area order, binary) for comparison
+  double bbox_enlarge = 0.05;
+  int max_cells = 60000;
+  bool baseline = false;
 };
 
 /// In/out labelling by ray casting (Appendix C).
 struct LabelParams {
-  int rays_per_cell = 100;  ///< rays per polyhedron, from its centre
+  int rays_per_cell = 100;
   /// (ours) ray origins per cell: 1 = the paper's centre only; more spreads the
   /// rays over the centre and points halfway to the cell's vertices.
   int origins_per_cell = 1;
@@ -54,9 +54,8 @@ struct LabelParams {
 
 /// IO-View analysis (Section 4.1).
 struct IoViewParams {
-  double separation_coverage =
-      0.5;  ///< fraction of a shared face covered by an alpha-shape to separate cells
-  double min_principal_area = 0.5;  ///< m^2 of V_in/V_out interface for a primitive to be principal
+  double separation_coverage = 0.5;
+  double min_principal_area = 0.5;
   /// true: the paper's rule, a face counts towards a plane's principal area
   /// and host contact only where its alpha-shape covers it. false (ours,
   /// default): the whole face on the plane counts (BENCHMARKS.md: the paper's
@@ -74,7 +73,7 @@ struct IoViewParams {
 
 /// Two-stage mean-shift clustering (Section 4.1).
 struct ClusterParams {
-  double area_bandwidth = 2.0;  ///< m^2, stage 1: projected area on the host primitive
+  double area_bandwidth = 2.0;
   /// stage 2: mean volume per cluster -> level sets. "ratio" (ours): a factor,
   /// mean shift on ln V with bandwidth ln 4 (mean volumes within a factor ~4
   /// share a level set); "m3": the literal reading, bandwidth 4 m^3 on V.
@@ -85,20 +84,19 @@ struct ClusterParams {
 /// Adaptive regularization (Section 4.1).
 struct RegularizationParams {
   bool enabled = true;
-  double principal_angle_deg = 5.0;   ///< parallelism/orthogonality tolerance, principal
-  double principal_distance = 0.01;   ///< m, coplanarity tolerance, principal
-  double secondary_angle_deg = 15.0;  ///< relative to the host primitive
-  double secondary_distance = 0.01;   ///< m
-  double vertical_host_deg = 5.0;     ///< host counts as a wall within this angle of vertical
-  int min_cutouts_for_templates = 4;  ///< "more than three" cut-outs -> cuboid templates
+  double principal_angle_deg = 5.0;
+  double principal_distance = 0.01;
+  double secondary_angle_deg = 15.0;
+  double secondary_distance = 0.01;
+  double vertical_host_deg = 5.0;
+  int min_cutouts_for_templates = 4;  // the paper's "more than three"
 };
 
 /// LOD-Tree construction and traversal (Section 4.2).
 struct TreeParams {
-  int merge_k = 10;  ///< K: clusters with < K primitives per structure -> one multi-branch LOD-node
-  double label_volume_ratio = 0.65;  ///< node labelled in when >= 65 % of its leaf volume is in
-  double interpolation_ratio =
-      0.80;  ///< new interpolation model when the diff sum < 80 % of the last model's
+  int merge_k = 10;
+  double label_volume_ratio = 0.65;
+  double interpolation_ratio = 0.80;
   /// (ours) no interpolation model once the diff sum is below this fraction of
   /// the level's initial diff sum: the remaining changes are too small to see,
   /// and without it the 80 % rule yields one model per 20 % of an ever smaller tail.
@@ -107,15 +105,14 @@ struct TreeParams {
 
 /// Work bounds per building; hitting one gives a recorded fallback.
 struct BudgetParams {
-  double time_budget_s = 120.0;  ///< wall-clock seconds per building (0 = none)
+  double time_budget_s = 120.0;
 };
 
 /// Closure of airborne LiDAR buildings that have roofs but few walls.
 struct ClosureParams {
-  bool enabled = true;  ///< add ground + outline walls when walls are missing
-  double wall_fraction_min =
-      0.05;  ///< if vertical-normal samples are below this fraction, walls are inferred
-  double outline_alpha = 1.5;  ///< m, 2D alpha radius of the outline of the points
+  bool enabled = true;
+  double wall_fraction_min = 0.05;
+  double outline_alpha = 1.5;
   /// What becomes of a terrain sheet around the building (photogrammetry
   /// meshes cut out of a city model): "plinth" keeps it as the top of a solid
   /// under the whole scene (what the paper's BSP labelling of such an input
@@ -128,7 +125,7 @@ struct ClosureParams {
   /// cells see the sky sideways and are lost). City runs set this; a single
   /// building's scan without a footprint is unaffected.
   bool footprint_walls = false;
-  double plinth_depth = 0.5;  ///< m, plinth bottom below the lowest sample
+  double plinth_depth = 0.5;
   /// (ours) No ground height given (a lone building's points) and the lowest samples are
   /// roof, not wall bottoms (half of the points within 1 m of the lowest: roof-only LiDAR of
   /// a shed or a flat annex spans 0.2 m): the ground is put this far below the lowest
@@ -161,24 +158,24 @@ struct AirborneParams {
   /// (0.05): 339 of 800 AHN3 buildings went to the rays, 244 fell back. A point cloud above
   /// it whose rays fail is tried again as airborne before it falls back.
   double wall_fraction_max = 0.35;
-  double cell = 0.5;         ///< m, height-field cell size
-  double fill_radius = 1.5;  ///< m, gaps in the height field filled from neighbours up to this far
-  double step_min = 1.0;     ///< m, roof drop across a roof plane's edge that makes a step wall
-  double step_probe = 0.75;  ///< m, how far beyond the edge the lower roof is probed
-  double step_alpha = 1.0;   ///< m, 2D alpha radius of a roof plane's outline
-  double step_min_edge = 1.0;  ///< m, shortest edge that gets a step wall
-  int origins_per_cell = 9;    ///< height-test points per cell (centre + halfway to vertices)
+  double cell = 0.5;
+  double fill_radius = 1.5;
+  double step_min = 1.0;
+  double step_probe = 0.75;
+  double step_alpha = 1.0;
+  double step_min_edge = 1.0;
+  int origins_per_cell = 9;
   /// Smallest plane (points) on airborne input: the paper's 15 suit dense
   /// MVS; at AHN3's ~10 points/m^2 they lose roof parts under 1.5 m^2
   /// (Delft tile: finest RMSE median 0.193 m with 15, 0.136 m with 8).
   int min_region_size = 8;
-  bool block = true;  ///< the LoD1.2 block as the coarsest model
+  bool block = true;
   /// Roof planes refitted robustly before the BSP: Tukey-weighted least
   /// squares (scale 1.4826 MAD), points within `roof_edge_margin` of the
   /// outline weighted down linearly (gutters, wall tops and eaves mixed into
   /// the edge returns pull a plane fitted to all its points off the roof).
   bool roof_refit = true;
-  double roof_edge_margin = 1.5;  ///< m
+  double roof_edge_margin = 1.5;
   /// Roof planes and inferred walls outside every IO-View structure form the
   /// last level set (the paper drops them as noise; on airborne LiDAR they are
   /// roof detail. Delft tile: the 7689-point building's finest RMSE 0.286 ->
@@ -191,16 +188,15 @@ struct AirborneParams {
 /// (input normals pointing into the building) is turned round.
 struct OrientParams {
   bool enabled = true;
-  int points_per_plane = 4;  ///< inlier positions probed per plane
-  int rays = 100;            ///< ray directions (half of them per side)
-  double offset = 0.1;       ///< m, probe distance in front of / behind the plane
-  double margin = 0.2;       ///< front in-fraction must exceed the back's by this much
+  int points_per_plane = 4;
+  int rays = 100;
+  double offset = 0.1;
+  double margin = 0.2;
 };
 
 /// Evaluation (e1/e2 RMSE).
 struct MetricParams {
-  int samples = 5000;  ///< samples on each model for e1 (point clouds: at most 2 per input point,
-                       ///< at least 250); at most this many input samples for e2
+  int samples = 5000;  // on point clouds e1 takes at most 2 per input point, at least 250
 };
 
 /// Input colours onto the models' faces (ours; the paper has no colour): each
@@ -211,18 +207,21 @@ struct MetricParams {
 /// (coplanar faces sharing edges) with at least `min_points` points gets
 /// their per-channel median colour.
 struct ColourParams {
-  bool enabled = true;        ///< only acts on inputs with colours
-  double distance = 1.0;      ///< m, point to face
-  double max_angle_deg = 60;  ///< the point's (outward) normal to the face's outward normal
+  bool enabled = true;
+  double distance = 1.0;
+  double max_angle_deg = 60;
   int min_points = 5;
 };
 
 /// One parameter described: dotted name, value (as items() writes it), unit ("" for
-/// switches and modes) and the rule it must meet (or the words it takes).
+/// switches and modes), the rule it must meet (or the words it takes) and what it does.
 struct ParamInfo {
-  std::string name, value, unit, rule;
+  std::string name, value, unit, rule, doc;
 };
 
+/// Every parameter of the LOD stages. Each field's unit, rule and one-line doc
+/// are declared once, in visit() (lod/src/params.cpp), and listed by
+/// `citylod lod --help`; its default is its initialiser.
 struct LodParams {
   NormalParams normals;
   PlaneParams planes;
