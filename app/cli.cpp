@@ -101,6 +101,24 @@ void install_log_sink() {
   set_log_sink(&stderr_sink);
 }
 
+namespace {
+// The command line's names of the library's options (option_names.hpp): a
+// field is its flag with '-' for '_', except where the flag says it otherwise.
+std::string flag_of(const std::string& field) {
+  if (field == "work_dir") return "--out";
+  std::string f = field;
+  std::replace(f.begin(), f.end(), '_', '-');
+  return "--" + f;
+}
+std::string rerun_of(const std::string& command, const std::string& field) {
+  return "citylod " + command + " " + flag_of(field);
+}
+}  // namespace
+
+void install_option_spelling() {
+  set_option_spelling({&flag_of, &rerun_of});
+}
+
 void set_log_level(LogLevel level) {
   g_level = level;
 }
@@ -372,6 +390,7 @@ int usage_error(const std::string& msg, const std::string& cmd) {
 int run_cli(int argc, char** argv) {
   std::setlocale(LC_ALL, "C");
   install_log_sink();
+  install_option_spelling();
   std::vector<std::string> args(argv + 1, argv + argc);
   std::string cmd_name;
   std::unique_ptr<ArgParser> parser;  // outlives the command: an error names its inputs

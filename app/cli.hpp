@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "citylod/tiler/log.hpp"
+#include "citylod/tiler/option_names.hpp"
 #include "progress_bar.hpp"
 
 namespace citylod::app {
@@ -80,6 +81,8 @@ LogLevel parse_log_level(const std::string& s);
 
 /// Installs the stderr sink (thread-safe; clears a progress bar first).
 void install_log_sink();
+/// Messages of the library name its options by their flags (option_names.hpp).
+void install_option_spelling();
 
 // ---------------------------------------------------------------- arguments
 enum class Arity { none, optional_one, one, zero_or_more, one_or_more };

@@ -1,6 +1,7 @@
 // `citylod assemble`: work directory -> hierarchical 3D Tiles 1.1 tileset.
 // Reads top to bottom: load buildings, build the tile tree, write the files.
 #include "citylod/tiler/assemble.hpp"
+#include "citylod/tiler/option_names.hpp"
 
 #include <algorithm>
 #include <array>
@@ -617,8 +618,8 @@ void check_output_dir(const fs::path& out, bool force) {
   if (!fs::is_directory(out)) throw io::IoError(out.string(), "exists and is not a directory");
   const bool empty = fs::directory_iterator(out) == fs::directory_iterator();
   if (!empty && !fs::exists(tileset_json_path(out.string())) && !force)
-    throw io::IoError(out.string(),
-                      "exists and is not a tileset (no tileset.json); use --force to replace it");
+    throw io::IoError(out.string(), "exists and is not a tileset (no tileset.json); use " +
+                                        option_name("force") + " to replace it");
 }
 
 // ------------------------------------------------------------ the stage's steps

@@ -1,6 +1,7 @@
 // The LOD stage (lod_stage.hpp): parameters of a city run, one building, and
 // every building of a work directory.
 #include "citylod/tiler/lod_stage.hpp"
+#include "citylod/tiler/option_names.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -49,11 +50,11 @@ void apply_lod_settings(lod::LodParams& p, const std::string& list) {
     if (item.empty()) continue;
     const auto eq = item.find('=');
     if (eq == std::string::npos)
-      throw std::invalid_argument("--set expects NAME=VALUE, got '" + item + "'");
+      throw std::invalid_argument(option_name("set") + " expects NAME=VALUE, got '" + item + "'");
     try {
       p.set(item.substr(0, eq), item.substr(eq + 1));
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("--set: ") + e.what());
+      throw std::invalid_argument(option_name("set") + ": " + e.what());
     }
   }
 }
@@ -94,10 +95,10 @@ void parse_shard(const std::string& s, int& index, int& count) {
     count = std::stoi(s.substr(slash + 1), &b);
     if (a != slash || b != s.size() - slash - 1) throw std::invalid_argument("");
   } catch (const std::exception&) {
-    throw std::invalid_argument("--shard expects I/N, got '" + s + "'");
+    throw std::invalid_argument(option_name("shard") + " expects I/N, got '" + s + "'");
   }
   if (count < 1 || index < 0 || index >= count)
-    throw std::invalid_argument("--shard " + s + ": need 0 <= I < N");
+    throw std::invalid_argument(option_name("shard") + " " + s + ": need 0 <= I < N");
 }
 
 // ------------------------------------------------------------ one building
@@ -188,7 +189,8 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
     if (!crashed_before && !chunk_intact(work, c))
       throw std::runtime_error(chunk_path(work, c.id) +
                                ": missing, truncated or changed since split (its hash is not the "
-                               "manifest's); run 'citylod split --force' again");
+                               "manifest's); run '" +
+                               rerun_name("split", "force") + "' again");
     const lod::BuildingInput in = chunk_input(work, c);
     r = crashed_before ? lod::fallback_result(in, "crashed in an earlier run; not retried")
                        : lod::build_lod_tree(in, p);

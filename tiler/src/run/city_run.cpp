@@ -3,6 +3,7 @@
 // schedules its buildings on std::threads, so run_city() may follow an earlier
 // run's OpenMP regions (assemble) in the same process.
 #include "citylod/tiler/city_run.hpp"
+#include "citylod/tiler/option_names.hpp"
 
 #include <sys/resource.h>
 
@@ -132,7 +133,7 @@ std::vector<std::string> apply_model_selections(const std::string& work_dir,
         warnings.push_back(
             c.id + ": model selection ignored (" +
             (anchor ? std::string("unknown steps") : std::string("no anchor model selected")) +
-            " for the current models; run 'citylod rebuild --select' again)");
+            " for the current models; run '" + rerun_name("rebuild", "select") + "' again)");
         sel.clear();
       } else {
         r.models = chosen;

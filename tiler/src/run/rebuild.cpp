@@ -21,6 +21,7 @@
 #include "citylod/tiler/cityjson.hpp"
 #include "citylod/tiler/dir_lock.hpp"
 #include "citylod/tiler/log.hpp"
+#include "citylod/tiler/option_names.hpp"
 
 namespace citylod::tiler {
 
@@ -69,11 +70,11 @@ std::vector<int> parse_select(const std::string& s) {
     char* end = nullptr;
     const long v = std::strtol(item.c_str(), &end, 10);
     if (*end != '\0' || v < 0)
-      throw std::invalid_argument("--select expects model steps like 0,3,5 (or 'all'), got '" +
-                                  item + "'");
+      throw std::invalid_argument(option_name("select") +
+                                  " expects model steps like 0,3,5 (or 'all'), got '" + item + "'");
     steps.push_back(int(v));
   }
-  if (steps.empty()) throw std::invalid_argument("--select: no steps given");
+  if (steps.empty()) throw std::invalid_argument(option_name("select") + ": no steps given");
   std::sort(steps.begin(), steps.end());
   steps.erase(std::unique(steps.begin(), steps.end()), steps.end());
   return steps;
@@ -144,7 +145,7 @@ RebuildResult rebuild(const RebuildOptions& o, const ProgressFn& progress) {
       bo.select = old.count(id) ? old.at(id).select : std::vector<int>{};
       write_overrides(work, ov);
       apply_model_selections(work, ov);
-      throw std::runtime_error(id + ": --select " + *o.select +
+      throw std::runtime_error(id + ": " + option_name("select") + " " + *o.select +
                                ": these steps are not among its models or include no anchor (see " +
                                res.report + ")");
     }

@@ -20,6 +20,7 @@
 #endif
 
 #include "citylod/io/error.hpp"
+#include "citylod/tiler/option_names.hpp"
 #include "citylod/tiler/threads.hpp"
 #include "split_internal.hpp"
 
@@ -165,10 +166,10 @@ void Splitter::region_too_large(const CellKey& key, double size, const std::stri
                 "cell " + std::to_string(key.first) + "," + std::to_string(key.second) + " (" +
                     fmt("%.2f", size) + " m" + what + ", halo " + fmt("%.0f", opt_.halo) +
                     " m) holds more than the " + std::to_string(region_budget_points_) +
-                    " points (mesh scenes: samples + faces) --memory-limit " +
+                    " points (mesh scenes: samples + faces) " + option_name("memory_limit") + " " +
                     fmt("%.0f", double(opt_.memory_limit) / 1048576) +
-                    "M allows, even at the smallest cell size: raise --memory-limit (or lower "
-                    "--halo)");
+                    "M allows, even at the smallest cell size: raise " +
+                    option_name("memory_limit") + " (or lower " + option_name("halo") + ")");
 }
 
 // Clusters: owned by the cell holding their centroid; the halo doubles while an
@@ -233,7 +234,7 @@ void Splitter::process_cell_clusters(const Spiller& spill, const CellKey& key, d
     if (!truncated || halo >= opt_.max_halo) {
       if (truncated)
         rep.notes.push_back("cell " + std::to_string(key.first) + "," + std::to_string(key.second) +
-                            ": a building larger than --max-halo was cut");
+                            ": a building larger than " + option_name("max_halo") + " was cut");
       break;
     }
     halo = std::min(2 * halo, opt_.max_halo);
@@ -385,8 +386,8 @@ void Splitter::pass3_cells(const Spiller& spill) {
       process_cell_footprints(spill, key, cell_, fp_owned_.at(key), job);
   });
   if (subdivided_ > 0)
-    rep_.notes.push_back(std::to_string(subdivided_) +
-                         " cells processed in quarters to fit --memory-limit");
+    rep_.notes.push_back(std::to_string(subdivided_) + " cells processed in quarters to fit " +
+                         option_name("memory_limit"));
   if (opt_.footprints.empty()) return;
   count_unmatched(spill);
   if (!segment) return;
@@ -494,13 +495,14 @@ void Splitter::count_unmatched(const Spiller& spill) {
   rep_.unmatched_points = out;
   char b[256];
   std::snprintf(b, sizeof b,
-                "%lld of %lld building (class 6) points lie outside every footprint (%.1f %%): %s",
+                "%lld of %lld building (class 6) points lie outside every footprint (%.1f %%): ",
                 static_cast<long long>(out), static_cast<long long>(class_hist_[6]),
-                class_hist_[6] ? 100.0 * double(out) / double(class_hist_[6]) : 0.0,
-                opt_.unmatched == SplitOptions::Unmatched::segment
-                    ? "clustered into buildings without footprint (--unmatched segment)"
-                    : "dropped (--unmatched drop)");
-  rep_.notes.push_back(b);
+                class_hist_[6] ? 100.0 * double(out) / double(class_hist_[6]) : 0.0);
+  const std::string unmatched = option_name("unmatched");
+  rep_.notes.push_back(
+      b + (opt_.unmatched == SplitOptions::Unmatched::segment
+               ? "clustered into buildings without footprint (" + unmatched + " segment)"
+               : "dropped (" + unmatched + " drop)"));
 }
 
 // --unmatched segment: the points of a region that belong to a footprint are taken

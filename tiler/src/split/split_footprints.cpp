@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "citylod/io/error.hpp"
+#include "citylod/tiler/option_names.hpp"
 #include "split_internal.hpp"
 
 namespace citylod::tiler::split_detail {
@@ -112,9 +113,10 @@ void Splitter::load_footprints() {
         f.bbox[3] + buf < bbox_enu_.min[1] || f.bbox[1] - buf > bbox_enu_.max[1])
       continue;
     if (!seen.insert(f.id).second)
-      throw IoError(
-          src, "duplicate footprint id '" + f.id + "'" +
-                   (opt_.footprints_id.empty() ? " (choose another with --footprints-id)" : ""));
+      throw IoError(src, "duplicate footprint id '" + f.id + "'" +
+                             (opt_.footprints_id.empty()
+                                  ? " (choose another with " + option_name("footprints_id") + ")"
+                                  : std::string()));
     const bool inside = f.bbox[0] >= bbox_enu_.min[0] && f.bbox[2] <= bbox_enu_.max[0] &&
                         f.bbox[1] >= bbox_enu_.min[1] && f.bbox[3] <= bbox_enu_.max[1];
     fp_inside_.push_back(inside);

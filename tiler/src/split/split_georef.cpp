@@ -7,6 +7,7 @@
 
 #include "citylod/geo/units.hpp"
 #include "citylod/geo/vertical.hpp"
+#include "citylod/tiler/option_names.hpp"
 #include "split_internal.hpp"
 
 namespace citylod::tiler::split_detail {
@@ -62,9 +63,10 @@ void Splitter::georeference() {
     }
     if (!origin.empty()) {
       georef_.emplace(geo::Georef::local(geo::parse_origin(origin)));
-      rep_.notes.push_back(std::string("data in a local ENU frame at ") +
-                           (opt_.origin.empty() ? "metadata.xml ENU:" : "--origin ") + origin +
-                           " (no CRS)");
+      rep_.notes.push_back(
+          std::string("data in a local ENU frame at ") +
+          (opt_.origin.empty() ? std::string("metadata.xml ENU:") : option_name("origin") + " ") +
+          origin + " (no CRS)");
       return;
     }
     if (!opt_.crs.empty()) {
@@ -75,11 +77,12 @@ void Splitter::georeference() {
         if (s.empty()) s = in.sidecar_crs;
         if (s.empty())
           throw IoError(in.path,
-                        "no CRS in the file (nor in a .prj or metadata.xml beside it); pass --crs "
-                        "EPSG:nnnn (or --origin LAT,LON,H for local data)");
+                        "no CRS in the file (nor in a .prj or metadata.xml beside it); pass " +
+                            option_name("crs") + " EPSG:nnnn (or " + option_name("origin") +
+                            " LAT,LON,H for local data)");
         if (!crs_spec_.empty() && s != crs_spec_)
-          throw IoError(in.path,
-                        "its CRS differs from that of " + inputs_.front().path + "; pass --crs");
+          throw IoError(in.path, "its CRS differs from that of " + inputs_.front().path +
+                                     "; pass " + option_name("crs"));
         crs_spec_ = s;
       }
     }
@@ -95,7 +98,8 @@ void Splitter::georeference() {
       geo::TransformOptions to;
       to.height = geo::HeightMode::Egm96;
       georef_.emplace(geo::Georef::from_crs_bbox(*crs_, to_eigen(bbox_crs_), to));
-      rep_.vertical = "heights orthometric (--geoid egm96) -> ellipsoidal via EGM96";
+      rep_.vertical =
+          "heights orthometric (" + option_name("geoid") + " egm96) -> ellipsoidal via EGM96";
     } else {
       geo::VerticalChoice vc = geo::choose_vertical(*crs_, opt_.vertical);
       georef_.emplace(
@@ -167,7 +171,8 @@ void Splitter::choose_cell_size() {
                                       0.5 * double(region_budget_points_))
     cell_ *= 0.5;
   if (cell_ != opt_.cell_size)
-    rep_.notes.push_back("cell size reduced to " + fmt("%.1f", cell_) + " m to fit --memory-limit");
+    rep_.notes.push_back("cell size reduced to " + fmt("%.1f", cell_) + " m to fit " +
+                         option_name("memory_limit"));
   rep_.cell_size = cell_;
   claim_cell_ = cell_;
   while (claim_cell_ > kMinSplitCell) claim_cell_ *= 0.5;

@@ -7,6 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "citylod/tiler/option_names.hpp"
 #include "split_internal.hpp"
 
 namespace citylod::tiler {
@@ -41,7 +42,8 @@ std::uint64_t parse_memory_size(const std::string& s) {
   try {
     v = std::stod(s, &used);
   } catch (const std::exception&) {
-    throw std::invalid_argument("--memory-limit: '" + s + "' is not a size (e.g. 2G, 512M)");
+    throw std::invalid_argument(option_name("memory_limit") + ": '" + s +
+                                "' is not a size (e.g. 2G, 512M)");
   }
   std::string unit = s.substr(used);
   for (auto& c : unit) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
@@ -57,12 +59,13 @@ std::uint64_t parse_memory_size(const std::string& s) {
   else if (unit == "T" || unit == "TB" || unit == "TIB")
     mul = 1024.0 * 1024 * 1024 * 1024;
   else
-    throw std::invalid_argument("--memory-limit: unknown unit '" + unit + "' in '" + s + "'");
+    throw std::invalid_argument(option_name("memory_limit") + ": unknown unit '" + unit + "' in '" +
+                                s + "'");
   if (!(v > 0) || !std::isfinite(v))
-    throw std::invalid_argument("--memory-limit: must be positive");
+    throw std::invalid_argument(option_name("memory_limit") + ": must be positive");
   // 2^64 bytes and more do not fit the count (the conversion would wrap round)
   if (!(v * mul < 18446744073709551616.0))
-    throw std::invalid_argument("--memory-limit: '" + s +
+    throw std::invalid_argument(option_name("memory_limit") + ": '" + s +
                                 "' is more than the largest size there is (16E = 2^64 bytes)");
   return static_cast<std::uint64_t>(v * mul);
 }
@@ -70,7 +73,8 @@ std::uint64_t parse_memory_size(const std::string& s) {
 SplitOptions::Geoid parse_geoid(const std::string& word) {
   if (word.empty()) return SplitOptions::Geoid::none;
   if (word == to_string(SplitOptions::Geoid::egm96)) return SplitOptions::Geoid::egm96;
-  throw std::invalid_argument("--geoid: only 'egm96' is supported, got '" + word + "'");
+  throw std::invalid_argument(option_name("geoid") + ": only 'egm96' is supported, got '" + word +
+                              "'");
 }
 
 const char* to_string(SplitOptions::Geoid g) {
@@ -82,43 +86,49 @@ geo::VerticalMode parse_vertical(const std::string& word) {
        {geo::VerticalMode::Auto, geo::VerticalMode::Ellipsoidal, geo::VerticalMode::Orthometric})
     if (word == geo::to_string(m)) return m;
   if (word.empty()) return geo::VerticalMode::Auto;
-  throw std::invalid_argument("--vertical: expected auto, ellipsoidal or orthometric, got '" +
-                              word + "'");
+  throw std::invalid_argument(option_name("vertical") +
+                              ": expected auto, ellipsoidal or orthometric, got '" + word + "'");
 }
 
 void SplitOptions::validate() const {
-  auto positive = [](double v, const char* name) {
+  auto positive = [](double v, const std::string& name) {
     if (!(v > 0) || !std::isfinite(v))
-      throw std::invalid_argument(std::string(name) + " must be a positive number");
+      throw std::invalid_argument(name + " must be a positive number");
   };
+  const auto crs_name = option_name("crs"), origin_name = option_name("origin");
   if (inputs.empty()) throw std::invalid_argument("no input file");
-  if (work_dir.empty()) throw std::invalid_argument("--out WORK is required");
+  if (work_dir.empty()) throw std::invalid_argument(option_name("work_dir") + " WORK is required");
   if (!crs.empty() && !origin.empty())
-    throw std::invalid_argument(
-        "--crs and --origin exclude each other (--origin is for data in a local metric frame)");
+    throw std::invalid_argument(crs_name + " and " + origin_name + " exclude each other (" +
+                                origin_name + " is for data in a local metric frame)");
   if (geoid != Geoid::none && !origin.empty())
-    throw std::invalid_argument(
-        "--geoid needs a CRS; with --origin heights are relative to the given ellipsoidal H");
+    throw std::invalid_argument(option_name("geoid") + " needs a CRS; with " + origin_name +
+                                " heights are relative to the given ellipsoidal H");
   if (vertical != geo::VerticalMode::Auto && !origin.empty())
-    throw std::invalid_argument(
-        "--vertical needs a CRS; with --origin heights are relative to the given ellipsoidal H");
+    throw std::invalid_argument(option_name("vertical") + " needs a CRS; with " + origin_name +
+                                " heights are relative to the given ellipsoidal H");
   if (geoid != Geoid::none && vertical == geo::VerticalMode::Ellipsoidal)
-    throw std::invalid_argument(
-        "--geoid egm96 (orthometric heights) contradicts --vertical ellipsoidal");
+    throw std::invalid_argument(option_name("geoid") + " egm96 (orthometric heights) contradicts " +
+                                option_name("vertical") + " ellipsoidal");
   if (footprints.empty() && (!footprints_layer.empty() || !footprints_id.empty()))
-    throw std::invalid_argument("--footprints-layer / --footprints-id need --footprints");
+    throw std::invalid_argument(option_name("footprints_layer") + " / " +
+                                option_name("footprints_id") + " need " +
+                                option_name("footprints"));
   if (!offset.empty() && !parse_triple(offset))
-    throw std::invalid_argument("--offset: expected X,Y or X,Y,Z (numbers), got '" + offset + "'");
-  positive(cell_size, "--cell-size");
-  positive(halo, "--halo");
-  positive(seg.cluster_tolerance, "--cluster-tolerance");
-  positive(seg.dtm_resolution, "dtm resolution");
-  if (max_halo < halo) throw std::invalid_argument("--max-halo must be >= --halo");
-  if (footprint_buffer < 0) throw std::invalid_argument("--footprint-buffer must be >= 0");
+    throw std::invalid_argument(option_name("offset") + ": expected X,Y or X,Y,Z (numbers), got '" +
+                                offset + "'");
+  positive(cell_size, option_name("cell_size"));
+  positive(halo, option_name("halo"));
+  positive(seg.cluster_tolerance, option_name("cluster_tolerance"));
+  positive(seg.dtm_resolution, "the DTM resolution");
+  if (max_halo < halo)
+    throw std::invalid_argument(option_name("max_halo") + " must be >= " + option_name("halo"));
+  if (footprint_buffer < 0)
+    throw std::invalid_argument(option_name("footprint_buffer") + " must be >= 0");
   if (memory_limit < (64ull << 20))
-    throw std::invalid_argument("--memory-limit must be at least 64M");
-  if (seg.min_height < 0) throw std::invalid_argument("--min-height must be >= 0");
-  if (seg.min_area < 0) throw std::invalid_argument("--min-area must be >= 0");
+    throw std::invalid_argument(option_name("memory_limit") + " must be at least 64M");
+  if (seg.min_height < 0) throw std::invalid_argument(option_name("min_height") + " must be >= 0");
+  if (seg.min_area < 0) throw std::invalid_argument(option_name("min_area") + " must be >= 0");
 }
 
 std::string SplitOptions::canonical() const {
