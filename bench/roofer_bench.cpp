@@ -76,6 +76,16 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+/// The q-quantile (0..1) of the finite values, by linear interpolation.
+double quantile(std::vector<double> v, double q) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const double at = q * double(v.size() - 1);
+  const std::size_t i = std::size_t(at);
+  return i + 1 < v.size() ? v[i] + (at - double(i)) * (v[i + 1] - v[i]) : v[i];
+}
+
 /// Vertical RMSE of the roof points (more than 1 m inside the outline) to the
 /// model: the model surface nearest in z on the vertical through the point; a
 /// point over no model surface counts with its height above the model's base.
@@ -267,7 +277,7 @@ int main(int argc, char** argv) {
     if (std::string(argv[i]) == "--csv") csv_path = argv[i + 1];
   try {
     const tiler::Manifest man = tiler::read_manifest(work);
-    int holes = 0;
+    int holes = 0, no_chunk = 0;
     const tiler::SceneGeoref scene(man, work);
     const auto roofer = read_roofer(roofer_path, scene, holes);
     std::vector<Building> rows;
@@ -277,6 +287,10 @@ int main(int argc, char** argv) {
       const std::string fid = c.source.substr(prefix.size());
       const auto rf = roofer.find(fid);
       if (rf == roofer.end()) continue;  // roofer made no model (too few points)
+      if (c.skipped()) {  // no points of ours on this footprint: no chunk to measure against
+        ++no_chunk;
+        continue;
+      }
       Building b;
       b.id = fid;
       b.t_roofer_ms = rf->second.t_run_ms;
@@ -354,8 +368,12 @@ int main(int argc, char** argv) {
       for (const auto& b : rows) v.push_back(get(b));
       return v;
     };
-    std::printf("\nbuildings compared: %zu (roofer inner rings skipped: %d)\n", rows.size(), holes);
-    std::printf("%-22s %10s %10s %10s %12s\n", "model", "rmse med", "roof med", "tri med", "valid");
+    std::printf(
+        "\nbuildings compared: %zu (roofer inner rings skipped: %d; footprints roofer modelled "
+        "that have no points in the split, not compared: %d)\n",
+        rows.size(), holes, no_chunk);
+    std::printf("%-22s %10s %10s %10s %10s %10s %12s\n", "model", "rmse med", "rmse p90",
+                "roof med", "roof p90", "tri med", "valid");
     auto summary = [&](const char* name, auto get) {
       std::vector<double> r, h, t;
       int valid = 0, n = 0;
@@ -368,14 +386,21 @@ int main(int argc, char** argv) {
         h.push_back(m.roof);
         t.push_back(double(m.triangles));
       }
-      std::printf("%-22s %10.3f %10.3f %10.0f %6d/%-5d\n", name, median(r), median(h), median(t),
-                  valid, n);
+      std::printf("%-22s %10.3f %10.3f %10.3f %10.3f %10.0f %6d/%-5d\n", name, median(r),
+                  quantile(r, 0.9), median(h), quantile(h, 0.9), median(t), valid, n);
     };
     summary("citylod finest", [](const Building& b) -> const Measure& { return b.finest; });
     summary("citylod coarsest", [](const Building& b) -> const Measure& { return b.coarsest; });
     summary("roofer LoD1.2", [](const Building& b) -> const Measure& { return b.rf[0]; });
     summary("roofer LoD1.3", [](const Building& b) -> const Measure& { return b.rf[1]; });
     summary("roofer LoD2.2", [](const Building& b) -> const Measure& { return b.rf[2]; });
+    {
+      std::map<std::string, int> by_status;
+      for (const auto& b : rows) ++by_status[b.status];
+      std::printf("citylod status of the buildings roofer models:");
+      for (const auto& [k, v] : by_status) std::printf(" %s %d", k.c_str(), v);
+      std::printf("\n");
+    }
     int all_models = 0, all_valid = 0, pinched = 0, multi = 0;
     for (const auto& b : rows)
       for (const auto& m : b.ours) {
@@ -454,14 +479,14 @@ int main(int argc, char** argv) {
              "coarsest_roof";
       for (int k = 0; k < 3; ++k)
         csv << ",rf" << kLods[k] << "_tri,rf" << kLods[k] << "_rmse,rf" << kLods[k] << "_roof";
-      csv << ",ms_ours,ms_roofer\n";
+      csv << ",ms_ours,ms_roofer,status\n";
       for (const auto& b : rows) {
         csv << b.id << ',' << b.points << ',' << b.finest.triangles << ',' << b.finest.rmse << ','
             << b.finest.roof << ',' << b.finest.valid << ',' << b.coarsest.triangles << ','
             << b.coarsest.rmse << ',' << b.coarsest.roof;
         for (int k = 0; k < 3; ++k)
           csv << ',' << b.rf[k].triangles << ',' << b.rf[k].rmse << ',' << b.rf[k].roof;
-        csv << ',' << b.t_ours_ms << ',' << b.t_roofer_ms << '\n';
+        csv << ',' << b.t_ours_ms << ',' << b.t_roofer_ms << ',' << b.status << '\n';
       }
     }
   } catch (const std::exception& e) {
