@@ -82,9 +82,29 @@ std::vector<std::array<int, 3>> ear_clip(const std::vector<Vec2>& poly) {
 
 }  // namespace
 
+namespace {
+
+/// The 98th percentile of the samples' heights above `ground_z`.
+double top_height(const Samples& s, double ground_z) {
+  if (s.points.empty()) return 0;
+  std::vector<double> h;
+  h.reserve(s.points.size());
+  for (const auto& q : s.points) h.push_back(q.z() - ground_z);
+  const auto at = h.begin() + long(0.98 * double(h.size() - 1));
+  std::nth_element(h.begin(), at, h.end());
+  return *at;
+}
+
+}  // namespace
+
 HeightField::HeightField(const Samples& s, const std::vector<Vec2>& outline, double ground_z,
                          const AirborneParams& p)
-    : outline_(outline), ground_(ground_z), cell_(p.cell) {
+    : outline_(outline), ground_(ground_z), top_(top_height(s, ground_z)), cell_(p.cell) {
+  // (ours) Returns lower than 0.5 m above the ground are ground or low
+  // clutter, not roof; for an object lower than 1 m (a flat shed, a covered
+  // parking deck 0.1-0.5 m above the ground) half its height.
+  constexpr double kLowClutter = 0.5;  // metres
+  roof_floor_ = ground_ + (top_ > 0 ? std::min(kLowClutter, 0.5 * top_) : kLowClutter);
   if (outline_.size() < 3) return;
   Vec2 lo = outline_.front(), hi = lo;
   for (const auto& q : outline_) {
@@ -96,7 +116,7 @@ HeightField::HeightField(const Samples& s, const std::vector<Vec2>& outline, dou
   ny_ = int(std::ceil((hi.y() - lo_.y()) / cell_)) + 2;
   std::vector<std::vector<float>> bucket(size_t(nx_) * size_t(ny_));
   for (const auto& q : s.points) {
-    if (q.z() < ground_ + 0.5) continue;  // ground or low clutter, not roof
+    if (q.z() < roof_floor_) continue;  // ground or low clutter, not roof
     const int ix = int(std::floor((q.x() - lo_.x()) / cell_)),
               iy = int(std::floor((q.y() - lo_.y()) / cell_));
     if (ix < 0 || iy < 0 || ix >= nx_ || iy >= ny_) continue;
@@ -325,7 +345,7 @@ std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
 LodModel block_model(const Samples& s, const HeightField& hf) {
   const std::vector<Vec2> ring = clean_ring(hf.outline());
   if (ring.size() < 3) throw LodError("block", "the outline has fewer than 3 vertices");
-  const double g = hf.ground();
+  const double g = hf.ground(), floor = hf.roof_floor();
   // The height that fits the samples best, among their roof height quantiles.
   std::vector<double> roof_z, d_edge;
   std::vector<char> inside;
@@ -334,7 +354,7 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
     const Vec2 xy(q.x(), q.y());
     d_edge.push_back(poly2::distance_to_ring(ring, xy));
     inside.push_back(poly2::point_in_ring(ring, xy));
-    if (q.z() > g + 0.5) roof_z.push_back(q.z());
+    if (q.z() > floor) roof_z.push_back(q.z());
   }
   if (roof_z.empty()) throw LodError("block", "no point above the ground");
   std::sort(roof_z.begin(), roof_z.end());
@@ -352,7 +372,7 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
   double best_h = roof_z.back(), best = std::numeric_limits<double>::infinity();
   for (int k = 0; k <= 100; ++k) {
     const double h = roof_z[size_t(std::lround(k / 100.0 * double(roof_z.size() - 1)))];
-    if (h < g + 0.5) continue;
+    if (h < floor) continue;
     double sum = 0;
     for (std::size_t i = 0; i < s.points.size(); ++i) sum += sq_dist(i, h);
     if (sum < best) {
@@ -360,7 +380,7 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
       best_h = h;
     }
   }
-  const double h = std::max(best_h, g + 0.5);
+  const double h = std::max(best_h, floor);
   const auto top_tris = ear_clip(ring);
   LodModel m;
   m.kind = ModelKind::anchor;
@@ -378,6 +398,17 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
     m.mesh.triangles.push_back({i, n + j, n + i});
   }
   return m;
+}
+
+int drop_worse_than_block(std::vector<LodModel>& models) {
+  if (models.size() < 2) return 0;
+  const double block_e2 = models.front().e2;
+  const auto end = std::remove_if(models.begin() + 1, models.end(),
+                                  [&](const LodModel& m) { return m.e2 > block_e2; });
+  const int n = int(models.end() - end);
+  models.erase(end, models.end());
+  for (size_t i = 0; i < models.size(); ++i) models[i].step = int(i);
+  return n;
 }
 
 }  // namespace citylod::lod::detail

@@ -23,7 +23,7 @@ namespace citylod::lod::detail {
 class HeightField {
  public:
   /// Roof heights of `s` over the polygon `outline` (CCW, xy) with the cell
-  /// size and gap filling of `p`. Heights below `ground_z` + 0.5 m are not roof.
+  /// size and gap filling of `p`. Heights below roof_floor() are not roof.
   HeightField(const Samples& s, const std::vector<Vec2>& outline, double ground_z,
               const AirborneParams& p);
 
@@ -33,12 +33,17 @@ class HeightField {
   /// Exact point-in-polygon test against the outline.
   bool inside(const Vec2& p) const;
   double ground() const { return ground_; }
+  /// The samples' 98th-percentile height above the ground (m).
+  double top() const { return top_; }
+  /// Lowest roof height: the ground + 0.5 m, or + top() / 2 when top() is
+  /// under 1 m.
+  double roof_floor() const { return roof_floor_; }
   const std::vector<Vec2>& outline() const { return outline_; }
   int cells_with_data() const { return with_data_; }
 
  private:
   std::vector<Vec2> outline_;
-  double ground_ = 0, cell_ = 0.5;
+  double ground_ = 0, top_ = 0, roof_floor_ = 0.5, cell_ = 0.5;
   Vec2 lo_ = Vec2::Zero();
   int nx_ = 0, ny_ = 0, with_data_ = 0;
   std::vector<float> z_;  ///< NaN = no data
@@ -71,5 +76,12 @@ std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
 /// RMSE of the samples to the block (a scan over the samples' roof height
 /// quantiles). Throws LodError when the outline is not a simple polygon.
 LodModel block_model(const Samples& s, const HeightField& hf);
+
+/// (ours) Models after the block (models[0]) that fit the points worse than it
+/// (larger e2) are dropped: more triangles and a larger error than the block
+/// help no level of the chain (an IO-View core that missed part of the
+/// building, cells under a roof without returns). Steps are renumbered.
+/// Returns how many were dropped.
+int drop_worse_than_block(std::vector<LodModel>& models);
 
 }  // namespace citylod::lod::detail

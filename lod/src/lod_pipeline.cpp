@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <optional>
 #include <set>
@@ -336,6 +337,12 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
   if (P.airborne.mode == AirborneMode::On || (airborne && walls_inferred)) {
     if (c.outline.size() < 3) throw LodError("airborne", "no outline to model the building on");
     heights.emplace(samples, c.outline, c.ground_z, P.airborne);
+    if (heights->top() <= 0) {
+      char what[96];
+      std::snprintf(what, sizeof what,
+                    "no point above the ground (98th percentile %.2f m under it)", -heights->top());
+      throw LodError("airborne", what);
+    }
     const int refitted = refit_roof_planes(samples, c.outline, P.airborne, P.alpha, prims);
     const int steps = infer_step_walls(samples, *heights, P.airborne, prims);
     st.notes.push_back("airborne LiDAR: cells labelled by the roof height field; " +
@@ -401,9 +408,23 @@ IoViewStep io_view_step(const Samples& samples, const Planes& planes, const LodP
   clear_pad_leaves(io_bsp, box, io_leaf_labels);
   for (const auto& l : io_leaf_labels) io_labels.push_back(l[0]);
   budget.check("io-view");
-  IoView view = analyse_io_view(io_bsp, prims, match_planes(io_bsp, prims), io_labels, P.ioview);
+  const auto matches = match_planes(io_bsp, prims);
+  IoView view = analyse_io_view(io_bsp, prims, matches, io_labels, P.ioview);
   if (view.core_in < 0) throw LodError("io-view", "no cell labelled inside");
   for (char p : view.principal) st.principal += p ? 1 : 0;
+  if (st.principal < 4 && heights) {
+    // (ours) A roof height field labels stepped roofs as inside regions cut
+    // apart by their roof planes: the core is then one step, and few planes
+    // separate it from the core exterior. Seen again with no plane separating
+    // inside from inside, the core is the whole connected building.
+    IoViewParams joined = P.ioview;
+    joined.separation_coverage = 2;  // above any coverage (<= 1): nothing separates
+    view = analyse_io_view(io_bsp, prims, matches, io_labels, joined);
+    st.principal = 0;
+    for (char p : view.principal) st.principal += p ? 1 : 0;
+    st.notes.push_back("io-view: the inside regions taken as one core (" +
+                       std::to_string(st.principal) + " principal primitives)");
+  }
   if (st.principal < 4) throw LodError("io-view", "fewer than 4 principal primitives");
   for (const auto& s : view.structures)
     (s.addon ? st.add_ons : st.cut_outs) += s.primitives.empty() ? 0 : 1;
@@ -549,6 +570,7 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
   if (heights && P.airborne.block) {
     try {
       R.models.insert(R.models.begin(), block_model(samples, *heights));
+      st.block_first = true;
       st.notes.push_back(
           "model 0 is the outline extruded to its best-fitting height (LoD1.2 block)");
     } catch (const LodError& e) {
@@ -578,6 +600,28 @@ void baseline_step(const std::vector<Primitive>& prims, const SceneBox& box,
   st.baseline_cuts_to_finest = internal;
 }
 
+/// (ours) Airborne LiDAR whose IO-View labels no cell inside or finds too few
+/// principal primitives still has its roof height field: its model is then the
+/// outline extruded to the height that fits the points best (the LoD1.2 block),
+/// a fallback with the IO-View's reason, rather than a prism to the points' 95th
+/// percentile. False when no block can be made (no roof point).
+bool block_fallback(const Samples& samples, const HeightField& hf, const std::string& why,
+                    LodResult& R) {
+  try {
+    LodModel m = block_model(samples, hf);
+    m.kind = ModelKind::fallback;
+    R.models = {};
+    R.models.push_back(std::move(m));
+  } catch (const LodError&) {
+    return false;
+  }
+  R.status = Status::fallback;
+  R.reason = why;
+  R.stats.notes.push_back(
+      "fallback model: the outline extruded to its best-fitting height (LoD1.2 block)");
+  return true;
+}
+
 /// The whole method; throws on any failure (caught by build_lod_tree).
 void run_method(const BuildingInput& in, const Samples& samples, const LodParams& P, int threads,
                 const Progress& progress, const Budget& budget, LodResult& R) {
@@ -589,7 +633,18 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   budget.check("planes");
 
   progress(0.1, "io-view");
-  IoViewStep io = io_view_step(samples, planes, P, threads, budget, st);
+  std::optional<IoViewStep> io_step;
+  try {
+    io_step.emplace(io_view_step(samples, planes, P, threads, budget, st));
+  } catch (const LodError& e) {
+    const bool ran_out = dynamic_cast<const LodCancelled*>(&e) ||
+                         std::string(e.what()).find("time budget exceeded") != std::string::npos;
+    if (ran_out || !planes.heights || !P.airborne.block ||
+        !block_fallback(samples, *planes.heights, e.what(), R))
+      throw;
+    return;
+  }
+  IoViewStep& io = *io_step;
   const SortStep S = sort_step(samples, planes, io, P, R);
   st.t_ioview = seconds_since(t1);
   budget.check("io-view");
@@ -703,6 +758,12 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params,
     m.e2 = fidelity[i].e2;
     m.hausdorff = fidelity[i].hausdorff;
     if (m.volume == 0.0) m.volume = mesh_volume(m.mesh);
+  }
+  if (R.status == Status::ok && R.stats.block_first) {
+    R.stats.worse_than_block = drop_worse_than_block(R.models);
+    if (R.stats.worse_than_block > 0)
+      R.stats.notes.push_back(std::to_string(R.stats.worse_than_block) +
+                              " models fitting the points worse than the LoD1.2 block dropped");
   }
   R.stats.t_metrics = seconds_since(tm);
   // The input's colours (if any) onto the faces of every model.

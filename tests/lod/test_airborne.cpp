@@ -92,12 +92,17 @@ TEST(Airborne, CoarsestModelIsTheBlockAtTheBestFittingHeight) {
   for (const auto& v : block.mesh.vertices) top = std::max(top, v.z());
   EXPECT_NEAR(top, 8.0, 0.05);
   EXPECT_NEAR(block.volume, 200.0 * top, 1e-6 * 200.0 * top);
-  // Without the block the chain starts with the tree's first anchor.
+  // Without the block the chain starts with the tree's first anchor; with it,
+  // the tree's models that fit worse than the block are left out.
   LodParams p = city_params();
   p.airborne.block = false;
   const LodResult q = build_lod_tree(b.input, p);
   ASSERT_FALSE(q.models.empty());
-  EXPECT_EQ(q.models.size() + 1, r.models.size());
+  EXPECT_EQ(q.models.size() + 1, r.models.size() + std::size_t(r.stats.worse_than_block));
+  int worse = 0;
+  for (const auto& m : q.models) worse += m.e2 > block.e2;
+  EXPECT_EQ(worse, r.stats.worse_than_block);
+  for (std::size_t i = 1; i < r.models.size(); ++i) EXPECT_LE(r.models[i].e2, block.e2);
 }
 
 TEST(Airborne, OutliersDoNotLiftTheRoof) {
@@ -116,6 +121,62 @@ TEST(Airborne, OutliersDoNotLiftTheRoof) {
   for (const auto& v : test::last_anchor(r)->mesh.vertices) top = std::max(top, v.z());
   EXPECT_LT(top, 6.3);
   EXPECT_NEAR(test::last_anchor(r)->volume, 576.0, 0.02 * 576.0);
+}
+
+// A flat object 0.3 m high (a covered parking deck, a low shed): its roof
+// returns lie under the 0.5 m that separates roofs from low clutter, which
+// then becomes half its height; with the old fixed 0.5 m nothing was inside.
+TEST(Airborne, LowObjectGetsItsRoof) {
+  test::SynthOptions o;
+  o.spacing = 0.3;
+  o.noise_sigma = 0.01;
+  auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(12, 8, 0.3), o);
+  b.input.footprint = {Vec2(0, 0), Vec2(12, 0), Vec2(12, 8), Vec2(0, 8)};
+  const LodResult r = build_lod_tree(b.input, city_params());
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
+  for (const auto& m : r.models) test::expect_closed_solid(m);
+  const LodModel* f = test::last_anchor(r);
+  ASSERT_NE(f, nullptr);
+  EXPECT_NEAR(f->volume, 12 * 8 * 0.3, 0.1 * 12 * 8 * 0.3);
+  double top = 0;
+  for (const auto& v : f->mesh.vertices) top = std::max(top, v.z());
+  EXPECT_NEAR(top, 0.3, 0.05);
+}
+
+// Points at or under the ground (a roof below the ground estimate) have no
+// height to model: a fallback whose reason says so.
+TEST(Airborne, PointsUnderTheGroundAreAFallbackThatSaysSo) {
+  test::SynthOptions o;
+  o.spacing = 0.3;
+  auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(12, 8, 0.3), o);
+  b.input.footprint = {Vec2(0, 0), Vec2(12, 0), Vec2(12, 8), Vec2(0, 8)};
+  b.input.ground_z = 0.5;
+  const LodResult r = build_lod_tree(b.input, city_params());
+  EXPECT_EQ(r.status, lod::Status::fallback);
+  EXPECT_NE(r.reason.find("no point above the ground"), std::string::npos) << r.reason;
+  ASSERT_EQ(r.models.size(), 1u);
+}
+
+// The chain keeps, after the block, only the models that fit the points at
+// least as well as it; their steps follow on.
+TEST(Airborne, ModelsWorseThanTheBlockAreDropped) {
+  std::vector<LodModel> models(5);
+  const double e2[5] = {1.0, 3.0, 0.8, 1.0, 0.5};  // block, worse, better, equal, better
+  for (int i = 0; i < 5; ++i) {
+    models[size_t(i)].e2 = e2[i];
+    models[size_t(i)].step = i;
+    models[size_t(i)].level = 10 + i;
+  }
+  EXPECT_EQ(detail::drop_worse_than_block(models), 1);
+  ASSERT_EQ(models.size(), 4u);
+  const int levels[4] = {10, 12, 13, 14};
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_EQ(models[size_t(i)].step, i);
+    EXPECT_EQ(models[size_t(i)].level, levels[i]);
+  }
+  std::vector<LodModel> alone(1);
+  EXPECT_EQ(detail::drop_worse_than_block(alone), 0);
+  EXPECT_EQ(alone.size(), 1u);
 }
 
 TEST(Airborne, ModeOffKeepsThePapersLabelling) {
