@@ -77,11 +77,13 @@ std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
 /// quantiles). Throws LodError when the outline is not a simple polygon.
 LodModel block_model(const Samples& s, const HeightField& hf);
 
-/// (ours) Models after the block (models[0]) that fit the points worse than it
-/// (larger e2) are dropped: more triangles and a larger error than the block
-/// help no level of the chain (an IO-View core that missed part of the
-/// building, cells under a roof without returns). Steps are renumbered.
-/// Returns how many were dropped.
+/// (ours) When the finest anchor after the block (models[0]) fits the points
+/// worse than the block (larger e2) -- an IO-View core that missed part of the
+/// building, cells under a roof without returns --, the models after the block
+/// that fit worse than it are dropped (more triangles and a larger error help
+/// no level) and the finest is the best anchor left, or the block. A chain
+/// whose finest beats the block is kept whole. Steps are renumbered. Returns
+/// how many were dropped.
 int drop_worse_than_block(std::vector<LodModel>& models);
 
 }  // namespace citylod::lod::detail

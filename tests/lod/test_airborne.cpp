@@ -99,10 +99,14 @@ TEST(Airborne, CoarsestModelIsTheBlockAtTheBestFittingHeight) {
   const LodResult q = build_lod_tree(b.input, p);
   ASSERT_FALSE(q.models.empty());
   EXPECT_EQ(q.models.size() + 1, r.models.size() + std::size_t(r.stats.worse_than_block));
-  int worse = 0;
-  for (const auto& m : q.models) worse += m.e2 > block.e2;
-  EXPECT_EQ(worse, r.stats.worse_than_block);
-  for (std::size_t i = 1; i < r.models.size(); ++i) EXPECT_LE(r.models[i].e2, block.e2);
+  if (r.stats.worse_than_block > 0) {
+    int worse = 0;
+    for (const auto& m : q.models) worse += m.e2 > block.e2;
+    EXPECT_EQ(worse, r.stats.worse_than_block);
+    for (std::size_t i = 1; i < r.models.size(); ++i) EXPECT_LE(r.models[i].e2, block.e2);
+  } else {
+    EXPECT_LE(test::last_anchor(r)->e2, block.e2);
+  }
 }
 
 TEST(Airborne, OutliersDoNotLiftTheRoof) {
@@ -157,24 +161,40 @@ TEST(Airborne, PointsUnderTheGroundAreAFallbackThatSaysSo) {
   ASSERT_EQ(r.models.size(), 1u);
 }
 
-// The chain keeps, after the block, only the models that fit the points at
-// least as well as it; their steps follow on.
-TEST(Airborne, ModelsWorseThanTheBlockAreDropped) {
-  std::vector<LodModel> models(5);
-  const double e2[5] = {1.0, 3.0, 0.8, 1.0, 0.5};  // block, worse, better, equal, better
-  for (int i = 0; i < 5; ++i) {
-    models[size_t(i)].e2 = e2[i];
-    models[size_t(i)].step = i;
-    models[size_t(i)].level = 10 + i;
+namespace {
+/// Models with these e2 values and kinds ('a' anchor, 'i' interpolation), steps
+/// 0.., levels 10..
+std::vector<LodModel> chain(const std::vector<double>& e2, const std::string& kinds) {
+  std::vector<LodModel> models(e2.size());
+  for (std::size_t i = 0; i < e2.size(); ++i) {
+    models[i].e2 = e2[i];
+    models[i].kind = kinds[i] == 'a' ? ModelKind::anchor : ModelKind::interpolation;
+    models[i].step = int(i);
+    models[i].level = 10 + int(i);
   }
-  EXPECT_EQ(detail::drop_worse_than_block(models), 1);
+  return models;
+}
+}  // namespace
+
+// A chain whose finest anchor fits worse than the block keeps, after the
+// block, only the models that fit at least as well as it; their steps follow
+// on. A chain whose finest beats the block is kept whole.
+TEST(Airborne, ModelsWorseThanTheBlockAreDroppedWhenTheFinestIs) {
+  // block, worse, better, equal, better (interpolation), worse (the finest anchor)
+  auto models = chain({1.0, 3.0, 0.8, 1.0, 0.5, 1.2}, "aiaiia");
+  EXPECT_EQ(detail::drop_worse_than_block(models), 2);
   ASSERT_EQ(models.size(), 4u);
   const int levels[4] = {10, 12, 13, 14};
   for (int i = 0; i < 4; ++i) {
     EXPECT_EQ(models[size_t(i)].step, i);
     EXPECT_EQ(models[size_t(i)].level, levels[i]);
   }
-  std::vector<LodModel> alone(1);
+  auto good = chain({1.0, 3.0, 0.8, 1.5, 0.9}, "aiaia");  // the finest anchor beats the block
+  EXPECT_EQ(detail::drop_worse_than_block(good), 0);
+  EXPECT_EQ(good.size(), 5u);
+  auto lone = chain({1.0, 3.0}, "ai");  // no anchor after the block: nothing to judge
+  EXPECT_EQ(detail::drop_worse_than_block(lone), 0);
+  auto alone = chain({1.0}, "a");
   EXPECT_EQ(detail::drop_worse_than_block(alone), 0);
   EXPECT_EQ(alone.size(), 1u);
 }
