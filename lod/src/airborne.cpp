@@ -403,9 +403,8 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
 int drop_worse_than_block(std::vector<LodModel>& models) {
   if (models.size() < 2) return 0;
   const double block_e2 = models.front().e2;
-  const auto finest = std::find_if(models.rbegin(), models.rend() - 1, [](const LodModel& m) {
-    return m.kind == ModelKind::anchor;
-  });
+  const auto finest = std::find_if(models.rbegin(), models.rend() - 1,
+                                   [](const LodModel& m) { return m.kind == ModelKind::anchor; });
   if (finest == models.rend() - 1 || finest->e2 <= block_e2) return 0;  // the tree did its work
   const auto end = std::remove_if(models.begin() + 1, models.end(),
                                   [&](const LodModel& m) { return m.e2 > block_e2; });
