@@ -68,14 +68,6 @@ struct Building {
 
 const char* kLods[3] = {"1.2", "1.3", "2.2"};
 
-double median(std::vector<double> v) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /// The q-quantile (0..1) of the finite values, by linear interpolation.
 double quantile(std::vector<double> v, double q) {
   v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
@@ -84,6 +76,10 @@ double quantile(std::vector<double> v, double q) {
   const double at = q * double(v.size() - 1);
   const std::size_t i = std::size_t(at);
   return i + 1 < v.size() ? v[i] + (at - double(i)) * (v[i + 1] - v[i]) : v[i];
+}
+
+double median(std::vector<double> v) {
+  return quantile(std::move(v), 0.5);
 }
 
 /// Vertical RMSE of the roof points (more than 1 m inside the outline) to the

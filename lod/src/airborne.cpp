@@ -80,10 +80,6 @@ std::vector<std::array<int, 3>> ear_clip(const std::vector<Vec2>& poly) {
   return out;
 }
 
-}  // namespace
-
-namespace {
-
 /// The 98th percentile of the samples' heights above `ground_z`.
 double top_height(const Samples& s, double ground_z) {
   if (s.points.empty()) return 0;

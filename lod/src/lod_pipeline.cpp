@@ -58,7 +58,7 @@ void check_input(const BuildingInput& in) {
 struct Budget {
   Clock::time_point deadline;
   void check(const char* stage) const {
-    if (Clock::now() > deadline) throw LodError(stage, "time budget exceeded");
+    if (Clock::now() > deadline) throw LodBudgetExceeded(stage);
   }
 };
 
@@ -608,10 +608,8 @@ void baseline_step(const std::vector<Primitive>& prims, const SceneBox& box,
 bool block_fallback(const Samples& samples, const HeightField& hf, const std::string& why,
                     LodResult& R) {
   try {
-    LodModel m = block_model(samples, hf);
-    m.kind = ModelKind::fallback;
-    R.models = {};
-    R.models.push_back(std::move(m));
+    R.models.assign(1, block_model(samples, hf));
+    R.models.front().kind = ModelKind::fallback;
   } catch (const LodError&) {
     return false;
   }
@@ -636,10 +634,12 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   std::optional<IoViewStep> io_step;
   try {
     io_step.emplace(io_view_step(samples, planes, P, threads, budget, st));
+  } catch (const LodCancelled&) {
+    throw;
+  } catch (const LodBudgetExceeded&) {
+    throw;
   } catch (const LodError& e) {
-    const bool ran_out = dynamic_cast<const LodCancelled*>(&e) ||
-                         std::string(e.what()).find("time budget exceeded") != std::string::npos;
-    if (ran_out || !planes.heights || !P.airborne.block ||
+    if (!planes.heights || !P.airborne.block ||
         !block_fallback(samples, *planes.heights, e.what(), R))
       throw;
     return;
@@ -726,7 +726,7 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params,
     const std::string why = e.what();
     const bool retry = !in.is_mesh() && params.airborne.mode == AirborneMode::Auto &&
                        !airborne_input(in, samples, params) &&
-                       why.find("time budget exceeded") == std::string::npos;
+                       !dynamic_cast<const LodBudgetExceeded*>(&e);
     if (!retry) {
       fall_back(why);
     } else {

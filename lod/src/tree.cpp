@@ -178,8 +178,7 @@ std::vector<Candidate> traverse(const LodTree& tree, const Bsp& bsp, const TreeP
   rebuild();
   double last_sum = sum, level_start_sum = sum;
   while (st.level < tree.num_levels) {
-    if (std::chrono::steady_clock::now() > deadline)
-      throw LodError("traversal", "time budget exceeded");
+    if (std::chrono::steady_clock::now() > deadline) throw LodBudgetExceeded("traversal");
     if (heap.empty()) {  // DiffSum(Q) == 0: an anchor
       if (!same_as_last()) {
         extract(ModelKind::anchor);

@@ -30,6 +30,14 @@ class LodCancelled : public LodError {
   explicit LodCancelled(const std::string& stage) : LodError(stage, "cancelled") {}
 };
 
+/// Thrown when a building runs over budget.time_budget_s: it gets the
+/// fallback model, and no other way round (another labelling, the block) is
+/// tried, since the time is spent.
+class LodBudgetExceeded : public LodError {
+ public:
+  explicit LodBudgetExceeded(const std::string& stage) : LodError(stage, "time budget exceeded") {}
+};
+
 /// One candidate LOD model of the set M.
 struct LodModel {
   ModelKind kind = ModelKind::anchor;
