@@ -103,6 +103,17 @@ BoxTree::Box box_of(const P3& q) {
   return {q.x(), q.y(), q.z()};
 }
 
+Vec3 bbox_lo(const std::vector<Vec3>& p) {
+  Vec3 lo = p.front();
+  for (const auto& q : p) lo = lo.cwiseMin(q);
+  return lo;
+}
+Vec3 bbox_hi(const std::vector<Vec3>& p) {
+  Vec3 hi = p.front();
+  for (const auto& q : p) hi = hi.cwiseMax(q);
+  return hi;
+}
+
 }  // namespace
 
 struct FidelityMeter::Impl {
@@ -115,6 +126,7 @@ struct FidelityMeter::Impl {
   std::optional<BoxTree> ibox;  // on them
   std::vector<P3> e2_points;    // input samples used for e2
   std::vector<double> e2_weights;
+  double e1_density = 0;  // model samples per m^2 (e1)
 };
 
 FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double diag, int samples)
@@ -142,6 +154,18 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
     for (const auto& q : s.points) I.ipoints.push_back(toP(q));
     I.ibox.emplace(point_tree(I.ipoints));
   }
+  // e1's model samples per m^2: `samples` over the input's area (a mesh's
+  // faces, a point cloud's bounding box surface, which a building's model
+  // roughly matches), the same for every model of the building.
+  double area = 0;
+  for (const auto& t : I.itris) area += std::sqrt(t.squared_area());
+  if (!(area > 0)) {
+    const Vec3 lo = s.points.empty() ? Vec3::Zero() : bbox_lo(s.points),
+               hi = s.points.empty() ? Vec3::Zero() : bbox_hi(s.points);
+    const Vec3 e = (hi - lo).cwiseMax(Vec3::Constant(1e-3));
+    area = 2 * (e.x() * e.y() + e.y() * e.z() + e.z() * e.x());
+  }
+  I.e1_density = double(I.samples) / area;
   // e2 input samples: one per block of `stride` consecutive samples, at a
   // pseudo-random offset in the block (deterministic). A fixed offset would
   // follow the input's order (scan lines, region order) and read ~5 % low on
@@ -160,30 +184,6 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
 FidelityMeter::~FidelityMeter() = default;
 
 namespace {
-
-/// e1 of the model `mtris` (area-uniform samples of it, each to its nearest
-/// input point or triangle) in % of the diagonal; the largest squared
-/// distance in `max1`.
-double model_to_input(const FidelityMeter::Impl& I, const TriVec& mtris, double& max1) {
-  const std::vector<P3> msamples = sample_triangles(mtris, I.samples);
-  double sum1 = 0;
-  max1 = 0;
-  std::uint32_t near = BoxTree::kNoHint;  // consecutive samples are near each other
-  for (const auto& q : msamples) {
-    double d2;
-    if (I.itree) {
-      d2 = CGAL::to_double(I.itree->squared_distance(q));
-    } else {
-      d2 = I.ibox->nearest2(
-          box_of(q),
-          [&](std::uint32_t i) { return CGAL::to_double(CGAL::squared_distance(q, I.ipoints[i])); },
-          &near, near);
-    }
-    sum1 += d2;
-    max1 = std::max(max1, d2);
-  }
-  return std::sqrt(sum1 / double(msamples.size())) * I.scale;
-}
 
 /// e2 in % of the diagonal from the input samples' squared distances to the
 /// model (weighted, summed in sample order); the largest one in `max2`.
@@ -232,6 +232,115 @@ TriKey key_of(const Tri& t) {
   return k;
 }
 
+std::uint64_t hash_of(const TriKey& k) {
+  return std::uint64_t(TriKeyHash()(k));
+}
+
+/// The squared distance from q to the nearest input point or triangle.
+double to_input2(const FidelityMeter::Impl& I, const P3& q, std::uint32_t& near) {
+  if (I.itree) return CGAL::to_double(I.itree->squared_distance(q));
+  return I.ibox->nearest2(
+      box_of(q),
+      [&](std::uint32_t i) { return CGAL::to_double(CGAL::squared_distance(q, I.ipoints[i])); },
+      &near, near);
+}
+
+/// e1's sum over the model samples of one triangle: their number and places a
+/// function of the triangle (its vertices' bits) and the density alone, so a
+/// triangle that two models share has the same samples in both.
+struct E1Part {
+  double sum = 0, max = 0;
+  std::uint32_t count = 0;
+};
+E1Part triangle_part(const FidelityMeter::Impl& I, const Tri& T, const TriKey& key,
+                     std::uint32_t& near) {
+  E1Part part;
+  const double c = std::sqrt(T.squared_area()) * I.e1_density;
+  std::uint64_t h = hash_of(key);
+  auto unit = [&h]() {  // splitmix64 -> [0, 1)
+    h += 0x9E3779B97F4A7C15ull;
+    std::uint64_t z = h;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return double((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+  };
+  // floor(c) samples, one more with probability frac(c): c on average
+  const double whole = std::floor(std::min(c, 1e7));
+  const std::uint32_t n = std::uint32_t(whole) + (unit() < c - whole ? 1u : 0u);
+  const double g = 1.32471795724474602596;  // plastic number: R2 sequence
+  const double a1 = 1.0 / g, a2 = 1.0 / (g * g);
+  const double o1 = unit(), o2 = unit();
+  for (std::uint32_t k = 0; k < n; ++k) {
+    double r1 = std::fmod(o1 + a1 * (k + 1), 1.0), r2 = std::fmod(o2 + a2 * (k + 1), 1.0);
+    if (r1 + r2 > 1) {
+      r1 = 1 - r1;
+      r2 = 1 - r2;
+    }
+    const double d2 = to_input2(I, T[0] + r1 * (T[1] - T[0]) + r2 * (T[2] - T[0]), near);
+    part.sum += d2;
+    part.max = std::max(part.max, d2);
+  }
+  part.count = n;
+  return part;
+}
+
+/// Below this many samples on a model, e1 takes this many stratified over
+/// the whole model instead (a model much smaller than the input).
+constexpr std::uint32_t kMinE1Samples = 100;
+
+/// e1 of consecutive models of one building: model -> input, area-uniform
+/// samples of each model (density I.e1_density), each to its nearest input
+/// point or triangle, in % of the diagonal; the largest squared distance in
+/// `max1`. The samples of a triangle are measured once for all the models
+/// that have it (consecutive models share most of their triangles).
+class E1Cache {
+ public:
+  double e1(const FidelityMeter::Impl& I, const TriVec& tris, const std::vector<TriKey>& keys,
+            int threads, double& max1) {
+    std::vector<std::size_t> fresh;  // first triangle of each key not measured yet
+    std::unordered_map<TriKey, std::uint32_t, TriKeyHash> first;
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      if (!parts_.count(keys[i]) && first.emplace(keys[i], std::uint32_t(i)).second)
+        fresh.push_back(i);
+    }
+    std::vector<E1Part> got(fresh.size());
+    const long nf = long(fresh.size());
+#pragma omp parallel num_threads(std::max(1, threads)) if (threads > 1 && nf > 64)
+    {
+      std::uint32_t near = BoxTree::kNoHint;
+#pragma omp for schedule(dynamic, 16)
+      for (long f = 0; f < nf; ++f)
+        got[size_t(f)] = triangle_part(I, tris[fresh[size_t(f)]], keys[fresh[size_t(f)]], near);
+    }
+    for (std::size_t f = 0; f < fresh.size(); ++f) parts_.emplace(keys[fresh[f]], got[f]);
+    double sum = 0;
+    std::uint64_t count = 0;
+    max1 = 0;
+    for (const TriKey& k : keys) {
+      const E1Part& p = parts_.at(k);
+      sum += p.sum;
+      count += p.count;
+      max1 = std::max(max1, p.max);
+    }
+    if (count < kMinE1Samples) {
+      sum = 0;
+      max1 = 0;
+      const std::vector<P3> q = sample_triangles(tris, int(kMinE1Samples));
+      std::uint32_t near = BoxTree::kNoHint;
+      for (const P3& x : q) {
+        const double d2 = to_input2(I, x, near);
+        sum += d2;
+        max1 = std::max(max1, d2);
+      }
+      count = q.size();
+    }
+    return count > 0 ? std::sqrt(sum / double(count)) * I.scale : -1;
+  }
+
+ private:
+  std::unordered_map<TriKey, E1Part, TriKeyHash> parts_;
+};
+
 /// e2's squared distances of consecutive models of one building. Each input
 /// sample keeps its least squared distance to the last model and the
 /// triangle that gives it; while that triangle is in the next model, the
@@ -241,29 +350,38 @@ TriKey key_of(const Tri& t) {
 /// those of a search of the whole model: minima over the same triangles.
 class E2Cache {
  public:
-  explicit E2Cache(std::size_t n) : d2_(n), key_(n) {}
+  explicit E2Cache(std::size_t n) : d2_(n), tri_(n, 0) {}
 
-  /// The squared distance of every input sample to the model `tris`.
+  /// The squared distance of every input sample to the model `tris` (`keys`:
+  /// key_of each).
   const std::vector<double>& distances(const FidelityMeter::Impl& I, const TriVec& tris,
-                                       int threads) {
+                                       const std::vector<TriKey>& keys, int threads) {
     std::unordered_map<TriKey, std::uint32_t, TriKeyHash> cur;
     cur.reserve(tris.size() * 2);
-    std::vector<TriKey> keys(tris.size());
+    for (std::size_t i = 0; i < tris.size(); ++i) cur.emplace(keys[i], std::uint32_t(i));
+    // each triangle of the last model: its index in this one, or kGone
+    constexpr std::uint32_t kGone = ~std::uint32_t(0);
+    std::vector<std::uint32_t> now(last_.size(), kGone);
+    std::unordered_map<TriKey, std::uint32_t, TriKeyHash> before;
+    before.reserve(last_.size() * 2);
+    for (std::size_t i = 0; i < last_.size(); ++i) {
+      const auto it = cur.find(last_[i]);
+      if (it != cur.end()) now[i] = it->second;
+      before.emplace(last_[i], std::uint32_t(i));
+    }
     TriVec added;
     std::vector<std::uint32_t> added_id;
-    for (std::size_t i = 0; i < tris.size(); ++i) {
-      keys[i] = key_of(tris[i]);
-      cur.emplace(keys[i], std::uint32_t(i));
-      if (!have_ || !last_.count(keys[i])) {
+    for (std::size_t i = 0; i < tris.size(); ++i)
+      if (!have_ || !before.count(keys[i])) {
         added.push_back(tris[i]);
         added_id.push_back(std::uint32_t(i));
       }
-    }
     const std::size_t n = d2_.size();
     std::vector<char> kept(n, 0);
     bool any_lost = false;
     for (std::size_t j = 0; j < n; ++j) {
-      kept[j] = have_ && cur.count(key_[j]) ? 1 : 0;
+      kept[j] = have_ && now[tri_[j]] != kGone ? 1 : 0;
+      if (kept[j]) tri_[j] = now[tri_[j]];
       any_lost |= !kept[j];
     }
     const std::optional<BoxTree> whole =
@@ -280,25 +398,25 @@ class E2Cache {
         const P3& q = I.e2_points[j];
         if (!kept[j]) {
           d2_[j] = nearest_triangle2(*whole, tris, q, near);
-          key_[j] = keys[near];
+          tri_[j] = near;
         } else if (fresh) {
           const double d = nearest_triangle2(*fresh, added, q, near_new);
           if (d < d2_[j]) {
             d2_[j] = d;
-            key_[j] = keys[added_id[near_new]];
+            tri_[j] = added_id[near_new];
           }
         }
       }
     }
-    last_.swap(cur);
+    last_ = keys;
     have_ = true;
     return d2_;
   }
 
  private:
   std::vector<double> d2_;
-  std::vector<TriKey> key_;
-  std::unordered_map<TriKey, std::uint32_t, TriKeyHash> last_;
+  std::vector<std::uint32_t> tri_;  // each sample's nearest triangle in the last model
+  std::vector<TriKey> last_;        // the last model's triangles
   bool have_ = false;
 };
 
@@ -311,28 +429,24 @@ Fidelity FidelityMeter::measure(const TriangleMesh& model) const {
 std::vector<Fidelity> FidelityMeter::measure_all(const std::vector<const TriangleMesh*>& models,
                                                  int threads) const {
   const auto& I = *impl_;
-  const long nm = long(models.size());
-  std::vector<TriVec> tris(models.size());
   std::vector<Fidelity> out(models.size());
-  std::vector<double> max1(models.size(), 0);
-  // e1: model -> input, each model on its own.
-#pragma omp parallel for schedule(dynamic, 1) num_threads(std::max(1, threads)) if (threads > 1)
-  for (long i = 0; i < nm; ++i) {
-    const TriangleMesh& m = *models[size_t(i)];
-    tris[size_t(i)] = triangles_of(m.vertices, m.triangles);
-    if (tris[size_t(i)].empty() || I.e2_points.empty())
-      out[size_t(i)].e1 = out[size_t(i)].e2 = out[size_t(i)].hausdorff = -1;
-    else
-      out[size_t(i)].e1 = model_to_input(I, tris[size_t(i)], max1[size_t(i)]);
-  }
-  // e2: input -> model, the least squared distance to a model triangle, the
-  // models in order (each after the last one measured).
-  E2Cache cache(I.e2_points.size());
+  // e1: model -> input, e2: input -> model (the least squared distance to a
+  // model triangle), the models in order, each after the last one measured.
+  E1Cache e1_cache;
+  E2Cache e2_cache(I.e2_points.size());
   for (std::size_t i = 0; i < models.size(); ++i) {
-    if (tris[i].empty() || I.e2_points.empty()) continue;
-    double max2 = 0;
-    out[i].e2 = input_to_model(I, cache.distances(I, tris[i], threads), max2);
-    out[i].hausdorff = std::sqrt(std::max(max1[i], max2));
+    const TriangleMesh& m = *models[i];
+    const TriVec tris = triangles_of(m.vertices, m.triangles);
+    if (tris.empty() || I.e2_points.empty()) {
+      out[i].e1 = out[i].e2 = out[i].hausdorff = -1;
+      continue;
+    }
+    std::vector<TriKey> keys(tris.size());
+    for (std::size_t t = 0; t < tris.size(); ++t) keys[t] = key_of(tris[t]);
+    double max1 = 0, max2 = 0;
+    out[i].e1 = e1_cache.e1(I, tris, keys, threads, max1);
+    out[i].e2 = input_to_model(I, e2_cache.distances(I, tris, keys, threads), max2);
+    out[i].hausdorff = std::sqrt(std::max(max1, max2));
   }
   return out;
 }

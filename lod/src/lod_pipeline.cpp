@@ -695,7 +695,9 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params,
   // footprint) needs no normal propagation: its roofs face up.
   const bool city_lidar = params.airborne.mode != AirborneMode::Off && !in.is_mesh() &&
                           params.closure.footprint_walls && in.footprint.size() >= 3;
+  const auto ts = Clock::now();
   const Samples samples = make_samples(in, params.normals, !city_lidar);
+  R.stats.t_samples = seconds_since(ts);
   R.stats.normals_estimated = samples.normals_estimated;
   if (samples.normals_estimated)
     R.stats.notes.push_back("normals estimated and oriented (input had none)");

@@ -515,6 +515,32 @@ TEST(Fidelity, ExactCubeVsItsSamples) {
   EXPECT_LT(h.e2, 1e-6);
 }
 
+// measure_all shares the work of the triangles consecutive models have in
+// common (e1's samples of a triangle depend on the triangle alone): every
+// model's figures are still those measure() gives it alone.
+TEST(Fidelity, ModelsMeasuredTogetherGetTheirOwnFigures) {
+  const auto b = T::sample_box(Vec3(0, 0, 0), Vec3(4, 4, 4), 0.1);
+  const Samples s = make_samples(b.input, {});
+  const double diag = std::sqrt(48.0);
+  TriangleMesh taller = b.mesh;  // the top lifted: the walls change, the bottom is shared
+  for (auto& v : taller.vertices)
+    if (v.z() > 2) v.z() += 0.3;
+  const FidelityMeter meter(b.input, s, diag, 5000);
+  const std::vector<Fidelity> all = meter.measure_all({&b.mesh, &taller, &b.mesh}, 2);
+  ASSERT_EQ(all.size(), 3u);
+  const Fidelity alone[3] = {meter.measure(b.mesh), meter.measure(taller), meter.measure(b.mesh)};
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(all[size_t(i)].e1, alone[i].e1) << i;
+    EXPECT_EQ(all[size_t(i)].e2, alone[i].e2) << i;
+    EXPECT_EQ(all[size_t(i)].hausdorff, alone[i].hausdorff) << i;
+  }
+  EXPECT_EQ(all[0].e1, all[2].e1);
+  // the lifted top is 0.3 m off the points: e2 ~ 0.3 m on a sixth of them, e1 more
+  EXPECT_GT(all[1].e2, 0.05 / diag * 100);
+  EXPECT_GT(all[1].e1, all[0].e1);
+  EXPECT_NEAR(all[1].hausdorff, 0.3, 0.05);
+}
+
 namespace {
 /// Closest point on triangle abc to p (Ericson 5.1.5): the test's own reference.
 Vec3 closest_on(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {

@@ -198,11 +198,9 @@ LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p,
   j.bbox_diagonal_m = s.bbox_diagonal;
   j.normals_estimated = s.normals_estimated;
   j.walls_inferred = s.walls_inferred;
-  j.timings_s = {{"T1_ioview", s.t_ioview},
-                 {"T2_tree", s.t_tree},
-                 {"T3_traversal", s.t_traversal},
-                 {"metrics", s.t_metrics},
-                 {"colour", s.t_colour}};
+  j.timings_s = {{"samples", s.t_samples}, {"T1_ioview", s.t_ioview},
+                 {"T2_tree", s.t_tree},    {"T3_traversal", s.t_traversal},
+                 {"metrics", s.t_metrics}, {"colour", s.t_colour}};
   j.notes = s.notes;
   for (const auto& m : r.models) {
     ModelRecord e;
