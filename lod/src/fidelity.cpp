@@ -126,6 +126,7 @@ struct FidelityMeter::Impl {
   std::optional<BoxTree> ibox;  // on them
   std::vector<P3> e2_points;    // input samples used for e2
   std::vector<double> e2_weights;
+  int e1_samples = 250;   // e1's model samples on a model of the input's area
   double e1_density = 0;  // model samples per m^2 (e1)
 };
 
@@ -170,6 +171,7 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
       I.mesh ? I.samples
              : std::min(I.samples,
                         std::max(250, int(std::min<std::size_t>(s.points.size(), 1u << 28))));
+  I.e1_samples = e1_samples;
   I.e1_density = double(e1_samples) / area;
   // e2 input samples: one per block of `stride` consecutive samples, at a
   // pseudo-random offset in the block (deterministic). A fixed offset would
@@ -289,19 +291,22 @@ E1Part triangle_part(const FidelityMeter::Impl& I, const Tri& T, const TriKey& k
   return part;
 }
 
-/// Below this many samples on a model, e1 takes this many stratified over
-/// the whole model instead (a model much smaller than the input).
-constexpr std::uint32_t kMinE1Samples = 100;
+/// A model whose area would take fewer than kMinE1Samples samples at the
+/// input's density, or more than kMaxE1Factor times e1_samples (a model much
+/// smaller or larger than the input: a fallback prism over a few points), is
+/// measured on its own with e1_samples stratified over it, not per triangle.
+constexpr double kMinE1Samples = 100;
+constexpr double kMaxE1Factor = 4;
 
-/// e1 of consecutive models of one building: model -> input, area-uniform
-/// samples of each model (density I.e1_density), each to its nearest input
-/// point or triangle, in % of the diagonal; the largest squared distance in
-/// `max1`. The samples of a triangle are measured once for all the models
-/// that have it (consecutive models share most of their triangles).
 class E1Cache {
  public:
   double e1(const FidelityMeter::Impl& I, const TriVec& tris, const std::vector<TriKey>& keys,
             int threads, double& max1) {
+    double area = 0;
+    for (const Tri& t : tris) area += std::sqrt(t.squared_area());
+    const double expected = area * I.e1_density;
+    if (expected < kMinE1Samples || expected > kMaxE1Factor * I.e1_samples)
+      return on_its_own(I, tris, max1);
     std::vector<std::size_t> fresh;  // first triangle of each key not measured yet
     std::unordered_map<TriKey, std::uint32_t, TriKeyHash> first;
     for (std::size_t i = 0; i < tris.size(); ++i) {
@@ -327,19 +332,22 @@ class E1Cache {
       count += p.count;
       max1 = std::max(max1, p.max);
     }
-    if (count < kMinE1Samples) {
-      sum = 0;
-      max1 = 0;
-      const std::vector<P3> q = sample_triangles(tris, int(kMinE1Samples));
-      std::uint32_t near = BoxTree::kNoHint;
-      for (const P3& x : q) {
-        const double d2 = to_input2(I, x, near);
-        sum += d2;
-        max1 = std::max(max1, d2);
-      }
-      count = q.size();
+    if (count == 0) return on_its_own(I, tris, max1);
+    return std::sqrt(sum / double(count)) * I.scale;
+  }
+
+ private:
+  static double on_its_own(const FidelityMeter::Impl& I, const TriVec& tris, double& max1) {
+    double sum = 0;
+    max1 = 0;
+    const std::vector<P3> q = sample_triangles(tris, I.e1_samples);
+    std::uint32_t near = BoxTree::kNoHint;
+    for (const P3& x : q) {
+      const double d2 = to_input2(I, x, near);
+      sum += d2;
+      max1 = std::max(max1, d2);
     }
-    return count > 0 ? std::sqrt(sum / double(count)) * I.scale : -1;
+    return q.empty() ? -1 : std::sqrt(sum / double(q.size())) * I.scale;
   }
 
  private:
