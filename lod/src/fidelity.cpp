@@ -49,6 +49,19 @@ TriVec triangles_of(const std::vector<Vec3>& v, const std::vector<std::array<int
   return out;
 }
 
+/// Point k (0..) of the R2 low-discrepancy sequence started at (o1, o2) on
+/// triangle T, folded into it.
+P3 r2_point(const Tri& T, double o1, double o2, std::uint32_t k) {
+  constexpr double g = 1.32471795724474602596;  // plastic number
+  constexpr double a1 = 1.0 / g, a2 = 1.0 / (g * g);
+  double r1 = std::fmod(o1 + a1 * (k + 1), 1.0), r2 = std::fmod(o2 + a2 * (k + 1), 1.0);
+  if (r1 + r2 > 1) {
+    r1 = 1 - r1;
+    r2 = 1 - r2;
+  }
+  return T[0] + r1 * (T[1] - T[0]) + r2 * (T[2] - T[0]);
+}
+
 /// Area-uniform deterministic samples: stratified positions along the cumulative
 /// area, barycentric coordinates from the R2 low-discrepancy sequence.
 std::vector<P3> sample_triangles(const TriVec& tris, int n) {
@@ -62,19 +75,11 @@ std::vector<P3> sample_triangles(const TriVec& tris, int n) {
   }
   if (!(acc > 0)) return out;
   out.reserve(n);
-  const double g = 1.32471795724474602596;  // plastic number
-  const double a1 = 1.0 / g, a2 = 1.0 / (g * g);
   for (int k = 0; k < n; ++k) {
     const double t = (k + 0.5) / n * acc;
     std::size_t i = std::lower_bound(cum.begin(), cum.end(), t) - cum.begin();
     if (i >= tris.size()) i = tris.size() - 1;
-    double r1 = std::fmod(0.5 + a1 * (k + 1), 1.0), r2 = std::fmod(0.5 + a2 * (k + 1), 1.0);
-    if (r1 + r2 > 1) {
-      r1 = 1 - r1;
-      r2 = 1 - r2;
-    }
-    const Tri& T = tris[i];
-    out.push_back(T[0] + r1 * (T[1] - T[0]) + r2 * (T[2] - T[0]));
+    out.push_back(r2_point(tris[i], 0.5, 0.5, std::uint32_t(k)));
   }
   return out;
 }
@@ -103,15 +108,16 @@ BoxTree::Box box_of(const P3& q) {
   return {q.x(), q.y(), q.z()};
 }
 
-Vec3 bbox_lo(const std::vector<Vec3>& p) {
-  Vec3 lo = p.front();
-  for (const auto& q : p) lo = lo.cwiseMin(q);
-  return lo;
-}
-Vec3 bbox_hi(const std::vector<Vec3>& p) {
-  Vec3 hi = p.front();
-  for (const auto& q : p) hi = hi.cwiseMax(q);
-  return hi;
+/// The surface area of the points' bounding box (each side at least 1 mm).
+double box_surface(const std::vector<Vec3>& p) {
+  if (p.empty()) return 6e-6;
+  Vec3 lo = p.front(), hi = lo;
+  for (const auto& q : p) {
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  const Vec3 e = (hi - lo).cwiseMax(Vec3::Constant(1e-3));
+  return 2 * (e.x() * e.y() + e.y() * e.z() + e.z() * e.x());
 }
 
 }  // namespace
@@ -158,12 +164,7 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
   // roughly matches), the same for every model of the building.
   double area = 0;
   for (const auto& t : I.itris) area += std::sqrt(t.squared_area());
-  if (!(area > 0)) {
-    const Vec3 lo = s.points.empty() ? Vec3::Zero() : bbox_lo(s.points),
-               hi = s.points.empty() ? Vec3::Zero() : bbox_hi(s.points);
-    const Vec3 e = (hi - lo).cwiseMax(Vec3::Constant(1e-3));
-    area = 2 * (e.x() * e.y() + e.y() * e.z() + e.z() * e.x());
-  }
+  if (!(area > 0)) area = box_surface(s.points);
   // (ours) On a point cloud, one model sample per input point (at least 250):
   // e1 moves by ~1 % (p10/p90) from 2 per point and took ~15 % of a median
   // City3D scene building's LOD time with 2 (727 points).
@@ -239,10 +240,6 @@ TriKey key_of(const Tri& t) {
   return k;
 }
 
-std::uint64_t hash_of(const TriKey& k) {
-  return std::uint64_t(TriKeyHash()(k));
-}
-
 /// The squared distance from q to the nearest input point or triangle.
 double to_input2(const FidelityMeter::Impl& I, const P3& q, std::uint32_t& near) {
   if (I.itree) return CGAL::to_double(I.itree->squared_distance(q));
@@ -263,7 +260,7 @@ E1Part triangle_part(const FidelityMeter::Impl& I, const Tri& T, const TriKey& k
                      std::uint32_t& near) {
   E1Part part;
   const double c = std::sqrt(T.squared_area()) * I.e1_density;
-  std::uint64_t h = hash_of(key);
+  std::uint64_t h = TriKeyHash()(key);
   auto unit = [&h]() {  // splitmix64 -> [0, 1)
     h += 0x9E3779B97F4A7C15ull;
     std::uint64_t z = h;
@@ -271,19 +268,13 @@ E1Part triangle_part(const FidelityMeter::Impl& I, const Tri& T, const TriKey& k
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
     return double((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
   };
-  // floor(c) samples, one more with probability frac(c): c on average
-  const double whole = std::floor(std::min(c, 1e7));
+  // floor(c) samples, one more with probability frac(c): c on average (c is
+  // at most kMaxE1Factor * e1_samples: E1Cache measures larger models whole)
+  const double whole = std::floor(c);
   const std::uint32_t n = std::uint32_t(whole) + (unit() < c - whole ? 1u : 0u);
-  const double g = 1.32471795724474602596;  // plastic number: R2 sequence
-  const double a1 = 1.0 / g, a2 = 1.0 / (g * g);
   const double o1 = unit(), o2 = unit();
   for (std::uint32_t k = 0; k < n; ++k) {
-    double r1 = std::fmod(o1 + a1 * (k + 1), 1.0), r2 = std::fmod(o2 + a2 * (k + 1), 1.0);
-    if (r1 + r2 > 1) {
-      r1 = 1 - r1;
-      r2 = 1 - r2;
-    }
-    const double d2 = to_input2(I, T[0] + r1 * (T[1] - T[0]) + r2 * (T[2] - T[0]), near);
+    const double d2 = to_input2(I, r2_point(T, o1, o2, k), near);
     part.sum += d2;
     part.max = std::max(part.max, d2);
   }
@@ -350,7 +341,6 @@ class E1Cache {
     return q.empty() ? -1 : std::sqrt(sum / double(q.size())) * I.scale;
   }
 
- private:
   std::unordered_map<TriKey, E1Part, TriKeyHash> parts_;
 };
 
@@ -375,17 +365,15 @@ class E2Cache {
     // each triangle of the last model: its index in this one, or kGone
     constexpr std::uint32_t kGone = ~std::uint32_t(0);
     std::vector<std::uint32_t> now(last_.size(), kGone);
-    std::unordered_map<TriKey, std::uint32_t, TriKeyHash> before;
-    before.reserve(last_.size() * 2);
     for (std::size_t i = 0; i < last_.size(); ++i) {
       const auto it = cur.find(last_[i]);
       if (it != cur.end()) now[i] = it->second;
-      before.emplace(last_[i], std::uint32_t(i));
     }
+    const bool have = !last_.empty();  // a measured model has triangles
     TriVec added;
     std::vector<std::uint32_t> added_id;
     for (std::size_t i = 0; i < tris.size(); ++i)
-      if (!have_ || !before.count(keys[i])) {
+      if (!have || !last_index_.count(keys[i])) {
         added.push_back(tris[i]);
         added_id.push_back(std::uint32_t(i));
       }
@@ -393,7 +381,7 @@ class E2Cache {
     std::vector<char> kept(n, 0);
     bool any_lost = false;
     for (std::size_t j = 0; j < n; ++j) {
-      kept[j] = have_ && now[tri_[j]] != kGone ? 1 : 0;
+      kept[j] = have && now[tri_[j]] != kGone ? 1 : 0;
       if (kept[j]) tri_[j] = now[tri_[j]];
       any_lost |= !kept[j];
     }
@@ -422,7 +410,7 @@ class E2Cache {
       }
     }
     last_ = keys;
-    have_ = true;
+    last_index_.swap(cur);
     return d2_;
   }
 
@@ -430,7 +418,7 @@ class E2Cache {
   std::vector<double> d2_;
   std::vector<std::uint32_t> tri_;  // each sample's nearest triangle in the last model
   std::vector<TriKey> last_;        // the last model's triangles
-  bool have_ = false;
+  std::unordered_map<TriKey, std::uint32_t, TriKeyHash> last_index_;  // last_[i] -> i
 };
 
 }  // namespace

@@ -12,7 +12,6 @@
 
 #include <Eigen/Geometry>
 
-#include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
@@ -540,12 +539,11 @@ TEST(Fidelity, ModelsMeasuredTogetherGetTheirOwnFigures) {
   EXPECT_GT(all[1].e1, all[0].e1);
   EXPECT_NEAR(all[1].hausdorff, 0.3, 0.05);
   // A model far larger than the input (a prism over a cluster of points) is
-  // measured with the input's number of samples, not at the input's density.
+  // measured with the input's number of samples, not at the input's density
+  // (5e9 samples here: the test would not end).
   TriangleMesh huge = b.mesh;
   for (auto& v : huge.vertices) v *= 1000.0;
-  const auto t0 = std::chrono::steady_clock::now();
   const std::vector<Fidelity> big = meter.measure_all({&b.mesh, &huge}, 1);
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
   EXPECT_EQ(big[0].e1, all[0].e1);
   EXPECT_EQ(big[1].e1, meter.measure(huge).e1);
   EXPECT_GT(big[1].e1, 100.0);  // most of the box is kilometres from the points
