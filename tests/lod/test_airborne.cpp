@@ -16,14 +16,9 @@
 
 using namespace citylod;
 using namespace citylod::lod;
+using test::has_note;
 
 namespace {
-
-bool has_note(const LodResult& r, const std::string& what) {
-  for (const auto& n : r.stats.notes)
-    if (n.find(what) != std::string::npos) return true;
-  return false;
-}
 
 /// A two-level flat-roofed building as airborne LiDAR sees it: main part
 /// x 0..12 with its roof at z = 8, annex x 12..20 at z = 4, y 0..10; only the

@@ -15,6 +15,7 @@ using citylod::test::SynthOptions;
 namespace {
 
 using test::first_anchor;
+using test::has_note;
 using test::last_anchor;
 int count(const LodResult& r, ModelKind k) {
   return test::count_models(r, k);
@@ -255,9 +256,7 @@ TEST(LodPipeline, OpenBottomIsClosedAtTheLowestSample) {
   const auto b = test::finish(std::move(f), 360.0, 6, SynthOptions{}, false);
   const LodResult r = build_lod_tree(b.input, fast_params());
   expect_valid_models(r);
-  bool base_note = false;
-  for (const auto& n : r.stats.notes) base_note |= n.find("base plane") != std::string::npos;
-  EXPECT_TRUE(base_note);
+  EXPECT_TRUE(has_note(r, "base plane"));
   ASSERT_NE(last_anchor(r), nullptr);
   const double lowest = test::input_box(b.input).lo.z();
   EXPECT_NEAR(test::lowest_z(*last_anchor(r)), lowest, 1e-6);
@@ -268,12 +267,6 @@ static LodParams terrain_params(Terrain mode) {
   LodParams p = fast_params();
   p.closure.terrain = mode;
   return p;
-}
-
-static bool has_note(const LodResult& r, const std::string& what) {
-  for (const auto& n : r.stats.notes)
-    if (n.find(what) != std::string::npos) return true;
-  return false;
 }
 
 // A house standing on a terrain sheet that fills the crop. With

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <string>
 
 namespace citylod::test {
 
@@ -22,6 +23,13 @@ inline const lod::LodModel* last_anchor(const lod::LodResult& r) {
   for (const auto& m : r.models)
     if (m.kind == lod::ModelKind::anchor) a = &m;
   return a;
+}
+
+/// True when one of the result's notes contains `what`.
+inline bool has_note(const lod::LodResult& r, const std::string& what) {
+  for (const auto& n : r.stats.notes)
+    if (n.find(what) != std::string::npos) return true;
+  return false;
 }
 
 inline int count_models(const lod::LodResult& r, lod::ModelKind k) {
