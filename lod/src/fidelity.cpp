@@ -142,12 +142,6 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
   I.scale = diag > 0 ? 100.0 / diag : 100.0;
   I.samples = std::max(1, samples);
   I.mesh = in.is_mesh();
-  // A point cloud of n points: samples capped at 2n (at least 250), which
-  // keeps every input point in e2 up to 2,500 points; e1 takes fewer, below.
-  // (Delft tile: 1000 e1 samples were 30 % of a 130-point building's LOD time.)
-  if (!I.mesh)
-    I.samples = std::min(I.samples,
-                         std::max(250, int(std::min<std::size_t>(s.points.size(), 1u << 28)) * 2));
   if (I.mesh) I.itris = triangles_of(in.points, in.triangles);
   if (!I.itris.empty()) {
     I.itree = std::make_unique<Tree>(I.itris.begin(), I.itris.end());
@@ -165,9 +159,11 @@ FidelityMeter::FidelityMeter(const BuildingInput& in, const Samples& s, double d
   double area = 0;
   for (const auto& t : I.itris) area += std::sqrt(t.squared_area());
   if (!(area > 0)) area = box_surface(s.points);
-  // (ours) On a point cloud, one model sample per input point (at least 250):
-  // e1 moves by ~1 % (p10/p90) from 2 per point and took ~15 % of a median
-  // City3D scene building's LOD time with 2 (727 points).
+  // (ours) On a point cloud, at most one model sample per input point (at
+  // least 250): a city's small buildings have a few hundred points, and more
+  // samples cost more than they tell (Delft tile: 1000 samples were 30 % of a
+  // 130-point building's LOD time; City3D scene: 2 per point took ~15 % of the
+  // median building's, 727 points, and e1 moves by ~1 % (p10/p90) from 2 to 1).
   const int e1_samples =
       I.mesh ? I.samples
              : std::min(I.samples,
