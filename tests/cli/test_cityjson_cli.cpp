@@ -45,13 +45,19 @@ struct Box3 {
   }
 };
 
-/// Box of the vertices one geometry uses.
+/// Box of the vertices one geometry (Solid or MultiSolid) uses.
 Box3 geometry_box(const json& g, const std::vector<std::array<double, 3>>& v) {
   Box3 b;
-  for (const auto& shell : g["boundaries"])
-    for (const auto& surf : shell)
-      for (const auto& ring : surf)
-        for (const auto& i : ring) b.add(v[i.get<std::size_t>()]);
+  const auto add_solid = [&](const json& solid) {
+    for (const auto& shell : solid)
+      for (const auto& surf : shell)
+        for (const auto& ring : surf)
+          for (const auto& i : ring) b.add(v[i.get<std::size_t>()]);
+  };
+  if (g["type"] == "MultiSolid")
+    for (const auto& solid : g["boundaries"]) add_solid(solid);
+  else
+    add_solid(g["boundaries"]);
   return b;
 }
 
@@ -123,7 +129,7 @@ TEST(CityJsonCli, DelftTileOneValidChainPerBuilding) {
       all_sem = all_sem && types.count("RoofSurface") && types.count("WallSurface") &&
                 types.count("GroundSurface");
       ++solids;
-      const SolidCheck c = check_solid(geom["boundaries"], vrel);
+      const SolidCheck c = check_geometry(geom, vrel);
       valid += c.valid();
       EXPECT_TRUE(c.valid()) << cid << " geometry " << g << ": closed/oriented "
                              << c.closed_oriented << ", pinched " << c.pinched << ", volume "

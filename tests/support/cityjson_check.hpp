@@ -159,6 +159,24 @@ inline std::vector<std::string> chain_problems(const nlohmann::json& f) {
   return p;
 }
 
+/// check_solid of a Solid geometry, or of each Solid of a MultiSolid (valid
+/// when every one is; volume their sum, or the first non-positive one).
+inline SolidCheck check_geometry(const nlohmann::json& g,
+                                 const std::vector<std::array<double, 3>>& v) {
+  if (g.value("type", "") != "MultiSolid") return check_solid(g["boundaries"], v);
+  SolidCheck all;
+  all.closed_oriented = true;
+  bool positive = true;
+  for (const auto& solid : g["boundaries"]) {
+    const SolidCheck c = check_solid(solid, v);
+    all.closed_oriented = all.closed_oriented && c.closed_oriented;
+    all.pinched += c.pinched;
+    if (positive) all.volume = c.volume > 0 ? all.volume + c.volume : c.volume;
+    positive = positive && c.volume > 0;
+  }
+  return all;
+}
+
 /// Structure problems of a CityJSONSeq by the CityJSON 2.0 rules that apply to
 /// citylod's output (empty = none).
 inline std::vector<std::string> cjseq_problems(const CjSeq& s) {
@@ -210,41 +228,55 @@ inline std::vector<std::string> cjseq_problems(const CjSeq& s) {
           p.push_back(where + ": CityObject " + oid + " has two geometries of lod " +
                       g["lod"].get<std::string>());
       for (const auto& g : o["geometry"]) {
-        if (g.value("type", "") != "Solid") {
-          p.push_back(where + ": geometry is not a Solid");
+        const std::string gtype = g.value("type", "");
+        if (gtype != "Solid" && gtype != "MultiSolid") {
+          p.push_back(where + ": geometry is neither a Solid nor a MultiSolid");
           continue;
         }
         if (!g.contains("lod") || !g["lod"].is_string() ||
             !std::regex_match(g["lod"].get<std::string>(), lod_re))
           p.push_back(where + ": lod missing or not \"d\" / \"d.d\"");
-        const auto& b = g["boundaries"];
-        bool depth_ok = b.is_array() && !b.empty();
-        for (const auto& shell : b)
-          for (const auto& surf : shell) {
-            depth_ok = depth_ok && surf.is_array() && !surf.empty();
-            for (const auto& ring : surf) {
-              depth_ok = depth_ok && ring.is_array() && ring.size() >= 3;
-              for (const auto& i : ring)
-                if (!i.is_number_integer() || i.get<long>() < 0 || i.get<long>() >= nv) {
-                  p.push_back(where + ": index out of range or not an integer");
-                  depth_ok = false;
-                  break;
-                }
+        // a Solid's boundaries (shells/surfaces/rings) and semantic values
+        const auto solid_problems = [&](const nlohmann::json& b, const nlohmann::json* vals) {
+          bool depth_ok = b.is_array() && !b.empty();
+          for (const auto& shell : b)
+            for (const auto& surf : shell) {
+              depth_ok = depth_ok && surf.is_array() && !surf.empty();
+              for (const auto& ring : surf) {
+                depth_ok = depth_ok && ring.is_array() && ring.size() >= 3;
+                for (const auto& i : ring)
+                  if (!i.is_number_integer() || i.get<long>() < 0 || i.get<long>() >= nv) {
+                    p.push_back(where + ": index out of range or not an integer");
+                    depth_ok = false;
+                    break;
+                  }
+              }
             }
-          }
-        if (!depth_ok) p.push_back(where + ": Solid boundaries are not shells/surfaces/rings");
-        if (g.contains("semantics")) {
+          if (!depth_ok) p.push_back(where + ": Solid boundaries are not shells/surfaces/rings");
+          if (!vals) return;
           const auto& sem = g["semantics"];
-          const auto& vals = sem["values"];
-          bool aligned = vals.is_array() && vals.size() == b.size();
+          bool aligned = vals->is_array() && vals->size() == b.size();
           for (std::size_t k = 0; aligned && k < b.size(); ++k) {
-            aligned = vals[k].is_array() && vals[k].size() == b[k].size();
-            for (std::size_t j = 0; aligned && j < vals[k].size(); ++j)
-              aligned = vals[k][j].is_null() ||
-                        (vals[k][j].is_number_integer() && vals[k][j].get<long>() >= 0 &&
-                         vals[k][j].get<long>() < long(sem["surfaces"].size()));
+            aligned = (*vals)[k].is_array() && (*vals)[k].size() == b[k].size();
+            for (std::size_t j = 0; aligned && j < (*vals)[k].size(); ++j)
+              aligned = (*vals)[k][j].is_null() ||
+                        ((*vals)[k][j].is_number_integer() && (*vals)[k][j].get<long>() >= 0 &&
+                         (*vals)[k][j].get<long>() < long(sem["surfaces"].size()));
           }
           if (!aligned) p.push_back(where + ": semantics.values not aligned with boundaries");
+        };
+        const auto& b = g["boundaries"];
+        const nlohmann::json* vals = g.contains("semantics") ? &g["semantics"]["values"] : nullptr;
+        if (gtype == "Solid") {
+          solid_problems(b, vals);
+        } else if (!b.is_array() || b.size() < 2 || (vals && vals->size() != b.size())) {
+          p.push_back(where + ": MultiSolid boundaries are not solids (two or more)");
+        } else {
+          for (std::size_t k = 0; k < b.size(); ++k)
+            solid_problems(b[k], vals ? &(*vals)[k] : nullptr);
+        }
+        if (g.contains("semantics")) {
+          const auto& sem = g["semantics"];
           for (const auto& su : sem["surfaces"])
             if (!kSurfaces.count(su.value("type", "")))
               p.push_back(where + ": semantic surface type " + su.value("type", ""));

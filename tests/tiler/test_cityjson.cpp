@@ -472,6 +472,43 @@ TEST(CityJson, CavitiesAreInnerShells) {
   expect_val3dity_valid(out, 1);
 }
 
+// A model in two pieces apart (an annex no plane connects) is a MultiSolid of
+// two one-shell Solids: as one Solid the second piece would be a cavity
+// oriented outwards (val3dity's 307).
+TEST(CityJson, PiecesApartAreAMultiSolid) {
+  Scene s = make_scene("pieces");
+  PolygonMesh m = box(85000, 447500, 0, 85010, 447508, 6);
+  const PolygonMesh annex = box(85014, 447500, 0, 85018, 447504, 3);
+  const auto base = std::uint32_t(m.vertices.size());
+  m.vertices.insert(m.vertices.end(), annex.vertices.begin(), annex.vertices.end());
+  for (auto f : annex.faces) {
+    for (auto& i : f) i += base;
+    m.faces.push_back(f);
+  }
+  add_building(s, "b-pieces", {{m, "anchor", 0, 0, true}});
+  const std::string out = s.work + "/pieces.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.invalid, 0u);
+  const CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  const json& g = object_of(seq.features[0])["geometry"][0];
+  EXPECT_EQ(g["type"], "MultiSolid");
+  ASSERT_EQ(g["boundaries"].size(), 2u);  // two Solids of one shell each
+  const auto v = feature_vertices(seq.header, seq.features[0], true);
+  double volume = 0;
+  for (const auto& solid : g["boundaries"]) {
+    ASSERT_EQ(solid.size(), 1u);
+    EXPECT_EQ(solid[0].size(), 6u);
+    const SolidCheck c = check_solid(solid, v);
+    EXPECT_TRUE(c.valid());
+    volume += c.volume;
+  }
+  EXPECT_NEAR(volume, 10 * 8 * 6 + 4 * 4 * 3, 1e-3);
+  EXPECT_TRUE(check_geometry(g, v).valid());
+  EXPECT_EQ(g["semantics"]["values"].size(), 2u);
+  expect_val3dity_valid(out, 1);
+}
+
 TEST(CityJson, SameBytesWhateverTheThreads) {
   Scene s = make_scene("threads");
   for (int i = 0; i < 12; ++i)

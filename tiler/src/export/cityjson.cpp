@@ -179,11 +179,12 @@ struct Geometry {
   std::vector<std::vector<std::uint32_t>> faces;  // feature vertex indices
   std::vector<int> semantic;                      // per face
   std::vector<io::Rgba8> colour;                  // per face (a = 0: none)
-  std::vector<int> shell;                         // per face: 0 outer, > 0 a cavity
+  std::vector<int> shell;  // per face: 0 outer, > 0 a cavity; with `multi` the face's solid
   std::string lod;
   json attributes;  // its citylod_models entry
   bool valid = false, full_semantics = false, from_obj = false;
   bool fallback = false, sloped = false;
+  bool multi = false;  // a MultiSolid: the model's pieces, one Solid each (separate_pieces)
   std::size_t roof_heights = 0;
   int step = 0;
   double snapped = 0;  // vertices within this were welded together to keep the solid valid
@@ -259,6 +260,40 @@ lod::PolygonSolid as_solid(const std::vector<std::vector<std::uint32_t>>& faces,
     rings.push_back(std::move(ring));
   }
   return lod::make_solid(std::move(vertices), rings, shell_of);
+}
+
+/// The shells of `s` as one-shell solids, when it has more than one and each
+/// encloses a positive volume: a model in pieces apart from each other (the
+/// LOD stage keeps such an anchor, "a multi-solid"), which a validator reads
+/// as outer shell and wrongly oriented cavities unless written as a
+/// MultiSolid. Empty otherwise (one shell, or a true cavity).
+std::vector<lod::PolygonSolid> separate_pieces(const lod::PolygonSolid& s) {
+  std::vector<lod::PolygonSolid> pieces;
+  if (s.shells.size() < 2) return pieces;
+  for (const auto& shell : s.shells) {
+    double volume = 0;  // 1/6 sum over faces of (a vertex . the face's doubled vector area)
+    for (const auto& f : shell) {
+      lod::Vec3 n(0, 0, 0);
+      for (std::size_t i = 0; i < f.size(); ++i)
+        n += s.vertices[std::size_t(f[i])].cross(s.vertices[std::size_t(f[(i + 1) % f.size()])]);
+      if (!f.empty()) volume += s.vertices[std::size_t(f[0])].dot(n) / 6;
+    }
+    if (!(volume > 0)) return {};
+    pieces.push_back(lod::PolygonSolid{s.vertices, {shell}});
+  }
+  return pieces;
+}
+
+/// How a validator takes `s`: 1 a valid Solid, 2 valid as a MultiSolid (every
+/// piece of separate_pieces a valid Solid), 0 invalid (`c` the Solid's error).
+int solid_verdict(const lod::PolygonSolid& s, const lod::Tolerances& tol, lod::SolidCheck& c) {
+  c = lod::check_solid(s, tol);
+  if (c.valid()) return 1;
+  const std::vector<lod::PolygonSolid> pieces = separate_pieces(s);
+  if (pieces.empty()) return 0;
+  for (const lod::PolygonSolid& p : pieces)
+    if (!lod::check_solid(p, tol).valid()) return 0;
+  return 2;
 }
 
 /// pool index -> the representative of its cluster: the vertices `used`
@@ -560,8 +595,9 @@ std::string make_solid(Geometry& g, const PooledModel& m, const std::vector<int>
   const lod::Tolerances tol;  // val3dity's defaults
   const bool coloured = face_colours.size() == sem.size();
   std::string why;
-  auto take = [&](Faces&& f, bool polygons, double snapped) {
+  auto take = [&](Faces&& f, bool polygons, double snapped, int verdict) {
     as_solid(f.faces, pool, &g.shell);
+    g.multi = verdict == 2;
     g.faces = std::move(f.faces);
     g.semantic = std::move(f.sem);
     g.colour = std::move(f.col);
@@ -590,9 +626,10 @@ std::string make_solid(Geometry& g, const PooledModel& m, const std::vector<int>
       welded.col.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
     }
     const lod::PolygonSolid solid = as_solid(welded.faces, pool);
-    lod::SolidCheck c = lod::check_solid(solid, tol);
-    if (c.valid()) {
-      take(std::move(welded), from_obj, snapped);
+    lod::SolidCheck c;
+    int verdict = solid_verdict(solid, tol, c);
+    if (verdict) {
+      take(std::move(welded), from_obj, snapped, verdict);
       break;
     }
     if (why.empty()) why = "polygons: error " + std::to_string(c.error) + " (" + c.detail + ")";
@@ -600,17 +637,17 @@ std::string make_solid(Geometry& g, const PooledModel& m, const std::vector<int>
     const std::vector<int> errs = lod::face_errors(solid, tol)[0];
     if (!m.tris_of_ring.empty() && std::any_of(errs.begin(), errs.end(), [](int e) { return e; })) {
       Faces mixed = polygons_and_triangles(welded, errs, from, m, to, pool);
-      c = lod::check_solid(as_solid(mixed.faces, pool), tol);
-      if (c.valid()) {
-        take(std::move(mixed), from_obj, snapped);
+      verdict = solid_verdict(as_solid(mixed.faces, pool), tol, c);
+      if (verdict) {
+        take(std::move(mixed), from_obj, snapped, verdict);
         break;
       }
     }
     // the model's triangles
     Faces tris = welded_triangles(m, mesh, tri_colours, zmin, to, pool);
-    c = lod::check_solid(as_solid(tris.faces, pool), tol);
-    if (c.valid()) {
-      take(std::move(tris), false, snapped);
+    verdict = solid_verdict(as_solid(tris.faces, pool), tol, c);
+    if (verdict) {
+      take(std::move(tris), false, snapped, verdict);
       break;
     }
     if (why.find("triangles") == std::string::npos)
@@ -722,9 +759,9 @@ json colour_materials(const std::vector<Geometry>& geoms, std::map<io::Rgba8, in
   return materials;
 }
 
-/// A geometry as a CityJSON Solid, counted in `out`.
+/// A geometry as a CityJSON Solid (or MultiSolid), counted in `out`.
 json solid_json(const Geometry& g, const std::map<io::Rgba8, int>& material_of, Feature& out) {
-  // the shells (outer first, then cavities), each face one ring
+  // the shells (outer first, then cavities; with g.multi one per solid), each face one ring
   json boundaries = json::array(), values = json::array(), colour_values = json::array();
   for (std::size_t f = 0; f < g.faces.size(); ++f) {
     const std::size_t sh = std::size_t(g.shell[f]);
@@ -747,8 +784,12 @@ json solid_json(const Geometry& g, const std::map<io::Rgba8, int>& material_of, 
   }
   for (auto& sv : values)
     for (auto& v : sv) v = slot[v.get<int>()];
+  if (g.multi) {  // each shell the one shell of its own Solid
+    for (json* a : {&boundaries, &values, &colour_values})
+      for (json& shell : *a) shell = json::array({std::move(shell)});
+  }
   json geo;
-  geo["type"] = "Solid";
+  geo["type"] = g.multi ? "MultiSolid" : "Solid";
   geo["lod"] = g.lod;
   geo["boundaries"] = boundaries;
   geo["semantics"] = {{"surfaces", surfaces}, {"values", values}};
