@@ -432,6 +432,35 @@ struct Prep {
   std::vector<Vec3> loop;  // projected, CCW around the table support normal
 };
 
+/// (ours) A support plane whose normal is within I.merge_angle of an earlier
+/// polygon's support (either orientation), each polygon within
+/// I.merge_distance of the other's plane, takes that support's coefficients: two such planes cross,
+/// or run side by side, at a hair's breadth, and cut wedges and slabs thinner than a validator's
+/// snap tolerance, slivers that fold when it welds their vertices.
+void snap_to_near_support(const BspData& I, const std::vector<Prep>& prep, size_t i,
+                          const std::vector<Vec3>& loop, std::array<double, 4>& c) {
+  const double md = I.merge_distance;
+  if (!(md > 0)) return;
+  const double min_cos = std::cos(I.merge_angle);
+  const auto off = [](const std::array<double, 4>& pl, const std::vector<Vec3>& pts) {
+    double worst = 0;
+    for (const Vec3& x : pts)
+      worst = std::max(worst, std::abs(pl[0] * x.x() + pl[1] * x.y() + pl[2] * x.z() + pl[3]));
+    return worst;
+  };
+  for (size_t j = 0; j < i; ++j) {
+    const int S = prep[j].support;
+    if (S < 6) continue;  // none, or a box cut
+    const auto& q = I.dplanes[size_t(S)];
+    const double cosine = c[0] * q[0] + c[1] * q[1] + c[2] * q[2];
+    if (std::abs(cosine) < min_cos) continue;
+    if (off(q, loop) > md || off(c, prep[j].loop) > md) continue;
+    const double s = cosine >= 0 ? 1.0 : -1.0;
+    for (int k = 0; k < 4; ++k) c[size_t(k)] = s * q[size_t(k)];
+    return;
+  }
+}
+
 /// The planes of the input polygons: their supports (the split planes) go into
 /// the table first; each polygon projected on its plane, CCW around the table
 /// support's normal (support -1: degenerate, skipped).
@@ -455,6 +484,7 @@ std::vector<Prep> prepare_polygons(BspData& I, const std::vector<BspPolygon>& or
     if (q.size() < 3) continue;
     const Vec3 nn = newell_normal(q);
     if (nn.norm() < 1e-12) continue;  // no area
+    snap_to_near_support(I, prep, i, q, c);
     const int S = I.find_or_add_plane(c, &flip);
     const Vec3 ns = double(flip) * n;
     if (nn.dot(ns) < 0) std::reverse(q.begin(), q.end());
@@ -565,11 +595,14 @@ void split_adaptive(BspData& I, std::vector<Piece> root_pieces, int max_leaves) 
 
 }  // namespace
 
-Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves)
+Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves,
+         double merge_distance, double merge_angle)
     : impl_(std::make_unique<Impl>()) {
   Impl& I = *impl_;
   I.lo = lo;
   I.hi = hi;
+  I.merge_distance = merge_distance;
+  I.merge_angle = merge_angle;
   if (!(hi.x() > lo.x() && hi.y() > lo.y() && hi.z() > lo.z()))
     throw std::invalid_argument("Bsp: empty box");
   init_box(I, lo, hi);

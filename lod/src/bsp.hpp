@@ -83,8 +83,12 @@ class Bsp {
   /// split plane are consumed. Planes equal up to 1e-12 are merged. Stops
   /// splitting when `max_leaves` leaves exist (cap_hit() then true).
   /// max_leaves <= 0: no limit. Polygons on a box face, of no area, or missing
-  /// the open box are ignored; each polygon is clipped to the box.
-  Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves);
+  /// the open box are ignored; each polygon is clipped to the box. With
+  /// merge_distance > 0, a polygon whose plane is within merge_angle (rad) of
+  /// an earlier polygon's support and each within merge_distance of the other's
+  /// polygon takes that support (LodParams' bsp.merge_distance).
+  Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves,
+      double merge_distance = 0, double merge_angle = 0);
   ~Bsp();
   Bsp(Bsp&&) noexcept;
   Bsp& operator=(Bsp&&) noexcept;

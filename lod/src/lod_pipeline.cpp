@@ -491,7 +491,8 @@ TreeStep tree_step(const Planes& planes, const SceneBox& box, const SortStep& S,
   const std::vector<Primitive>& prims = planes.prims;
   const std::optional<HeightField>& heights = planes.heights;
   const SortedPrimitives& sorted = S.sorted;
-  Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells);
+  Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells,
+          P.bsp.merge_distance, P.bsp.merge_angle_deg * M_PI / 180.0);
   if (bsp.cap_hit()) {
     st.bsp_cap_hit = true;
     st.notes.push_back("bsp.max_cells = " + std::to_string(P.bsp.max_cells) +
@@ -593,7 +594,8 @@ void baseline_step(const std::vector<Primitive>& prims, const SceneBox& box,
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
     return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
   });
-  const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells);
+  const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells,
+                 P.bsp.merge_distance, P.bsp.merge_angle_deg * M_PI / 180.0);
   st.baseline_bsp_nodes = int(base.nodes().size());
   int internal = 0;
   for (const auto& n : base.nodes()) internal += n.is_leaf() ? 0 : 1;

@@ -417,6 +417,41 @@ TEST(Bsp, DiagonalCubesNonManifoldEdgeRepaired) {
   EXPECT_GT(mesh_volume(s.triangles), 2.0);
 }
 
+// bsp.merge_distance: a wall 0.5 mm beside another, tilted 0.5 degrees
+// (they cross inside the box), cuts wedges thinner than a validator's snap;
+// with the merge it takes the first wall's plane and cuts nothing new, and a
+// wall 0.2 m away (beyond the distance) or tilted 10 degrees (beyond the
+// angle) still cuts.
+TEST(Bsp, NearlyCoincidentSupportsMerged) {
+  const Vec3 lo(0, 0, 0), hi(4, 4, 4);
+  const std::vector<BspPolygon> base{rect(2, 1.0, 0, 4, 0, 4, 0), rect(0, 2.0, 0, 4, 0, 4, 1)};
+  const auto wall_at = [&](double x, double tilt_deg) {
+    const double t = std::tan(tilt_deg * M_PI / 180.0);
+    BspPolygon w;  // x = at + t * (y - 2), over y in [0, 4], z in [0, 4]
+    w.polygon = {Vec3(x - 2 * t, 0, 0), Vec3(x + 2 * t, 4, 0), Vec3(x + 2 * t, 4, 4),
+                 Vec3(x - 2 * t, 0, 4)};
+    const Vec3 n = Vec3(1, -t, 0).normalized();
+    w.plane = {n.x(), n.y(), 0, -n.dot(Vec3(x, 2, 0))};
+    w.primitive = 2;
+    return w;
+  };
+  const double md = 0.05, ma = 3 * M_PI / 180.0;
+  const Bsp plain(lo, hi, base, 0, md, ma);
+  EXPECT_EQ(plain.leaves().size(), 4u);
+  std::vector<BspPolygon> near = base;
+  near.push_back(wall_at(2.0005, 0.5));
+  const Bsp exact(lo, hi, near, 0);
+  EXPECT_EQ(exact.leaves().size(), 8u);  // the wedges on both sides of the crossing, both slabs
+  const Bsp merged(lo, hi, near, 0, md, ma);
+  EXPECT_EQ(merged.leaves().size(), 4u);
+  EXPECT_EQ(merged.planes().size(), plain.planes().size());
+  std::vector<BspPolygon> far = base, tilted = base;
+  far.push_back(wall_at(2.2, 0.5));  // on the x > 2 side only: splits its 2 cells
+  EXPECT_EQ(Bsp(lo, hi, far, 0, md, ma).leaves().size(), 6u);
+  tilted.push_back(wall_at(2.0, 10.0));  // crosses x = 2 at y = 2: splits all 4
+  EXPECT_EQ(Bsp(lo, hi, tilted, 0, md, ma).leaves().size(), 8u);
+}
+
 TEST(Bsp, CoplanarDuplicatesMerged) {
   const Vec3 lo(0, 0, 0), hi(4, 4, 4);
   std::vector<BspPolygon> one{rect(2, 1.0, 0.5, 2.5, 0.5, 2.5, 0), rect(0, 3.0, 0, 4, 0, 4, 1)};

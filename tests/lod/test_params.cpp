@@ -135,9 +135,9 @@ TEST(LodParams, ItemsRoundTrip) {
         "tree.interpolation_floor", "airborne.mode",        "airborne.step_min",
         "airborne.block",           "colour.enabled",       "colour.distance",
         "colour.max_angle_deg",     "closure.wall_profile", "closure.wall_snap",
-        "colour.min_points"})
+        "colour.min_points",        "bsp.merge_distance",   "bsp.merge_angle_deg"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 64u);  // one per field of every parameter struct
+  EXPECT_EQ(items.size(), 66u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");
