@@ -86,7 +86,7 @@ class Bsp {
   /// the open box are ignored; each polygon is clipped to the box. With
   /// merge_distance > 0, a polygon whose plane is within merge_angle (rad) of
   /// an earlier polygon's support and each within merge_distance of the other's
-  /// polygon takes that support (LodParams' bsp.merge_distance).
+  /// polygon takes that support (LodParams' airborne.plane_merge_distance).
   Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves,
       double merge_distance = 0, double merge_angle = 0);
   ~Bsp();

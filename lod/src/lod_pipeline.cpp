@@ -491,8 +491,10 @@ TreeStep tree_step(const Planes& planes, const SceneBox& box, const SortStep& S,
   const std::vector<Primitive>& prims = planes.prims;
   const std::optional<HeightField>& heights = planes.heights;
   const SortedPrimitives& sorted = S.sorted;
-  Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells,
-          P.bsp.merge_distance, P.bsp.merge_angle_deg * M_PI / 180.0);
+  // (ours) airborne LiDAR: supports a hair's breadth apart are one plane
+  const double merge = heights ? P.airborne.plane_merge_distance : 0.0;
+  Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells, merge,
+          P.airborne.plane_merge_angle_deg * M_PI / 180.0);
   if (bsp.cap_hit()) {
     st.bsp_cap_hit = true;
     st.notes.push_back("bsp.max_cells = " + std::to_string(P.bsp.max_cells) +
@@ -588,14 +590,15 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
 }
 
 /// Plain BSP-Tree baseline: same primitives, area order, binary nodes.
-void baseline_step(const std::vector<Primitive>& prims, const SceneBox& box,
+void baseline_step(const std::vector<Primitive>& prims, bool airborne, const SceneBox& box,
                    const SortedPrimitives& sorted, const LodParams& P, LodStats& st) {
   std::vector<int> order = sorted.order;
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
     return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
   });
-  const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells,
-                 P.bsp.merge_distance, P.bsp.merge_angle_deg * M_PI / 180.0);
+  const double merge = airborne ? P.airborne.plane_merge_distance : 0.0;
+  const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells, merge,
+                 P.airborne.plane_merge_angle_deg * M_PI / 180.0);
   st.baseline_bsp_nodes = int(base.nodes().size());
   int internal = 0;
   for (const auto& n : base.nodes()) internal += n.is_leaf() ? 0 : 1;
@@ -662,7 +665,8 @@ void run_method(const BuildingInput& in, const Samples& samples, const LodParams
   models_step(samples, planes, T, P, threads, progress, budget, R);
   st.t_traversal = seconds_since(t3);
 
-  if (P.bsp.baseline) baseline_step(planes.prims, io.box, S.sorted, P, st);
+  if (P.bsp.baseline)
+    baseline_step(planes.prims, planes.heights.has_value(), io.box, S.sorted, P, st);
 }
 
 }  // namespace

@@ -227,10 +227,6 @@ void visit(P& p, F&& f) {
     "cap on leaf cells per BSP (fallback when hit)");
   f("bsp.baseline", p.bsp.baseline, Any{}, "",
     "also build the plain BSP-Tree (area order, binary) for comparison");
-  f("bsp.merge_distance", p.bsp.merge_distance, kNonNegative, "m",
-    "LOD-Tree BSP: planes whose polygons lie this close to each other's planes are one (0: off)");
-  f("bsp.merge_angle_deg", p.bsp.merge_angle_deg, kAngle, "deg",
-    "LOD-Tree BSP: ... and whose normals are this close (either orientation)");
   f("labels.rays_per_cell", p.labels.rays_per_cell, AtLeast{1}, "rays",
     "rays cast from a cell to label it in or out");
   f("labels.origins_per_cell", p.labels.origins_per_cell,
@@ -327,6 +323,10 @@ void visit(P& p, F&& f) {
     "points this near the outline weigh less in the roof refit");
   f("airborne.detail_level", p.airborne.detail_level, Any{}, "",
     "roof planes outside every structure form a last level set");
+  f("airborne.plane_merge_distance", p.airborne.plane_merge_distance, kNonNegative, "m",
+    "BSP planes whose polygons lie this near each other's planes are one (0: off)");
+  f("airborne.plane_merge_angle_deg", p.airborne.plane_merge_angle_deg, kAngle, "deg",
+    "... and whose normals are this near (either orientation)");
   f("orient.enabled", p.orient.enabled, Any{}, "",
     "turn round planes whose normals point into the building");
   f("orient.points_per_plane", p.orient.points_per_plane, AtLeast{1}, "points",

@@ -417,7 +417,7 @@ TEST(Bsp, DiagonalCubesNonManifoldEdgeRepaired) {
   EXPECT_GT(mesh_volume(s.triangles), 2.0);
 }
 
-// bsp.merge_distance: a wall 0.5 mm beside another, tilted 0.5 degrees
+// airborne.plane_merge_distance: a wall 0.5 mm beside another, tilted 0.5 degrees
 // (they cross inside the box), cuts wedges thinner than a validator's snap;
 // with the merge it takes the first wall's plane and cuts nothing new, and a
 // wall 0.2 m away (beyond the distance) or tilted 10 degrees (beyond the

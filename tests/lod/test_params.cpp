@@ -127,15 +127,30 @@ TEST(LodParams, ItemsRoundTrip) {
   std::set<std::string> names;
   for (const auto& kv : items)
     EXPECT_TRUE(names.insert(kv.first).second) << "duplicate " << kv.first;
-  for (const char* n :
-       {"planes.epsilon",           "alpha.alpha",          "tree.merge_k",
-        "tree.interpolation_ratio", "labels.rays_per_cell", "regularization.enabled",
-        "closure.outline_alpha",    "metrics.samples",      "bsp.max_cells",
-        "budget.time_budget_s",     "normals.k_neighbors",  "bsp.baseline",
-        "tree.interpolation_floor", "airborne.mode",        "airborne.step_min",
-        "airborne.block",           "colour.enabled",       "colour.distance",
-        "colour.max_angle_deg",     "closure.wall_profile", "closure.wall_snap",
-        "colour.min_points",        "bsp.merge_distance",   "bsp.merge_angle_deg"})
+  for (const char* n : {"planes.epsilon",
+                        "alpha.alpha",
+                        "tree.merge_k",
+                        "tree.interpolation_ratio",
+                        "labels.rays_per_cell",
+                        "regularization.enabled",
+                        "closure.outline_alpha",
+                        "metrics.samples",
+                        "bsp.max_cells",
+                        "budget.time_budget_s",
+                        "normals.k_neighbors",
+                        "bsp.baseline",
+                        "tree.interpolation_floor",
+                        "airborne.mode",
+                        "airborne.step_min",
+                        "airborne.block",
+                        "colour.enabled",
+                        "colour.distance",
+                        "colour.max_angle_deg",
+                        "closure.wall_profile",
+                        "closure.wall_snap",
+                        "colour.min_points",
+                        "airborne.plane_merge_distance",
+                        "airborne.plane_merge_angle_deg"})
     EXPECT_TRUE(names.count(n)) << n;
   EXPECT_EQ(items.size(), 66u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
