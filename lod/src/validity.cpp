@@ -315,6 +315,19 @@ std::vector<std::vector<int>> face_errors(const PolygonSolid& solid, const Toler
   return out;
 }
 
+double signed_volume(const std::vector<Vec3>& vertices,
+                     const std::vector<std::vector<int>>& faces) {
+  double volume = 0;  // 1/6 sum over faces of (a vertex . the face's doubled vector area)
+  for (const auto& f : faces) {
+    if (f.empty()) continue;
+    Vec3 n(0, 0, 0);
+    for (std::size_t i = 0; i < f.size(); ++i)
+      n += vertices[std::size_t(f[i])].cross(vertices[std::size_t(f[(i + 1) % f.size()])]);
+    volume += vertices[std::size_t(f[0])].dot(n) / 6;
+  }
+  return volume;
+}
+
 PolygonSolid make_solid(std::vector<Vec3> vertices, const std::vector<std::vector<int>>& faces,
                         std::vector<int>* shell_of) {
   std::vector<int> parent(faces.size());
@@ -332,36 +345,37 @@ PolygonSolid make_solid(std::vector<Vec3> vertices, const std::vector<std::vecto
       const auto [it, fresh] = edge_face.emplace(std::make_pair(a, b), int(f));
       if (!fresh) parent[std::size_t(find(int(f)))] = find(it->second);
     }
-  // signed volume of each piece: 1/3 sum over its faces of (a vertex . the face's vector area)
-  std::map<int, double> volume;
-  std::vector<int> order;  // pieces by first face
+  // the pieces in order of their first face, each face's piece
+  std::map<int, std::size_t> piece_of_root;
+  std::vector<std::vector<std::vector<int>>> pieces;
+  std::vector<std::size_t> piece_of(faces.size());
   for (std::size_t f = 0; f < faces.size(); ++f) {
-    const int r = find(int(f));
-    if (!volume.count(r)) {
-      order.push_back(r);
-      volume[r] = 0;
-    }
-    if (faces[f].empty()) continue;
-    Vec3 n(0, 0, 0);
-    for (std::size_t i = 0; i < faces[f].size(); ++i)
-      n += vertices[std::size_t(faces[f][i])].cross(
-          vertices[std::size_t(faces[f][(i + 1) % faces[f].size()])]);
-    volume[r] += vertices[std::size_t(faces[f][0])].dot(n) / 6;
+    const auto [it, fresh] = piece_of_root.emplace(find(int(f)), pieces.size());
+    if (fresh) pieces.emplace_back();
+    pieces[it->second].push_back(faces[f]);
+    piece_of[f] = it->second;
   }
-  int outer = order.empty() ? 0 : order[0];
-  for (const int r : order)
-    if (volume[r] > volume[outer]) outer = r;
-  std::map<int, int> index{{outer, 0}};
-  for (const int r : order)
-    if (r != outer) index.emplace(r, int(index.size()));
+  // the outer shell: the piece enclosing the largest volume (the first of equals)
+  std::size_t outer = 0;
+  double largest = pieces.empty() ? 0 : signed_volume(vertices, pieces[0]);
+  for (std::size_t k = 1; k < pieces.size(); ++k) {
+    const double v = signed_volume(vertices, pieces[k]);
+    if (v > largest) {
+      largest = v;
+      outer = k;
+    }
+  }
+  std::vector<int> shell_index(pieces.size());  // outer 0, the others in piece order
+  for (std::size_t k = 0, next = 1; k < pieces.size(); ++k)
+    shell_index[k] = k == outer ? 0 : int(next++);
   PolygonSolid s;
   s.vertices = std::move(vertices);
-  s.shells.resize(index.size());
-  if (shell_of) shell_of->assign(faces.size(), 0);
-  for (std::size_t f = 0; f < faces.size(); ++f) {
-    const int sh = index.at(find(int(f)));
-    s.shells[std::size_t(sh)].push_back(faces[f]);
-    if (shell_of) (*shell_of)[f] = sh;
+  s.shells.resize(pieces.size());
+  for (std::size_t k = 0; k < pieces.size(); ++k)
+    s.shells[std::size_t(shell_index[k])] = std::move(pieces[k]);
+  if (shell_of) {
+    shell_of->resize(faces.size());
+    for (std::size_t f = 0; f < faces.size(); ++f) (*shell_of)[f] = shell_index[piece_of[f]];
   }
   return s;
 }

@@ -271,14 +271,7 @@ std::vector<lod::PolygonSolid> separate_pieces(const lod::PolygonSolid& s) {
   std::vector<lod::PolygonSolid> pieces;
   if (s.shells.size() < 2) return pieces;
   for (const auto& shell : s.shells) {
-    double volume = 0;  // 1/6 sum over faces of (a vertex . the face's doubled vector area)
-    for (const auto& f : shell) {
-      lod::Vec3 n(0, 0, 0);
-      for (std::size_t i = 0; i < f.size(); ++i)
-        n += s.vertices[std::size_t(f[i])].cross(s.vertices[std::size_t(f[(i + 1) % f.size()])]);
-      if (!f.empty()) volume += s.vertices[std::size_t(f[0])].dot(n) / 6;
-    }
-    if (!(volume > 0)) return {};
+    if (!(lod::signed_volume(s.vertices, shell) > 0)) return {};
     pieces.push_back(lod::PolygonSolid{s.vertices, {shell}});
   }
   return pieces;

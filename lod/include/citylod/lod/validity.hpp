@@ -45,6 +45,11 @@ struct SolidCheck {
 
 SolidCheck check_solid(const PolygonSolid& solid, const Tolerances& tol = {});
 
+/// The volume a closed shell encloses (faces as rings over `vertices`,
+/// counter-clockwise seen from outside): positive for an outer shell, negative
+/// for a cavity's (faces facing into it).
+double signed_volume(const std::vector<Vec3>& vertices, const std::vector<std::vector<int>>& faces);
+
 /// Faces (rings over `vertices`) as a solid: its shells are the edge-connected
 /// pieces of the surface, the one enclosing the largest positive volume first
 /// (the outer shell), then the others (cavities) in order of their first face.
