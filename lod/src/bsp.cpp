@@ -432,16 +432,16 @@ struct Prep {
   std::vector<Vec3> loop;  // projected, CCW around the table support normal
 };
 
-/// (ours) A support plane whose normal is within I.merge_angle of an earlier
+/// (ours) A support plane whose normal is within I.merge.angle of an earlier
 /// polygon's support (either orientation), each polygon within
-/// I.merge_distance of the other's plane, takes that support's coefficients: two such planes cross,
+/// I.merge.distance of the other's plane, takes that support's coefficients: two such planes cross,
 /// or run side by side, at a hair's breadth, and cut wedges and slabs thinner than a validator's
 /// snap tolerance, slivers that fold when it welds their vertices.
 void snap_to_near_support(const BspData& I, const std::vector<Prep>& prep, size_t i,
                           const std::vector<Vec3>& loop, std::array<double, 4>& c) {
-  const double md = I.merge_distance;
+  const double md = I.merge.distance;
   if (!(md > 0)) return;
-  const double min_cos = std::cos(I.merge_angle);
+  const double min_cos = std::cos(I.merge.angle);
   const auto off = [](const std::array<double, 4>& pl, const std::vector<Vec3>& pts) {
     double worst = 0;
     for (const Vec3& x : pts)
@@ -596,13 +596,12 @@ void split_adaptive(BspData& I, std::vector<Piece> root_pieces, int max_leaves) 
 }  // namespace
 
 Bsp::Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves,
-         double merge_distance, double merge_angle)
+         PlaneMerge merge)
     : impl_(std::make_unique<Impl>()) {
   Impl& I = *impl_;
   I.lo = lo;
   I.hi = hi;
-  I.merge_distance = merge_distance;
-  I.merge_angle = merge_angle;
+  I.merge = merge;
   if (!(hi.x() > lo.x() && hi.y() > lo.y() && hi.z() > lo.z()))
     throw std::invalid_argument("Bsp: empty box");
   init_box(I, lo, hi);

@@ -74,6 +74,13 @@ struct BspSurface {
       edge_repaired;  ///< per partition entry: turned in to remove a non-manifold edge
 };
 
+/// (ours) Support planes this close are one plane (Bsp's constructor;
+/// LodParams' airborne.plane_merge_distance / _angle_deg). distance 0: off.
+struct PlaneMerge {
+  double distance = 0;  ///< m
+  double angle = 0;     ///< rad
+};
+
 class Bsp {
  public:
   /// Adaptive BSP of the box [lo, hi] by `ordered` polygons, processed in the
@@ -84,11 +91,11 @@ class Bsp {
   /// splitting when `max_leaves` leaves exist (cap_hit() then true).
   /// max_leaves <= 0: no limit. Polygons on a box face, of no area, or missing
   /// the open box are ignored; each polygon is clipped to the box. With
-  /// merge_distance > 0, a polygon whose plane is within merge_angle (rad) of
-  /// an earlier polygon's support and each within merge_distance of the other's
-  /// polygon takes that support (LodParams' airborne.plane_merge_distance).
+  /// merge.distance > 0, a polygon whose plane is within merge.angle of an
+  /// earlier polygon's support, each polygon within merge.distance of the
+  /// other's plane, takes that support.
   Bsp(const Vec3& lo, const Vec3& hi, const std::vector<BspPolygon>& ordered, int max_leaves,
-      double merge_distance = 0, double merge_angle = 0);
+      PlaneMerge merge = {});
   ~Bsp();
   Bsp(Bsp&&) noexcept;
   Bsp& operator=(Bsp&&) noexcept;

@@ -77,8 +77,7 @@ struct CutKeyHash {
 /// All state of a Bsp (Bsp::Impl derives from it; helpers take it by reference).
 struct BspData {
   Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
-  /// Supports this close (m, rad) are one plane (bsp.cpp, snap_to_near_support); 0: off.
-  double merge_distance = 0, merge_angle = 0;
+  PlaneMerge merge;  ///< supports this close are one plane (bsp.cpp, snap_to_near_support)
   std::vector<Plane3> planes;                  ///< exact table
   std::vector<std::array<double, 4>> dplanes;  ///< their (unit) double coefficients
   int n_split_planes = 6;                      ///< planes() = dplanes[0, n_split_planes)

@@ -485,16 +485,21 @@ struct TreeStep {
   LodTree tree;
 };
 
+/// (ours) Airborne LiDAR: the LOD-Tree BSP's supports a hair's breadth apart
+/// are one plane (airborne.plane_merge_*); none on other inputs.
+PlaneMerge plane_merge(const LodParams& P, bool airborne) {
+  if (!airborne) return {};
+  return {P.airborne.plane_merge_distance, P.airborne.plane_merge_angle_deg * M_PI / 180.0};
+}
+
 /// 4. LOD-Tree: BSP in the order S, per-level leaf labels, LOD-nodes.
 TreeStep tree_step(const Planes& planes, const SceneBox& box, const SortStep& S, const LodParams& P,
                    int threads, const Budget& budget, LodStats& st) {
   const std::vector<Primitive>& prims = planes.prims;
   const std::optional<HeightField>& heights = planes.heights;
   const SortedPrimitives& sorted = S.sorted;
-  // (ours) airborne LiDAR: supports a hair's breadth apart are one plane
-  const double merge = heights ? P.airborne.plane_merge_distance : 0.0;
-  Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells, merge,
-          P.airborne.plane_merge_angle_deg * M_PI / 180.0);
+  Bsp bsp(box.lo, box.hi, hull_polygons(prims, sorted.order, box), P.bsp.max_cells,
+          plane_merge(P, heights.has_value()));
   if (bsp.cap_hit()) {
     st.bsp_cap_hit = true;
     st.notes.push_back("bsp.max_cells = " + std::to_string(P.bsp.max_cells) +
@@ -596,9 +601,8 @@ void baseline_step(const std::vector<Primitive>& prims, bool airborne, const Sce
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
     return prims[size_t(a)].hull_area > prims[size_t(b)].hull_area;
   });
-  const double merge = airborne ? P.airborne.plane_merge_distance : 0.0;
-  const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells, merge,
-                 P.airborne.plane_merge_angle_deg * M_PI / 180.0);
+  const Bsp base(box.lo, box.hi, hull_polygons(prims, order, box), P.bsp.max_cells,
+                 plane_merge(P, airborne));
   st.baseline_bsp_nodes = int(base.nodes().size());
   int internal = 0;
   for (const auto& n : base.nodes()) internal += n.is_leaf() ? 0 : 1;

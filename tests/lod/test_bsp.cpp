@@ -435,21 +435,21 @@ TEST(Bsp, NearlyCoincidentSupportsMerged) {
     w.primitive = 2;
     return w;
   };
-  const double md = 0.05, ma = 3 * M_PI / 180.0;
-  const Bsp plain(lo, hi, base, 0, md, ma);
+  const citylod::lod::detail::PlaneMerge merge{0.05, 3 * M_PI / 180.0};
+  const Bsp plain(lo, hi, base, 0, merge);
   EXPECT_EQ(plain.leaves().size(), 4u);
   std::vector<BspPolygon> near = base;
   near.push_back(wall_at(2.0005, 0.5));
   const Bsp exact(lo, hi, near, 0);
   EXPECT_EQ(exact.leaves().size(), 8u);  // the wedges on both sides of the crossing, both slabs
-  const Bsp merged(lo, hi, near, 0, md, ma);
+  const Bsp merged(lo, hi, near, 0, merge);
   EXPECT_EQ(merged.leaves().size(), 4u);
   EXPECT_EQ(merged.planes().size(), plain.planes().size());
   std::vector<BspPolygon> far = base, tilted = base;
   far.push_back(wall_at(2.2, 0.5));  // on the x > 2 side only: splits its 2 cells
-  EXPECT_EQ(Bsp(lo, hi, far, 0, md, ma).leaves().size(), 6u);
+  EXPECT_EQ(Bsp(lo, hi, far, 0, merge).leaves().size(), 6u);
   tilted.push_back(wall_at(2.0, 10.0));  // crosses x = 2 at y = 2: splits all 4
-  EXPECT_EQ(Bsp(lo, hi, tilted, 0, md, ma).leaves().size(), 8u);
+  EXPECT_EQ(Bsp(lo, hi, tilted, 0, merge).leaves().size(), 8u);
 }
 
 TEST(Bsp, CoplanarDuplicatesMerged) {
