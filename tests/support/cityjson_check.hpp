@@ -8,10 +8,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <regex>
 #include <set>
@@ -160,21 +162,54 @@ inline std::vector<std::string> chain_problems(const nlohmann::json& f) {
 }
 
 /// check_solid of a Solid geometry, or of each Solid of a MultiSolid (valid
-/// when every one is; volume their sum, or the first non-positive one).
+/// when every one is: volume their sum, or the smallest when one is not positive).
 inline SolidCheck check_geometry(const nlohmann::json& g,
                                  const std::vector<std::array<double, 3>>& v) {
   if (g.value("type", "") != "MultiSolid") return check_solid(g["boundaries"], v);
   SolidCheck all;
   all.closed_oriented = true;
-  bool positive = true;
+  double least = std::numeric_limits<double>::infinity();
   for (const auto& solid : g["boundaries"]) {
     const SolidCheck c = check_solid(solid, v);
     all.closed_oriented = all.closed_oriented && c.closed_oriented;
     all.pinched += c.pinched;
-    if (positive) all.volume = c.volume > 0 ? all.volume + c.volume : c.volume;
-    positive = positive && c.volume > 0;
+    all.volume += c.volume;
+    least = std::min(least, c.volume);
   }
+  if (!(least > 0)) all.volume = least;
   return all;
+}
+
+/// Structure problems of one Solid's boundaries (shells/surfaces/rings over
+/// `nv` vertices) and semantic values (`vals`, may be null) into `p`.
+inline void solid_problems(const nlohmann::json& b, const nlohmann::json* vals,
+                           const nlohmann::json& surfaces, long nv, const std::string& where,
+                           std::vector<std::string>& p) {
+  bool depth_ok = b.is_array() && !b.empty();
+  for (const auto& shell : b)
+    for (const auto& surf : shell) {
+      depth_ok = depth_ok && surf.is_array() && !surf.empty();
+      for (const auto& ring : surf) {
+        depth_ok = depth_ok && ring.is_array() && ring.size() >= 3;
+        for (const auto& i : ring)
+          if (!i.is_number_integer() || i.get<long>() < 0 || i.get<long>() >= nv) {
+            p.push_back(where + ": index out of range or not an integer");
+            depth_ok = false;
+            break;
+          }
+      }
+    }
+  if (!depth_ok) p.push_back(where + ": Solid boundaries are not shells/surfaces/rings");
+  if (!vals) return;
+  bool aligned = vals->is_array() && vals->size() == b.size();
+  for (std::size_t k = 0; aligned && k < b.size(); ++k) {
+    const nlohmann::json& sv = (*vals)[k];
+    aligned = sv.is_array() && sv.size() == b[k].size();
+    for (std::size_t j = 0; aligned && j < sv.size(); ++j)
+      aligned = sv[j].is_null() || (sv[j].is_number_integer() && sv[j].get<long>() >= 0 &&
+                                    sv[j].get<long>() < long(surfaces.size()));
+  }
+  if (!aligned) p.push_back(where + ": semantics.values not aligned with boundaries");
 }
 
 /// Structure problems of a CityJSONSeq by the CityJSON 2.0 rules that apply to
@@ -236,44 +271,17 @@ inline std::vector<std::string> cjseq_problems(const CjSeq& s) {
         if (!g.contains("lod") || !g["lod"].is_string() ||
             !std::regex_match(g["lod"].get<std::string>(), lod_re))
           p.push_back(where + ": lod missing or not \"d\" / \"d.d\"");
-        // a Solid's boundaries (shells/surfaces/rings) and semantic values
-        const auto solid_problems = [&](const nlohmann::json& b, const nlohmann::json* vals) {
-          bool depth_ok = b.is_array() && !b.empty();
-          for (const auto& shell : b)
-            for (const auto& surf : shell) {
-              depth_ok = depth_ok && surf.is_array() && !surf.empty();
-              for (const auto& ring : surf) {
-                depth_ok = depth_ok && ring.is_array() && ring.size() >= 3;
-                for (const auto& i : ring)
-                  if (!i.is_number_integer() || i.get<long>() < 0 || i.get<long>() >= nv) {
-                    p.push_back(where + ": index out of range or not an integer");
-                    depth_ok = false;
-                    break;
-                  }
-              }
-            }
-          if (!depth_ok) p.push_back(where + ": Solid boundaries are not shells/surfaces/rings");
-          if (!vals) return;
-          const auto& sem = g["semantics"];
-          bool aligned = vals->is_array() && vals->size() == b.size();
-          for (std::size_t k = 0; aligned && k < b.size(); ++k) {
-            aligned = (*vals)[k].is_array() && (*vals)[k].size() == b[k].size();
-            for (std::size_t j = 0; aligned && j < (*vals)[k].size(); ++j)
-              aligned = (*vals)[k][j].is_null() ||
-                        ((*vals)[k][j].is_number_integer() && (*vals)[k][j].get<long>() >= 0 &&
-                         (*vals)[k][j].get<long>() < long(sem["surfaces"].size()));
-          }
-          if (!aligned) p.push_back(where + ": semantics.values not aligned with boundaries");
-        };
         const auto& b = g["boundaries"];
         const nlohmann::json* vals = g.contains("semantics") ? &g["semantics"]["values"] : nullptr;
+        const nlohmann::json no_surfaces = nlohmann::json::array();
+        const nlohmann::json& surfaces = vals ? g["semantics"]["surfaces"] : no_surfaces;
         if (gtype == "Solid") {
-          solid_problems(b, vals);
+          solid_problems(b, vals, surfaces, nv, where, p);
         } else if (!b.is_array() || b.size() < 2 || (vals && vals->size() != b.size())) {
           p.push_back(where + ": MultiSolid boundaries are not solids (two or more)");
         } else {
           for (std::size_t k = 0; k < b.size(); ++k)
-            solid_problems(b[k], vals ? &(*vals)[k] : nullptr);
+            solid_problems(b[k], vals ? &(*vals)[k] : nullptr, surfaces, nv, where, p);
         }
         if (g.contains("semantics")) {
           const auto& sem = g["semantics"];

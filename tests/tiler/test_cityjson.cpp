@@ -434,26 +434,38 @@ TEST(CityJson, CollinearSpikesAreTakenOut) {
   EXPECT_FALSE(lod::check_solid(before).valid());
 }
 
+/// `m` with the faces of `other` added (turned round: facing into it).
+void add_faces(PolygonMesh& m, const PolygonMesh& other, bool turned) {
+  const auto base = std::uint32_t(m.vertices.size());
+  m.vertices.insert(m.vertices.end(), other.vertices.begin(), other.vertices.end());
+  for (auto f : other.faces) {
+    if (turned) std::reverse(f.begin(), f.end());
+    for (auto& i : f) i += base;
+    m.faces.push_back(f);
+  }
+}
+
+/// `m` as the one anchor model of building `id`, written to `out`: no model
+/// left out, no structure problem; the file read back.
+CjSeq write_one_model(Scene& s, const std::string& id, const PolygonMesh& m,
+                      const std::string& out) {
+  add_building(s, id, {{m, "anchor", 0, 0, true}});
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.invalid, 0u);
+  CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  return seq;
+}
+
 // A model with a cavity (a room seen through windows) is one Solid with an
 // inner shell: val3dity reads the faces of one shell as one connected surface
 // (305 otherwise).
 TEST(CityJson, CavitiesAreInnerShells) {
   Scene s = make_scene("cavity");
   PolygonMesh m = box(85000, 447500, 0, 85010, 447508, 6);
-  const PolygonMesh in = box(85003, 447503, 2, 85005, 447505, 4);
-  const auto base = std::uint32_t(m.vertices.size());
-  m.vertices.insert(m.vertices.end(), in.vertices.begin(), in.vertices.end());
-  for (auto f : in.faces) {
-    std::reverse(f.begin(), f.end());  // facing into the cavity
-    for (auto& i : f) i += base;
-    m.faces.push_back(f);
-  }
-  add_building(s, "b-cavity", {{m, "anchor", 0, 0, true}});
+  add_faces(m, box(85003, 447503, 2, 85005, 447505, 4), true);  // facing into the cavity
   const std::string out = s.work + "/cavity.city.jsonl";
-  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
-  EXPECT_EQ(st.invalid, 0u);
-  const CjSeq seq = read_cjseq(out);
-  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  const CjSeq seq = write_one_model(s, "b-cavity", m, out);
   const json& g = object_of(seq.features[0])["geometry"][0];
   ASSERT_EQ(g["boundaries"].size(), 2u);  // outer shell, then the cavity
   EXPECT_EQ(g["boundaries"][0].size(), 6u);
@@ -478,19 +490,9 @@ TEST(CityJson, CavitiesAreInnerShells) {
 TEST(CityJson, PiecesApartAreAMultiSolid) {
   Scene s = make_scene("pieces");
   PolygonMesh m = box(85000, 447500, 0, 85010, 447508, 6);
-  const PolygonMesh annex = box(85014, 447500, 0, 85018, 447504, 3);
-  const auto base = std::uint32_t(m.vertices.size());
-  m.vertices.insert(m.vertices.end(), annex.vertices.begin(), annex.vertices.end());
-  for (auto f : annex.faces) {
-    for (auto& i : f) i += base;
-    m.faces.push_back(f);
-  }
-  add_building(s, "b-pieces", {{m, "anchor", 0, 0, true}});
+  add_faces(m, box(85014, 447500, 0, 85018, 447504, 3), false);  // the annex, 4 m apart
   const std::string out = s.work + "/pieces.city.jsonl";
-  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
-  EXPECT_EQ(st.invalid, 0u);
-  const CjSeq seq = read_cjseq(out);
-  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  const CjSeq seq = write_one_model(s, "b-pieces", m, out);
   const json& g = object_of(seq.features[0])["geometry"][0];
   EXPECT_EQ(g["type"], "MultiSolid");
   ASSERT_EQ(g["boundaries"].size(), 2u);  // two Solids of one shell each
