@@ -184,9 +184,9 @@ struct AirborneParams {
   /// Support planes of the LOD-Tree BSP whose normals are within
   /// plane_merge_angle_deg (either orientation) and whose polygons each lie
   /// within plane_merge_distance of the other's plane are one plane (0: off):
-  /// two such planes (an outline wall and a scanned one, roof planes refitted
-  /// apart) cross or run side by side at a hair's breadth and cut wedges and
-  /// slabs under a validator's 1 mm snap, which fold when it welds them. Under
+  /// two such planes (e.g. a scanned wall 2 cm beside the footprint's wall)
+  /// cross or run side by side at a hair's breadth and cut wedges and slabs
+  /// under a validator's 1 mm snap, which fold when it welds them. Under
   /// the 0.15 m of LiDAR plane detection they are one surface. Not on other
   /// inputs: a dense cloud's window recesses are that close (cgal_building's
   /// finest e2 0.497 -> 0.631 % at 5 cm, 0.505 % at 1 cm / 1 degree).
