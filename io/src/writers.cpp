@@ -11,14 +11,15 @@
 namespace citylod::io {
 namespace {
 
-// Buffered appends to an AtomicFile.
+// Buffered appends to an AtomicFile, or to memory (no file: bytes() holds them all).
 class Out {
  public:
-  explicit Out(AtomicFile& f) : f_(f) { buf_.reserve(1 << 20); }
+  explicit Out(AtomicFile& f) : f_(&f) { buf_.reserve(1 << 20); }
+  Out() = default;
   ~Out() = default;
   void raw(const void* p, std::size_t n) {
     buf_.append(static_cast<const char*>(p), n);
-    if (buf_.size() >= (1 << 20)) flush();
+    if (f_ && buf_.size() >= (1 << 20)) flush();
   }
   template <typename T>
   void bin(T v) {
@@ -37,12 +38,14 @@ class Out {
   }
   void ch(char c) { raw(&c, 1); }
   void flush() {
-    f_.write(buf_.data(), buf_.size());
+    if (!f_) return;
+    f_->write(buf_.data(), buf_.size());
     buf_.clear();
   }
+  std::string& bytes() { return buf_; }
 
  private:
-  AtomicFile& f_;
+  AtomicFile* f_ = nullptr;
   std::string buf_;
 };
 
@@ -174,6 +177,18 @@ void write_obj_impl(const std::string& path, const std::vector<Vec3d>& vertices,
   file.commit();
 }
 
+void write_points(Out& o, const std::string& path, const PointSet& pts,
+                  const PlyWriteOptions& opt) {
+  check_points(path, pts.positions.size(), pts.normals.size(), pts.colors.size(),
+               pts.classes.size());
+  vertex_header(o, pts.size(), opt, pts.has_normals(), pts.has_colors(), pts.has_classes());
+  o.str("end_header\n");
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    vertex_record(o, opt, pts.positions[i], pts.has_normals() ? &pts.normals[i] : nullptr,
+                  pts.has_colors() ? &pts.colors[i] : nullptr,
+                  pts.has_classes() ? &pts.classes[i] : nullptr);
+}
+
 }  // namespace
 
 void write_ply(const std::string& path, const PointSet& pts, const PlyWriteOptions& opt) {
@@ -181,14 +196,15 @@ void write_ply(const std::string& path, const PointSet& pts, const PlyWriteOptio
                pts.classes.size());
   AtomicFile file(path);
   Out o(file);
-  vertex_header(o, pts.size(), opt, pts.has_normals(), pts.has_colors(), pts.has_classes());
-  o.str("end_header\n");
-  for (std::size_t i = 0; i < pts.size(); ++i)
-    vertex_record(o, opt, pts.positions[i], pts.has_normals() ? &pts.normals[i] : nullptr,
-                  pts.has_colors() ? &pts.colors[i] : nullptr,
-                  pts.has_classes() ? &pts.classes[i] : nullptr);
+  write_points(o, path, pts, opt);
   o.flush();
   file.commit();
+}
+
+std::string ply_bytes(const std::string& path, const PointSet& pts, const PlyWriteOptions& opt) {
+  Out o;
+  write_points(o, path, pts, opt);
+  return std::move(o.bytes());
 }
 
 void write_ply(const std::string& path, const TriangleMesh& mesh, const PlyWriteOptions& opt) {

@@ -1,6 +1,7 @@
 #include <cmath>
 
 #include "citylod/io/reader.hpp"
+#include "citylod/io/writers.hpp"
 #include "fixtures.hpp"
 
 using namespace citylod::io;
@@ -251,4 +252,25 @@ TEST(PlyReader, MalformedHeaders) {
                              "property float y\nproperty float z\nend_header\n1 2 3\n"));
       },
       "no face element");
+}
+
+// ply_bytes is what write_ply writes: binary with every attribute, and ASCII.
+TEST(PlyWriter, BytesInMemoryAreTheFileBytes) {
+  PointSet ps;
+  for (int i = 0; i < 3000; ++i) {  // more than one write buffer in ASCII
+    ps.positions.push_back({100000.25 + i, 450000.5 - i, 0.125 * i});
+    ps.normals.push_back({0.0f, 0.6f, 0.8f});
+    ps.colors.push_back({std::uint8_t(i), 20, 30});
+    ps.classes.push_back(std::uint8_t(i % 7));
+  }
+  for (bool binary : {true, false}) {
+    PlyWriteOptions o;
+    o.binary = binary;
+    o.comment = "a comment";
+    const std::string path = tmp_path(binary ? "b.ply" : "a.ply");
+    write_ply(path, ps, o);
+    const std::string file = read_file(path);
+    EXPECT_EQ(ply_bytes(path, ps, o), file) << (binary ? "binary" : "ascii");
+    EXPECT_GT(file.size(), 3000u * 25);
+  }
 }

@@ -433,6 +433,39 @@ TEST_F(SplitSynthetic, FootprintIdWithDotsGivesASafeChunkId) {
   EXPECT_EQ(m.chunks[0].id.find('/'), std::string::npos) << m.chunks[0].id;
 }
 
+// Issue 28: footprint chunks are named before the cells run (their files written by the
+// workers): two footprint ids that make one file name ("A/1", "A_1") give "fp-A_1" (the
+// first in the source) and "fp-A_1-2", each with its own points and a file matching its
+// hash, on any thread count.
+TEST_F(SplitSynthetic, FootprintsSharingAChunkNameGetTheirOwnChunks) {
+  const fs::path dir = tmp_dir("synth_same_name");
+  const std::string in = write_points(dir, true);
+  const std::string fp = (dir / "fp.geojson").string();
+  std::ofstream(fp) << R"({"type":"FeatureCollection","features":[
+    {"type":"Feature","properties":{"id":"A/1"},"geometry":{"type":"Polygon","coordinates":[
+      [[40,50],[60,50],[60,70],[40,70],[40,50]]]}},
+    {"type":"Feature","properties":{"id":"A_1"},"geometry":{"type":"Polygon","coordinates":[
+      [[10,10],[30,10],[30,25],[10,25],[10,10]]]}}]})";
+  for (int threads : {1, 2}) {
+    SplitOptions o = local_options(in, dir / ("work" + std::to_string(threads)));
+    o.footprints = fp;
+    o.threads = threads;
+    tiler::split_scene(o);
+    const tiler::Manifest m = tiler::read_manifest(o.work_dir);
+    std::map<std::string, tiler::ChunkRecord> by_id;
+    for (const auto& c : m.chunks) by_id[c.id] = c;
+    ASSERT_EQ(by_id.size(), 2u);
+    ASSERT_TRUE(by_id.count("fp-A_1") && by_id.count("fp-A_1-2"));
+    EXPECT_EQ(box_of(city, by_id["fp-A_1"]), 1);  // B's box: the first feature
+    EXPECT_EQ(box_of(city, by_id["fp-A_1-2"]), 0);
+    for (const auto& [id, c] : by_id) {
+      EXPECT_EQ(c.points, box_points[std::size_t(box_of(city, c))]) << id;
+      EXPECT_EQ(io::hash_file(tiler::chunk_path(o.work_dir, id)), c.content_hash) << id;
+      EXPECT_EQ(io::read_points(tiler::chunk_path(o.work_dir, id)).size(), c.points) << id;
+    }
+  }
+}
+
 // Issue 13: a self-intersecting (bowtie) footprint's centroid used to land far
 // away and split visited ~10^9 grid cells. It is repaired (GEOS MakeValid), and
 // the work is bounded even when it is not.

@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "citylod/io/error.hpp"
+#include "citylod/tiler/log.hpp"
 #include "split_internal.hpp"
 
 namespace citylod::tiler {
@@ -66,7 +67,16 @@ SplitReport Splitter::run() {
     }
   }
 
+  // Each pass's wall time, for --log-level debug (where a split's time goes).
+  auto mark = t0;
+  const auto lap = [&mark](const char* what) {
+    const auto now = std::chrono::steady_clock::now();
+    log_debug(std::string("split: ") + what + " " +
+              fmt("%.2f s", std::chrono::duration<double>(now - mark).count()));
+    mark = now;
+  };
   if (!opt_.footprints.empty()) read_footprints();
+  lap("footprints read");
   pass1_headers();
   georeference();
   choose_cell_size();
@@ -90,9 +100,13 @@ SplitReport Splitter::run() {
     claims_ = std::make_unique<CellFiles<ClaimRec>>(staging_->faces(), "c_",
                                                     (8u << 20) / sizeof(ClaimRec));
   }
+  lap("headers, georeference, cells");
   pass2_spill(spill);
+  lap("pass 2 (read, spill)");
   if (!opt_.footprints.empty()) load_footprints();
+  lap("footprints placed");
   pass3_cells(spill);
+  lap("pass 3 (regions, chunks)");
   staging_->drop_spill();
   if (mesh_scene_) write_mesh_chunks();
   if (!opt_.footprints.empty() && rep_.chunks == 0) {
@@ -128,6 +142,7 @@ SplitReport Splitter::run() {
   m.scene.unmatched_points = rep_.unmatched_points;
   for (auto& c : chunks_) m.chunks.push_back(std::move(c.rec));
   staging_->commit(m);
+  lap("manifest, commit");
   stages_.report(0.97, 1.0, 1.0, "done");
   rep_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return rep_;

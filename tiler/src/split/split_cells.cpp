@@ -40,12 +40,19 @@ std::string sanitize_id(const std::string& s) {
   return r.substr(0, 120);
 }
 
-// Hands the heap's free memory back to the system between cells: glibc keeps up to its
-// trim threshold free, and that threshold grows with the largest block freed so far (the
-// ingest's batches), so a cell's freed regions stayed resident through the next cells.
-void release_free_memory() {
+// Hands the heap's free memory back to the system between cells once it holds more than
+// `keep` bytes: glibc keeps up to its trim threshold free, and that threshold grows with
+// the largest block freed so far (the ingest's batches), so a cell's freed regions stayed
+// resident through the next cells. Trimming after every cell cost a quarter of the
+// pass's time on a scene of small buildings (the pages handed back, the TLBs of the
+// other threads flushed, the pages faulted in again by the next region).
+constexpr std::size_t kFreeKeptShare = 32;  ///< of --memory-limit: 64 MiB at the default 2G
+
+void release_free_memory(std::size_t keep) {
 #ifdef __GLIBC__
-  malloc_trim(0);
+  if (mallinfo2().fordblks > keep) malloc_trim(0);
+#else
+  (void)keep;
 #endif
 }
 
@@ -321,7 +328,25 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
   const std::set<std::size_t> mine(owned.begin(), owned.end());
   const bool have_cls = mode_ != ClassMode::none;
   if (mesh_scene_) mesh_footprint_members(pts, seg, mine, members);
+  // A point goes to a footprint whose box + buffer holds it: those beyond all the owned
+  // ones' (the halo's) belong to none of them.
+  std::array<double, 4> reach{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  for (std::size_t i : owned) {
+    const auto& b = fps_[i].bbox;
+    reach = {std::min(reach[0], b[0] - opt_.footprint_buffer),
+             std::min(reach[1], b[1] - opt_.footprint_buffer),
+             std::max(reach[2], b[2] + opt_.footprint_buffer),
+             std::max(reach[3], b[3] + opt_.footprint_buffer)};
+  }
+  // At the spill's cell size the region holds all of the cell's points: their building
+  // points outside every footprint are counted here (count_unmatched reads the others).
+  const bool count_own = mode_ == ClassMode::buildings && c == spill.cell();
+  std::int64_t unmatched = 0;
   for (std::size_t k = 0; !mesh_scene_ && k < pts.pos.size(); ++k) {
+    const Vec3d& p = pts.pos[k];
+    const bool own = count_own && pts.cls[k] == 6 && spill.key(p[0], p[1]) == key;
+    if (!own && (p[0] < reach[0] || p[0] > reach[2] || p[1] < reach[1] || p[1] > reach[3]))
+      continue;
     if (mode_ == ClassMode::buildings) {
       if (pts.cls[k] != 6) continue;
     } else {
@@ -330,15 +355,18 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
       if (seg.foliage[k] && seg.hag[k] >= opt_.seg.min_height) continue;
     }
     const std::size_t best = footprint_of({pts.pos[k][0], pts.pos[k][1]}, *job.fp);
+    if (own && best == SIZE_MAX) ++unmatched;
     if (best != SIZE_MAX && mine.count(best))
       members[best].push_back(static_cast<std::uint32_t>(k));
   }
+  if (count_own) out.unmatched.emplace_back(key, unmatched);
   for (std::size_t i : owned) {
     const auto it = members.find(i);
     const std::size_t count = it == members.end() ? 0 : it->second.size();
     if (count < static_cast<std::size_t>(std::max(1, opt_.min_footprint_points))) {
       CellOutput::Chunk& ch = out.chunks.emplace_back();
-      ch.base_id = "fp-" + sanitize_id(fps_[i].id);
+      ch.pc.rec.id = fp_chunk_id_[i];
+      ch.named = true;
       PendingChunk& pc = ch.pc;
       pc.rec.source = "footprint:" + fps_[i].id;
       pc.rec.status = Status::skipped;
@@ -361,9 +389,12 @@ void Splitter::process_cell_footprints(const Spiller& spill, const CellKey& key,
     }
     ++out.rep.footprints_with_chunk;
     if (fp_inside_[i]) ++out.rep.footprints_inside_with_chunk;
-    emit_chunk(pts, seg, it->second, "fp-" + sanitize_id(fps_[i].id), "footprint:" + fps_[i].id,
-               fps_[i].main_ring(), out)
-        .pc.rec.attributes = fps_[i].attributes;
+    CellOutput::Chunk& ch = emit_chunk(pts, seg, it->second, fp_chunk_id_[i],
+                                       "footprint:" + fps_[i].id, fps_[i].main_ring(), out);
+    ch.pc.rec.attributes = fps_[i].attributes;
+    ch.pc.rec.id = fp_chunk_id_[i];
+    ch.named = true;
+    if (ch.write) write_chunk_file(ch);
   }
 }
 
@@ -375,6 +406,10 @@ void Splitter::pass3_cells(const Spiller& spill) {
     for (const auto& [k, v] : fp_owned_) cells.push_back(k);
   }
   rep_.cells = spill.counts().size();
+  // Footprint chunks are named before the cells run (a name taken twice gets "-2", in
+  // footprint order), so that the workers write their files.
+  fp_chunk_id_.clear();
+  for (const Footprint& f : fps_) fp_chunk_id_.push_back(unique_id("fp-" + sanitize_id(f.id)));
   const bool segment =
       !opt_.footprints.empty() && opt_.unmatched == SplitOptions::Unmatched::segment;
   const double total = double(cells.size() + (segment ? spill.counts().size() : 0));
@@ -404,6 +439,7 @@ template <class Process>
 void Splitter::run_cells(std::size_t n, std::size_t progress_from, double progress_total,
                          const char* stage, Process&& process) {
   RegionGate gate(region_budget_points_);
+  const std::size_t free_kept = opt_.memory_limit / kFreeKeptShare;
   std::atomic<std::size_t> next{0};
   std::atomic<bool> failed{false};
   std::mutex mu;
@@ -442,7 +478,7 @@ void Splitter::run_cells(std::size_t n, std::size_t progress_from, double progre
       lock.unlock();
       gate.done(i, job.held);
       merged_cv.notify_all();
-      release_free_memory();
+      release_free_memory(free_kept);
     }
   };
   run_workers(opt_.threads, n, worker);
@@ -457,9 +493,17 @@ void Splitter::count_unmatched(const Spiller& spill) {
         "no building class in the input: points outside the footprints are not counted");
     return;
   }
-  // Each cell's file on the split's threads (a footprint cache per worker), summed in order.
+  // The cells pass 3 did not count: each one's file on the split's threads (a footprint
+  // cache per worker), summed in order.
   std::vector<CellKey> cells;
-  for (const auto& [k, n] : spill.counts()) cells.push_back(k);
+  std::int64_t out = 0;
+  for (const auto& [k, n] : spill.counts()) {
+    const auto counted = unmatched_by_cell_.find(k);
+    if (counted == unmatched_by_cell_.end())
+      cells.push_back(k);
+    else
+      out += counted->second;
+  }
   std::vector<std::int64_t> per_cell(cells.size(), 0);
   std::atomic<std::size_t> next{0};
   std::exception_ptr failure;
@@ -489,7 +533,6 @@ void Splitter::count_unmatched(const Spiller& spill) {
   };
   run_workers(opt_.threads, cells.size(), worker);
   if (failure) std::rethrow_exception(failure);
-  std::int64_t out = 0;
   for (const std::int64_t n : per_cell) out += n;
   rep_.building_points = std::int64_t(class_hist_[6]);
   rep_.unmatched_points = out;

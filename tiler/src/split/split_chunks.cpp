@@ -9,6 +9,7 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "citylod/io/atomic_file.hpp"
 #include "citylod/io/hash.hpp"
 #include "citylod/io/writers.hpp"
 #include "split_internal.hpp"
@@ -25,6 +26,34 @@ double median(std::vector<double> v) {
 }
 
 }  // namespace
+
+// Points on the inputs' grid as one integer each, ordered as their coordinates are
+// (x, then y, then z: a step count is monotonic in the coordinate it rounds to): the
+// steps from the chunk's smallest, 21 bits an axis. nullopt without a grid on every
+// axis or when a chunk spans more steps.
+std::optional<std::vector<std::uint64_t>> Splitter::grid_keys(
+    const std::vector<Vec3d>& local) const {
+  if (local.empty() || grid_[0] <= 0 || grid_[1] <= 0 || grid_[2] <= 0) return std::nullopt;
+  constexpr int kBits = 21;
+  std::vector<std::array<std::int64_t, 3>> steps(local.size());
+  std::array<std::int64_t, 3> lo{INT64_MAX, INT64_MAX, INT64_MAX};
+  std::array<std::int64_t, 3> hi{INT64_MIN, INT64_MIN, INT64_MIN};
+  for (std::size_t i = 0; i < local.size(); ++i)
+    for (std::size_t a = 0; a < 3; ++a) {
+      const double n = std::round(local[i][a] / grid_[a]);
+      if (!(std::abs(n) < 1e15)) return std::nullopt;
+      steps[i][a] = std::int64_t(n);
+      lo[a] = std::min(lo[a], steps[i][a]);
+      hi[a] = std::max(hi[a], steps[i][a]);
+    }
+  for (std::size_t a = 0; a < 3; ++a)
+    if (hi[a] - lo[a] >= (std::int64_t(1) << kBits)) return std::nullopt;
+  std::vector<std::uint64_t> keys(local.size());
+  for (std::size_t i = 0; i < local.size(); ++i)
+    keys[i] = std::uint64_t(steps[i][0] - lo[0]) << (2 * kBits) |
+              std::uint64_t(steps[i][1] - lo[1]) << kBits | std::uint64_t(steps[i][2] - lo[2]);
+  return keys;
+}
 
 std::string Splitter::unique_id(std::string id) {
   std::string u = id;
@@ -92,16 +121,27 @@ CellOutput::Chunk& Splitter::emit_chunk(const RegionPoints& pts, const CellSegme
       if (grid_[a] > 0) q[a] = std::round(q[a] / grid_[a]) * grid_[a];
     local[i] = q;
   }
-  std::vector<std::uint32_t> order(members.size());
-  std::iota(order.begin(), order.end(), 0u);
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-    if (local[a] != local[b]) return local[a] < local[b];
+  const auto ties = [&](std::uint32_t a, std::uint32_t b) {  // same position
     const std::uint32_t ka = members[a], kb = members[b];
     if (has_classes_ && pts.cls[ka] != pts.cls[kb]) return pts.cls[ka] < pts.cls[kb];
     if (has_colors_ && pts.rgb[ka] != pts.rgb[kb]) return pts.rgb[ka] < pts.rgb[kb];
     if (has_normals_ && pts.nrm[ka] != pts.nrm[kb]) return pts.nrm[ka] < pts.nrm[kb];
     return false;
-  });
+  };
+  std::vector<std::uint32_t> order(members.size());
+  std::iota(order.begin(), order.end(), 0u);
+  if (const auto keys = grid_keys(local)) {
+    // the same order through one integer per point (the grid steps of x, y, z packed)
+    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+      if ((*keys)[a] != (*keys)[b]) return (*keys)[a] < (*keys)[b];
+      return ties(a, b);
+    });
+  } else {
+    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+      if (local[a] != local[b]) return local[a] < local[b];
+      return ties(a, b);
+    });
+  }
   io::PointSet& ps = ch.points;
   ps.positions.reserve(members.size());
   for (const std::uint32_t i : order) {
@@ -113,6 +153,22 @@ CellOutput::Chunk& Splitter::emit_chunk(const RegionPoints& pts, const CellSegme
   }
   ch.write = true;
   return ch;
+}
+
+// A chunk's points to WORK/chunks/<id>.ply (its id final), hashed as written; on the
+// pass-3 workers for footprint chunks, named before the cells run.
+void Splitter::write_chunk_file(CellOutput::Chunk& ch) const {
+  ChunkRecord& rec = ch.pc.rec;
+  const std::string path = (staging_->chunks() / (rec.id + ".ply")).string();
+  io::PlyWriteOptions wo;
+  wo.comment = "citylod chunk " + rec.id + " (xyz relative to the chunk origin, scene " +
+               std::string(georef_->scene_frame() == geo::SceneFrame::projected ? "CRS" : "ENU") +
+               " metres)";
+  const std::string bytes = io::ply_bytes(path, ch.points, wo);
+  io::atomic_write_file(path, bytes);
+  rec.content_hash = io::hash_hex(bytes.data(), bytes.size());
+  ch.points = io::PointSet{};
+  ch.written = true;
 }
 
 // A cell's output into the split, in cell order: each chunk named (unique_id), its file
@@ -127,17 +183,9 @@ void Splitter::merge_cell(CellOutput& out) {
       std::snprintf(key_text, sizeof key_text, "%.5f,%.5f", g[0], g[1]);
       ch.base_id = "b-" + io::hash_hex(key_text, std::strlen(key_text)).substr(0, 12);
     }
-    rec.id = unique_id(ch.base_id);
+    if (!ch.named) rec.id = unique_id(ch.base_id);
     if (ch.write) {
-      const std::string path = (staging_->chunks() / (rec.id + ".ply")).string();
-      io::PlyWriteOptions wo;
-      wo.comment =
-          "citylod chunk " + rec.id + " (xyz relative to the chunk origin, scene " +
-          std::string(georef_->scene_frame() == geo::SceneFrame::projected ? "CRS" : "ENU") +
-          " metres)";
-      io::write_ply(path, ch.points, wo);
-      rec.content_hash = io::hash_file(path);
-      ch.points = io::PointSet{};
+      if (!ch.written) write_chunk_file(ch);
       ++rep_.chunks;
       if (ch.unmatched) ++rep_.unmatched_chunks;
     }
@@ -159,6 +207,7 @@ void Splitter::merge_cell(CellOutput& out) {
   for (const auto& [why, n] : r.rejected_by) rep_.rejected_by[why] += n;
   rep_.footprints_with_chunk += r.footprints_with_chunk;
   rep_.footprints_inside_with_chunk += r.footprints_inside_with_chunk;
+  for (const auto& [k, n] : out.unmatched) unmatched_by_cell_[k] += n;
   subdivided_ += out.subdivided;
   fp_few_ += out.fp_few;
   fp_few_points_ += out.fp_few_points;

@@ -209,15 +209,23 @@ const std::vector<std::int32_t>& Splitter::fp_raster(const CellKey& bucket,
 /// for most points; the points of cells it cannot answer for are tested.
 std::size_t Splitter::footprint_of(const Vec2& q, FpCache& fp) const {
   const CellKey bk{int(std::floor(q[0] / fp_bucket_)), int(std::floor(q[1] / fp_bucket_))};
-  auto it = fp_index_.find(bk);
-  if (it == fp_index_.end()) return SIZE_MAX;
+  if (bk != fp.last) {
+    fp.last = bk;
+    const auto it = fp_index_.find(bk);
+    fp.candidates = it == fp_index_.end() ? nullptr : &it->second;
+    const auto r = fp.raster.find(bk);
+    fp.last_raster = r == fp.raster.end() ? nullptr : &r->second;
+  }
+  if (!fp.candidates) return SIZE_MAX;
+  const std::vector<std::size_t>& candidates = *fp.candidates;
   // A raster costs about as much as testing one point per cell: built for a bucket once
   // it has been asked that often (sparse data, huge rings: the points are tested).
   const int n = int(std::ceil(fp_bucket_ / kFpRasterCell));
-  const bool rasterise = fp.raster.count(bk) > 0 || (fps_.size() < std::size_t(INT32_MAX) &&
-                                                     ++fp.queries[bk] >= std::uint32_t(n * n));
-  if (rasterise) {
-    const std::vector<std::int32_t>& r = fp_raster(bk, it->second, fp);
+  if (!fp.last_raster && fps_.size() < std::size_t(INT32_MAX) &&
+      ++fp.queries[bk] >= std::uint32_t(n * n))
+    fp.last_raster = &fp_raster(bk, candidates, fp);
+  if (fp.last_raster) {
+    const std::vector<std::int32_t>& r = *fp.last_raster;
     const int i =
         std::clamp(int(std::floor((q[0] - bk.first * fp_bucket_) / kFpRasterCell)), 0, n - 1);
     const int j =
@@ -229,7 +237,7 @@ std::size_t Splitter::footprint_of(const Vec2& q, FpCache& fp) const {
   const double buf = opt_.footprint_buffer;
   std::size_t best = SIZE_MAX;
   double best_d = std::numeric_limits<double>::infinity();
-  for (std::size_t i : it->second) {  // increasing index: ties go to the first footprint
+  for (std::size_t i : candidates) {  // increasing index: ties go to the first footprint
     const auto& b = fps_[i].bbox;
     if (q[0] < b[0] - buf || q[0] > b[2] + buf || q[1] < b[1] - buf || q[1] > b[3] + buf) continue;
     const double d = distance_to_footprint(fps_[i], q);

@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <array>
+#include <climits>
 #include <condition_variable>
 #include <cstdint>
 #include <cstdio>
@@ -123,6 +124,11 @@ struct PendingChunk {
 struct FpCache {
   std::unordered_map<CellKey, std::vector<std::int32_t>, CellKeyHash> raster;
   std::unordered_map<CellKey, std::uint32_t, CellKeyHash> queries;
+  // The bucket asked last (a region's points come in runs from one place): its
+  // candidates (null: no footprint near) and its raster (null: none built yet).
+  CellKey last{INT_MIN, INT_MIN};
+  const std::vector<std::size_t>* candidates = nullptr;
+  const std::vector<std::int32_t>* last_raster = nullptr;
 };
 
 /// What pass 3 makes of one cell, merged into the split in cell order (merge_cell): the
@@ -132,6 +138,8 @@ struct CellOutput {
   struct Chunk {
     PendingChunk pc;
     std::string base_id;           ///< before unique_id; "" = from the cluster's centroid
+    bool named = false;            ///< pc.rec.id is final (footprints: named before pass 3)
+    bool written = false;          ///< its file written by the worker (content_hash set)
     Vec2 cluster_at{0, 0};         ///< a cluster's centroid (scene frame): its id
     bool write = false;            ///< a point chunk: `points` to WORK/chunks/<id>.ply
     bool unmatched = false;        ///< --unmatched segment: a building without footprint
@@ -140,6 +148,8 @@ struct CellOutput {
   };
   std::vector<Chunk> chunks;
   SplitReport rep;  ///< this cell's notes, cluster lines and counters
+  /// Spill cells whose building points outside every footprint this cell counted.
+  std::vector<std::pair<CellKey, std::int64_t>> unmatched;
   std::size_t subdivided = 0, fp_few = 0, fp_few_points = 0, fp_few_max = 0;
 };
 
@@ -253,6 +263,8 @@ class Splitter {
   CellOutput::Chunk& emit_chunk(const RegionPoints& pts, const CellSegmentation& seg,
                                 const std::vector<std::uint32_t>& members, const std::string& id,
                                 const std::string& source, Ring outline, CellOutput& out) const;
+  std::optional<std::vector<std::uint64_t>> grid_keys(const std::vector<Vec3d>& local) const;
+  void write_chunk_file(CellOutput::Chunk& ch) const;
   void merge_cell(CellOutput& out);
   void write_mesh_chunks();
   std::string unique_id(std::string id);
@@ -294,6 +306,8 @@ class Splitter {
   std::string fp_source_;       // for messages
   std::vector<Footprint> fps_;  // ENU, those meeting the data bbox
   std::vector<char> fp_inside_;
+  std::map<CellKey, std::int64_t> unmatched_by_cell_;  // counted in pass 3
+  std::vector<std::string> fp_chunk_id_;  // each footprint's chunk id (unique, index order)
   std::map<CellKey, std::vector<std::size_t>> fp_owned_;
   std::unordered_map<CellKey, std::vector<std::size_t>, CellKeyHash> fp_index_;  // 2D bucket index
   double fp_bucket_ = 50;

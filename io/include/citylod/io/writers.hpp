@@ -17,6 +17,10 @@ struct PlyWriteOptions {
 /// Points with their optional normals (nx ny nz float), colours (red green
 /// blue uchar) and classes (classification uchar).
 void write_ply(const std::string& path, const PointSet& points, const PlyWriteOptions& opt = {});
+/// The bytes write_ply(path, points, opt) writes (`path` only names the points in
+/// errors): a caller that also hashes or defers the file.
+std::string ply_bytes(const std::string& path, const PointSet& points,
+                      const PlyWriteOptions& opt = {});
 /// Triangle mesh: vertex element (+ normals/colours if present) and face
 /// element with "list uchar int vertex_indices".
 void write_ply(const std::string& path, const TriangleMesh& mesh, const PlyWriteOptions& opt = {});
