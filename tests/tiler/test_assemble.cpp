@@ -77,6 +77,29 @@ TEST(AssembleMetrics, HausdorffOfKnownShapes) {
   EXPECT_TRUE(std::isinf(tiler::hausdorff_distance(a, TriangleMesh{}, 0.25)));
 }
 
+// The distance skips the vertices and triangles both models share (their distance is
+// 0; issue 28), but a vertex no triangle uses is not on the surface: a corner of one
+// model where the other has only an unused vertex is measured.
+TEST(AssembleMetrics, HausdorffOfModelsSharingPartsAndUnusedVertices) {
+  const TriangleMesh a = box_mesh(0, 0, 0, 10, 8, 6);
+  TriangleMesh b = a;
+  add_box(b, 3, 1, 6, 4, 2, 10.5);  // a's triangles and vertices, and a chimney
+  EXPECT_NEAR(tiler::hausdorff_distance(a, b, 0.25), 4.5, 1e-9);
+  EXPECT_NEAR(tiler::hausdorff_distance(b, a, 0.25), 4.5, 1e-9);
+  // t: the box and a sheet from the roof's front edge up to (3, 1, 10.5), 4.5 m above
+  // the roof; u: the box and an unused vertex at that apex
+  TriangleMesh t = a;
+  const auto n = std::uint32_t(t.vertices.size());
+  t.vertices.push_back({0, 0, 6});
+  t.vertices.push_back({10, 0, 6});
+  t.vertices.push_back({3, 1, 10.5});
+  t.triangles.push_back({n, n + 1, n + 2});
+  TriangleMesh u = a;
+  u.vertices.push_back({3, 1, 10.5});
+  EXPECT_NEAR(tiler::hausdorff_distance(t, u, 0.05), 4.5, 1e-9);  // the apex, exactly
+  EXPECT_NEAR(tiler::hausdorff_distance(u, t, 0.05), 4.5, 1e-9);
+}
+
 TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {
   // box (A) -> house (I) -> [I identical to the next anchor] -> house + annex (A) -> + chimney (A)
   const auto chain = lod_chain(12, 9, 8, 4);

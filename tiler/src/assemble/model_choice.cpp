@@ -4,10 +4,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <stdexcept>
+#include <unordered_map>
+#include <unordered_set>
 
 #include "citylod/tiler/assemble.hpp"
 
@@ -105,11 +109,70 @@ class TriangleTree {
   lod::BoxTree tree_;
 };
 
-/// Largest distance from a vertex of A to B.
-double vertex_distance(const io::TriangleMesh& a, const TriangleTree& tb) {
+/// A model prepared for Hausdorff distances, once however many it is compared with: its
+/// triangles' tree, its vertices by position and its triangles by their vertices.
+/// Consecutive models of a chain share most of their vertices and triangles (three in
+/// four vertices, three in five triangles on the City3D scene), whose distance to the
+/// other model is 0 without a query.
+class MeshIndex {
+ public:
+  explicit MeshIndex(const io::TriangleMesh& m) : mesh_(m), tree_(m) {
+    ids_.reserve(m.vertices.size());
+    for (const auto& t : m.triangles)  // a vertex no triangle uses is not on the surface
+      for (const std::uint32_t i : t) ids_.emplace(m.vertices[i], i);
+    tris_.reserve(m.triangles.size());
+    for (const auto& t : m.triangles) tris_.insert(key(t[0], t[1], t[2]));
+  }
+  const io::TriangleMesh& mesh() const { return mesh_; }
+  const TriangleTree& tree() const { return tree_; }
+  /// Is p one of the model's vertices?
+  bool has_vertex(const Vec3d& p) const { return ids_.count(p) > 0; }
+  /// Is triangle pqr (any order) one of the model's triangles?
+  bool has_triangle(const Vec3d& p, const Vec3d& q, const Vec3d& r) const {
+    const auto a = ids_.find(p), b = ids_.find(q), c = ids_.find(r);
+    if (a == ids_.end() || b == ids_.end() || c == ids_.end()) return false;
+    return tris_.count(key(a->second, b->second, c->second)) > 0;
+  }
+
+ private:
+  struct PointHash {
+    std::size_t operator()(const Vec3d& p) const {
+      std::uint64_t h = 0xcbf29ce484222325ULL;
+      for (double v : p) {
+        std::uint64_t bits;
+        std::memcpy(&bits, &v, sizeof bits);
+        h = (h ^ bits) * 0x100000001b3ULL;
+        h ^= h >> 29;
+      }
+      return std::size_t(h);
+    }
+  };
+  using Key = std::array<std::uint32_t, 3>;  ///< a triangle's vertex ids, sorted
+  struct KeyHash {
+    std::size_t operator()(const Key& k) const {
+      return std::size_t((std::uint64_t(k[0]) * 0x9E3779B97F4A7C15ULL) ^
+                         (std::uint64_t(k[1]) * 0xC2B2AE3D27D4EB4FULL) ^
+                         (std::uint64_t(k[2]) * 0x165667B19E3779F9ULL));
+    }
+  };
+  static Key key(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    if (a > b) std::swap(a, b);
+    if (b > c) std::swap(b, c);
+    if (a > b) std::swap(a, b);
+    return {a, b, c};
+  }
+  const io::TriangleMesh& mesh_;
+  TriangleTree tree_;
+  std::unordered_map<Vec3d, std::uint32_t, PointHash> ids_;
+  std::unordered_set<Key, KeyHash> tris_;
+};
+
+/// Largest distance from a vertex of A to B (a vertex of B's own: 0).
+double vertex_distance(const io::TriangleMesh& a, const MeshIndex& b) {
   double best2 = 0;
   std::uint32_t near = lod::BoxTree::kNoHint;  // consecutive vertices are mostly near
-  for (const auto& v : a.vertices) best2 = std::max(best2, tb.nearest(v, near, near));
+  for (const auto& v : a.vertices)
+    if (!b.has_vertex(v)) best2 = std::max(best2, b.tree().nearest(v, near, near));
   return std::sqrt(best2);
 }
 
@@ -123,14 +186,17 @@ double vertex_distance(const io::TriangleMesh& a, const TriangleTree& tb) {
 /// dropped, the others split in four. `best` starts at what is already known (the other
 /// direction, the vertices), so the large surfaces two LOD models share are
 /// dropped at once. Stops once best >= stop_above.
-void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, double stop_above,
+void directed(const io::TriangleMesh& a, const MeshIndex& b, double tol, double stop_above,
               double& best) {
   struct Tri {
     Vec3d a, b, c;
   };
+  const TriangleTree& tb = b.tree();
   std::vector<Tri> stack;
-  for (const auto& t : a.triangles)
-    stack.push_back({a.vertices[t[0]], a.vertices[t[1]], a.vertices[t[2]]});
+  for (const auto& t : a.triangles) {
+    const Tri tri{a.vertices[t[0]], a.vertices[t[1]], a.vertices[t[2]]};
+    if (!b.has_triangle(tri.a, tri.b, tri.c)) stack.push_back(tri);  // B's own: 0
+  }
   std::size_t budget = 2000000;  // distance queries; bounds the worst case (coincident surfaces)
   std::uint32_t last = lod::BoxTree::kNoHint;  // the previous query's nearest triangle
   while (!stack.empty() && budget > 0 && best < stop_above) {
@@ -162,19 +228,24 @@ void directed(const io::TriangleMesh& a, const TriangleTree& tb, double tol, dou
   }
 }
 
+double hausdorff(const MeshIndex& a, const MeshIndex& b, double tolerance, double stop_above) {
+  const io::TriangleMesh &ma = a.mesh(), &mb = b.mesh();
+  if (ma.triangles.empty() || mb.triangles.empty()) return std::numeric_limits<double>::infinity();
+  if (!(tolerance > 0)) throw std::invalid_argument("hausdorff_distance: tolerance must be > 0");
+  if (&ma == &mb || (ma.vertices == mb.vertices && ma.triangles == mb.triangles))
+    return 0.0;  // the same model (common)
+  double best = std::max(vertex_distance(ma, b), vertex_distance(mb, a));
+  directed(ma, b, tolerance, stop_above, best);
+  directed(mb, a, tolerance, stop_above, best);
+  return best;
+}
+
 }  // namespace
 
 double hausdorff_distance(const io::TriangleMesh& a, const io::TriangleMesh& b, double tolerance,
                           double stop_above) {
   if (a.triangles.empty() || b.triangles.empty()) return std::numeric_limits<double>::infinity();
-  if (!(tolerance > 0)) throw std::invalid_argument("hausdorff_distance: tolerance must be > 0");
-  if (a.vertices == b.vertices && a.triangles == b.triangles)
-    return 0.0;  // the same model (common)
-  const TriangleTree ta(a), tb(b);
-  double best = std::max(vertex_distance(a, tb), vertex_distance(b, ta));
-  directed(a, tb, tolerance, stop_above, best);
-  directed(b, ta, tolerance, stop_above, best);
-  return best;
+  return hausdorff(MeshIndex(a), MeshIndex(b), tolerance, stop_above);
 }
 
 ModelChoice choose_models(const LodReport& report, const std::vector<io::TriangleMesh>& meshes,
@@ -200,11 +271,19 @@ ModelChoice choose_models(const LodReport& report, const std::vector<io::Triangl
   order.resize(size_t(finest_pos) + 1);
   const std::size_t finest = order.back();
 
+  // Each candidate prepared once for the distances below.
+  std::vector<std::unique_ptr<MeshIndex>> index(entries.size());
+  for (std::size_t m : order)
+    if (!meshes[m].triangles.empty()) index[m] = std::make_unique<MeshIndex>(meshes[m]);
+  const auto distance = [&](std::size_t x, std::size_t y, double stop_above) {
+    return hausdorff(*index[x], *index[y], tolerance_m, stop_above);
+  };
+  constexpr double kAll = std::numeric_limits<double>::infinity();
+
   // Distance of every candidate to the finest model.
   std::vector<double> to_finest(entries.size(), 0.0);
   for (std::size_t m : order)
-    if (m != finest && !meshes[m].triangles.empty())
-      to_finest[m] = hausdorff_distance(meshes[m], meshes[finest], tolerance_m);
+    if (m != finest && !meshes[m].triangles.empty()) to_finest[m] = distance(m, finest, kAll);
   auto next_anchor_after = [&](std::size_t i) {
     for (std::size_t j = i + 1; j < order.size(); ++j)
       if (anchor(order[j]) && !meshes[order[j]].triangles.empty()) return order[j];
@@ -224,8 +303,7 @@ ModelChoice choose_models(const LodReport& report, const std::vector<io::Triangl
     const std::size_t next_anchor = next_anchor_after(i);
     if (anchor(m)) {
       // Every anchor, unless it is the very same model as the next one.
-      if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, kSame) >= kSame)
-        kept.push_back(m);
+      if (distance(m, next_anchor, kSame) >= kSame) kept.push_back(m);
       continue;
     }
     // An interpolation changes the look when it differs from the previous kept
@@ -234,12 +312,9 @@ ModelChoice choose_models(const LodReport& report, const std::vector<io::Triangl
     if (!kept.empty()) {
       const std::size_t prev = kept.back();
       if (to_finest[m] > to_finest[prev] - min_change_m) continue;
-      if (hausdorff_distance(meshes[m], meshes[prev], tolerance_m, min_change_m) < min_change_m)
-        continue;
+      if (distance(m, prev, min_change_m) < min_change_m) continue;
     }
-    if (hausdorff_distance(meshes[m], meshes[next_anchor], tolerance_m, min_change_m) <
-        min_change_m)
-      continue;
+    if (distance(m, next_anchor, min_change_m) < min_change_m) continue;
     kept.push_back(m);
   }
   // Monotone in RMSE: never worse than a coarser kept model by more than the
