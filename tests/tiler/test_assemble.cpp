@@ -78,8 +78,9 @@ TEST(AssembleMetrics, HausdorffOfKnownShapes) {
 }
 
 // The distance skips the vertices and triangles both models share (their distance is
-// 0; issue 28), but a vertex no triangle uses is not on the surface: a corner of one
-// model where the other has only an unused vertex is measured.
+// 0; issue 28), and a vertex no triangle uses is not on the surface: a corner of one
+// model where the other has only an unused vertex is measured, and a model's own unused
+// vertex is not (it counted before: 18 of 1,265 City3D buildings' errors were too large).
 TEST(AssembleMetrics, HausdorffOfModelsSharingPartsAndUnusedVertices) {
   const TriangleMesh a = box_mesh(0, 0, 0, 10, 8, 6);
   TriangleMesh b = a;
@@ -98,6 +99,9 @@ TEST(AssembleMetrics, HausdorffOfModelsSharingPartsAndUnusedVertices) {
   u.vertices.push_back({3, 1, 10.5});
   EXPECT_NEAR(tiler::hausdorff_distance(t, u, 0.05), 4.5, 1e-9);  // the apex, exactly
   EXPECT_NEAR(tiler::hausdorff_distance(u, t, 0.05), 4.5, 1e-9);
+  // and u's own unused vertex is not part of its surface: u and the box are the same
+  EXPECT_NEAR(tiler::hausdorff_distance(u, a, 0.05), 0.0, 1e-9);
+  EXPECT_NEAR(tiler::hausdorff_distance(a, u, 0.05), 0.0, 1e-9);
 }
 
 TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {

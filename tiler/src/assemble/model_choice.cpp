@@ -118,13 +118,21 @@ class MeshIndex {
  public:
   explicit MeshIndex(const io::TriangleMesh& m) : mesh_(m), tree_(m) {
     ids_.reserve(m.vertices.size());
+    std::vector<char> used(m.vertices.size(), 0);
     for (const auto& t : m.triangles)  // a vertex no triangle uses is not on the surface
-      for (const std::uint32_t i : t) ids_.emplace(m.vertices[i], i);
+      for (const std::uint32_t i : t) {
+        ids_.emplace(m.vertices[i], i);
+        used[i] = 1;
+      }
+    for (std::uint32_t i = 0; i < used.size(); ++i)
+      if (used[i]) used_.push_back(i);
     tris_.reserve(m.triangles.size());
     for (const auto& t : m.triangles) tris_.insert(key(t[0], t[1], t[2]));
   }
   const io::TriangleMesh& mesh() const { return mesh_; }
   const TriangleTree& tree() const { return tree_; }
+  /// The vertices its triangles use, in index order.
+  const std::vector<std::uint32_t>& used() const { return used_; }
   /// Is p one of the model's vertices?
   bool has_vertex(const Vec3d& p) const { return ids_.count(p) > 0; }
   /// Is triangle pqr (any order) one of the model's triangles?
@@ -165,14 +173,16 @@ class MeshIndex {
   TriangleTree tree_;
   std::unordered_map<Vec3d, std::uint32_t, PointHash> ids_;
   std::unordered_set<Key, KeyHash> tris_;
+  std::vector<std::uint32_t> used_;
 };
 
-/// Largest distance from a vertex of A to B (a vertex of B's own: 0).
-double vertex_distance(const io::TriangleMesh& a, const MeshIndex& b) {
+/// Largest distance from a corner of A's triangles to B (a corner of B's own: 0).
+double vertex_distance(const MeshIndex& a, const MeshIndex& b) {
   double best2 = 0;
   std::uint32_t near = lod::BoxTree::kNoHint;  // consecutive vertices are mostly near
-  for (const auto& v : a.vertices)
-    if (!b.has_vertex(v)) best2 = std::max(best2, b.tree().nearest(v, near, near));
+  for (const std::uint32_t i : a.used())
+    if (const Vec3d& v = a.mesh().vertices[i]; !b.has_vertex(v))
+      best2 = std::max(best2, b.tree().nearest(v, near, near));
   return std::sqrt(best2);
 }
 
@@ -234,7 +244,7 @@ double hausdorff(const MeshIndex& a, const MeshIndex& b, double tolerance, doubl
   if (!(tolerance > 0)) throw std::invalid_argument("hausdorff_distance: tolerance must be > 0");
   if (&ma == &mb || (ma.vertices == mb.vertices && ma.triangles == mb.triangles))
     return 0.0;  // the same model (common)
-  double best = std::max(vertex_distance(ma, b), vertex_distance(mb, a));
+  double best = std::max(vertex_distance(a, b), vertex_distance(b, a));
   directed(ma, b, tolerance, stop_above, best);
   directed(mb, a, tolerance, stop_above, best);
   return best;
