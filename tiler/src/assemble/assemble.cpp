@@ -63,7 +63,7 @@ struct KeptModel {
   int level = 0, step = 0;
   double error_m = 0, hausdorff_m = 0, height_m = 0;
   double rmse_m = -1;  // of the input points (report.json e2), -1 = not measured
-  bool valid = false;  // lod::check_mesh(...).valid()
+  bool valid = false;  // a valid solid as the tiles store it (welded for validators)
   BBox3 bbox;          // scene ENU
   std::size_t triangles = 0, bytes = 0;
   std::size_t plain_bytes = 0;  // float32 estimate: the same whatever the compression
@@ -141,13 +141,19 @@ lod::SolidCheck check_for_validators(const io::TriangleMesh& m) {
 /// zero-volume fins and collinear spikes gone (io/weld.hpp); the first r that
 /// lod::check_solid accepts. A model that is valid as it is, or that no r makes
 /// valid, is returned unchanged. source[i] = the input triangle of output
-/// triangle i.
-io::TriangleMesh weld_for_validators(const io::TriangleMesh& m, std::vector<std::size_t>& source) {
+/// triangle i; `valid`: whether the result is valid for validators.
+io::TriangleMesh weld_for_validators(const io::TriangleMesh& m, std::vector<std::size_t>& source,
+                                     bool& valid) {
   source.resize(m.triangles.size());
   std::iota(source.begin(), source.end(), std::size_t(0));
   constexpr double kGrid = 1e-4;  // metres
   const lod::Tolerances tol;
-  if (m.triangles.empty() || check_for_validators(m).valid()) return m;
+  valid = false;
+  if (m.triangles.empty()) return m;
+  if (check_for_validators(m).valid()) {
+    valid = true;
+    return m;
+  }
   std::vector<std::array<std::int64_t, 3>> q;
   q.reserve(m.vertices.size());
   for (const auto& p : m.vertices)
@@ -208,17 +214,21 @@ io::TriangleMesh weld_for_validators(const io::TriangleMesh& m, std::vector<std:
       }
     compact.triangles = std::move(out.triangles);
     source = std::move(out_source);
+    valid = true;
     return compact;
   }
   return m;
 }
 
 /// A model in the tiles' frame, welded for validators, with its triangles'
-/// colours (`colours`: per input triangle, or empty) following it.
+/// colours (`colours`: per input triangle, or empty) following it; `valid` (if
+/// not null): whether validators read it as a valid solid.
 std::pair<io::TriangleMesh, std::vector<io::Rgba8>> welded_model(
-    const io::TriangleMesh& enu, const std::vector<io::Rgba8>& colours) {
+    const io::TriangleMesh& enu, const std::vector<io::Rgba8>& colours, bool* valid = nullptr) {
   std::vector<std::size_t> source;
-  io::TriangleMesh m = weld_for_validators(enu, source);
+  bool ok = false;
+  io::TriangleMesh m = weld_for_validators(enu, source, ok);
+  if (valid) *valid = ok;
   std::vector<io::Rgba8> c;
   if (!colours.empty())
     for (const std::size_t t : source)
@@ -291,7 +301,6 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     km.error_m = choice.error_m[i];
     km.hausdorff_m = choice.hausdorff_m[i];
     km.rmse_m = rep.rmse_m(k);
-    km.valid = lod::check_mesh(to_lod_mesh(mesh, rec.origin)).valid();
     for (const auto& t : mesh.triangles)
       for (auto v : t) km.bbox.add(mesh.vertices[v]);
     km.height_m = km.bbox.max[2] - km.bbox.min[2];
@@ -300,9 +309,11 @@ Building load_building(const std::string& work, const ChunkRecord& rec, const As
     km.triangles = s.triangles;
     km.bytes = s.bytes;
     km.plain_bytes = s.float_bytes;
+    // as the tiles store it: its validity, and the model itself while the cache lasts
+    auto welded = welded_model(mesh, km.colours, &km.valid);
     if (cache.take(mesh, km.colours.size()))
       km.ready = std::make_shared<const std::pair<io::TriangleMesh, std::vector<io::Rgba8>>>(
-          welded_model(mesh, km.colours));
+          std::move(welded));
     b.bbox.add(km.bbox);
     b.models.push_back(std::move(km));
   }
