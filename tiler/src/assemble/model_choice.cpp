@@ -290,10 +290,13 @@ ModelChoice choose_models(const LodReport& report, const std::vector<io::Triangl
   };
   constexpr double kAll = std::numeric_limits<double>::infinity();
 
-  // Distance of every candidate to the finest model.
-  std::vector<double> to_finest(entries.size(), 0.0);
-  for (std::size_t m : order)
-    if (m != finest && !meshes[m].triangles.empty()) to_finest[m] = distance(m, finest, kAll);
+  // Distance to the finest model, measured in full for every kept model (-1: not yet).
+  std::vector<double> to_finest(entries.size(), -1.0);
+  to_finest[finest] = 0;
+  const auto keep = [&](std::vector<std::size_t>& kept, std::size_t m) {
+    if (to_finest[m] < 0) to_finest[m] = distance(m, finest, kAll);
+    kept.push_back(m);
+  };
   auto next_anchor_after = [&](std::size_t i) {
     for (std::size_t j = i + 1; j < order.size(); ++j)
       if (anchor(order[j]) && !meshes[order[j]].triangles.empty()) return order[j];
@@ -313,7 +316,7 @@ ModelChoice choose_models(const LodReport& report, const std::vector<io::Triangl
     const std::size_t next_anchor = next_anchor_after(i);
     if (anchor(m)) {
       // Every anchor, unless it is the very same model as the next one.
-      if (distance(m, next_anchor, kSame) >= kSame) kept.push_back(m);
+      if (distance(m, next_anchor, kSame) >= kSame) keep(kept, m);
       continue;
     }
     // An interpolation changes the look when it differs from the previous kept
@@ -321,11 +324,17 @@ ModelChoice choose_models(const LodReport& report, const std::vector<io::Triangl
     // finest model (a lower error: otherwise a client refines both at once).
     if (!kept.empty()) {
       const std::size_t prev = kept.back();
-      if (to_finest[m] > to_finest[prev] - min_change_m) continue;
+      // No closer to the finest than prev by min_change: the search stops once that is
+      // certain. The distance it has found only grows along the search, so a search
+      // that does not stop is the full one: the model's distance.
+      const double bound = to_finest[prev] - min_change_m;
+      const double d = distance(m, finest, std::nextafter(bound, kAll));
+      if (d > bound) continue;
+      to_finest[m] = d;
       if (distance(m, prev, min_change_m) < min_change_m) continue;
     }
     if (distance(m, next_anchor, min_change_m) < min_change_m) continue;
-    kept.push_back(m);
+    keep(kept, m);
   }
   // Monotone in RMSE: never worse than a coarser kept model by more than the
   // tolerance (the finest stays; models without an RMSE are not judged).
