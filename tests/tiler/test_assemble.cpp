@@ -104,6 +104,56 @@ TEST(AssembleMetrics, HausdorffOfModelsSharingPartsAndUnusedVertices) {
   EXPECT_NEAR(tiler::hausdorff_distance(a, u, 0.05), 0.0, 1e-9);
 }
 
+// A triangle is dropped from the search once the distances of its corners to one
+// planar face of the other model bound it, and only when that face is convex (issue 28).
+// B: an L-shaped block (10 x 10 m, a 6 x 6 m notch, 6 m high) whose roof is one
+// non-convex face of four triangles; A: B and a sheet over the roof's lower-left half,
+// its corners on the roof, its hypotenuse crossing the notch 1 m from B's walls at most.
+TEST(AssembleMetrics, HausdorffBoundsByConvexFacesOnly) {
+  const std::vector<std::array<double, 2>> ring{{0, 0}, {10, 0}, {10, 4}, {4, 4}, {4, 10}, {0, 10}};
+  TriangleMesh b;
+  for (const double z : {0.0, 6.0})
+    for (const auto& p : ring) b.vertices.push_back({p[0], p[1], z});
+  for (std::uint32_t k = 1; k + 1 < 6; ++k) {  // floor and roof: fans from (0, 0)
+    b.triangles.push_back({0, k + 1, k});
+    b.triangles.push_back({6, 6 + k, 6 + k + 1});
+  }
+  for (std::uint32_t k = 0; k < 6; ++k) {  // walls
+    const std::uint32_t j = (k + 1) % 6;
+    b.triangles.push_back({k, j, 6 + j});
+    b.triangles.push_back({k, 6 + j, 6 + k});
+  }
+  TriangleMesh a = b;
+  const auto n = std::uint32_t(a.vertices.size());
+  a.vertices.push_back({0, 10, 6});
+  a.vertices.push_back({10, 0, 6});
+  a.vertices.push_back({0, 0, 6});
+  a.triangles.push_back({n, n + 1, n + 2});
+  const double d = tiler::hausdorff_distance(a, b, 0.05);
+  EXPECT_LE(d, 1.0 + 1e-9);  // (5, 5, 6): 1 m from the walls x = 4 and y = 4
+  EXPECT_GE(d, 1.0 - 0.05);
+  // a convex roof in four triangles around its centre against the same roof in two:
+  // nothing to find, both ways
+  TriangleMesh four = box_mesh(0, 0, 0, 10, 8, 6), two = four;
+  const auto c = std::uint32_t(four.vertices.size());
+  four.vertices.push_back({5, 4, 6});
+  for (auto& t : four.triangles) {
+    bool roof = true;
+    for (const auto v : t) roof = roof && four.vertices[v][2] == 6;
+    if (roof) t = {0, 0, 0};  // dropped below
+  }
+  four.triangles.erase(std::remove(four.triangles.begin(), four.triangles.end(),
+                                   std::array<std::uint32_t, 3>{0, 0, 0}),
+                       four.triangles.end());
+  std::vector<std::uint32_t> corner;  // the roof's corners, counter-clockwise
+  for (const Vec3d p : {Vec3d{0, 0, 6}, Vec3d{10, 0, 6}, Vec3d{10, 8, 6}, Vec3d{0, 8, 6}})
+    corner.push_back(std::uint32_t(std::find(four.vertices.begin(), four.vertices.end(), p) -
+                                   four.vertices.begin()));
+  for (std::size_t k = 0; k < 4; ++k) four.triangles.push_back({corner[k], corner[(k + 1) % 4], c});
+  EXPECT_NEAR(tiler::hausdorff_distance(four, two, 0.05), 0.0, 1e-9);
+  EXPECT_NEAR(tiler::hausdorff_distance(two, four, 0.05), 0.0, 1e-9);
+}
+
 TEST(AssembleMetrics, KeepsAnchorsAndInterpolationsThatChangeTheLook) {
   // box (A) -> house (I) -> [I identical to the next anchor] -> house + annex (A) -> + chimney (A)
   const auto chain = lod_chain(12, 9, 8, 4);

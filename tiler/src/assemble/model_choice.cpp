@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <map>
 #include <memory>
 #include <numeric>
 #include <stdexcept>
@@ -128,6 +129,7 @@ class MeshIndex {
       if (used[i]) used_.push_back(i);
     tris_.reserve(m.triangles.size());
     for (const auto& t : m.triangles) tris_.insert(key(t[0], t[1], t[2]));
+    group_faces();
   }
   const io::TriangleMesh& mesh() const { return mesh_; }
   const TriangleTree& tree() const { return tree_; }
@@ -135,6 +137,18 @@ class MeshIndex {
   const std::vector<std::uint32_t>& used() const { return used_; }
   /// Is p one of the model's vertices?
   bool has_vertex(const Vec3d& p) const { return ids_.count(p) > 0; }
+  /// Distance from p to the planar face triangle `tri` lies in, when that face is
+  /// convex (then the distance is a convex function: its largest value over a triangle
+  /// is at a corner); else to the triangle alone. Never less than the distance to the
+  /// model.
+  double distance_to_face(const Vec3d& p, std::uint32_t tri) const {
+    const std::uint32_t g = group_[tri];
+    if (!convex_[g]) return tree_.distance_to(p, tri);
+    double d = std::numeric_limits<double>::infinity();
+    for (std::uint32_t k = first_[g]; k < first_[g + 1]; ++k)
+      d = std::min(d, tree_.distance_to(p, members_[k]));
+    return d;
+  }
   /// Is triangle pqr (any order) one of the model's triangles?
   bool has_triangle(const Vec3d& p, const Vec3d& q, const Vec3d& r) const {
     const auto a = ids_.find(p), b = ids_.find(q), c = ids_.find(r);
@@ -169,8 +183,116 @@ class MeshIndex {
     if (a > b) std::swap(a, b);
     return {a, b, c};
   }
+  /// The model's planar faces: triangles joined across an edge (corners by position)
+  /// when each lies in the other's plane (within kCoplanar); a face is convex when its
+  /// area is its convex hull's.
+  void group_faces() {
+    constexpr double kCoplanar = 1e-9;  // metres
+    const auto& m = mesh_;
+    const std::size_t n = m.triangles.size();
+    std::vector<Vec3d> normal(n);
+    std::vector<double> area(n), offset(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& t = m.triangles[i];
+      const Vec3d u = sub(m.vertices[t[1]], m.vertices[t[0]]);
+      const Vec3d w = sub(m.vertices[t[2]], m.vertices[t[0]]);
+      const Vec3d c{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0]};
+      const double len = std::sqrt(norm2(c));
+      area[i] = len / 2;
+      normal[i] = len > 0 ? Vec3d{c[0] / len, c[1] / len, c[2] / len} : Vec3d{0, 0, 0};
+      offset[i] = dot(normal[i], m.vertices[t[0]]);
+    }
+    const auto in_plane = [&](std::size_t i, std::size_t j) {  // j's corners in i's plane
+      if (area[i] <= 0 || dot(normal[i], normal[j]) <= 0) return false;
+      for (const std::uint32_t v : m.triangles[j])
+        if (std::fabs(dot(normal[i], m.vertices[v]) - offset[i]) > kCoplanar) return false;
+      return true;
+    };
+    std::vector<std::uint32_t> parent(n);
+    std::iota(parent.begin(), parent.end(), 0u);
+    const auto root = [&](std::uint32_t x) {
+      while (parent[x] != x) x = parent[x] = parent[parent[x]];
+      return x;
+    };
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> edge_tri;
+    for (std::uint32_t i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k) {
+        std::uint32_t a = ids_.at(m.vertices[m.triangles[i][k]]);
+        std::uint32_t b = ids_.at(m.vertices[m.triangles[i][(k + 1) % 3]]);
+        if (a > b) std::swap(a, b);
+        const auto [it, fresh] = edge_tri.emplace(std::make_pair(a, b), i);
+        if (!fresh && in_plane(i, it->second) && in_plane(it->second, i))
+          parent[root(i)] = root(it->second);
+      }
+    // faces in order of their first triangle; members by face
+    group_.assign(n, 0);
+    std::vector<std::uint32_t> id(n, ~0u);
+    std::uint32_t groups = 0;
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t r = root(i);
+      if (id[r] == ~0u) id[r] = groups++;
+      group_[i] = id[r];
+    }
+    first_.assign(groups + 1, 0);
+    for (std::uint32_t i = 0; i < n; ++i) ++first_[group_[i] + 1];
+    for (std::uint32_t g = 0; g < groups; ++g) first_[g + 1] += first_[g];
+    members_.resize(n);
+    std::vector<std::uint32_t> fill(first_.begin(), first_.end() - 1);
+    for (std::uint32_t i = 0; i < n; ++i) members_[fill[group_[i]]++] = i;
+    convex_.assign(groups, 0);
+    for (std::uint32_t g = 0; g < groups; ++g) {
+      if (first_[g + 1] - first_[g] < 2) continue;  // one triangle: the triangle's own bound
+      const Vec3d& nr = normal[members_[first_[g]]];
+      // the plane's coordinates: drop the normal's largest axis
+      const int drop = std::fabs(nr[0]) >= std::fabs(nr[1]) && std::fabs(nr[0]) >= std::fabs(nr[2])
+                           ? 0
+                           : (std::fabs(nr[1]) >= std::fabs(nr[2]) ? 1 : 2);
+      const int ax = drop == 0 ? 1 : 0, ay = drop == 2 ? 1 : 2;
+      std::vector<std::array<double, 2>> pts;
+      double sum = 0;
+      for (std::uint32_t k = first_[g]; k < first_[g + 1]; ++k) {
+        sum += area[members_[k]];
+        for (const std::uint32_t v : m.triangles[members_[k]])
+          pts.push_back({m.vertices[v][std::size_t(ax)], m.vertices[v][std::size_t(ay)]});
+      }
+      const double hull = hull_area(std::move(pts)) / std::fabs(nr[std::size_t(drop)]);
+      convex_[g] = std::fabs(hull - sum) <= 1e-9 * std::max(1.0, sum);
+    }
+  }
+  /// Area of the convex hull of points in a plane (monotone chain).
+  static double hull_area(std::vector<std::array<double, 2>> p) {
+    std::sort(p.begin(), p.end());
+    p.erase(std::unique(p.begin(), p.end()), p.end());
+    if (p.size() < 3) return 0;
+    const auto cross = [](const std::array<double, 2>& o, const std::array<double, 2>& a,
+                          const std::array<double, 2>& b) {
+      return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    };
+    std::vector<std::array<double, 2>> h(2 * p.size());
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+      h[k++] = p[i];
+    }
+    for (std::size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+      while (k >= t && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+      h[k++] = p[i];
+    }
+    h.resize(k - 1);
+    double a = 0;
+    for (std::size_t i = 0; i < h.size(); ++i) {
+      const auto& u = h[i];
+      const auto& v = h[(i + 1) % h.size()];
+      a += u[0] * v[1] - u[1] * v[0];
+    }
+    return std::fabs(a) / 2;
+  }
+
   const io::TriangleMesh& mesh_;
   TriangleTree tree_;
+  std::vector<std::uint32_t> group_, first_, members_;  // planar faces: by triangle, members
+  std::vector<char> convex_;
   std::unordered_map<Vec3d, std::uint32_t, PointHash> ids_;
   std::unordered_set<Key, KeyHash> tris_;
   std::vector<std::uint32_t> used_;
@@ -223,8 +345,8 @@ void directed(const io::TriangleMesh& a, const MeshIndex& b, double tol, double 
     --budget;
     best = std::max(best, dg);
     if (dg + r <= best + tol) continue;
-    if (std::max({tb.distance_to(t.a, near), tb.distance_to(t.b, near),
-                  tb.distance_to(t.c, near)}) <= best + tol)
+    if (std::max({b.distance_to_face(t.a, near), b.distance_to_face(t.b, near),
+                  b.distance_to_face(t.c, near)}) <= best + tol)
       continue;
     const Vec3d ab{(t.a[0] + t.b[0]) / 2, (t.a[1] + t.b[1]) / 2, (t.a[2] + t.b[2]) / 2};
     const Vec3d bc{(t.b[0] + t.c[0]) / 2, (t.b[1] + t.c[1]) / 2, (t.b[2] + t.c[2]) / 2};
