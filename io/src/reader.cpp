@@ -282,7 +282,10 @@ Format detect_format(const std::string& path) {
 namespace detail {
 
 std::unique_ptr<ReaderBase> open_reader(const std::string& path) {
-  Format f = detect_format(path);
+  return open_reader(path, detect_format(path));
+}
+
+std::unique_ptr<ReaderBase> open_reader(const std::string& path, Format f) {
   switch (f) {
     case Format::ply:
       return open_ply(path);
@@ -373,7 +376,7 @@ void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3
     check_finite(mesh.vertices, 0, path);
     return;
   }
-  auto r = detail::open_reader(path);
+  auto r = detail::open_reader(path, f);
   if (f != Format::ply && f != Format::off)
     throw IoError(path, std::string(format_name(r->info().format)) +
                             " files hold no faces (a point cloud, not a mesh)");
@@ -412,7 +415,7 @@ std::unique_ptr<MeshReader> MeshReader::open(const std::string& path) {
   std::unique_ptr<MeshReader> m(new MeshReader());
   m->impl_->path = path;
   m->impl_->obj = f == Format::obj;
-  m->impl_->reader = detail::open_reader(path);
+  m->impl_->reader = detail::open_reader(path, f);
   if (f != Format::ply && f != Format::off && f != Format::obj)
     throw IoError(path, std::string(format_name(m->impl_->reader->info().format)) +
                             " files hold no faces (a point cloud, not a mesh)");

@@ -43,6 +43,8 @@ std::unique_ptr<ReaderBase> open_obj(const std::string& path);
 std::unique_ptr<ReaderBase> open_xyz(const std::string& path);
 std::unique_ptr<ReaderBase> open_las(const std::string& path);  // LAS and LAZ
 std::unique_ptr<ReaderBase> open_reader(const std::string& path);
+/// ... of a format detect_format(path) gave (the file is not sniffed again).
+std::unique_ptr<ReaderBase> open_reader(const std::string& path, Format f);
 
 /// OBJ meshes are read in one pass (vn are referenced by faces, not by vertices).
 void read_obj_mesh(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals);
