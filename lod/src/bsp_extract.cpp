@@ -54,6 +54,9 @@ struct PlaneRegions {
   std::array<std::vector<std::vector<EvPt>>, 2> loops;
 };
 
+/// The crossing points of one plane by its pair of table planes (exact).
+using Crossings = std::unordered_map<uint64_t, EvPt>;
+
 /// Exact coordinates of BSP vertices and of crossing points (by their plane
 /// triple), and the vertices' 2D projections per dropped axis: computed once
 /// per pass, or once per cache when there is one (the values are exact, so
@@ -66,9 +69,46 @@ struct Coords {
 
 }  // namespace bspx
 
+namespace bspx {
+
+/// A plane side's triangulation in positions of its loops' points (the loops
+/// flattened, each point at its first position).
+struct GroupTriangles {
+  std::vector<std::vector<int>> faces;
+  std::vector<int> tris;
+  int regions = 0;
+};
+
+inline uint64_t mix(uint64_t h, uint64_t x) {
+  h = (h ^ x) * 0xFF51AFD7ED558CCDULL;
+  return h ^ (h >> 32);
+}
+
+struct KeyHash {
+  size_t operator()(const std::vector<uint64_t>& k) const {
+    uint64_t h = 0x9E3779B97F4A7C15ULL ^ k.size();
+    for (uint64_t x : k) h = mix(h, x);
+    return size_t(h);
+  }
+};
+
+/// Points (a, b, v) by their identities: does v lie strictly inside segment ab?
+using Triple = std::array<uint64_t, 3>;
+struct TripleHash {
+  size_t operator()(const Triple& t) const { return size_t(mix(mix(mix(0, t[0]), t[1]), t[2])); }
+};
+
+}  // namespace bspx
+
 struct ExtractCache::Impl {
   std::unordered_map<int, bspx::PlaneRegions> byplane;
+  std::unordered_map<int, bspx::Crossings> crossings;  ///< per plane
   bspx::Coords coords;
+  /// Triangulations by plane side and loop points (bspx::group_key): a side
+  /// whose loops are the same points is the same triangulation.
+  std::unordered_map<std::vector<uint64_t>, bspx::GroupTriangles, bspx::KeyHash> groups;
+  /// T-junction tests by the identities of the edge's ends and the vertex.
+  std::unordered_map<bspx::Triple, bool, bspx::TripleHash> inside_edge;
 };
 ExtractCache::ExtractCache() : impl(std::make_unique<Impl>()) {}
 ExtractCache::~ExtractCache() = default;
@@ -111,7 +151,7 @@ struct F2 {
 struct PlaneCtx {
   const BspData& I;
   int pl, k, u, w;
-  std::unordered_map<uint64_t, EvPt> cross;
+  bspx::Crossings& cross;  ///< this plane's, kept in the cache when there is one
   /// Is x exactly known to lie on table plane E? (false means "unknown")
   bool known_on(const EvPt& x, int E) const {
     if (x.vid >= 0) {
@@ -486,8 +526,25 @@ struct Group {
 
 struct Extracted {
   std::vector<Point3> pts;
+  /// Per point, what it was lifted from (point_identity): the same identity is
+  /// the same point in every extraction from one BSP.
+  std::vector<uint64_t> ident;
   std::vector<Group> groups;
 };
+
+constexpr uint64_t kNoIdentity = ~uint64_t(0);
+
+/// A BSP vertex by its id, a crossing point by its plane triple (when each
+/// index fits in 21 bits; else none).
+uint64_t point_identity(const EvPt& ep) {
+  if (ep.vid >= 0) return (uint64_t(1) << 63) | uint64_t(ep.vid);
+  uint64_t key = 0;
+  for (int d : ep.def) {
+    if (d < 0 || d >= (1 << 21)) return kNoIdentity;
+    key = (key << 21) | uint64_t(d);
+  }
+  return key;
+}
 
 /// The inside nodes, with every pair of inside siblings replaced by their
 /// parent (recursively): same solid, fewer and larger faces.
@@ -523,6 +580,7 @@ std::vector<int> collapse_inside(const BspData& I, const std::vector<int>& parti
 /// exact plane points, collinear vertices dropped.
 std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int pl,
                                                           const std::vector<F2>& F,
+                                                          bspx::Crossings& cross,
                                                           Scratch& scratch) {
   using Box2 = CGAL::Box_intersection_d::Box_with_info_d<double, 2, int>;
   const auto& dc = I.dplanes[pl];
@@ -558,7 +616,7 @@ std::array<std::vector<std::vector<EvPt>>, 2> plane_loops(const BspData& I, int 
       eb.begin(), eb.end(), fb.begin(), fb.end(),
       [&](const Box2& e, const Box2& f) { cand[e.info()].push_back(f.info()); });
   LocalPts L;
-  PlaneCtx C{I, pl, k, u, w, {}};
+  PlaneCtx C{I, pl, k, u, w, cross};
   std::vector<std::pair<int, int>> segs[2];
   for (int e = 0; e < int(erefs.size()); ++e) {
     std::sort(cand[e].begin(), cand[e].end());
@@ -678,14 +736,18 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
 
   // The planes whose loops are not cached, computed on `threads` threads
   // (independent of each other), then lifted in plane order.
+  // A plane's crossing points stay in the cache (they are exact): its faces
+  // change between candidates, its crossings mostly do not.
   struct Todo {
     int pl;
     std::vector<F2> F;
     bspx::PlaneRegions* out;
+    bspx::Crossings* cross;
   };
   std::vector<Todo> todo;
   std::vector<std::pair<int, const bspx::PlaneRegions*>> planes;
   std::deque<bspx::PlaneRegions> fresh;
+  std::deque<bspx::Crossings> fresh_cross;
   for (auto& [pl, faces0] : byplane) {
     std::vector<F2> F = cancel_opposite_faces(faces0);
     if (F.empty()) continue;
@@ -702,11 +764,11 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
       e = &cache->impl->byplane[pl];
       if (e->key != key) {
         e->key = std::move(key);
-        todo.push_back({pl, std::move(F), e});
+        todo.push_back({pl, std::move(F), e, &cache->impl->crossings[pl]});
       }
     } else {
       e = &fresh.emplace_back();
-      todo.push_back({pl, std::move(F), e});
+      todo.push_back({pl, std::move(F), e, &fresh_cross.emplace_back()});
     }
     planes.emplace_back(pl, e);
   }
@@ -717,7 +779,7 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
     try {
       Scratch scratch;
       Todo& d = todo[size_t(t)];
-      d.out->loops = plane_loops(I, d.pl, d.F, scratch);
+      d.out->loops = plane_loops(I, d.pl, d.F, *d.cross, scratch);
     } catch (...) {
       errors[size_t(t)] = std::current_exception();
     }
@@ -744,6 +806,11 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
     const auto& c = pc.crossing(ep.def);
     return by_def.emplace(ep.def, gid(Point3(c[0], c[1], c[2]))).first->second;
   };
+  auto lifted = [&](const EvPt& ep) {
+    const int id = lifted_id(ep);
+    if (X.ident.size() < X.pts.size()) X.ident.push_back(point_identity(ep));
+    return id;
+  };
   for (const auto& [pl, regions] : planes) {
     const auto& loops = regions->loops;
     const int k = dominant_axis(I.dplanes[pl]);
@@ -758,7 +825,7 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
         std::vector<int> ids;
         ids.reserve(loop.size());
         for (const EvPt& ep : loop) {
-          const int id = lifted_id(ep);
+          const int id = lifted(ep);
           G.p2.emplace(id, ep.p);
           ids.push_back(id);
         }
@@ -771,7 +838,7 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
 
 /// Phase 3, T-junctions: inserts every output vertex lying strictly inside an
 /// output edge.
-void insert_tjunctions(Extracted& X) {
+void insert_tjunctions(Extracted& X, ExtractCache* cache) {
   const size_t nv = X.pts.size();
   std::vector<Vec3> ap(nv);
   double scale = 1.0;
@@ -817,8 +884,21 @@ void insert_tjunctions(Extracted& X) {
     const int a = L[er.i], b = L[(er.i + 1) % L.size()];
     if (v == a || v == b) continue;
     const Point3 &pa = X.pts[a], &pb = X.pts[b], &pv = X.pts[v];
-    if (CGAL::collinear(pa, pb, pv) && CGAL::collinear_are_strictly_ordered_along_line(pa, pv, pb))
-      inserts[{er.r, er.l}][er.i].push_back(v);
+    auto test = [&] {
+      return CGAL::collinear(pa, pb, pv) &&
+             CGAL::collinear_are_strictly_ordered_along_line(pa, pv, pb);
+    };
+    const bspx::Triple key{X.ident[size_t(a)], X.ident[size_t(b)], X.ident[size_t(v)]};
+    bool inside;
+    if (!cache || key[0] == kNoIdentity || key[1] == kNoIdentity || key[2] == kNoIdentity) {
+      inside = test();
+    } else {
+      auto it = cache->impl->inside_edge.find(key);
+      if (it == cache->impl->inside_edge.end())
+        it = cache->impl->inside_edge.emplace(key, test()).first;
+      inside = it->second;
+    }
+    if (inside) inserts[{er.r, er.l}][er.i].push_back(v);
   }
   for (auto& [rl, byedge] : inserts) {
     auto& L = X.groups[rl.first].loops[rl.second];
@@ -927,6 +1007,59 @@ void triangulate_group(const BspData& I, const std::vector<Point3>& pts, Group& 
   G.regions = ndom;
 }
 
+/// The key of a plane side's triangulation: plane, side and its loops as the
+/// identities of their points (empty when a point has none). Equal keys are
+/// the same exact points in the same order, so the same triangulation.
+std::vector<uint64_t> group_key(const Extracted& X, const Group& G) {
+  std::vector<uint64_t> key{uint64_t(uint32_t(G.plane)), uint64_t(G.side > 0),
+                            uint64_t(G.loops.size())};
+  for (const auto& L : G.loops) {
+    key.push_back(L.size());
+    for (int id : L) {
+      if (X.ident[size_t(id)] == kNoIdentity) return {};
+      key.push_back(X.ident[size_t(id)]);
+    }
+  }
+  return key;
+}
+
+/// The group's loop ids flattened (position -> id).
+std::vector<int> flat_ids(const Group& G) {
+  std::vector<int> flat;
+  for (const auto& L : G.loops) flat.insert(flat.end(), L.begin(), L.end());
+  return flat;
+}
+
+/// A triangulation of G in positions of its flattened loops.
+bspx::GroupTriangles to_positions(const Group& G) {
+  const std::vector<int> flat = flat_ids(G);
+  std::unordered_map<int, int> pos;
+  for (int j = 0; j < int(flat.size()); ++j) pos.emplace(flat[size_t(j)], j);
+  bspx::GroupTriangles T;
+  T.regions = G.regions;
+  T.tris.reserve(G.tris.size());
+  for (int id : G.tris) T.tris.push_back(pos.at(id));
+  for (const auto& f : G.faces) {
+    std::vector<int>& q = T.faces.emplace_back();
+    for (int id : f) q.push_back(pos.at(id));
+  }
+  return T;
+}
+
+/// G's triangulation from one of the same key (positions -> G's ids).
+void from_positions(const bspx::GroupTriangles& T, Group& G) {
+  const std::vector<int> flat = flat_ids(G);
+  G.regions = T.regions;
+  G.tris.clear();
+  G.tris.reserve(T.tris.size());
+  for (int j : T.tris) G.tris.push_back(flat[size_t(j)]);
+  G.faces.clear();
+  for (const auto& q : T.faces) {
+    std::vector<int>& f = G.faces.emplace_back();
+    for (int j : q) f.push_back(flat[size_t(j)]);
+  }
+}
+
 // One extraction pass: the boundary of the union of the cells `in_nodes`.
 Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, ExtractCache* cache) {
   Extracted X;
@@ -934,20 +1067,37 @@ Extracted extract_once(const BspData& I, const std::vector<int>& in_nodes, Extra
   std::map<int, std::vector<F2>> byplane = gather_faces(I, in_nodes, pc);
   const int threads = cache ? std::max(1, cache->threads) : 1;
   plane_regions(I, byplane, cache, pc, threads, X);
-  insert_tjunctions(X);
-  // the plane sides are triangulated independently
-  std::vector<std::exception_ptr> errors(X.groups.size());
+  insert_tjunctions(X, cache);
+  // the plane sides are triangulated independently; a side triangulated in
+  // an earlier extraction (same key) is taken from the cache
   const long ng = long(X.groups.size());
+  std::vector<std::vector<uint64_t>> keys(X.groups.size());
+  std::vector<const bspx::GroupTriangles*> known(X.groups.size(), nullptr);
+  if (cache)
+    for (size_t g = 0; g < X.groups.size(); ++g) {
+      keys[g] = group_key(X, X.groups[g]);
+      if (keys[g].empty()) continue;
+      const auto it = cache->impl->groups.find(keys[g]);
+      if (it != cache->impl->groups.end()) known[g] = &it->second;
+    }
+  std::vector<std::exception_ptr> errors(X.groups.size());
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (ng > 1 && threads > 1)
   for (long g = 0; g < ng; ++g) {
     try {
-      triangulate_group(I, X.pts, X.groups[size_t(g)]);
+      if (known[size_t(g)])
+        from_positions(*known[size_t(g)], X.groups[size_t(g)]);
+      else
+        triangulate_group(I, X.pts, X.groups[size_t(g)]);
     } catch (...) {
       errors[size_t(g)] = std::current_exception();
     }
   }
   for (const auto& e : errors)
     if (e) std::rethrow_exception(e);
+  if (cache)
+    for (size_t g = 0; g < X.groups.size(); ++g)
+      if (!known[g] && !keys[g].empty())
+        cache->impl->groups.emplace(std::move(keys[g]), to_positions(X.groups[g]));
   return X;
 }
 
