@@ -46,6 +46,27 @@ Vec3 newell_normal(const std::vector<Vec3>& p) {
 // ---------------------------------------------------------------------------
 // Plane table and vertices
 
+namespace {
+
+/// The point of three planes by Cramer's rule, in kernel K: a lazy Epeck
+/// construction of its own (CGAL::intersection of three planes goes through a
+/// line and gives up its interval approximation on most axis-parallel planes,
+/// then constructs exactly). Throws when the planes do not meet in one point.
+template <class K>
+struct PlanesPoint {
+  using result_type = typename K::Point_3;
+  result_type operator()(const typename K::Plane_3& a, const typename K::Plane_3& b,
+                         const typename K::Plane_3& c) const {
+    const auto p = CGAL::Intersections::internal::intersection_point(a, b, c, K());
+    if (!p) throw std::logic_error("Bsp: edge does not cross the cutting plane in one point");
+    return *p;
+  }
+};
+using ConstructPlanesPoint =
+    CGAL::Lazy_construction<K, PlanesPoint<K::Approximate_kernel>, PlanesPoint<K::Exact_kernel>>;
+
+}  // namespace
+
 int BspData::find_or_add_plane(const std::array<double, 4>& c, int* flip) {
   for (size_t j = 0; j < dplanes.size(); ++j) {
     const auto& q = dplanes[j];
@@ -120,10 +141,7 @@ int BspData::cut(int a, int b, int S, int E, int P) {
   if (it != triple_memo.end()) {
     id = it->second;
   } else {
-    const auto res = CGAL::intersection(planes[S], planes[E], planes[P]);
-    const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
-    if (!pt) throw std::logic_error("Bsp: edge does not cross the cutting plane in one point");
-    id = add_vertex(*pt, {S, E, P}, {S, E, P});
+    id = add_vertex(ConstructPlanesPoint()(planes[S], planes[E], planes[P]), {S, E, P}, {S, E, P});
     triple_memo.emplace(tkey, id);
   }
   add_common(verts[id]);
