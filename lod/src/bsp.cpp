@@ -110,7 +110,19 @@ int BspData::sign(int vi, int P) {
     if (q == P) return 0;
   for (const auto& qs : v.signs)
     if (qs.first == P) return qs.second;
-  const int s = int(planes[P].oriented_side(v.p));
+  // the interval approximations first; when they do not decide, the exact
+  // sign from integer determinants (CGAL's filtered predicate would construct
+  // the lazy point and plane exactly, each once)
+  int s;
+  {
+    CGAL::Protect_FPU_rounding<true> guard;
+    const auto& q = CGAL::approx(v.p);
+    const auto& h = CGAL::approx(planes[P]);
+    const CGAL::Uncertain<CGAL::Sign> u =
+        CGAL::sign(h.a() * q.x() + h.b() * q.y() + h.c() * q.z() + h.d());
+    s = CGAL::is_certain(u) ? int(CGAL::get_certain(u)) : 2;
+  }
+  if (s == 2) s = exact_sign_of(v.def, P);
   if (s == 0)
     v.planes.push_back(P);
   else
@@ -153,13 +165,15 @@ namespace {
 
 // GMP scratch integers for exact_coords_of (allocated once per thread, grown as needed).
 struct DetScratch {
-  mpz_t m[3][4], t, D, N[3];
+  mpz_t m[3][4], t, D, N[3], h[4], acc;
   DetScratch() {
     for (auto& r : m)
       for (auto& x : r) mpz_init2(x, 256);
     mpz_init2(t, 512);
     mpz_init2(D, 512);
     for (auto& x : N) mpz_init2(x, 512);
+    for (auto& x : h) mpz_init2(x, 256);
+    mpz_init2(acc, 1024);
   }
   ~DetScratch() {
     for (auto& r : m)
@@ -167,6 +181,8 @@ struct DetScratch {
     mpz_clear(t);
     mpz_clear(D);
     for (auto& x : N) mpz_clear(x);
+    for (auto& x : h) mpz_clear(x);
+    mpz_clear(acc);
   }
   DetScratch(const DetScratch&) = delete;
   DetScratch& operator=(const DetScratch&) = delete;
@@ -184,26 +200,58 @@ struct DetScratch {
 
 }  // namespace
 
-bool BspData::exact_coords_of(const std::array<int, 3>& def, FT out[3]) const {
-  using ET = FT::ET;
+namespace {
+
+/// The power of two that makes the coefficients of c integers, or false when
+/// they span too many binades to scale in double.
+bool integer_shift(const std::array<double, 4>& c, int& shift) {
+  int emin = INT32_MAX, emax = INT32_MIN;
+  for (double x : c) {
+    if (x == 0) continue;
+    int e;
+    std::frexp(x, &e);
+    emin = std::min(emin, e - 53);
+    emax = std::max(emax, e);
+  }
+  shift = emin == INT32_MAX ? 0 : -emin;
+  return emax == INT32_MIN || emax - emin <= 1000;
+}
+
+}  // namespace
+
+int BspData::exact_sign_of(const std::array<int, 3>& def, int P) const {
+  int shift[4];
+  bool ok = integer_shift(dplanes[P], shift[3]);
+  for (int r = 0; r < 3; ++r) ok = ok && integer_shift(dplanes[def[r]], shift[r]);
+  if (!ok) {  // cannot scale in double: exactly with CGAL
+    ET x[3];
+    if (!exact_coords_of(def, x)) throw std::logic_error("Bsp: vertex planes are not independent");
+    return int(planes[P].oriented_side(Point3(EK::Point_3(x[0], x[1], x[2]))));
+  }
+  thread_local DetScratch S;
+  for (int r = 0; r < 3; ++r)
+    for (int t = 0; t < 4; ++t) mpz_set_d(S.m[r][t], std::ldexp(dplanes[def[r]][t], shift[r]));
+  S.det3(S.D, 0, 1, 2);
+  if (mpz_sgn(S.D) == 0) throw std::logic_error("Bsp: vertex planes are not independent");
+  // x_k = -N_k / D; sign(h . (x, 1)) = sign(D) * sign(D h3 - sum_k h_k N_k)
+  S.det3(S.N[0], 3, 1, 2);
+  S.det3(S.N[1], 0, 3, 2);
+  S.det3(S.N[2], 0, 1, 3);
+  for (int t = 0; t < 4; ++t) mpz_set_d(S.h[t], std::ldexp(dplanes[P][t], shift[3]));
+  mpz_mul(S.acc, S.h[3], S.D);
+  for (int k = 0; k < 3; ++k) mpz_submul(S.acc, S.h[k], S.N[k]);
+  return mpz_sgn(S.acc) * mpz_sgn(S.D);
+}
+
+bool BspData::exact_coords_of(const std::array<int, 3>& def, ET out[3]) const {
   // scale each plane row by a power of two so that its coefficients are integers
   int shift[3];
   for (int r = 0; r < 3; ++r) {
-    const auto& c = dplanes[def[r]];
-    int emin = INT32_MAX, emax = INT32_MIN;
-    for (double x : c) {
-      if (x == 0) continue;
-      int e;
-      std::frexp(x, &e);
-      emin = std::min(emin, e - 53);
-      emax = std::max(emax, e);
-    }
-    shift[r] = -emin;
-    if (emax - emin > 1000) {  // cannot scale in double: let CGAL do it
+    if (!integer_shift(dplanes[def[r]], shift[r])) {  // cannot scale in double: let CGAL do it
       const auto res = CGAL::intersection(planes[def[0]], planes[def[1]], planes[def[2]]);
       const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
       if (!pt) return false;
-      for (int t = 0; t < 3; ++t) out[t] = FT(CGAL::exact(pt->cartesian(t)));
+      for (int t = 0; t < 3; ++t) out[t] = CGAL::exact(pt->cartesian(t));
       return true;
     }
   }
@@ -223,18 +271,12 @@ bool BspData::exact_coords_of(const std::array<int, 3>& def, FT out[3]) const {
       mpz_set(q.get_num_mpz_t(), S.N[k]);
       mpz_set(q.get_den_mpz_t(), S.D);
       q.canonicalize();
-      out[k] = FT(q);
+      out[k] = std::move(q);
     } else {
-      out[k] =
-          FT(ET(CGAL::Exact_integer(mpz_class(S.N[k]))) / ET(CGAL::Exact_integer(mpz_class(S.D))));
+      out[k] = ET(CGAL::Exact_integer(mpz_class(S.N[k]))) / ET(CGAL::Exact_integer(mpz_class(S.D)));
     }
   }
   return true;
-}
-
-void BspData::exact_coords(int vi, FT out[3]) const {
-  if (!exact_coords_of(verts[vi].def, out))
-    throw std::logic_error("Bsp: vertex planes are not independent");
 }
 
 // ---------------------------------------------------------------------------

@@ -62,8 +62,8 @@ using Crossings = std::unordered_map<uint64_t, EvPt>;
 /// per pass, or once per cache when there is one (the values are exact, so
 /// reusing them changes nothing).
 struct Coords {
-  std::unordered_map<int, std::array<FT, 3>> exact;
-  std::map<std::array<int, 3>, std::array<FT, 3>> crossing;
+  std::unordered_map<int, std::array<ET, 3>> exact;
+  std::map<std::array<int, 3>, std::array<ET, 3>> crossing;
   std::unordered_map<int, K::Point_2> proj[3];
 };
 
@@ -168,10 +168,10 @@ struct PlaneCtx {
     if (it != cross.end()) return it->second;
     EvPt e;
     e.def = {pl, E1, E2};
-    FT c[3];
+    ET c[3];
     if (!I.exact_coords_of(e.def, c))
       throw std::logic_error("Bsp::extract: crossing lines are parallel");
-    e.p = Point2(c[u], c[w]);
+    e.p = Point2(EK::Point_2(c[u], c[w]));
     return cross.emplace(key, std::move(e)).first->second;
   }
   int common_line_plane(const EvPt& a, const EvPt& b, const EvPt& c) const {
@@ -646,17 +646,18 @@ struct PassCoords {
   std::unordered_map<int, Point2> (&proj)[3];
   PassCoords(const BspData& bsp, ExtractCache* cache)
       : I(bsp), c(cache ? cache->impl->coords : own), proj(c.proj) {}
-  const std::array<FT, 3>& coords(int v) {
+  const std::array<ET, 3>& coords(int v) {
     auto it = c.exact.find(v);
     if (it != c.exact.end()) return it->second;
-    std::array<FT, 3> x;
-    I.exact_coords(v, x.data());
+    std::array<ET, 3> x;
+    if (!I.exact_coords_of(I.verts[v].def, x.data()))
+      throw std::logic_error("Bsp: vertex planes are not independent");
     return c.exact.emplace(v, std::move(x)).first->second;
   }
-  const std::array<FT, 3>& crossing(const std::array<int, 3>& def) {
+  const std::array<ET, 3>& crossing(const std::array<int, 3>& def) {
     auto it = c.crossing.find(def);
     if (it != c.crossing.end()) return it->second;
-    std::array<FT, 3> x;
+    std::array<ET, 3> x;
     if (!I.exact_coords_of(def, x.data())) throw std::logic_error("Bsp::extract: bad crossing");
     return c.crossing.emplace(def, std::move(x)).first->second;
   }
@@ -690,7 +691,7 @@ std::map<int, std::vector<F2>> gather_faces(const BspData& I, const std::vector<
         auto it = pc.proj[k].find(v);
         if (it == pc.proj[k].end()) {
           const auto& p = pc.coords(v);
-          it = pc.proj[k].emplace(v, Point2(p[u], p[w])).first;
+          it = pc.proj[k].emplace(v, Point2(EK::Point_2(p[u], p[w]))).first;
         }
         g.p.push_back(it->second);
         g.ap.emplace_back(I.verts[v].approx[u], I.verts[v].approx[w]);
@@ -799,12 +800,12 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
       auto it = by_vid.find(ep.vid);
       if (it != by_vid.end()) return it->second;
       const auto& c = pc.coords(ep.vid);
-      return by_vid.emplace(ep.vid, gid(Point3(c[0], c[1], c[2]))).first->second;
+      return by_vid.emplace(ep.vid, gid(Point3(EK::Point_3(c[0], c[1], c[2])))).first->second;
     }
     auto it = by_def.find(ep.def);
     if (it != by_def.end()) return it->second;
     const auto& c = pc.crossing(ep.def);
-    return by_def.emplace(ep.def, gid(Point3(c[0], c[1], c[2]))).first->second;
+    return by_def.emplace(ep.def, gid(Point3(EK::Point_3(c[0], c[1], c[2])))).first->second;
   };
   auto lifted = [&](const EvPt& ep) {
     const int id = lifted_id(ep);

@@ -28,6 +28,8 @@ namespace citylod::lod::detail::bspi {
 
 using K = CGAL::Exact_predicates_exact_constructions_kernel;
 using FT = K::FT;
+using ET = FT::ET;  ///< exact number type (GMP rationals)
+using EK = K::Exact_kernel;
 using Point3 = K::Point_3;
 using Plane3 = K::Plane_3;
 
@@ -93,13 +95,15 @@ struct BspData {
   /// if new; *flip = +1 if the table plane has the same orientation, -1 otherwise.
   int find_or_add_plane(const std::array<double, 4>& c, int* flip);
   int add_vertex(const Point3& p, const std::array<int, 3>& def, std::vector<int> on_planes);
-  /// Exact coordinates of vertex v (intersection of its 3 defining planes),
-  /// computed with integer determinants (fast; no lazy DAG).
-  void exact_coords(int v, FT out[3]) const;
-  /// Exact intersection point of 3 table planes (false if not independent).
-  bool exact_coords_of(const std::array<int, 3>& def, FT out[3]) const;
+  /// Exact intersection point of 3 table planes (false if not independent),
+  /// computed with integer determinants, as exact numbers (a lazy point made
+  /// of them has no DAG to evaluate).
+  bool exact_coords_of(const std::array<int, 3>& def, ET out[3]) const;
   /// Exact sign of vertex v w.r.t. table plane P (cached).
   int sign(int v, int P);
+  /// Exact sign of the point of the 3 table planes `def` w.r.t. table plane
+  /// P, with integer determinants.
+  int exact_sign_of(const std::array<int, 3>& def, int P) const;
   /// Vertex where edge (a,b) (on planes S and E) crosses P; memoized by (a,b,P)
   /// and by the plane triple.
   int cut(int a, int b, int S, int E, int P);

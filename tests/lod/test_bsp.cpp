@@ -1,5 +1,6 @@
 // Tests of the exact adaptive BSP and its watertight surface extraction.
 #include "bsp.hpp"
+#include "bsp_impl.hpp"
 
 #include <gtest/gtest.h>
 
@@ -766,4 +767,63 @@ TEST(Bsp, ExtractCacheGivesIdenticalSurfaces) {
     EXPECT_EQ(cached.inside, fresh.inside) << "step " << step;
     expect_good_surface(cached, "cached");
   }
+}
+
+// The exact side of a vertex (the point of three table planes) from integer
+// determinants is CGAL's exact predicate on the exactly constructed point: for
+// planes through the point (side 0), planes a few ulps off it, vertices of both
+// signs of the determinant, and coefficients that are not short binary fractions.
+TEST(Bsp, ExactSignOfVertexIsCgals) {
+  using citylod::lod::detail::bspi::BspData;
+  using K = citylod::lod::detail::bspi::K;
+  BspData D;
+  auto add = [&](std::array<double, 4> c) {
+    D.dplanes.push_back(c);
+    D.planes.emplace_back(K::FT(c[0]), K::FT(c[1]), K::FT(c[2]), K::FT(c[3]));
+    return int(D.dplanes.size()) - 1;
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  auto unit = [&](double d) {
+    Vec3 n(U(rng), U(rng), U(rng));
+    n.normalize();
+    return std::array<double, 4>{n.x(), n.y(), n.z(), d};
+  };
+  int zeros = 0, pos = 0, neg = 0;
+  for (int t = 0; t < 200; ++t) {
+    const std::array<int, 3> def{add(unit(U(rng) * 30)), add(unit(U(rng) * 30)),
+                                 add(unit(U(rng) * 30))};
+    const auto res = CGAL::intersection(D.planes[def[0]], D.planes[def[1]], D.planes[def[2]]);
+    const K::Point_3* p = res ? boost::get<K::Point_3>(&*res) : nullptr;
+    ASSERT_NE(p, nullptr);
+    // a plane through the point, exactly (a box plane through a rational
+    // coordinate cannot be written in doubles; a plane through a vertex of the
+    // three is: the first plane itself, reversed, and the sum of two)
+    std::vector<int> tests{def[0]};
+    const auto& c0 = D.dplanes[def[0]];
+    tests.push_back(add({-c0[0], -c0[1], -c0[2], -c0[3]}));
+    // planes near the point: its double approximation with offsets of a few ulps
+    const double x = CGAL::to_double(p->x()), y = CGAL::to_double(p->y()),
+                 z = CGAL::to_double(p->z());
+    auto ulps = [](double v, int k) {
+      for (; k > 0; --k) v = std::nextafter(v, 1e300);
+      for (; k < 0; ++k) v = std::nextafter(v, -1e300);
+      return v;
+    };
+    for (int k = -2; k <= 2; ++k) {
+      tests.push_back(add({0.6, 0.0, 0.8, ulps(-(0.6 * x + 0.8 * z), k)}));
+      tests.push_back(add({0.0, 1.0, 0.0, ulps(-y, k)}));
+      tests.push_back(add(unit(U(rng) * 30)));
+    }
+    for (int P : tests) {
+      const int want = int(D.planes[P].oriented_side(*p));
+      EXPECT_EQ(D.exact_sign_of(def, P), want) << "trial " << t << " plane " << P;
+      zeros += want == 0;
+      pos += want > 0;
+      neg += want < 0;
+    }
+  }
+  EXPECT_GE(zeros, 400);  // the defining plane and its reverse in every trial
+  EXPECT_GT(pos, 1000);
+  EXPECT_GT(neg, 1000);
 }
