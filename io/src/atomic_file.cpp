@@ -112,14 +112,17 @@ std::string staged_for(const std::string& name) {
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   in_place_ = in_staged_directory(path_);
   tmp_ = in_place_ ? path_ : staging_path(path_);
-  std::filesystem::path parent = std::filesystem::path(path_).parent_path();
-  if (!parent.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(parent, ec);
-    if (ec)
-      throw IoError(path_, "cannot create directory " + parent.string() + ": " + ec.message());
-  }
   file_ = std::fopen(tmp_.c_str(), "wb");
+  if (!file_ && errno == ENOENT) {  // the directory first (most files go to one that exists)
+    const std::filesystem::path parent = std::filesystem::path(path_).parent_path();
+    if (!parent.empty()) {
+      std::error_code ec;
+      std::filesystem::create_directories(parent, ec);
+      if (ec)
+        throw IoError(path_, "cannot create directory " + parent.string() + ": " + ec.message());
+    }
+    file_ = std::fopen(tmp_.c_str(), "wb");
+  }
   if (!file_) throw IoError(path_, std::string("cannot create file: ") + std::strerror(errno));
 }
 
