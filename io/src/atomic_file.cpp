@@ -183,23 +183,25 @@ bool recover_directory(const std::string& target) {
 }
 
 void publish_directory(const std::string& stage, const std::string& target) {
-  sync_file_system(stage);
-  const std::string parent = parent_of(target);
+  publish_directories({{stage, target}});
+}
+
+namespace {
+
+/// One pair of publish_directories after the sync: the switch; the parent's
+/// fsync is the caller's. Returns the directory to remove after that fsync
+/// ("" when none).
+std::string switch_directory(const std::string& stage, const std::string& target) {
   std::error_code ec;
   if (!fs::exists(target, ec)) {
     step("switch " + target);
     if (std::rename(stage.c_str(), target.c_str()) != 0)
       throw IoError(target, std::string("cannot publish: ") + std::strerror(errno));
-    fsync_path(parent, true);
-    return;
+    return "";
   }
   step("switch " + target);
-  if (::renameat2(AT_FDCWD, stage.c_str(), AT_FDCWD, target.c_str(), RENAME_EXCHANGE) == 0) {
-    fsync_path(parent, true);
-    step("clean " + stage);
-    fs::remove_all(stage, ec);  // the previous directory
-    return;
-  }
+  if (::renameat2(AT_FDCWD, stage.c_str(), AT_FDCWD, target.c_str(), RENAME_EXCHANGE) == 0)
+    return stage;  // the previous directory
   if (errno != EINVAL && errno != ENOSYS && errno != ENOTSUP)
     throw IoError(target, std::string("cannot publish: ") + std::strerror(errno));
   // No exchange on this file system: two renames (recover_directory() undoes a kill between).
@@ -213,9 +215,34 @@ void publish_directory(const std::string& stage, const std::string& target) {
     std::rename(old.c_str(), target.c_str());
     throw IoError(target, std::string("cannot publish: ") + std::strerror(err));
   }
-  fsync_path(parent, true);
-  step("clean " + old);
-  fs::remove_all(old, ec);
+  return old;
+}
+
+}  // namespace
+
+void publish_directories(const std::vector<std::pair<std::string, std::string>>& pairs) {
+  if (pairs.empty()) return;
+  sync_file_system(pairs.front().first);
+  std::vector<std::string> parents, old;
+  for (const auto& [stage, target] : pairs) {
+    const std::string parent = parent_of(target);
+    if (std::find(parents.begin(), parents.end(), parent) == parents.end())
+      parents.push_back(parent);
+    std::string gone;
+    try {
+      gone = switch_directory(stage, target);
+    } catch (...) {
+      for (const auto& p : parents) fsync_path(p, true);  // those switched before stay durable
+      throw;
+    }
+    if (!gone.empty()) old.push_back(std::move(gone));
+  }
+  for (const auto& p : parents) fsync_path(p, true);
+  std::error_code ec;
+  for (const auto& d : old) {
+    step("clean " + d);
+    fs::remove_all(d, ec);
+  }
 }
 
 }  // namespace citylod::io

@@ -178,6 +178,34 @@ TEST(AtomicFile, InAStagedDirectoryWritesInPlaceAndPublishesWhole) {
   EXPECT_FALSE(std::filesystem::exists(stage));
 }
 
+// Several staged directories published at once (one syncfs): a new target
+// and one that replaces a previous directory, each whole, the stages gone.
+TEST(AtomicFile, DirectoriesPublishedTogether) {
+  const std::string root = tmp_path("pub_together");
+  std::filesystem::remove_all(root);
+  const std::string t1 = root + "/one", t2 = root + "/two";
+  atomic_write_file(t2 + "/old.txt", "previous");
+  const std::string s1 = citylod::io::staging_path(t1), s2 = citylod::io::staging_path(t2);
+  atomic_write_file(s1 + "/a.txt", "first");
+  atomic_write_file(s2 + "/b.txt", "second");
+  citylod::io::publish_directories({{s1, t1}, {s2, t2}});
+  EXPECT_EQ(read_file(t1 + "/a.txt"), "first");
+  EXPECT_EQ(read_file(t2 + "/b.txt"), "second");
+  EXPECT_FALSE(std::filesystem::exists(t2 + "/old.txt"));
+  EXPECT_FALSE(std::filesystem::exists(s1));
+  EXPECT_FALSE(std::filesystem::exists(s2));
+  // a stage that does not exist fails with its target named; the pair before it is published
+  const std::string s3 = citylod::io::staging_path(root + "/three");
+  atomic_write_file(s3 + "/c.txt", "third");
+  try {
+    citylod::io::publish_directories({{s3, root + "/three"}, {root + "/nowhere", root + "/four"}});
+    ADD_FAILURE() << "no error for a missing stage";
+  } catch (const citylod::io::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("four"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(read_file(root + "/three/c.txt"), "third");
+}
+
 TEST(PointSet, AppendKeepsOnlyCommonAttributes) {
   PointSet a = sample_points(true, true, false);
   PointSet b = sample_points(true, false, false);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "citylod/io/atomic_file.hpp"
+#include "citylod/io/error.hpp"
 #include "citylod/io/hash.hpp"
 #include "citylod/io/json_file.hpp"
 #include "citylod/tiler/bridge.hpp"
@@ -170,17 +172,89 @@ void run_parallel(std::size_t n, int threads, const std::function<void(std::size
   if (error) std::rethrow_exception(error);
 }
 
+/// A building's ".running" marker: a plain file, neither synced nor renamed
+/// into place. It matters only to the supervisor after a crash of this
+/// process, whose writes the page cache keeps; a run cut by a power loss
+/// leaves markers that the next run removes (remove_stale_stages).
+void write_marker(const std::string& path, const std::string& id) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  f << id << '\n';
+  f.close();
+  if (!f) throw io::IoError(path, "cannot write the building's marker");
+}
+
 struct Outcome {
   Status status = Status::failed;
   std::string reason;
 };
 
-/// Runs one building and publishes WORK/lod/<id>/ atomically (its report.json
-/// carries the resume key). Never throws for the building's own trouble: the
-/// reason goes into the report. A building that crashed an earlier run is not
-/// retried: it gets the engine's fallback model.
+/// Publishes the buildings' staged directories on a thread of its own, in
+/// batches (io::publish_directories: one syncfs for all that are waiting), so
+/// that the workers do not wait for the disk (a building's syncfs and fsyncs
+/// took ~2 ms, 15 % of the LOD stage of median City3D buildings on 2
+/// threads). A building killed before its publication is computed again by
+/// the next run, as one killed before its rename was. finish() waits for all
+/// and rethrows the first failure.
+class Publisher {
+ public:
+  Publisher() : thread_([this] { loop(); }) {}
+  ~Publisher() {  // an exception left the stage: what is queued is still published
+    stop();
+    if (thread_.joinable()) thread_.join();
+  }
+  Publisher(const Publisher&) = delete;
+  Publisher& operator=(const Publisher&) = delete;
+
+  void publish(std::string stage, std::string dir) {
+    std::lock_guard<std::mutex> lock(mu_);
+    queue_.emplace_back(std::move(stage), std::move(dir));
+    cv_.notify_one();
+  }
+  void finish() {
+    stop();
+    thread_.join();
+    if (error_) std::rethrow_exception(error_);
+  }
+
+ private:
+  void stop() {
+    std::lock_guard<std::mutex> lock(mu_);
+    done_ = true;
+    cv_.notify_one();
+  }
+  void loop() {
+    std::unique_lock<std::mutex> lock(mu_);
+    for (;;) {
+      cv_.wait(lock, [this] { return done_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // done
+      std::vector<std::pair<std::string, std::string>> batch;
+      batch.swap(queue_);
+      lock.unlock();
+      try {
+        io::publish_directories(batch);
+      } catch (...) {
+        lock.lock();
+        if (!error_) error_ = std::current_exception();
+        continue;
+      }
+      lock.lock();
+    }
+  }
+
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<std::pair<std::string, std::string>> queue_;
+  bool done_ = false;
+  std::exception_ptr error_;
+  std::thread thread_;  ///< last: started once the members above exist
+};
+
+/// Runs one building and has WORK/lod/<id>/ published atomically by
+/// `publisher` (its report.json carries the resume key). Never throws for the building's own
+/// trouble: the reason goes into the report. A building that crashed an earlier run is not retried:
+/// it gets the engine's fallback model.
 Outcome process_building(const std::string& work, const ChunkRecord& c, const lod::LodParams& p,
-                         const std::string& key, bool crashed_before) {
+                         const std::string& key, bool crashed_before, Publisher& publisher) {
   const std::string dir = lod_dir(work, c.id);
   const std::string stage = io::staging_path(dir);
   fs::remove_all(stage);
@@ -203,7 +277,7 @@ Outcome process_building(const std::string& work, const ChunkRecord& c, const lo
     const io::StagedDirectory staged(stage);  // its files written in place, synced once below
     write_lod_output(stage, r, p, 1, chunk_path(work, c.id), {0, 0, 0}, false, c.id, key);
   }
-  io::publish_directory(stage, dir);
+  publisher.publish(stage, dir);
   return {r.status, r.reason};
 }
 
@@ -291,6 +365,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
 
   std::mutex mu;
   size_t done = 0;
+  Publisher publisher;
   auto run_one = [&](const LodStagePlan::Item& item) {
     const ChunkRecord& c = *item.chunk;
     const std::string running = lod_marker_path(o.work_dir, c.id, LodMarker::running),
@@ -308,9 +383,9 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
       }
     } else {
       const bool crashed_before = fs::exists(crashed);
-      io::atomic_write_file(running, c.id + "\n");
+      write_marker(running, c.id);
       fs::remove(suspect);
-      out = process_building(o.work_dir, c, item.params, item.key, crashed_before);
+      out = process_building(o.work_dir, c, item.params, item.key, crashed_before, publisher);
       fs::remove(running);
       fs::remove(crashed);
     }
@@ -332,6 +407,7 @@ LodStageReport run_lod_stage(const LodStageOptions& o, const ProgressFn& progres
       rest.push_back(&it);
   }
   run_parallel(rest.size(), std::max(1, o.threads), [&](std::size_t i) { run_one(*rest[i]); });
+  publisher.finish();
   notify_finished(progress, "lod");
   std::sort(rep.problems.begin(), rep.problems.end());
   rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
