@@ -113,16 +113,14 @@ int BspData::sign(int vi, int P) {
   // the interval approximations first; when they do not decide, the exact
   // sign from integer determinants (CGAL's filtered predicate would construct
   // the lazy point and plane exactly, each once)
-  int s;
+  CGAL::Uncertain<CGAL::Sign> u;
   {
     CGAL::Protect_FPU_rounding<true> guard;
     const auto& q = CGAL::approx(v.p);
     const auto& h = CGAL::approx(planes[P]);
-    const CGAL::Uncertain<CGAL::Sign> u =
-        CGAL::sign(h.a() * q.x() + h.b() * q.y() + h.c() * q.z() + h.d());
-    s = CGAL::is_certain(u) ? int(CGAL::get_certain(u)) : 2;
+    u = CGAL::sign(h.a() * q.x() + h.b() * q.y() + h.c() * q.z() + h.d());
   }
-  if (s == 2) s = exact_sign_of(v.def, P);
+  const int s = CGAL::is_certain(u) ? int(CGAL::get_certain(u)) : exact_sign_of(v.def, P);
   if (s == 0)
     v.planes.push_back(P);
   else
@@ -163,7 +161,23 @@ int BspData::cut(int a, int b, int S, int E, int P) {
 
 namespace {
 
-// GMP scratch integers for exact_coords_of (allocated once per thread, grown as needed).
+/// The power of two that makes the coefficients of c integers, or false when
+/// they span too many binades to scale in double.
+bool integer_shift(const std::array<double, 4>& c, int& shift) {
+  int emin = INT32_MAX, emax = INT32_MIN;
+  for (double x : c) {
+    if (x == 0) continue;
+    int e;
+    std::frexp(x, &e);
+    emin = std::min(emin, e - 53);
+    emax = std::max(emax, e);
+  }
+  shift = emin == INT32_MAX ? 0 : -emin;
+  return emax == INT32_MIN || emax - emin <= 1000;
+}
+
+/// GMP scratch integers for the point of three table planes by Cramer's rule
+/// on their coefficients scaled to integers (allocated once per thread).
 struct DetScratch {
   mpz_t m[3][4], t, D, N[3], h[4], acc;
   DetScratch() {
@@ -196,74 +210,50 @@ struct DetScratch {
       mpz_addmul(out, m[p[0]][c0], t);
     }
   }
+  /// The point of the planes `def` (A x = -d) as x_k = -N_k / D; false when
+  /// the coefficients cannot be scaled to integers in double (then nothing is
+  /// set). Throws when the planes are not independent (D = 0).
+  bool solve(const std::vector<std::array<double, 4>>& dplanes, const std::array<int, 3>& def) {
+    int shift[3];
+    for (int r = 0; r < 3; ++r)
+      if (!integer_shift(dplanes[def[r]], shift[r])) return false;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) mpz_set_d(m[r][c], std::ldexp(dplanes[def[r]][c], shift[r]));
+    det3(D, 0, 1, 2);
+    if (mpz_sgn(D) == 0) throw std::logic_error("Bsp: vertex planes are not independent");
+    det3(N[0], 3, 1, 2);  // det(A with column k replaced by d)
+    det3(N[1], 0, 3, 2);
+    det3(N[2], 0, 1, 3);
+    return true;
+  }
 };
 
 }  // namespace
 
-namespace {
-
-/// The power of two that makes the coefficients of c integers, or false when
-/// they span too many binades to scale in double.
-bool integer_shift(const std::array<double, 4>& c, int& shift) {
-  int emin = INT32_MAX, emax = INT32_MIN;
-  for (double x : c) {
-    if (x == 0) continue;
-    int e;
-    std::frexp(x, &e);
-    emin = std::min(emin, e - 53);
-    emax = std::max(emax, e);
-  }
-  shift = emin == INT32_MAX ? 0 : -emin;
-  return emax == INT32_MIN || emax - emin <= 1000;
-}
-
-}  // namespace
-
 int BspData::exact_sign_of(const std::array<int, 3>& def, int P) const {
-  int shift[4];
-  bool ok = integer_shift(dplanes[P], shift[3]);
-  for (int r = 0; r < 3; ++r) ok = ok && integer_shift(dplanes[def[r]], shift[r]);
-  if (!ok) {  // cannot scale in double: exactly with CGAL
+  thread_local DetScratch S;
+  int shift;
+  if (!integer_shift(dplanes[P], shift) || !S.solve(dplanes, def)) {  // exactly with CGAL
     ET x[3];
-    if (!exact_coords_of(def, x)) throw std::logic_error("Bsp: vertex planes are not independent");
+    exact_coords_of(def, x);
     return int(planes[P].oriented_side(Point3(EK::Point_3(x[0], x[1], x[2]))));
   }
-  thread_local DetScratch S;
-  for (int r = 0; r < 3; ++r)
-    for (int t = 0; t < 4; ++t) mpz_set_d(S.m[r][t], std::ldexp(dplanes[def[r]][t], shift[r]));
-  S.det3(S.D, 0, 1, 2);
-  if (mpz_sgn(S.D) == 0) throw std::logic_error("Bsp: vertex planes are not independent");
-  // x_k = -N_k / D; sign(h . (x, 1)) = sign(D) * sign(D h3 - sum_k h_k N_k)
-  S.det3(S.N[0], 3, 1, 2);
-  S.det3(S.N[1], 0, 3, 2);
-  S.det3(S.N[2], 0, 1, 3);
-  for (int t = 0; t < 4; ++t) mpz_set_d(S.h[t], std::ldexp(dplanes[P][t], shift[3]));
+  // sign(h . (x, 1)) with x_k = -N_k / D: sign(D) * sign(D h3 - sum_k h_k N_k)
+  for (int c = 0; c < 4; ++c) mpz_set_d(S.h[c], std::ldexp(dplanes[P][c], shift));
   mpz_mul(S.acc, S.h[3], S.D);
   for (int k = 0; k < 3; ++k) mpz_submul(S.acc, S.h[k], S.N[k]);
   return mpz_sgn(S.acc) * mpz_sgn(S.D);
 }
 
-bool BspData::exact_coords_of(const std::array<int, 3>& def, ET out[3]) const {
-  // scale each plane row by a power of two so that its coefficients are integers
-  int shift[3];
-  for (int r = 0; r < 3; ++r) {
-    if (!integer_shift(dplanes[def[r]], shift[r])) {  // cannot scale in double: let CGAL do it
-      const auto res = CGAL::intersection(planes[def[0]], planes[def[1]], planes[def[2]]);
-      const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
-      if (!pt) return false;
-      for (int t = 0; t < 3; ++t) out[t] = CGAL::exact(pt->cartesian(t));
-      return true;
-    }
-  }
+void BspData::exact_coords_of(const std::array<int, 3>& def, ET out[3]) const {
   thread_local DetScratch S;
-  for (int r = 0; r < 3; ++r)
-    for (int t = 0; t < 4; ++t) mpz_set_d(S.m[r][t], std::ldexp(dplanes[def[r]][t], shift[r]));
-  S.det3(S.D, 0, 1, 2);
-  if (mpz_sgn(S.D) == 0) return false;
-  // A x = -d  =>  x_k = -det(A with column k replaced by d) / det(A)
-  S.det3(S.N[0], 3, 1, 2);
-  S.det3(S.N[1], 0, 3, 2);
-  S.det3(S.N[2], 0, 1, 3);
+  if (!S.solve(dplanes, def)) {  // cannot scale in double: let CGAL do it
+    const auto res = CGAL::intersection(planes[def[0]], planes[def[1]], planes[def[2]]);
+    const Point3* pt = res ? boost::get<Point3>(&*res) : nullptr;
+    if (!pt) throw std::logic_error("Bsp: vertex planes are not independent");
+    for (int t = 0; t < 3; ++t) out[t] = CGAL::exact(pt->cartesian(t));
+    return;
+  }
   for (int k = 0; k < 3; ++k) {
     mpz_neg(S.N[k], S.N[k]);
     if constexpr (std::is_same_v<ET, mpq_class>) {
@@ -276,7 +266,6 @@ bool BspData::exact_coords_of(const std::array<int, 3>& def, ET out[3]) const {
       out[k] = ET(CGAL::Exact_integer(mpz_class(S.N[k]))) / ET(CGAL::Exact_integer(mpz_class(S.D)));
     }
   }
-  return true;
 }
 
 // ---------------------------------------------------------------------------

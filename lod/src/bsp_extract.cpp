@@ -169,8 +169,7 @@ struct PlaneCtx {
     EvPt e;
     e.def = {pl, E1, E2};
     ET c[3];
-    if (!I.exact_coords_of(e.def, c))
-      throw std::logic_error("Bsp::extract: crossing lines are parallel");
+    I.exact_coords_of(e.def, c);
     e.p = Point2(EK::Point_2(c[u], c[w]));
     return cross.emplace(key, std::move(e)).first->second;
   }
@@ -650,15 +649,14 @@ struct PassCoords {
     auto it = c.exact.find(v);
     if (it != c.exact.end()) return it->second;
     std::array<ET, 3> x;
-    if (!I.exact_coords_of(I.verts[v].def, x.data()))
-      throw std::logic_error("Bsp: vertex planes are not independent");
+    I.exact_coords_of(I.verts[v].def, x.data());
     return c.exact.emplace(v, std::move(x)).first->second;
   }
   const std::array<ET, 3>& crossing(const std::array<int, 3>& def) {
     auto it = c.crossing.find(def);
     if (it != c.crossing.end()) return it->second;
     std::array<ET, 3> x;
-    if (!I.exact_coords_of(def, x.data())) throw std::logic_error("Bsp::extract: bad crossing");
+    I.exact_coords_of(def, x.data());
     return c.crossing.emplace(def, std::move(x)).first->second;
   }
 };
@@ -726,11 +724,14 @@ std::vector<F2> cancel_opposite_faces(std::vector<F2>& faces0) {
 void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, ExtractCache* cache,
                    PassCoords& pc, int threads, Extracted& X) {
   Welder<Point3, 3> weld;
-  auto gid = [&](const Point3& p) {
+  // the id of an exact point: a point welded before, or a new one with the
+  // identity of the plane point it is lifted from
+  auto gid = [&](const Point3& p, const EvPt& from) {
     int id = weld.find(p, X.pts);
     if (id >= 0) return id;
     id = int(X.pts.size());
     X.pts.push_back(p);
+    X.ident.push_back(point_identity(from));
     weld.add(p, id);
     return id;
   };
@@ -800,17 +801,12 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
       auto it = by_vid.find(ep.vid);
       if (it != by_vid.end()) return it->second;
       const auto& c = pc.coords(ep.vid);
-      return by_vid.emplace(ep.vid, gid(Point3(EK::Point_3(c[0], c[1], c[2])))).first->second;
+      return by_vid.emplace(ep.vid, gid(Point3(EK::Point_3(c[0], c[1], c[2])), ep)).first->second;
     }
     auto it = by_def.find(ep.def);
     if (it != by_def.end()) return it->second;
     const auto& c = pc.crossing(ep.def);
-    return by_def.emplace(ep.def, gid(Point3(EK::Point_3(c[0], c[1], c[2])))).first->second;
-  };
-  auto lifted = [&](const EvPt& ep) {
-    const int id = lifted_id(ep);
-    if (X.ident.size() < X.pts.size()) X.ident.push_back(point_identity(ep));
-    return id;
+    return by_def.emplace(ep.def, gid(Point3(EK::Point_3(c[0], c[1], c[2])), ep)).first->second;
   };
   for (const auto& [pl, regions] : planes) {
     const auto& loops = regions->loops;
@@ -826,7 +822,7 @@ void plane_regions(const BspData& I, std::map<int, std::vector<F2>>& byplane, Ex
         std::vector<int> ids;
         ids.reserve(loop.size());
         for (const EvPt& ep : loop) {
-          const int id = lifted(ep);
+          const int id = lifted_id(ep);
           G.p2.emplace(id, ep.p);
           ids.push_back(id);
         }

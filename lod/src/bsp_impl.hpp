@@ -95,10 +95,10 @@ struct BspData {
   /// if new; *flip = +1 if the table plane has the same orientation, -1 otherwise.
   int find_or_add_plane(const std::array<double, 4>& c, int* flip);
   int add_vertex(const Point3& p, const std::array<int, 3>& def, std::vector<int> on_planes);
-  /// Exact intersection point of 3 table planes (false if not independent),
-  /// computed with integer determinants, as exact numbers (a lazy point made
-  /// of them has no DAG to evaluate).
-  bool exact_coords_of(const std::array<int, 3>& def, ET out[3]) const;
+  /// Exact intersection point of 3 table planes, computed with integer
+  /// determinants, as exact numbers (a lazy point made of them has no DAG to
+  /// evaluate). Throws std::logic_error when the planes are not independent.
+  void exact_coords_of(const std::array<int, 3>& def, ET out[3]) const;
   /// Exact sign of vertex v w.r.t. table plane P (cached).
   int sign(int v, int P);
   /// Exact sign of the point of the 3 table planes `def` w.r.t. table plane
