@@ -472,17 +472,18 @@ int main(int argc, char** argv) {
     if (!csv_path.empty()) {
       std::ofstream csv(csv_path);
       csv << "id,points,finest_tri,finest_rmse,finest_roof,finest_valid,coarsest_tri,coarsest_rmse,"
-             "coarsest_roof";
+             "coarsest_roof,finest_overfill";
       for (int k = 0; k < 3; ++k)
         csv << ",rf" << kLods[k] << "_tri,rf" << kLods[k] << "_rmse,rf" << kLods[k] << "_roof";
-      csv << ",ms_ours,ms_roofer,status\n";
+      csv << ",rf2.2_overfill,ms_ours,ms_roofer,status\n";
       for (const auto& b : rows) {
         csv << b.id << ',' << b.points << ',' << b.finest.triangles << ',' << b.finest.rmse << ','
             << b.finest.roof << ',' << b.finest.valid << ',' << b.coarsest.triangles << ','
-            << b.coarsest.rmse << ',' << b.coarsest.roof;
+            << b.coarsest.rmse << ',' << b.coarsest.roof << ',' << b.finest.overfill;
         for (int k = 0; k < 3; ++k)
           csv << ',' << b.rf[k].triangles << ',' << b.rf[k].rmse << ',' << b.rf[k].roof;
-        csv << ',' << b.t_ours_ms << ',' << b.t_roofer_ms << ',' << b.status << '\n';
+        csv << ',' << b.rf[2].overfill << ',' << b.t_ours_ms << ',' << b.t_roofer_ms << ','
+            << b.status << '\n';
       }
     }
   } catch (const std::exception& e) {
