@@ -396,14 +396,95 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
   return m;
 }
 
+double roof_rmse(const TriangleMesh& m, const Samples& s, const HeightField& hf,
+                 double edge_margin) {
+  const std::vector<Vec2>& ring = hf.outline();
+  const double g = hf.ground();
+  // The model's non-vertical triangles above the ground, bucketed on a grid.
+  struct Tri {
+    Vec3 a, b, c;
+  };
+  std::vector<Tri> tris;
+  Vec2 lo(std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity());
+  Vec2 hi = -lo;
+  for (const auto& t : m.triangles) {
+    const Vec3 &a = m.vertices[size_t(t[0])], &b = m.vertices[size_t(t[1])],
+               &c = m.vertices[size_t(t[2])];
+    if (std::abs((b - a).cross(c - a).z()) < 1e-9) continue;    // vertical
+    if (std::max({a.z(), b.z(), c.z()}) <= g + 1e-6) continue;  // the base
+    tris.push_back({a, b, c});
+    for (const Vec3* v : {&a, &b, &c}) {
+      lo = lo.cwiseMin(Vec2(v->x(), v->y()));
+      hi = hi.cwiseMax(Vec2(v->x(), v->y()));
+    }
+  }
+  const double cell = 1.0;
+  const int nx = tris.empty() ? 1 : std::max(1, int((hi.x() - lo.x()) / cell) + 1);
+  const int ny = tris.empty() ? 1 : std::max(1, int((hi.y() - lo.y()) / cell) + 1);
+  const auto cx = [&](double x) { return std::clamp(int((x - lo.x()) / cell), 0, nx - 1); };
+  const auto cy = [&](double y) { return std::clamp(int((y - lo.y()) / cell), 0, ny - 1); };
+  std::vector<std::vector<int>> grid(size_t(nx) * size_t(ny));
+  for (size_t i = 0; i < tris.size(); ++i) {
+    const Tri& t = tris[i];
+    const int x0 = cx(std::min({t.a.x(), t.b.x(), t.c.x()}));
+    const int x1 = cx(std::max({t.a.x(), t.b.x(), t.c.x()}));
+    const int y0 = cy(std::min({t.a.y(), t.b.y(), t.c.y()}));
+    const int y1 = cy(std::max({t.a.y(), t.b.y(), t.c.y()}));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) grid[size_t(y) * size_t(nx) + size_t(x)].push_back(int(i));
+  }
+  // Small outlines: the margin at most half the depth of the deepest sample.
+  std::vector<double> depth(s.points.size(), -1.0);
+  double deepest = 0;
+  for (std::size_t k = 0; k < s.points.size(); ++k) {
+    const Vec2 xy(s.points[k].x(), s.points[k].y());
+    if (!poly2::point_in_ring(ring, xy)) continue;
+    depth[k] = poly2::distance_to_ring(ring, xy);
+    deepest = std::max(deepest, depth[k]);
+  }
+  const double margin = std::min(edge_margin, 0.5 * deepest);
+  double sum = 0;
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < s.points.size(); ++k) {
+    const Vec3& q = s.points[k];
+    const Vec2 xy(q.x(), q.y());
+    if (depth[k] <= margin) continue;
+    double top = g;
+    if (!tris.empty() && xy.x() >= lo.x() && xy.x() <= hi.x() && xy.y() >= lo.y() &&
+        xy.y() <= hi.y())
+      for (int i : grid[size_t(cy(xy.y())) * size_t(nx) + size_t(cx(xy.x()))]) {
+        const Tri& t = tris[size_t(i)];
+        const double d =
+            (t.b.y() - t.c.y()) * (t.a.x() - t.c.x()) + (t.c.x() - t.b.x()) * (t.a.y() - t.c.y());
+        const double l1 =
+            ((t.b.y() - t.c.y()) * (xy.x() - t.c.x()) + (t.c.x() - t.b.x()) * (xy.y() - t.c.y())) /
+            d;
+        const double l2 =
+            ((t.c.y() - t.a.y()) * (xy.x() - t.c.x()) + (t.a.x() - t.c.x()) * (xy.y() - t.c.y())) /
+            d;
+        const double l3 = 1 - l1 - l2;
+        if (l1 < -1e-9 || l2 < -1e-9 || l3 < -1e-9) continue;
+        top = std::max(top, l1 * t.a.z() + l2 * t.b.z() + l3 * t.c.z());
+      }
+    sum += (q.z() - top) * (q.z() - top);
+    ++n;
+  }
+  return n == 0 ? std::numeric_limits<double>::quiet_NaN() : std::sqrt(sum / double(n));
+}
+
 int drop_worse_than_block(std::vector<LodModel>& models) {
   if (models.size() < 2) return 0;
-  const double block_e2 = models.front().e2;
+  const LodModel& block = models.front();
+  // Worse: a larger e2, and a roof fit that is not better (or not measured).
+  const auto worse = [&](const LodModel& m) {
+    const bool roof_better =
+        m.roof_rmse >= 0 && block.roof_rmse >= 0 && m.roof_rmse <= block.roof_rmse;
+    return m.e2 > block.e2 && !roof_better;
+  };
   const auto finest = std::find_if(models.rbegin(), models.rend() - 1,
                                    [](const LodModel& m) { return m.kind == ModelKind::anchor; });
-  if (finest == models.rend() - 1 || finest->e2 <= block_e2) return 0;  // the tree did its work
-  const auto end = std::remove_if(models.begin() + 1, models.end(),
-                                  [&](const LodModel& m) { return m.e2 > block_e2; });
+  if (finest == models.rend() - 1 || !worse(*finest)) return 0;  // the tree did its work
+  const auto end = std::remove_if(models.begin() + 1, models.end(), worse);
   const int n = int(models.end() - end);
   models.erase(end, models.end());
   for (size_t i = 0; i < models.size(); ++i) models[i].step = int(i);

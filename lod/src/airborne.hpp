@@ -77,13 +77,23 @@ std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
 /// quantiles). Throws LodError when the outline is not a simple polygon.
 LodModel block_model(const Samples& s, const HeightField& hf);
 
-/// (ours) When the finest anchor after the block (models[0]) fits the points
-/// worse than the block (larger e2) -- an IO-View core that missed part of the
-/// building, cells under a roof without returns --, the models after the block
-/// that fit worse than it are dropped (more triangles and a larger error help
-/// no level) and the finest is the best anchor left, or the block. A chain
-/// whose finest beats the block is kept whole. Steps are renumbered. Returns
-/// how many were dropped.
+/// (ours) Airborne LiDAR sees a building from above: the RMSE of the
+/// vertical residuals of the samples inside the outline and farther than
+/// `edge_margin` from it, each to the highest surface of `m` over it (the
+/// ground where the model has none). NaN when no sample is that far inside.
+double roof_rmse(const TriangleMesh& m, const Samples& s, const HeightField& hf,
+                 double edge_margin);
+
+/// (ours) When the finest anchor after the block (models[0]) fits worse than
+/// the block -- a larger e2 and a roof fit (roof_rmse) that is not better, or
+/// not measured -- (an IO-View core that missed part of the building, cells
+/// under a roof without returns), the models after the block that fit worse
+/// in the same sense are dropped (more triangles and a larger error help no
+/// level) and the finest is the best anchor left, or the block. A chain whose
+/// finest beats the block either way is kept whole: a tall block can have the
+/// smaller e2 only because walls lie near returns under its top (a low shed
+/// under a tree), while the scanner saw a lower roof. Steps are renumbered.
+/// Returns how many were dropped.
 int drop_worse_than_block(std::vector<LodModel>& models);
 
 }  // namespace citylod::lod::detail

@@ -585,6 +585,11 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
       st.notes.push_back(std::string("no LoD1.2 block: ") + e.what());
     }
   }
+  if (st.block_first)  // the roof as the scanner saw it, to judge the chain against the block
+    for (auto& m : R.models) {
+      const double fit = roof_rmse(m.mesh, samples, *heights, P.airborne.roof_edge_margin);
+      m.roof_rmse = std::isnan(fit) ? -1.0 : fit;
+    }
   if (split_interpolations > 0)
     st.notes.push_back(std::to_string(split_interpolations) +
                        " interpolation models in more than one solid left out");
@@ -775,7 +780,8 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params,
     R.stats.worse_than_block = drop_worse_than_block(R.models);
     if (R.stats.worse_than_block > 0)
       R.stats.notes.push_back(std::to_string(R.stats.worse_than_block) +
-                              " models fitting the points worse than the LoD1.2 block dropped");
+                              " models fitting the points and the roof worse than the LoD1.2 "
+                              "block dropped");
   }
   R.stats.t_metrics = seconds_since(tm);
   // The input's colours (if any) onto the faces of every model.

@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 
 using namespace citylod;
@@ -151,12 +152,14 @@ TEST(Airborne, PointsUnderTheGroundAreAFallbackThatSaysSo) {
 }
 
 namespace {
-/// Models with these e2 values and kinds ('a' anchor, 'i' interpolation), steps
-/// 0.., levels 10..
-std::vector<LodModel> chain(const std::vector<double>& e2, const std::string& kinds) {
+/// Models with these e2 values, roof fits (-1: not measured) and kinds ('a'
+/// anchor, 'i' interpolation), steps 0.., levels 10..
+std::vector<LodModel> chain(const std::vector<double>& e2, const std::vector<double>& roof,
+                            const std::string& kinds) {
   std::vector<LodModel> models(e2.size());
   for (std::size_t i = 0; i < e2.size(); ++i) {
     models[i].e2 = e2[i];
+    models[i].roof_rmse = roof.empty() ? -1.0 : roof[i];
     models[i].kind = kinds[i] == 'a' ? ModelKind::anchor : ModelKind::interpolation;
     models[i].step = int(i);
     models[i].level = 10 + int(i);
@@ -165,12 +168,13 @@ std::vector<LodModel> chain(const std::vector<double>& e2, const std::string& ki
 }
 }  // namespace
 
-// A chain whose finest anchor fits worse than the block keeps, after the
-// block, only the models that fit at least as well as it; their steps follow
-// on. A chain whose finest beats the block is kept whole.
+// A chain whose finest anchor fits worse than the block (a larger e2, a roof
+// fit not better or not measured) keeps, after the block, only the models
+// that fit at least as well as it one way or the other; their steps follow
+// on. A chain whose finest beats the block either way is kept whole.
 TEST(Airborne, ModelsWorseThanTheBlockAreDroppedWhenTheFinestIs) {
   // block, worse, better, equal, better (interpolation), worse (the finest anchor)
-  auto models = chain({1.0, 3.0, 0.8, 1.0, 0.5, 1.2}, "aiaiia");
+  auto models = chain({1.0, 3.0, 0.8, 1.0, 0.5, 1.2}, {}, "aiaiia");
   EXPECT_EQ(detail::drop_worse_than_block(models), 2);
   ASSERT_EQ(models.size(), 4u);
   const int levels[4] = {10, 12, 13, 14};
@@ -178,14 +182,70 @@ TEST(Airborne, ModelsWorseThanTheBlockAreDroppedWhenTheFinestIs) {
     EXPECT_EQ(models[size_t(i)].step, i);
     EXPECT_EQ(models[size_t(i)].level, levels[i]);
   }
-  auto good = chain({1.0, 3.0, 0.8, 1.5, 0.9}, "aiaia");  // the finest anchor beats the block
+  auto good = chain({1.0, 3.0, 0.8, 1.5, 0.9}, {}, "aiaia");  // the finest anchor beats the block
   EXPECT_EQ(detail::drop_worse_than_block(good), 0);
   EXPECT_EQ(good.size(), 5u);
-  auto lone = chain({1.0, 3.0}, "ai");  // no anchor after the block: nothing to judge
+  // A tall block near every return has the smaller e2, the finest the better
+  // roof fit: kept whole.
+  auto shed = chain({1.0, 3.0, 2.0}, {15.0, 9.0, 0.5}, "aia");
+  EXPECT_EQ(detail::drop_worse_than_block(shed), 0);
+  EXPECT_EQ(shed.size(), 3u);
+  // Worse both ways: dropped, but not the model whose roof fit is better.
+  auto both = chain({1.0, 3.0, 2.0}, {0.5, 0.4, 0.9}, "aia");
+  EXPECT_EQ(detail::drop_worse_than_block(both), 1);
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_EQ(both[1].level, 11);
+  auto lone = chain({1.0, 3.0}, {}, "ai");  // no anchor after the block: nothing to judge
   EXPECT_EQ(detail::drop_worse_than_block(lone), 0);
-  auto alone = chain({1.0}, "a");
+  auto alone = chain({1.0}, {}, "a");
   EXPECT_EQ(detail::drop_worse_than_block(alone), 0);
   EXPECT_EQ(alone.size(), 1u);
+}
+
+// The roof fit of a model is vertical, as airborne LiDAR sees it: a return
+// under the roof counts its height under the model's top, however near a
+// wall it lies; returns within the edge margin of the outline do not count.
+TEST(Airborne, RoofFitIsVerticalUnderTheModelsTop) {
+  // Outline 10 x 8 m, ground z = 0; a block 6 m high (two triangles a face).
+  const std::vector<Vec2> outline = {Vec2(0, 0), Vec2(10, 0), Vec2(10, 8), Vec2(0, 8)};
+  TriangleMesh block;
+  for (double z : {0.0, 6.0})
+    for (const Vec2& q : outline) block.vertices.emplace_back(q.x(), q.y(), z);
+  block.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}};  // base, top
+  for (int i = 0; i < 4; ++i) {
+    const int j = (i + 1) % 4;
+    block.triangles.push_back({i, j, 4 + j});
+    block.triangles.push_back({i, 4 + j, 4 + i});
+  }
+  detail::Samples s;
+  auto add = [&](double x, double y, double z) {
+    s.points.emplace_back(x, y, z);
+    s.normals.push_back(Vec3::UnitZ());
+  };
+  add(5, 4, 6.0);    // on the top: 0
+  add(2, 2, 3.0);    // 3 m under the top, 2 m from a wall: 3
+  add(7, 4, 10.0);   // 4 m over the top: 4
+  add(0.5, 4, 0.0);  // within 1.5 m of the outline: not counted
+  add(12, 4, 1.0);   // outside: not counted
+  AirborneParams ap;
+  const detail::HeightField hf(s, outline, 0.0, ap);
+  EXPECT_NEAR(detail::roof_rmse(block, s, hf, 1.5), std::sqrt((0.0 + 9.0 + 16.0) / 3.0), 1e-12);
+  // A lower roof part the model leaves out: its top there is the ground.
+  TriangleMesh half = block;
+  half.triangles.clear();
+  half.vertices = {Vec3(0, 0, 0), Vec3(6, 0, 0), Vec3(6, 8, 0), Vec3(0, 8, 0),
+                   Vec3(0, 0, 6), Vec3(6, 0, 6), Vec3(6, 8, 6), Vec3(0, 8, 6)};
+  half.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}};
+  // (5, 4) and (2, 2) under its top; (7, 4) over the ground: 10 m.
+  EXPECT_NEAR(detail::roof_rmse(half, s, hf, 1.5), std::sqrt((0.0 + 9.0 + 100.0) / 3.0), 1e-12);
+  // A margin deeper than half the deepest sample (4 m in) is halved to 2 m:
+  // (2, 2) lies on it and no longer counts.
+  EXPECT_NEAR(detail::roof_rmse(block, s, hf, 5.0), std::sqrt((0.0 + 16.0) / 2.0), 1e-12);
+  // No sample inside: nothing to judge.
+  detail::Samples outside;
+  outside.points = {Vec3(20, 20, 3)};
+  outside.normals = {Vec3::UnitZ()};
+  EXPECT_TRUE(std::isnan(detail::roof_rmse(block, outside, hf, 1.5)));
 }
 
 TEST(Airborne, ModeOffKeepsThePapersLabelling) {

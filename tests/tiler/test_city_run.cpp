@@ -109,8 +109,10 @@ TEST(WorkDir, LodReportRoundTripsByteForByte) {
   m.file = "model_00_anchor_L0.ply";
   m.e1 = 1.5;
   m.e2 = 0.1234567890123;
+  m.roof_rmse_m = 0.25;  // airborne only: written when measured
   r.models = {m};
   m.file = "model_01_interpolation_L1.ply";
+  m.roof_rmse_m = -1;
   m.kind = ModelKind::interpolation;
   m.step = 1;
   r.models_all = std::vector<ModelRecord>{r.models[0], m};
@@ -128,6 +130,9 @@ TEST(WorkDir, LodReportRoundTripsByteForByte) {
   EXPECT_EQ(back.models.size(), 1u);
   ASSERT_TRUE(back.models_all.has_value());
   EXPECT_EQ(back.all_models()[1].kind, ModelKind::interpolation);
+  EXPECT_EQ(back.models[0].roof_rmse_m, 0.25);
+  EXPECT_EQ(back.all_models()[1].roof_rmse_m, -1);
+  EXPECT_EQ(bytes.find("\"roof_rmse_m\"", bytes.find("model_01")), std::string::npos) << bytes;
   EXPECT_FALSE(write_lod_report(path, back));  // same bytes: not rewritten
   EXPECT_EQ(slurp(path), bytes);
 }

@@ -216,6 +216,7 @@ LodReport make_lod_report(const lod::LodResult& r, const lod::LodParams& p,
     e.e1 = m.e1;
     e.e2 = m.e2;
     e.hausdorff_m = m.hausdorff;
+    e.roof_rmse_m = m.roof_rmse;
     e.polygon_colours = m.polygon_colours;
     e.triangle_colours = m.triangle_colours;
     j.models.push_back(e);

@@ -309,6 +309,7 @@ json to_json(const ModelRecord& m) {
             {"e1", m.e1},
             {"e2", m.e2},
             {"hausdorff_m", m.hausdorff_m}};
+  if (m.roof_rmse_m >= 0) j["roof_rmse_m"] = m.roof_rmse_m;
   if (!m.polygon_colours.empty() || !m.triangle_colours.empty())
     j["colours"] = {{"polygons", colour_runs(m.polygon_colours)},
                     {"triangles", colour_runs(m.triangle_colours)}};
@@ -344,6 +345,7 @@ std::vector<ModelRecord> models_from_json(const json& arr, const std::string& pa
     r.e1 = number(m, "e1", -1);
     r.e2 = number(m, "e2", -1);
     r.hausdorff_m = number(m, "hausdorff_m", -1);
+    r.roof_rmse_m = number(m, "roof_rmse_m", -1);
     if (m.contains("colours")) {
       const json& c = m["colours"];
       const std::string what = "model " + std::to_string(index);

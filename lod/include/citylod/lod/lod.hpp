@@ -51,6 +51,10 @@ struct LodModel {
   double e1 = -1.0;         ///< RMSE model->input, % of bbox diagonal (-1: not computed)
   double e2 = -1.0;         ///< RMSE input->model, % of bbox diagonal
   double hausdorff = -1.0;  ///< m, symmetric Hausdorff estimate (sampled)
+  /// m, airborne LiDAR (a roof height field): RMSE of the vertical residuals
+  /// of the returns well inside the outline to the model's top, as the scanner
+  /// saw the roof (-1: not measured)
+  double roof_rmse = -1.0;
   /// Input colours on the faces (colour.cpp: colour_model): one per face of
   /// `polygons` and one per triangle of `mesh`, or both empty (input without
   /// colours). a = 0: no colour (too few points on the face's plane region).

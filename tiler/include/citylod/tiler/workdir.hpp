@@ -213,6 +213,7 @@ struct ModelRecord {
   double volume = 0;
   double e1 = -1, e2 = -1;  ///< % of the bbox diagonal (-1: not computed)
   double hausdorff_m = -1;
+  double roof_rmse_m = -1;  ///< airborne LiDAR: the vertical roof fit (m); -1: not measured
   /// Input colours (lod colour.cpp): one per face of the OBJ's polygons and one
   /// per triangle of the PLY, in file order, or both empty (no colours). In
   /// report.json as runs: "colours": {"polygons": [[n, r, g, b] | [n], ...],
