@@ -396,10 +396,25 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
   return m;
 }
 
-double roof_rmse(const TriangleMesh& m, const Samples& s, const HeightField& hf,
-                 double edge_margin) {
+std::vector<Vec3> roof_returns(const Samples& s, const HeightField& hf, double edge_margin) {
   const std::vector<Vec2>& ring = hf.outline();
-  const double g = hf.ground();
+  std::vector<double> depth(s.points.size(), -1.0);
+  double deepest = 0;
+  for (std::size_t k = 0; k < s.points.size(); ++k) {
+    const Vec2 xy(s.points[k].x(), s.points[k].y());
+    if (!poly2::point_in_ring(ring, xy)) continue;
+    depth[k] = poly2::distance_to_ring(ring, xy);
+    deepest = std::max(deepest, depth[k]);
+  }
+  const double margin = std::min(edge_margin, 0.5 * deepest);
+  std::vector<Vec3> out;
+  for (std::size_t k = 0; k < s.points.size(); ++k)
+    if (depth[k] > margin) out.push_back(s.points[k]);
+  return out;
+}
+
+double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double ground) {
+  const double g = ground;
   // The model's non-vertical triangles above the ground, bucketed on a grid.
   struct Tri {
     Vec3 a, b, c;
@@ -433,22 +448,10 @@ double roof_rmse(const TriangleMesh& m, const Samples& s, const HeightField& hf,
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) grid[size_t(y) * size_t(nx) + size_t(x)].push_back(int(i));
   }
-  // Small outlines: the margin at most half the depth of the deepest sample.
-  std::vector<double> depth(s.points.size(), -1.0);
-  double deepest = 0;
-  for (std::size_t k = 0; k < s.points.size(); ++k) {
-    const Vec2 xy(s.points[k].x(), s.points[k].y());
-    if (!poly2::point_in_ring(ring, xy)) continue;
-    depth[k] = poly2::distance_to_ring(ring, xy);
-    deepest = std::max(deepest, depth[k]);
-  }
-  const double margin = std::min(edge_margin, 0.5 * deepest);
   double sum = 0;
   std::size_t n = 0;
-  for (std::size_t k = 0; k < s.points.size(); ++k) {
-    const Vec3& q = s.points[k];
+  for (const Vec3& q : returns) {
     const Vec2 xy(q.x(), q.y());
-    if (depth[k] <= margin) continue;
     double top = g;
     if (!tris.empty() && xy.x() >= lo.x() && xy.x() <= hi.x() && xy.y() >= lo.y() &&
         xy.y() <= hi.y())

@@ -77,12 +77,16 @@ std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
 /// quantiles). Throws LodError when the outline is not a simple polygon.
 LodModel block_model(const Samples& s, const HeightField& hf);
 
-/// (ours) Airborne LiDAR sees a building from above: the RMSE of the
-/// vertical residuals of the samples inside the outline and farther than
-/// `edge_margin` from it, each to the highest surface of `m` over it (the
-/// ground where the model has none). NaN when no sample is that far inside.
-double roof_rmse(const TriangleMesh& m, const Samples& s, const HeightField& hf,
-                 double edge_margin);
+/// (ours) Airborne LiDAR sees a building from above. The returns a roof fit
+/// measures: the samples inside the outline and farther than `edge_margin`
+/// from it (at most half the depth of the deepest sample, so that a small
+/// outline keeps some).
+std::vector<Vec3> roof_returns(const Samples& s, const HeightField& hf, double edge_margin);
+
+/// The RMSE of the vertical residuals of `returns` each to the highest
+/// surface of `m` over it above `ground` (the ground where the model has
+/// none). NaN when there is no return.
+double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double ground);
 
 /// (ours) When the finest anchor after the block (models[0]) fits worse than
 /// the block -- a larger e2 and a roof fit (roof_rmse) that is not better, or

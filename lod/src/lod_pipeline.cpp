@@ -585,11 +585,13 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
       st.notes.push_back(std::string("no LoD1.2 block: ") + e.what());
     }
   }
-  if (st.block_first)  // the roof as the scanner saw it, to judge the chain against the block
+  if (st.block_first) {  // the roof as the scanner saw it, to judge the chain against the block
+    const std::vector<Vec3> returns = roof_returns(samples, *heights, P.airborne.roof_edge_margin);
     for (auto& m : R.models) {
-      const double fit = roof_rmse(m.mesh, samples, *heights, P.airborne.roof_edge_margin);
+      const double fit = roof_rmse(m.mesh, returns, heights->ground());
       m.roof_rmse = std::isnan(fit) ? -1.0 : fit;
     }
+  }
   if (split_interpolations > 0)
     st.notes.push_back(std::to_string(split_interpolations) +
                        " interpolation models in more than one solid left out");
@@ -617,8 +619,9 @@ void baseline_step(const std::vector<Primitive>& prims, bool airborne, const Sce
 /// (ours) Airborne LiDAR whose IO-View labels no cell inside or finds too few
 /// principal primitives still has its roof height field: its model is then the
 /// outline extruded to the height that fits the points best (the LoD1.2 block),
-/// a fallback with the IO-View's reason, rather than a prism to the points' 95th
-/// percentile. False when no block can be made (no roof point).
+/// a fallback with the IO-View's reason and the height the returns reach, rather
+/// than a prism to the points' 95th percentile. False when no block can be made
+/// (no roof point).
 bool block_fallback(const Samples& samples, const HeightField& hf, const std::string& why,
                     LodResult& R) {
   try {
@@ -628,7 +631,11 @@ bool block_fallback(const Samples& samples, const HeightField& hf, const std::st
     return false;
   }
   R.status = Status::fallback;
-  R.reason = why;
+  // The object's height names the common case: a patch at the ground's level.
+  char height[96];
+  std::snprintf(height, sizeof height,
+                " (the returns reach %.2f m above the ground, 98th percentile)", hf.top());
+  R.reason = why + height;
   R.stats.notes.push_back(
       "fallback model: the outline extruded to its best-fitting height (LoD1.2 block)");
   return true;

@@ -229,23 +229,22 @@ TEST(Airborne, RoofFitIsVerticalUnderTheModelsTop) {
   add(12, 4, 1.0);   // outside: not counted
   AirborneParams ap;
   const detail::HeightField hf(s, outline, 0.0, ap);
-  EXPECT_NEAR(detail::roof_rmse(block, s, hf, 1.5), std::sqrt((0.0 + 9.0 + 16.0) / 3.0), 1e-12);
+  const std::vector<Vec3> returns = detail::roof_returns(s, hf, 1.5);
+  EXPECT_EQ(returns.size(), 3u);
+  EXPECT_NEAR(detail::roof_rmse(block, returns, 0.0), std::sqrt((0.0 + 9.0 + 16.0) / 3.0), 1e-12);
   // A lower roof part the model leaves out: its top there is the ground.
-  TriangleMesh half = block;
-  half.triangles.clear();
+  TriangleMesh half;
   half.vertices = {Vec3(0, 0, 0), Vec3(6, 0, 0), Vec3(6, 8, 0), Vec3(0, 8, 0),
                    Vec3(0, 0, 6), Vec3(6, 0, 6), Vec3(6, 8, 6), Vec3(0, 8, 6)};
   half.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}};
   // (5, 4) and (2, 2) under its top; (7, 4) over the ground: 10 m.
-  EXPECT_NEAR(detail::roof_rmse(half, s, hf, 1.5), std::sqrt((0.0 + 9.0 + 100.0) / 3.0), 1e-12);
+  EXPECT_NEAR(detail::roof_rmse(half, returns, 0.0), std::sqrt((0.0 + 9.0 + 100.0) / 3.0), 1e-12);
   // A margin deeper than half the deepest sample (4 m in) is halved to 2 m:
   // (2, 2) lies on it and no longer counts.
-  EXPECT_NEAR(detail::roof_rmse(block, s, hf, 5.0), std::sqrt((0.0 + 16.0) / 2.0), 1e-12);
-  // No sample inside: nothing to judge.
-  detail::Samples outside;
-  outside.points = {Vec3(20, 20, 3)};
-  outside.normals = {Vec3::UnitZ()};
-  EXPECT_TRUE(std::isnan(detail::roof_rmse(block, outside, hf, 1.5)));
+  const std::vector<Vec3> deep = detail::roof_returns(s, hf, 5.0);
+  EXPECT_NEAR(detail::roof_rmse(block, deep, 0.0), std::sqrt((0.0 + 16.0) / 2.0), 1e-12);
+  // No return: nothing to judge.
+  EXPECT_TRUE(std::isnan(detail::roof_rmse(block, {}, 0.0)));
 }
 
 TEST(Airborne, ModeOffKeepsThePapersLabelling) {
