@@ -345,6 +345,34 @@ TEST(CityJson, TriangulatedAndInvalidModelsAreRecorded) {
   EXPECT_EQ(tri["geometry"][0]["lod"], "2.2");
 }
 
+// A model that is a sliver (a prism on a triangle 5 mm across, as the LOD stage
+// made for City3D's scene building 07000) has no face left once welded: it is
+// left out with a warning naming it, the building keeps its other model, and
+// the writer does not fail (it read past the per-face errors of no face).
+TEST(CityJson, ASliverModelIsLeftOut) {
+  Scene s = make_scene("sliver");
+  const double x = 85000, y = 447500;
+  const std::vector<Vec3d> tri = {
+      {x + 0.918, y + 1.841, 0}, {x + 0.9222, y + 1.8437, 0}, {x + 0.922, y + 1.844, 0}};
+  std::vector<Vec3d> v = tri;
+  for (const auto& q : tri) v.push_back({q[0], q[1], 1.85});
+  const PolygonMesh sliver =
+      convex(v, {{0, 1, 2}, {3, 4, 5}, {0, 1, 4, 3}, {1, 2, 5, 4}, {2, 0, 3, 5}});
+  add_building(s, "b-sliver",
+               {{box(x - 2, y - 2, 0, x + 4, y + 4, 3), "anchor", 0, 0, true},
+                {sliver, "anchor", 1, 1, true}});
+  const std::string out = s.work + "/sliver.city.jsonl";
+  const tiler::CityJsonStats st = tiler::write_cityjson(s.work, out, opts());
+  EXPECT_EQ(st.buildings, 1u);
+  EXPECT_EQ(st.invalid, 1u);
+  ASSERT_EQ(st.warnings.size(), 1u);
+  EXPECT_NE(st.warnings[0].find("b-sliver model step 1 left out"), std::string::npos)
+      << st.warnings[0];
+  const CjSeq seq = read_cjseq(out);
+  for (const auto& p : cjseq_problems(seq)) ADD_FAILURE() << p;
+  EXPECT_EQ(object_of(seq.features[0])["attributes"]["citylod_models"].size(), 1u);
+}
+
 /// The first geometry of a file's first feature as a validator reads it
 /// (vertices relative to translate, every shell).
 lod::PolygonSolid written_solid(const CjSeq& seq) {

@@ -262,6 +262,22 @@ lod::PolygonSolid as_solid(const std::vector<std::vector<std::uint32_t>>& faces,
   return lod::make_solid(std::move(vertices), rings, shell_of);
 }
 
+/// Each face's error alone (lod::face_errors, 0: none) in the order of
+/// `faces`, whichever shell it went to; empty for no face.
+std::vector<int> errors_by_face(const std::vector<std::vector<std::uint32_t>>& faces,
+                                const VertexPool& pool, const lod::Tolerances& tol) {
+  std::vector<int> shell_of;
+  const lod::PolygonSolid solid = as_solid(faces, pool, &shell_of);
+  const std::vector<std::vector<int>> per_shell = lod::face_errors(solid, tol);
+  std::vector<std::size_t> next(per_shell.size(), 0);  // faces keep their order in a shell
+  std::vector<int> out(faces.size(), 0);
+  for (std::size_t j = 0; j < faces.size(); ++j) {
+    const auto sh = std::size_t(shell_of[j]);
+    out[j] = per_shell[sh][next[sh]++];
+  }
+  return out;
+}
+
 /// The shells of `s` as one-shell solids, when it has more than one and each
 /// encloses a positive volume: a model in pieces apart from each other (the
 /// LOD stage keeps such an anchor, "a multi-solid"), which a validator reads
@@ -618,6 +634,11 @@ std::string make_solid(Geometry& g, const PooledModel& m, const std::vector<int>
       welded.sem.push_back(sem[fi]);
       welded.col.push_back(coloured ? face_colours[fi] : io::Rgba8{0, 0, 0, 0});
     }
+    if (welded.faces.empty()) {  // a sliver: every face collapsed within r
+      if (why.empty())
+        why = "no face is left welded within " + std::to_string(r * opt.scale) + " m";
+      continue;
+    }
     const lod::PolygonSolid solid = as_solid(welded.faces, pool);
     lod::SolidCheck c;
     int verdict = solid_verdict(solid, tol, c);
@@ -627,7 +648,7 @@ std::string make_solid(Geometry& g, const PooledModel& m, const std::vector<int>
     }
     if (why.empty()) why = "polygons: error " + std::to_string(c.error) + " (" + c.detail + ")";
     // the polygons rejected alone, as their (welded) triangles
-    const std::vector<int> errs = lod::face_errors(solid, tol)[0];
+    const std::vector<int> errs = errors_by_face(welded.faces, pool, tol);
     if (!m.tris_of_ring.empty() && std::any_of(errs.begin(), errs.end(), [](int e) { return e; })) {
       Faces mixed = polygons_and_triangles(welded, errs, from, m, to, pool);
       verdict = solid_verdict(as_solid(mixed.faces, pool), tol, c);
