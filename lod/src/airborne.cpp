@@ -449,10 +449,10 @@ double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double
       for (int x = x0; x <= x1; ++x) grid[size_t(y) * size_t(nx) + size_t(x)].push_back(int(i));
   }
   double sum = 0;
-  std::size_t n = 0;
+  std::size_t n = 0, covered = 0;
   for (const Vec3& q : returns) {
     const Vec2 xy(q.x(), q.y());
-    double top = g;
+    double top = -std::numeric_limits<double>::infinity();
     if (!tris.empty() && xy.x() >= lo.x() && xy.x() <= hi.x() && xy.y() >= lo.y() &&
         xy.y() <= hi.y())
       for (int i : grid[size_t(cy(xy.y())) * size_t(nx) + size_t(cx(xy.x()))]) {
@@ -469,10 +469,15 @@ double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double
         if (l1 < -1e-9 || l2 < -1e-9 || l3 < -1e-9) continue;
         top = std::max(top, l1 * t.a.z() + l2 * t.b.z() + l3 * t.c.z());
       }
+    covered += top > g;
+    top = std::max(top, g);
     sum += (q.z() - top) * (q.z() - top);
     ++n;
   }
-  return n == 0 ? std::numeric_limits<double>::quiet_NaN() : std::sqrt(sum / double(n));
+  // A model over less than half of the returns (a fragment, a sliver) is
+  // not judged by them: over a patch at the ground's level it would fit.
+  if (2 * covered < n || n == 0) return std::numeric_limits<double>::quiet_NaN();
+  return std::sqrt(sum / double(n));
 }
 
 int drop_worse_than_block(std::vector<LodModel>& models) {

@@ -85,7 +85,8 @@ std::vector<Vec3> roof_returns(const Samples& s, const HeightField& hf, double e
 
 /// The RMSE of the vertical residuals of `returns` each to the highest
 /// surface of `m` over it above `ground` (the ground where the model has
-/// none). NaN when there is no return.
+/// none). NaN when the model lies over fewer than half of the returns (a
+/// fragment, a sliver: over a patch at the ground's level it would fit).
 double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double ground);
 
 /// (ours) When the finest anchor after the block (models[0]) fits worse than

@@ -243,6 +243,13 @@ TEST(Airborne, RoofFitIsVerticalUnderTheModelsTop) {
   // (2, 2) lies on it and no longer counts.
   const std::vector<Vec3> deep = detail::roof_returns(s, hf, 5.0);
   EXPECT_NEAR(detail::roof_rmse(block, deep, 0.0), std::sqrt((0.0 + 16.0) / 2.0), 1e-12);
+  // A model over fewer than half of the returns is not judged: a fragment
+  // over (2, 2) alone would fit returns at the ground's level.
+  TriangleMesh corner;
+  corner.vertices = {Vec3(0, 0, 0), Vec3(3, 0, 0), Vec3(3, 3, 0), Vec3(0, 3, 0),
+                     Vec3(0, 0, 3), Vec3(3, 0, 3), Vec3(3, 3, 3), Vec3(0, 3, 3)};
+  corner.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}};
+  EXPECT_TRUE(std::isnan(detail::roof_rmse(corner, returns, 0.0)));
   // No return: nothing to judge.
   EXPECT_TRUE(std::isnan(detail::roof_rmse(block, {}, 0.0)));
 }
