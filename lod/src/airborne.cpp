@@ -125,8 +125,15 @@ HeightField::HeightField(const Samples& s, const std::vector<Vec2>& outline, dou
     if (b.empty()) continue;
     std::nth_element(b.begin(), b.begin() + long(b.size() / 2), b.end());
     z_[i] = b[b.size() / 2];  // median: a few outliers do not lift the roof
-    ++with_data_;
   }
+  int cells_in = 0, seen = 0;
+  for (int iy = 0; iy < ny_; ++iy)
+    for (int ix = 0; ix < nx_; ++ix)
+      if (inside(lo_ + Vec2((ix + 0.5) * cell_, (iy + 0.5) * cell_))) {
+        ++cells_in;
+        seen += !std::isnan(z_[size_t(iy) * size_t(nx_) + size_t(ix)]);
+      }
+  roof_coverage_ = cells_in > 0 ? double(seen) / cells_in : 0.0;
   // Gaps (dark roofs, occlusion) filled from their neighbours, one ring of
   // cells per pass, up to the fill radius.
   const int passes = int(std::ceil(p.fill_radius / cell_));

@@ -39,13 +39,16 @@ class HeightField {
   /// under 1 m.
   double roof_floor() const { return roof_floor_; }
   const std::vector<Vec2>& outline() const { return outline_; }
-  int cells_with_data() const { return with_data_; }
+  /// Share of the outline's cells (centre inside) holding roof returns,
+  /// before gaps are filled: what the scan saw of the roof.
+  double roof_coverage() const { return roof_coverage_; }
 
  private:
   std::vector<Vec2> outline_;
   double ground_ = 0, top_ = 0, roof_floor_ = 0.5, cell_ = 0.5;
   Vec2 lo_ = Vec2::Zero();
-  int nx_ = 0, ny_ = 0, with_data_ = 0;
+  int nx_ = 0, ny_ = 0;
+  double roof_coverage_ = 0;
   std::vector<float> z_;  ///< NaN = no data
 };
 

@@ -631,10 +631,13 @@ bool block_fallback(const Samples& samples, const HeightField& hf, const std::st
     return false;
   }
   R.status = Status::fallback;
-  // The object's height names the common case: a patch at the ground's level.
-  char height[96];
+  // What the scan saw names the common cases: a patch at the ground's level,
+  // a roof the scan hardly reached.
+  char height[128];
   std::snprintf(height, sizeof height,
-                " (the returns reach %.2f m above the ground, 98th percentile)", hf.top());
+                " (the returns reach %.2f m above the ground, 98th percentile; roof returns "
+                "over %.0f %% of the outline)",
+                hf.top(), 100.0 * hf.roof_coverage());
   R.reason = why + height;
   R.stats.notes.push_back(
       "fallback model: the outline extruded to its best-fitting height (LoD1.2 block)");

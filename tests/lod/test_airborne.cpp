@@ -229,6 +229,9 @@ TEST(Airborne, RoofFitIsVerticalUnderTheModelsTop) {
   add(12, 4, 1.0);   // outside: not counted
   AirborneParams ap;
   const detail::HeightField hf(s, outline, 0.0, ap);
+  // Roof returns in 3 of the outline's 20 x 16 cells of 0.5 m (the return
+  // at the ground is not roof, the one outside not in the outline).
+  EXPECT_DOUBLE_EQ(hf.roof_coverage(), 3.0 / 320.0);
   const std::vector<Vec3> returns = detail::roof_returns(s, hf, 1.5);
   EXPECT_EQ(returns.size(), 3u);
   EXPECT_NEAR(detail::roof_rmse(block, returns, 0.0), std::sqrt((0.0 + 9.0 + 16.0) / 3.0), 1e-12);
