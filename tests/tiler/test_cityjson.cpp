@@ -151,7 +151,8 @@ void add_building(Scene& s, const std::string& id, const std::vector<Model>& mod
     mr.level = m.level;
     mr.step = m.step;
     mr.triangles = tri.triangles.size();
-    mr.e2 = 1.5 - 0.5 * m.step;  // % of the 20 m diagonal
+    mr.e2 = 1.5 - 0.5 * m.step;                  // % of the 20 m diagonal
+    if (m.step == 1) mr.roof_rmse_m = 0.123456;  // measured on airborne LiDAR only
     rep.models.push_back(mr);
   }
   tiler::write_lod_report(tiler::lod_report_path(s.work, id), rep);
@@ -227,6 +228,8 @@ TEST(CityJson, StructureFollowsTheSpecification) {
   EXPECT_EQ(whole[1].second["level"], 1);
   EXPECT_EQ(whole[1].second["step"], 1);
   EXPECT_NEAR(whole[1].second["rmse_m"].get<double>(), 0.01 * 20, 1e-9);  // e2 1 % of 20 m
+  EXPECT_NEAR(whole[1].second["roof_rmse_m"].get<double>(), 0.1235, 1e-12);  // to 0.1 mm
+  EXPECT_FALSE(whole[0].second.contains("roof_rmse_m"));
   for (const auto& [g, m] : whole) {
     EXPECT_EQ(m["lod"], g["lod"]);
     EXPECT_TRUE(m["valid"].get<bool>());

@@ -707,6 +707,7 @@ Geometry model_geometry(const Chain& ch, std::size_t gi, const ChunkRecord& rec,
   a["step"] = mr.step;
   const double rmse = ch.report.rmse_m(k);
   a["rmse_m"] = rmse >= 0 ? json(round_to(rmse, 1e-4)) : json(nullptr);
+  if (mr.roof_rmse_m >= 0) a["roof_rmse_m"] = round_to(mr.roof_rmse_m, 1e-4);
   if (!ch.error_m.empty()) a["error_m"] = round_to(ch.error_m[gi], 1e-4);
   a["triangles"] = mesh.triangles.size();
   a["polygons"] = g.faces.size();
