@@ -227,7 +227,7 @@ TEST(CityJson, StructureFollowsTheSpecification) {
   EXPECT_EQ(whole[1].second["kind"], "interpolation");
   EXPECT_EQ(whole[1].second["level"], 1);
   EXPECT_EQ(whole[1].second["step"], 1);
-  EXPECT_NEAR(whole[1].second["rmse_m"].get<double>(), 0.01 * 20, 1e-9);  // e2 1 % of 20 m
+  EXPECT_NEAR(whole[1].second["rmse_m"].get<double>(), 0.01 * 20, 1e-9);     // e2 1 % of 20 m
   EXPECT_NEAR(whole[1].second["roof_rmse_m"].get<double>(), 0.1235, 1e-12);  // to 0.1 mm
   EXPECT_FALSE(whole[0].second.contains("roof_rmse_m"));
   for (const auto& [g, m] : whole) {
