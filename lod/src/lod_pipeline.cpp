@@ -619,9 +619,9 @@ void baseline_step(const std::vector<Primitive>& prims, bool airborne, const Sce
 /// (ours) Airborne LiDAR whose IO-View labels no cell inside or finds too few
 /// principal primitives still has its roof height field: its model is then the
 /// outline extruded to the height that fits the points best (the LoD1.2 block),
-/// a fallback with the IO-View's reason and the height the returns reach, rather
-/// than a prism to the points' 95th percentile. False when no block can be made
-/// (no roof point).
+/// a fallback with the IO-View's reason, the height the returns reach and the
+/// share of the outline with roof returns, rather than a prism to the points'
+/// 95th percentile. False when no block can be made (no roof point).
 bool block_fallback(const Samples& samples, const HeightField& hf, const std::string& why,
                     LodResult& R) {
   try {

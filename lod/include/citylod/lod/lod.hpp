@@ -94,7 +94,8 @@ struct LodStats {
   int baseline_cuts_to_finest = 0;
   double bbox_diagonal = 0.0;
   bool block_first = false;  ///< model 0 is the airborne LoD1.2 block
-  int worse_than_block = 0;  ///< models dropped: they fit the points worse than the block
+  int worse_than_block =
+      0;  ///< models dropped: they fit the points and the roof worse than the block
   double t_samples = 0.0;    ///< s, the input's oriented samples (normals estimated)
   double t_ioview = 0.0;     ///< T1 s (incl. plane detection)
   double t_tree = 0.0;       ///< T2 s
