@@ -440,7 +440,11 @@ double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double
       hi = hi.cwiseMax(Vec2(v->x(), v->y()));
     }
   }
-  const double cell = 1.0;
+  // 1 m cells, coarser over a model larger than 256 x 256 m (at most ~65,536
+  // cells): the grid only finds the triangles over a point.
+  const double cell =
+      tris.empty() ? 1.0
+                   : std::max(1.0, std::sqrt((hi.x() - lo.x()) * (hi.y() - lo.y()) / 65536.0));
   const int nx = tris.empty() ? 1 : std::max(1, int((hi.x() - lo.x()) / cell) + 1);
   const int ny = tris.empty() ? 1 : std::max(1, int((hi.y() - lo.y()) / cell) + 1);
   const auto cx = [&](double x) { return std::clamp(int((x - lo.x()) / cell), 0, nx - 1); };
