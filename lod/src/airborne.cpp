@@ -345,20 +345,30 @@ std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
   return out;
 }
 
-LodModel block_model(const Samples& s, const HeightField& hf) {
-  const std::vector<Vec2> ring = clean_ring(hf.outline());
+OutlineDistances outline_distances(const Samples& s, const HeightField& hf) {
+  OutlineDistances od;
+  od.ring = clean_ring(hf.outline());
+  if (od.ring.size() < 3) return od;
+  od.dist.reserve(s.points.size());
+  od.inside.reserve(s.points.size());
+  for (const auto& q : s.points) {
+    const Vec2 xy(q.x(), q.y());
+    od.dist.push_back(poly2::distance_to_ring(od.ring, xy));
+    od.inside.push_back(poly2::point_in_ring(od.ring, xy));
+  }
+  return od;
+}
+
+LodModel block_model(const Samples& s, const HeightField& hf, const OutlineDistances& od) {
+  const std::vector<Vec2>& ring = od.ring;
   if (ring.size() < 3) throw LodError("block", "the outline has fewer than 3 vertices");
   const double g = hf.ground(), floor = hf.roof_floor();
   // The height that fits the samples best, among their roof height quantiles.
-  std::vector<double> roof_z, d_edge;
-  std::vector<char> inside;
-  d_edge.reserve(s.points.size());
-  for (const auto& q : s.points) {
-    const Vec2 xy(q.x(), q.y());
-    d_edge.push_back(poly2::distance_to_ring(ring, xy));
-    inside.push_back(poly2::point_in_ring(ring, xy));
+  const std::vector<double>& d_edge = od.dist;
+  const std::vector<char>& inside = od.inside;
+  std::vector<double> roof_z;
+  for (const auto& q : s.points)
     if (q.z() > floor) roof_z.push_back(q.z());
-  }
   if (roof_z.empty()) throw LodError("block", "no point above the ground");
   std::sort(roof_z.begin(), roof_z.end());
   auto sq_dist = [&](std::size_t i, double h) {
@@ -403,20 +413,14 @@ LodModel block_model(const Samples& s, const HeightField& hf) {
   return m;
 }
 
-std::vector<Vec3> roof_returns(const Samples& s, const HeightField& hf, double edge_margin) {
-  const std::vector<Vec2>& ring = hf.outline();
-  std::vector<double> depth(s.points.size(), -1.0);
+std::vector<Vec3> roof_returns(const Samples& s, const OutlineDistances& od, double edge_margin) {
   double deepest = 0;
-  for (std::size_t k = 0; k < s.points.size(); ++k) {
-    const Vec2 xy(s.points[k].x(), s.points[k].y());
-    if (!poly2::point_in_ring(ring, xy)) continue;
-    depth[k] = poly2::distance_to_ring(ring, xy);
-    deepest = std::max(deepest, depth[k]);
-  }
+  for (std::size_t k = 0; k < od.dist.size(); ++k)
+    if (od.inside[k]) deepest = std::max(deepest, od.dist[k]);
   const double margin = std::min(edge_margin, 0.5 * deepest);
   std::vector<Vec3> out;
-  for (std::size_t k = 0; k < s.points.size(); ++k)
-    if (depth[k] > margin) out.push_back(s.points[k]);
+  for (std::size_t k = 0; k < od.dist.size(); ++k)
+    if (od.inside[k] && od.dist[k] > margin) out.push_back(s.points[k]);
   return out;
 }
 
@@ -464,8 +468,7 @@ double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double
   for (const Vec3& q : returns) {
     const Vec2 xy(q.x(), q.y());
     double top = -std::numeric_limits<double>::infinity();
-    if (!tris.empty() && xy.x() >= lo.x() && xy.x() <= hi.x() && xy.y() >= lo.y() &&
-        xy.y() <= hi.y())
+    if (!tris.empty())
       for (int i : grid[size_t(cy(xy.y())) * size_t(nx) + size_t(cx(xy.x()))]) {
         const Tri& t = tris[size_t(i)];
         const double d =

@@ -75,16 +75,27 @@ int refit_roof_planes(const Samples& s, const std::vector<Vec2>& outline, const 
 std::vector<char> label_by_height(const std::vector<std::vector<Vec3>>& origins,
                                   const HeightField& hf);
 
+/// The samples against the outline (its ring without repeated or collinear
+/// vertices): each one's distance to it and whether it lies inside. Shared by
+/// the block and the roof fit.
+struct OutlineDistances {
+  std::vector<Vec2> ring;
+  std::vector<double> dist;
+  std::vector<char> inside;
+};
+OutlineDistances outline_distances(const Samples& s, const HeightField& hf);
+
 /// The outline extruded from the ground to the height that minimises the
 /// RMSE of the samples to the block (a scan over the samples' roof height
-/// quantiles). Throws LodError when the outline is not a simple polygon.
-LodModel block_model(const Samples& s, const HeightField& hf);
+/// quantiles); `od` = outline_distances(s, hf). Throws LodError when the
+/// outline is not a simple polygon.
+LodModel block_model(const Samples& s, const HeightField& hf, const OutlineDistances& od);
 
 /// (ours) Airborne LiDAR sees a building from above. The returns a roof fit
 /// measures: the samples inside the outline and farther than `edge_margin`
 /// from it (at most half the depth of the deepest sample, so that a small
 /// outline keeps some).
-std::vector<Vec3> roof_returns(const Samples& s, const HeightField& hf, double edge_margin);
+std::vector<Vec3> roof_returns(const Samples& s, const OutlineDistances& od, double edge_margin);
 
 /// The RMSE of the vertical residuals of `returns` each to the highest
 /// surface of `m` over it above `ground` (the ground where the model has

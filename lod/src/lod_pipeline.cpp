@@ -576,20 +576,21 @@ void models_step(const Samples& samples, const Planes& planes, const TreeStep& T
   // (ours) The LoD1.2 block first: the outline at the height that fits the
   // points best, as coarse as a building gets.
   if (heights && P.airborne.block) {
+    const OutlineDistances od = outline_distances(samples, *heights);
     try {
-      R.models.insert(R.models.begin(), block_model(samples, *heights));
+      R.models.insert(R.models.begin(), block_model(samples, *heights, od));
       st.block_first = true;
       st.notes.push_back(
           "model 0 is the outline extruded to its best-fitting height (LoD1.2 block)");
     } catch (const LodError& e) {
       st.notes.push_back(std::string("no LoD1.2 block: ") + e.what());
     }
-  }
-  if (st.block_first) {  // the roof as the scanner saw it, to judge the chain against the block
-    const std::vector<Vec3> returns = roof_returns(samples, *heights, P.airborne.roof_edge_margin);
-    for (auto& m : R.models) {
-      const double fit = roof_rmse(m.mesh, returns, heights->ground());
-      m.roof_rmse = std::isnan(fit) ? -1.0 : fit;
+    if (st.block_first) {  // the roof as the scanner saw it, to judge the chain against the block
+      const std::vector<Vec3> returns = roof_returns(samples, od, P.airborne.roof_edge_margin);
+      for (auto& m : R.models) {
+        const double fit = roof_rmse(m.mesh, returns, heights->ground());
+        m.roof_rmse = std::isnan(fit) ? -1.0 : fit;
+      }
     }
   }
   if (split_interpolations > 0)
@@ -625,7 +626,7 @@ void baseline_step(const std::vector<Primitive>& prims, bool airborne, const Sce
 bool block_fallback(const Samples& samples, const HeightField& hf, const std::string& why,
                     LodResult& R) {
   try {
-    R.models.assign(1, block_model(samples, hf));
+    R.models.assign(1, block_model(samples, hf, outline_distances(samples, hf)));
     R.models.front().kind = ModelKind::fallback;
   } catch (const LodError&) {
     return false;

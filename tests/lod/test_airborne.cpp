@@ -232,7 +232,7 @@ TEST(Airborne, RoofFitIsVerticalUnderTheModelsTop) {
   // Roof returns in 3 of the outline's 20 x 16 cells of 0.5 m (the return
   // at the ground is not roof, the one outside not in the outline).
   EXPECT_DOUBLE_EQ(hf.roof_coverage(), 3.0 / 320.0);
-  const std::vector<Vec3> returns = detail::roof_returns(s, hf, 1.5);
+  const std::vector<Vec3> returns = detail::roof_returns(s, detail::outline_distances(s, hf), 1.5);
   EXPECT_EQ(returns.size(), 3u);
   EXPECT_NEAR(detail::roof_rmse(block, returns, 0.0), std::sqrt((0.0 + 9.0 + 16.0) / 3.0), 1e-12);
   // A lower roof part the model leaves out: its top there is the ground.
@@ -244,7 +244,7 @@ TEST(Airborne, RoofFitIsVerticalUnderTheModelsTop) {
   EXPECT_NEAR(detail::roof_rmse(half, returns, 0.0), std::sqrt((0.0 + 9.0 + 100.0) / 3.0), 1e-12);
   // A margin deeper than half the deepest sample (4 m in) is halved to 2 m:
   // (2, 2) lies on it and no longer counts.
-  const std::vector<Vec3> deep = detail::roof_returns(s, hf, 5.0);
+  const std::vector<Vec3> deep = detail::roof_returns(s, detail::outline_distances(s, hf), 5.0);
   EXPECT_NEAR(detail::roof_rmse(block, deep, 0.0), std::sqrt((0.0 + 16.0) / 2.0), 1e-12);
   // A model over fewer than half of the returns is not judged: a fragment
   // over (2, 2) alone would fit returns at the ground's level.
