@@ -1,6 +1,6 @@
 // citylod vs 3DBAG's roofer on the same airborne LiDAR + footprints.
 //
-//   roofer_bench WORK ROOFER.city.jsonl [--csv FILE]
+//   roofer_bench WORK ROOFER.city.jsonl [--csv FILE] [--roofer-obj DIR]
 //
 // WORK is the work directory of a `citylod tile` run (manifest, chunks, LOD
 // reports and models); ROOFER.city.jsonl roofer's CityJSONSeq output for the
@@ -24,6 +24,7 @@
 #include "citylod/geo/georef.hpp"
 #include "citylod/io/reader.hpp"
 #include "citylod/io/types.hpp"
+#include "citylod/io/writers.hpp"
 #include "citylod/lod/lod.hpp"
 #include "citylod/lod/polygon2d.hpp"
 #include "citylod/tiler/scene_georef.hpp"
@@ -264,13 +265,18 @@ void print_measure(const Measure& m) {
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: roofer_bench WORK ROOFER.city.jsonl [--csv FILE]\n");
+    std::fprintf(stderr,
+                 "usage: roofer_bench WORK ROOFER.city.jsonl [--csv FILE] [--roofer-obj DIR]\n"
+                 "  --roofer-obj DIR  also write roofer's LoD2.2 of each building as DIR/ID.obj "
+                 "in its chunk's frame (the frame of citylod's models)\n");
     return 2;
   }
   const std::string work = argv[1], roofer_path = argv[2];
-  std::string csv_path;
-  for (int i = 3; i + 1 < argc; ++i)
+  std::string csv_path, obj_dir;
+  for (int i = 3; i + 1 < argc; ++i) {
     if (std::string(argv[i]) == "--csv") csv_path = argv[i + 1];
+    if (std::string(argv[i]) == "--roofer-obj") obj_dir = argv[i + 1];
+  }
   try {
     const tiler::Manifest man = tiler::read_manifest(work);
     int holes = 0, no_chunk = 0;
@@ -305,6 +311,7 @@ int main(int argc, char** argv) {
         io::PolygonMesh pm = compact(rf->second.lod[k]);
         for (auto& v : pm.vertices) v = {v[0] - o.x(), v[1] - o.y(), v[2] - o.z()};
         b.rf[k] = measure(to_lod(io::triangulate_polygons(pm)), ref, outline);
+        if (k == 2 && !obj_dir.empty()) io::write_obj(obj_dir + "/" + fid + ".obj", pm);
       }
       // Ours (the work directory's typed report).
       const std::string dir = tiler::lod_dir(work, c.id);
