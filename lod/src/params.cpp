@@ -320,7 +320,7 @@ void visit(P& p, F&& f) {
   f("airborne.roof_refit", p.airborne.roof_refit, Any{}, "",
     "roof planes refitted robustly (Tukey, outline points weighted down)");
   f("airborne.roof_edge_margin", p.airborne.roof_edge_margin, kNonNegative, "m",
-    "points this near the outline weigh less in the roof refit");
+    "returns farther inside the outline are the roof; nearer weigh less in a refit");
   f("airborne.detail_level", p.airborne.detail_level, Any{}, "",
     "roof planes outside every structure form a last level set");
   f("airborne.plane_merge_distance", p.airborne.plane_merge_distance, kNonNegative, "m",
