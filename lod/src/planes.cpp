@@ -82,6 +82,13 @@ class Cached_neighbor_query {
 #pragma omp parallel for schedule(static) num_threads(std::max(1, threads)) if (threads > 1)
     for (long i = 0; i < nl; ++i) q(std::size_t(i), lists_[std::size_t(i)]);
   }
+  /// The first k of each of the normal estimation's neighbour lists (itself,
+  /// then by distance: the k a k-nearest search gives).
+  Cached_neighbor_query(const std::vector<std::vector<std::uint32_t>>& lists, std::size_t k)
+      : lists_(lists.size()) {
+    for (std::size_t i = 0; i < lists.size(); ++i)
+      lists_[i].assign(lists[i].begin(), lists[i].begin() + long(std::min(k, lists[i].size())));
+  }
   void operator()(std::size_t i, std::vector<std::size_t>& neighbors) const {
     neighbors = lists_[i];
   }
@@ -101,7 +108,13 @@ std::vector<std::vector<std::size_t>> regions_on_points(const Samples& s, const 
   using RT = SD::Point_set::Least_squares_plane_fit_region<K, PwnVec, PMap, NMap>;
   using Sorting = SD::Point_set::Least_squares_plane_fit_sorting<K, PwnVec, NQ, PMap>;
   using RG = SD::Region_growing<PwnVec, NQ, RT, Sorting::Seed_map>;
-  NQ nq(KNQ(pts, static_cast<std::size_t>(std::max(3, p.k_neighbors))), pts.size(), threads);
+  const std::size_t k = static_cast<std::size_t>(std::max(3, p.k_neighbors));
+  // The normal estimation's lists hold k + 1 when its k is this one.
+  const bool reuse = s.neighbours.size() == s.points.size() &&
+                     std::all_of(s.neighbours.begin(), s.neighbours.end(), [&](const auto& l) {
+                       return l.size() >= std::min(k, s.points.size());
+                     });
+  NQ nq = reuse ? NQ(s.neighbours, k) : NQ(KNQ(pts, k), pts.size(), threads);
   RT rt(pts, p.epsilon, std::min(90.0, p.max_angle_deg),
         static_cast<std::size_t>(std::max(3, p.min_region_size)));
   Sorting sorting(pts, nq);

@@ -4,9 +4,12 @@
 
 #include "epick.hpp"
 
+#include <CGAL/linear_least_squares_fitting_3.h>
 #include <CGAL/mst_orient_normals.h>
 #include <CGAL/pca_estimate_normals.h>
+
 #include <CGAL/property_map.h>
+#include <boost/iterator/function_output_iterator.hpp>
 
 #include <Eigen/Geometry>
 
@@ -100,8 +103,32 @@ void estimate_normals(Samples& s, const std::vector<int>& need, const NormalPara
     items.emplace_back(toP(s.points[i]), V3(0, 0, 0), int(i));
   using IPMap = CGAL::Nth_of_tuple_property_map<0, Item>;
   using INMap = CGAL::Nth_of_tuple_property_map<1, Item>;
-  CGAL::pca_estimate_normals<CGAL::Sequential_tag>(
-      items, k, CGAL::parameters::point_map(IPMap()).normal_map(INMap()));
+  {
+    // CGAL::pca_estimate_normals, step by step (its k-d tree, its k + 1
+    // nearest points of each, its plane fit: the same normals), keeping each
+    // point's neighbours for plane detection when every normal is estimated.
+    using Query =
+        CGAL::Point_set_processing_3::internal::Neighbor_query<K, std::vector<Item>&, IPMap>;
+    const Query query(items, IPMap());
+    const bool keep = need.size() == s.points.size();
+    if (keep) s.neighbours.assign(s.points.size(), {});
+    std::vector<P3> near;
+    std::vector<std::uint32_t> ids;
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      near.clear();
+      ids.clear();
+      query.get_iterators(std::get<0>(items[i]), k, 0,
+                          boost::make_function_output_iterator([&](const auto& it) {
+                            near.push_back(std::get<0>(*it));
+                            ids.push_back(std::uint32_t(std::get<2>(*it)));
+                          }));
+      P3::R::Plane_3 plane;
+      CGAL::linear_least_squares_fitting_3(near.begin(), near.end(), plane,
+                                           CGAL::Dimension_tag<0>());
+      std::get<1>(items[i]) = plane.orthogonal_vector();
+      if (keep) s.neighbours[i] = ids;
+    }
+  }
   // Orientation. mst_orient_normals propagates from the highest point (oriented +z)
   // over a Riemannian graph; it reorders the range, hence the index in the tuple.
   // Without it (airborne city chunks: roofs face up, the few wall hits face

@@ -20,6 +20,11 @@ struct Samples {
   std::vector<double> weights;  ///< area represented by each sample (m^2); 1 for point clouds
   std::vector<int> face_of;     ///< mesh input: triangle index of each sample
   bool normals_estimated = false;
+  /// When every normal was estimated: each sample's nearest samples as the
+  /// normal estimation found them (itself first, then by distance; `k + 1` of
+  /// them, fewer in a small cloud). Plane detection reuses them instead of a
+  /// second k-d tree and search (its k <= these lists' length).
+  std::vector<std::vector<std::uint32_t>> neighbours;
 };
 
 /// Deterministic pseudo-random numbers (splitmix64): the same sequence on

@@ -131,6 +131,37 @@ TEST(Samples, EstimatedNormalsPointOutwardAndUp) {
   for (const auto& n : sr.normals) EXPECT_GT(n.z(), 0.9);
 }
 
+TEST(Samples, EstimatedNormalsKeepTheirNeighboursForPlaneDetection) {
+  std::vector<T::Face> faces;
+  T::add_box(faces, Vec3(0, 0, 0), Vec3(10, 8, 6), 16);
+  BuildingInput b;
+  T::sample_faces(faces, {0.15, false, 0.01}, b);
+  NormalParams np;
+  const Samples s = make_samples(b, np);
+  ASSERT_TRUE(s.normals_estimated);
+  ASSERT_EQ(s.neighbours.size(), s.points.size());
+  // Each list: the point itself, then its k nearest by distance (a scan).
+  for (std::size_t i = 0; i < s.points.size(); i += 97) {
+    const auto& l = s.neighbours[i];
+    ASSERT_EQ(l.size(), std::size_t(np.k_neighbors + 1));
+    std::vector<double> d2;
+    for (std::size_t j = 0; j < s.points.size(); ++j)
+      d2.push_back((s.points[j] - s.points[i]).squaredNorm());
+    std::vector<double> sorted = d2;
+    std::sort(sorted.begin(), sorted.end());
+    for (std::size_t r = 0; r < l.size(); ++r) EXPECT_EQ(d2[l[r]], sorted[r]) << i << " " << r;
+  }
+  // Plane detection on the kept lists finds what its own k-d tree finds.
+  PlaneParams pp;
+  const auto reused = detect_planes(b, s, pp);
+  Samples fresh = s;
+  fresh.neighbours.clear();
+  const auto own = detect_planes(b, fresh, pp);
+  ASSERT_EQ(reused.size(), own.size());
+  ASSERT_GE(reused.size(), 6u);
+  for (std::size_t i = 0; i < own.size(); ++i) EXPECT_EQ(reused[i].inliers, own[i].inliers);
+}
+
 // ------------------------------------------------------------------ plane detection
 
 TEST(Planes, NoiseFreeBoxGivesSixExactPlanes) {
