@@ -494,15 +494,20 @@ double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double
   return std::sqrt(sum / double(n));
 }
 
+namespace {
+
+/// Worse than `ref`: a larger e2, and a roof fit that is not better (or not measured).
+bool fits_worse(const LodModel& m, const LodModel& ref) {
+  const bool roof_better = m.roof_rmse >= 0 && ref.roof_rmse >= 0 && m.roof_rmse <= ref.roof_rmse;
+  return m.e2 > ref.e2 && !roof_better;
+}
+
+}  // namespace
+
 int drop_worse_than_block(std::vector<LodModel>& models) {
   if (models.size() < 2) return 0;
   const LodModel& block = models.front();
-  // Worse: a larger e2, and a roof fit that is not better (or not measured).
-  const auto worse = [&](const LodModel& m) {
-    const bool roof_better =
-        m.roof_rmse >= 0 && block.roof_rmse >= 0 && m.roof_rmse <= block.roof_rmse;
-    return m.e2 > block.e2 && !roof_better;
-  };
+  const auto worse = [&](const LodModel& m) { return fits_worse(m, block); };
   const auto finest = std::find_if(models.rbegin(), models.rend() - 1,
                                    [](const LodModel& m) { return m.kind == ModelKind::anchor; });
   if (finest == models.rend() - 1 || !worse(*finest)) return 0;  // the tree did its work
@@ -511,6 +516,27 @@ int drop_worse_than_block(std::vector<LodModel>& models) {
   models.erase(end, models.end());
   for (size_t i = 0; i < models.size(); ++i) models[i].step = int(i);
   return n;
+}
+
+int drop_worse_last_levels(std::vector<LodModel>& models) {
+  int dropped = 0;
+  for (;;) {
+    std::size_t last = 0, before = 0;  // the last two anchors after the block
+    for (std::size_t i = models.size(); i-- > 1;) {
+      if (models[i].kind != ModelKind::anchor) continue;
+      if (last == 0) {
+        last = i;
+      } else {
+        before = i;
+        break;
+      }
+    }
+    if (before == 0 || !fits_worse(models[last], models[before])) break;
+    dropped += int(models.size() - (before + 1));
+    models.erase(models.begin() + long(before + 1), models.end());
+  }
+  for (size_t i = 0; i < models.size(); ++i) models[i].step = int(i);
+  return dropped;
 }
 
 }  // namespace citylod::lod::detail

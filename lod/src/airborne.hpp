@@ -115,4 +115,12 @@ double roof_rmse(const TriangleMesh& m, const std::vector<Vec3>& returns, double
 /// Returns how many were dropped.
 int drop_worse_than_block(std::vector<LodModel>& models);
 
+/// (ours) The chain's last level -- its finest anchor and the models after the
+/// anchor before it -- when that anchor fits worse than the anchor before it
+/// in the sense above (a larger e2 and a roof fit that is not better): finer
+/// cells that follow tree returns over a roof up to the canopy refine nothing.
+/// Repeated while it holds; the block (models[0]) is left to
+/// drop_worse_than_block. Steps are renumbered. Returns how many were dropped.
+int drop_worse_last_levels(std::vector<LodModel>& models);
+
 }  // namespace citylod::lod::detail

@@ -793,6 +793,11 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params,
       R.stats.notes.push_back(std::to_string(R.stats.worse_than_block) +
                               " models fitting the points and the roof worse than the LoD1.2 "
                               "block dropped");
+    const int last_levels = drop_worse_last_levels(R.models);
+    if (last_levels > 0)
+      R.stats.notes.push_back(std::to_string(last_levels) +
+                              " models of the last level dropped: its anchor fits the points and "
+                              "the roof worse than the anchor before it");
   }
   R.stats.t_metrics = seconds_since(tm);
   // The input's colours (if any) onto the faces of every model.

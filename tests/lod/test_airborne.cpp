@@ -202,6 +202,36 @@ TEST(Airborne, ModelsWorseThanTheBlockAreDroppedWhenTheFinestIs) {
   EXPECT_EQ(alone.size(), 1u);
 }
 
+// A last level whose anchor fits worse than the anchor before it (a larger e2,
+// a roof fit not better) is dropped with its interpolations, as often as it
+// holds; the block is not judged here.
+TEST(Airborne, ALastLevelWorseThanTheOneBeforeIsDropped) {
+  // block, i, a (1.0 / 0.3), i, i, a (1.5 / 0.9): the last level goes
+  auto trees = chain({2.0, 3.0, 1.0, 0.8, 0.9, 1.5}, {1.0, 2.0, 0.3, 0.3, 0.3, 0.9}, "aiaiia");
+  EXPECT_EQ(detail::drop_worse_last_levels(trees), 3);
+  ASSERT_EQ(trees.size(), 3u);
+  EXPECT_EQ(trees.back().level, 12);
+  EXPECT_EQ(trees.back().step, 2);
+  // Two levels worse in turn: both go.
+  auto twice = chain({2.0, 1.0, 1.2, 1.4}, {1.0, 0.3, 0.4, 0.5}, "aaaa");
+  EXPECT_EQ(detail::drop_worse_last_levels(twice), 2);
+  EXPECT_EQ(twice.size(), 2u);
+  // A better roof fit keeps the level (and so does a smaller e2, or the same).
+  auto roof = chain({2.0, 1.0, 1.2}, {1.0, 0.5, 0.4}, "aaa");
+  EXPECT_EQ(detail::drop_worse_last_levels(roof), 0);
+  auto e2 = chain({2.0, 1.0, 0.9}, {1.0, 0.5, 0.7}, "aaa");
+  EXPECT_EQ(detail::drop_worse_last_levels(e2), 0);
+  auto same = chain({2.0, 1.0, 1.0}, {1.0, 0.5, 0.7}, "aaa");
+  EXPECT_EQ(detail::drop_worse_last_levels(same), 0);
+  // Not measured roof fits count as not better.
+  auto unmeasured = chain({2.0, 1.0, 1.2}, {}, "aaa");
+  EXPECT_EQ(detail::drop_worse_last_levels(unmeasured), 1);
+  // Only the block before the last anchor: left to drop_worse_than_block.
+  auto block = chain({1.0, 2.0, 3.0}, {0.5, 0.9, 0.9}, "aia");
+  EXPECT_EQ(detail::drop_worse_last_levels(block), 0);
+  EXPECT_EQ(block.size(), 3u);
+}
+
 // The roof fit of a model is vertical, as airborne LiDAR sees it: a return
 // under the roof counts its height under the model's top, however near a
 // wall it lies; returns within the edge margin of the outline do not count.
