@@ -42,10 +42,6 @@ lod::LodParams city_lod_params() {
   lod::LodParams p;
   p.closure.terrain = lod::Terrain::Cut;
   p.closure.footprint_walls = true;
-  // Steps down to 0.3 m on a footprint (lod params.hpp): City3D's north scene,
-  // 11,890 buildings, finest median 0.179 -> 0.169 m against roofer's 0.200, better
-  // than roofer on 7,865 -> 8,578, roof height 0.391 -> 0.382 m (roofer 0.373).
-  p.airborne.step_min = 0.3;
   return p;
 }
 

@@ -160,12 +160,6 @@ struct AirborneParams {
   double wall_fraction_max = 0.35;
   double cell = 0.5;
   double fill_radius = 1.5;
-  /// A roof plane's edge gets a step wall where the roof beyond it lies this
-  /// much lower. A city chunk on its footprint takes 0.3 m (2x planes.epsilon,
-  /// tiler city_lod_params): 1 m left roof structures 0.3-1 m high (stair
-  /// houses, parapets, dormers) unmodelled. Without a footprint (the outline
-  /// from the points) 0.3 m made 14 of City3D's 920 finest models
-  /// self-intersecting: 1 m there.
   double step_min = 1.0;
   double step_probe = 0.75;
   double step_alpha = 1.0;
