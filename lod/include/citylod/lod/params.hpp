@@ -160,6 +160,11 @@ struct AirborneParams {
   double wall_fraction_max = 0.35;
   double cell = 0.5;
   double fill_radius = 1.5;
+  /// A roof plane's edge gets a step wall where the roof beyond it lies this
+  /// much lower. 0.3 m (session 26) modelled stair houses and parapets 0.3-1 m
+  /// high (City3D scene finest median 0.179 -> 0.169 m) but on the Delft tile
+  /// copied 8 x 8 cost 60 % more LOD time and 80 % more tile bytes for no gain,
+  /// and more models left out of the CityJSON as invalid: not kept.
   double step_min = 1.0;
   double step_probe = 0.75;
   double step_alpha = 1.0;
