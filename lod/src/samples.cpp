@@ -4,9 +4,9 @@
 
 #include "epick.hpp"
 
+#include <CGAL/Point_set_processing_3/internal/Neighbor_query.h>
 #include <CGAL/linear_least_squares_fitting_3.h>
 #include <CGAL/mst_orient_normals.h>
-#include <CGAL/pca_estimate_normals.h>
 
 #include <CGAL/property_map.h>
 #include <boost/iterator/function_output_iterator.hpp>
