@@ -83,18 +83,22 @@ class Cached_neighbor_query {
     for (long i = 0; i < nl; ++i) q(std::size_t(i), lists_[std::size_t(i)]);
   }
   /// The first k of each of the normal estimation's neighbour lists (itself,
-  /// then by distance: the k a k-nearest search gives).
-  Cached_neighbor_query(const std::vector<std::vector<std::uint32_t>>& lists, std::size_t k)
-      : lists_(lists.size()) {
-    for (std::size_t i = 0; i < lists.size(); ++i)
-      lists_[i].assign(lists[i].begin(), lists[i].begin() + long(std::min(k, lists[i].size())));
-  }
+  /// then by distance: the k a k-nearest search gives), read in place.
+  Cached_neighbor_query(const Samples& s, std::size_t k)
+      : flat_(&s.neighbours), each_(s.neighbours_each), k_(std::min(k, s.neighbours_each)) {}
   void operator()(std::size_t i, std::vector<std::size_t>& neighbors) const {
-    neighbors = lists_[i];
+    if (flat_) {
+      const auto first = flat_->begin() + long(i * each_);
+      neighbors.assign(first, first + long(k_));
+    } else {
+      neighbors = lists_[i];
+    }
   }
 
  private:
   std::vector<std::vector<std::size_t>> lists_;
+  const std::vector<std::uint32_t>* flat_ = nullptr;  // Samples::neighbours
+  std::size_t each_ = 0, k_ = 0;
 };
 
 std::vector<std::vector<std::size_t>> regions_on_points(const Samples& s, const PlaneParams& p,
@@ -110,11 +114,10 @@ std::vector<std::vector<std::size_t>> regions_on_points(const Samples& s, const 
   using RG = SD::Region_growing<PwnVec, NQ, RT, Sorting::Seed_map>;
   const std::size_t k = static_cast<std::size_t>(std::max(3, p.k_neighbors));
   // The normal estimation's lists hold k + 1 when its k is this one.
-  const bool reuse = s.neighbours.size() == s.points.size() &&
-                     std::all_of(s.neighbours.begin(), s.neighbours.end(), [&](const auto& l) {
-                       return l.size() >= std::min(k, s.points.size());
-                     });
-  NQ nq = reuse ? NQ(s.neighbours, k) : NQ(KNQ(pts, k), pts.size(), threads);
+  const bool reuse = s.neighbours_each > 0 &&
+                     s.neighbours.size() == s.points.size() * s.neighbours_each &&
+                     s.neighbours_each >= std::min(k, s.points.size());
+  NQ nq = reuse ? NQ(s, k) : NQ(KNQ(pts, k), pts.size(), threads);
   RT rt(pts, p.epsilon, std::min(90.0, p.max_angle_deg),
         static_cast<std::size_t>(std::max(3, p.min_region_size)));
   Sorting sorting(pts, nq);

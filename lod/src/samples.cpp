@@ -110,23 +110,24 @@ void estimate_normals(Samples& s, const std::vector<int>& need, const NormalPara
     using Query =
         CGAL::Point_set_processing_3::internal::Neighbor_query<K, std::vector<Item>&, IPMap>;
     const Query query(items, IPMap());
-    const bool keep = need.size() == s.points.size();
-    if (keep) s.neighbours.assign(s.points.size(), {});
+    // Every list holds k + 1 when there are that many points: one flat array.
+    const bool keep = need.size() == s.points.size() && k + 1 <= s.points.size();
+    if (keep) {
+      s.neighbours_each = k + 1;
+      s.neighbours.reserve(s.points.size() * s.neighbours_each);
+    }
     std::vector<P3> near;
-    std::vector<std::uint32_t> ids;
     for (std::size_t i = 0; i < items.size(); ++i) {
       near.clear();
-      ids.clear();
       query.get_iterators(std::get<0>(items[i]), k, 0,
                           boost::make_function_output_iterator([&](const auto& it) {
                             near.push_back(std::get<0>(*it));
-                            ids.push_back(std::uint32_t(std::get<2>(*it)));
+                            if (keep) s.neighbours.push_back(std::uint32_t(std::get<2>(*it)));
                           }));
       P3::R::Plane_3 plane;
       CGAL::linear_least_squares_fitting_3(near.begin(), near.end(), plane,
                                            CGAL::Dimension_tag<0>());
       std::get<1>(items[i]) = plane.orthogonal_vector();
-      if (keep) s.neighbours[i] = ids;
     }
   }
   // Orientation. mst_orient_normals propagates from the highest point (oriented +z)

@@ -21,10 +21,11 @@ struct Samples {
   std::vector<int> face_of;     ///< mesh input: triangle index of each sample
   bool normals_estimated = false;
   /// When every normal was estimated: each sample's nearest samples as the
-  /// normal estimation found them (itself first, then by distance; `k + 1` of
-  /// them, fewer in a small cloud). Plane detection reuses them instead of a
-  /// second k-d tree and search (its k <= these lists' length).
-  std::vector<std::vector<std::uint32_t>> neighbours;
+  /// normal estimation found them (itself first, then by distance), sample i's
+  /// at [i * neighbours_each, (i + 1) * neighbours_each). Plane detection reuses
+  /// them instead of a second k-d tree and search (its k <= neighbours_each).
+  std::vector<std::uint32_t> neighbours;
+  std::size_t neighbours_each = 0;
 };
 
 /// Deterministic pseudo-random numbers (splitmix64): the same sequence on

@@ -139,11 +139,12 @@ TEST(Samples, EstimatedNormalsKeepTheirNeighboursForPlaneDetection) {
   NormalParams np;
   const Samples s = make_samples(b, np);
   ASSERT_TRUE(s.normals_estimated);
-  ASSERT_EQ(s.neighbours.size(), s.points.size());
+  ASSERT_EQ(s.neighbours_each, std::size_t(np.k_neighbors + 1));
+  ASSERT_EQ(s.neighbours.size(), s.points.size() * s.neighbours_each);
   // Each list: the point itself, then its k nearest by distance (a scan).
   for (std::size_t i = 0; i < s.points.size(); i += 97) {
-    const auto& l = s.neighbours[i];
-    ASSERT_EQ(l.size(), std::size_t(np.k_neighbors + 1));
+    const std::vector<std::uint32_t> l(s.neighbours.begin() + long(i * s.neighbours_each),
+                                       s.neighbours.begin() + long((i + 1) * s.neighbours_each));
     std::vector<double> d2;
     for (std::size_t j = 0; j < s.points.size(); ++j)
       d2.push_back((s.points[j] - s.points[i]).squaredNorm());
@@ -156,6 +157,7 @@ TEST(Samples, EstimatedNormalsKeepTheirNeighboursForPlaneDetection) {
   const auto reused = detect_planes(b, s, pp);
   Samples fresh = s;
   fresh.neighbours.clear();
+  fresh.neighbours_each = 0;
   const auto own = detect_planes(b, fresh, pp);
   ASSERT_EQ(reused.size(), own.size());
   ASSERT_GE(reused.size(), 6u);
