@@ -64,6 +64,7 @@ struct Building {
   Measure budget[3];          // our best candidate within roofer's triangle count
   double t_ours_ms = NAN, t_roofer_ms = NAN;
   int roof_planes = 0;
+  double roof_height = NAN;  ///< roofer's rf_h_roof_70p - rf_h_ground (m)
   std::string status;
 };
 
@@ -172,6 +173,7 @@ struct RooferBuilding {
   io::PolygonMesh lod[3];
   double t_run_ms = NAN;
   int roof_planes = 0;
+  double roof_height = NAN;  ///< roofer's rf_h_roof_70p - rf_h_ground (m)
 };
 
 std::map<std::string, RooferBuilding> read_roofer(const std::string& path,
@@ -207,6 +209,9 @@ std::map<std::string, RooferBuilding> read_roofer(const std::string& path,
           b.t_run_ms = a["rf_t_run"].get<double>();
         if (a.contains("rf_roof_planes") && a["rf_roof_planes"].is_number())
           b.roof_planes = a["rf_roof_planes"].get<int>();
+        if (a.contains("rf_h_roof_70p") && a["rf_h_roof_70p"].is_number() &&
+            a.contains("rf_h_ground") && a["rf_h_ground"].is_number())
+          b.roof_height = a["rf_h_roof_70p"].get<double>() - a["rf_h_ground"].get<double>();
       }
       if (!obj.contains("geometry")) continue;
       for (const auto& geom : obj["geometry"]) {
@@ -297,6 +302,7 @@ int main(int argc, char** argv) {
       b.id = fid;
       b.t_roofer_ms = rf->second.t_run_ms;
       b.roof_planes = rf->second.roof_planes;
+      b.roof_height = rf->second.roof_height;
       const lod::Vec3 o(c.origin[0], c.origin[1], c.origin[2]);
       lod::BuildingInput ref;
       for (const auto& p : io::read_points(tiler::chunk_path(work, c.id)).positions)
@@ -403,6 +409,17 @@ int main(int argc, char** argv) {
       std::printf("citylod status of the buildings roofer models:");
       for (const auto& [k, v] : by_status) std::printf(" %s %d", k.c_str(), v);
       std::printf("\n");
+      // roofer's own roof height (70th percentile above its ground) under
+      // 0.3 m: a patch at the ground's level for roofer too.
+      int low = 0, fallbacks = 0;
+      for (const auto& b : rows)
+        if (b.status == "fallback") {
+          ++fallbacks;
+          low += b.roof_height < 0.3;
+        }
+      std::printf(
+          "citylod fallbacks where roofer's roof lies under 0.3 m above its ground: %d of %d\n",
+          low, fallbacks);
     }
     int all_models = 0, all_valid = 0, pinched = 0, multi = 0;
     for (const auto& b : rows)

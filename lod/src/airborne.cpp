@@ -539,4 +539,15 @@ int drop_worse_last_levels(std::vector<LodModel>& models) {
   return dropped;
 }
 
+int drop_low_object_worse_than_block(std::vector<LodModel>& models) {
+  if (models.size() < 2) return 0;
+  const double block_e2 = models.front().e2;
+  const auto end = std::remove_if(models.begin() + 1, models.end(),
+                                  [&](const LodModel& m) { return m.e2 > block_e2; });
+  const int n = int(models.end() - end);
+  models.erase(end, models.end());
+  for (size_t i = 0; i < models.size(); ++i) models[i].step = int(i);
+  return n;
+}
+
 }  // namespace citylod::lod::detail

@@ -123,4 +123,12 @@ int drop_worse_than_block(std::vector<LodModel>& models);
 /// drop_worse_than_block. Steps are renumbered. Returns how many were dropped.
 int drop_worse_last_levels(std::vector<LodModel>& models);
 
+/// (ours) A low object's chain (IO-View took every plane bounding its core as
+/// principal): the models after the block (models[0]) with a larger e2 than
+/// the block's are dropped, whatever their roof fit -- a roof plane tilted
+/// through the ground leaves a wedge whose roof follows the returns while
+/// most of the slab is missing. Steps are renumbered. Returns how many were
+/// dropped; only the block left means the tree did not model the object.
+int drop_low_object_worse_than_block(std::vector<LodModel>& models);
+
 }  // namespace citylod::lod::detail

@@ -366,6 +366,17 @@ Planes planar_primitives(const BuildingInput& in, const Samples& samples, const 
   return out;
 }
 
+/// An IO-View failure with what the scan saw, which names the common cases:
+/// a patch at the ground's level, a roof the scan hardly reached.
+std::string io_view_failure(const std::string& why, const HeightField& hf) {
+  char height[128];
+  std::snprintf(height, sizeof height,
+                " (the returns reach %.2f m above the ground, 98th percentile; roof returns "
+                "over %.0f %% of the outline)",
+                hf.top(), 100.0 * hf.roof_coverage());
+  return why + height;
+}
+
 /// Step 2's result: the BSP's box, the IO-View BSP and its analysis.
 struct IoViewStep {
   SceneBox box;
@@ -423,6 +434,24 @@ IoViewStep io_view_step(const Samples& samples, const Planes& planes, const LodP
     st.principal = 0;
     for (char p : view.principal) st.principal += p ? 1 : 0;
     st.notes.push_back("io-view: the inside regions taken as one core (" +
+                       std::to_string(st.principal) + " principal primitives)");
+  }
+  if (st.principal < 4 && heights) {
+    // (ours) A low object (a slab 0.2-1 m high, a flat annex) has walls
+    // smaller than min_principal_area: a 0.3 m wall must run 1.7 m to count,
+    // and a footprint's outline splits a side into shorter walls. Any plane
+    // that separates the core from the core exterior then counts. Its chain
+    // is kept only where it fits better than the block (returns at the
+    // ground's level make a roof plane through the ground, a wedge):
+    // drop_low_object_worse_than_block after the metrics.
+    IoViewParams low = P.ioview;
+    low.separation_coverage = 2;
+    low.min_principal_area = 1e-6;
+    view = analyse_io_view(io_bsp, prims, matches, io_labels, low);
+    st.low_object = io_view_failure("io-view: fewer than 4 principal primitives", *heights);
+    st.principal = 0;
+    for (char p : view.principal) st.principal += p ? 1 : 0;
+    st.notes.push_back("io-view: a low object, every plane bounding its core principal (" +
                        std::to_string(st.principal) + " principal primitives)");
   }
   if (st.principal < 4) throw LodError("io-view", "fewer than 4 principal primitives");
@@ -632,14 +661,7 @@ bool block_fallback(const Samples& samples, const HeightField& hf, const std::st
     return false;
   }
   R.status = Status::fallback;
-  // What the scan saw names the common cases: a patch at the ground's level,
-  // a roof the scan hardly reached.
-  char height[128];
-  std::snprintf(height, sizeof height,
-                " (the returns reach %.2f m above the ground, 98th percentile; roof returns "
-                "over %.0f %% of the outline)",
-                hf.top(), 100.0 * hf.roof_coverage());
-  R.reason = why + height;
+  R.reason = io_view_failure(why, hf);
   R.stats.notes.push_back(
       "fallback model: the outline extruded to its best-fitting height (LoD1.2 block)");
   return true;
@@ -786,6 +808,21 @@ LodResult build_lod_tree(const BuildingInput& in, const LodParams& params,
     m.e2 = fidelity[i].e2;
     m.hausdorff = fidelity[i].hausdorff;
     if (m.volume == 0.0) m.volume = mesh_volume(m.mesh);
+  }
+  if (R.status == Status::ok && R.stats.block_first && !R.stats.low_object.empty()) {
+    const int dropped = drop_low_object_worse_than_block(R.models);
+    if (R.models.size() == 1) {  // the block alone: the tree did not model it
+      R.status = Status::fallback;
+      R.reason = R.stats.low_object;
+      R.models.front().kind = ModelKind::fallback;
+      R.stats.notes.push_back(
+          "fallback model: the outline extruded to its best-fitting height (LoD1.2 block); "
+          "no model of the low object's chain fits the points better");
+    } else if (dropped > 0) {
+      R.stats.notes.push_back(std::to_string(dropped) +
+                              " models of the low object's chain fitting the points worse than "
+                              "the LoD1.2 block dropped");
+    }
   }
   if (R.status == Status::ok && R.stats.block_first) {
     R.stats.worse_than_block = drop_worse_than_block(R.models);

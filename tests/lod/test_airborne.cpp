@@ -137,6 +137,63 @@ TEST(Airborne, LowObjectGetsItsRoof) {
   EXPECT_NEAR(top, 0.3, 0.05);
 }
 
+namespace {
+/// A 4 x 4 m footprint whose every side zigzags 2 cm in and out each 0.8 m
+/// (a traced outline): 20 walls, none larger than 0.8 m x the height.
+std::vector<Vec2> zigzag_square() {
+  std::vector<Vec2> fp;
+  const Vec2 corner[4] = {Vec2(0, 0), Vec2(4, 0), Vec2(4, 4), Vec2(0, 4)};
+  for (int side = 0; side < 4; ++side) {
+    const Vec2 a = corner[side], b = corner[(side + 1) % 4];
+    const Vec2 d = (b - a) / 5.0, in(-d.y() / d.norm(), d.x() / d.norm());
+    for (int k = 0; k < 5; ++k) fp.push_back(a + double(k) * d + (k % 2 ? 0.02 : 0.0) * in);
+  }
+  return fp;
+}
+}  // namespace
+
+// A slab 0.3 m high on a traced outline: its walls (0.24 m^2) are smaller
+// than ioview.min_principal_area, so only the roof and the ground separate
+// its core. Every plane bounding the core then counts: the tree models it,
+// better than its block.
+TEST(Airborne, LowObjectOnATracedOutlineIsModelled) {
+  test::SynthOptions o;
+  o.spacing = 0.25;
+  o.noise_sigma = 0.01;
+  auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(4, 4, 0.3), o);
+  b.input.footprint = zigzag_square();
+  const LodResult r = build_lod_tree(b.input, city_params());
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
+  EXPECT_TRUE(has_note(r, "a low object")) << r.stats.notes.size();
+  EXPECT_NE(r.stats.low_object.find("fewer than 4 principal primitives"), std::string::npos);
+  ASSERT_GE(r.models.size(), 2u);
+  for (const auto& m : r.models) test::expect_closed_solid(m);
+  const LodModel* f = test::last_anchor(r);
+  ASSERT_NE(f, nullptr);
+  EXPECT_LE(f->e2, r.models.front().e2);
+  EXPECT_NEAR(f->volume, 4 * 4 * 0.3, 0.1 * 4 * 4 * 0.3);
+}
+
+// Returns through the ground estimate (a patch tilted from 0.15 m under the
+// ground to 0.25 m above it): the low object's roof plane cuts the ground,
+// every model of its chain (wedges) fits worse than the block, and the block
+// stays a fallback that says what the scan saw.
+TEST(Airborne, LowObjectAtTheGroundsLevelStaysAFallback) {
+  test::SynthOptions o;
+  o.spacing = 0.25;
+  o.noise_sigma = 0.01;
+  auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(4, 4, 0.3), o);
+  b.input.footprint = zigzag_square();
+  for (auto& q : b.input.points) q.z() += 0.1 * q.x() - 0.45;
+  const LodResult r = build_lod_tree(b.input, city_params());
+  EXPECT_EQ(r.status, lod::Status::fallback);
+  EXPECT_NE(r.reason.find("roof returns over"), std::string::npos) << r.reason;
+  EXPECT_TRUE(has_note(r, "no model of the low object's chain fits the points better"));
+  ASSERT_EQ(r.models.size(), 1u);
+  EXPECT_EQ(r.models.front().kind, ModelKind::fallback);
+  test::expect_closed_solid(r.models.front());
+}
+
 // Points at or under the ground (a roof below the ground estimate) have no
 // height to model: a fallback whose reason says so.
 TEST(Airborne, PointsUnderTheGroundAreAFallbackThatSaysSo) {
@@ -381,4 +438,18 @@ TEST(Airborne, EveryRoofPlaneReachesTheFinestLevel) {
     EXPECT_EQ(r.stats.level_sets, q.stats.level_sets + 1);
   }
   std::printf("roof planes outside S without the detail level: %d\n", unsorted_roof_planes(q));
+}
+
+// A low object's chain keeps, after the block, only the models with an e2
+// not larger than the block's, whatever their roof fit; steps follow on.
+TEST(Airborne, LowObjectModelsWorseThanTheBlockAreDropped) {
+  std::vector<LodModel> m = chain({0.5, 0.4, 6.0, 0.5, 0.7}, {0.1, 0.1, 0.01, 0.1, 0.01}, "aiaia");
+  EXPECT_EQ(detail::drop_low_object_worse_than_block(m), 2);
+  ASSERT_EQ(m.size(), 3u);
+  EXPECT_EQ(m[1].e2, 0.4);
+  EXPECT_EQ(m[2].e2, 0.5);
+  for (std::size_t i = 0; i < m.size(); ++i) EXPECT_EQ(m[i].step, int(i));
+  std::vector<LodModel> worse = chain({0.5, 0.9, 2.0}, {}, "aia");
+  EXPECT_EQ(detail::drop_low_object_worse_than_block(worse), 2);
+  EXPECT_EQ(worse.size(), 1u);
 }

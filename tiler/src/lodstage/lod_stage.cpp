@@ -34,7 +34,7 @@ namespace citylod::tiler {
 namespace fs = std::filesystem;
 
 namespace {
-constexpr const char* kEngineVersion = "citylod-lod-12";
+constexpr const char* kEngineVersion = "citylod-lod-13";
 }  // namespace
 
 // ------------------------------------------------------------ parameters

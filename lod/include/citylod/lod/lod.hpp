@@ -96,6 +96,11 @@ struct LodStats {
   bool block_first = false;  ///< model 0 is the airborne LoD1.2 block
   int worse_than_block =
       0;  ///< models dropped: they fit the points and the roof worse than the block
+  /// Airborne: the IO-View failure a low object's chain was built past (every
+  /// plane bounding its core principal), with what the scan saw; empty when
+  /// the IO-View did not fail. The reason of the fallback when no model of
+  /// the chain fits better than the block.
+  std::string low_object;
   double t_samples = 0.0;    ///< s, the input's oriented samples (normals estimated)
   double t_ioview = 0.0;     ///< T1 s (incl. plane detection)
   double t_tree = 0.0;       ///< T2 s
