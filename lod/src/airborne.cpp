@@ -282,7 +282,14 @@ int infer_step_walls(const Samples& s, const HeightField& hf, const AirbornePara
         const double r = hf.at(probe);
         if (std::isnan(r)) continue;
         ++valid;
-        steps += plane_z(q) - r > p.step_min;
+        // The lower side extrapolated back to the edge from a second probe
+        // 1 m farther: a roof sloping down from the edge meets it (no step),
+        // a flat lower roof keeps its height. Only ever raised: a lower side
+        // rising away from the edge is taken flat.
+        const Vec2 far = probe + 1.0 * out;
+        const double r2 = hf.inside(far) ? hf.at(far) : std::numeric_limits<double>::quiet_NaN();
+        const double at_edge = !std::isnan(r2) && r2 < r ? r + (r - r2) * p.step_probe : r;
+        steps += plane_z(q) - r > p.step_min_raw || plane_z(q) - at_edge > p.step_min;
       }
       if (2 * valid < k || 10 * steps < 6 * valid) continue;
       // Snap to the nearest outline direction (buildings are mostly rectilinear).

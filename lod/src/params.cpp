@@ -305,7 +305,9 @@ void visit(P& p, F&& f) {
   f("airborne.fill_radius", p.airborne.fill_radius, kNonNegative, "m",
     "height-field gaps filled from neighbours up to this far");
   f("airborne.step_min", p.airborne.step_min, kPositive, "m",
-    "roof drop across a roof plane's edge that makes a step wall");
+    "roof drop to the lower side extrapolated to the edge that makes a step wall");
+  f("airborne.step_min_raw", p.airborne.step_min_raw, kPositive, "m",
+    "roof drop step_probe beyond a roof plane's edge that makes a step wall");
   f("airborne.step_probe", p.airborne.step_probe, kPositive, "m",
     "how far beyond the edge the lower roof is probed");
   f("airborne.step_alpha", p.airborne.step_alpha, kPositive, "m",

@@ -453,3 +453,79 @@ TEST(Airborne, LowObjectModelsWorseThanTheBlockAreDropped) {
   EXPECT_EQ(detail::drop_low_object_worse_than_block(worse), 2);
   EXPECT_EQ(worse.size(), 1u);
 }
+
+namespace {
+/// The number in the note "... N step walls inferred".
+int step_walls(const LodResult& r) {
+  for (const auto& n : r.stats.notes) {
+    const auto at = n.find(" step walls inferred");
+    if (at == std::string::npos) continue;
+    const auto from = n.rfind(' ', at - 1);
+    return std::stoi(n.substr(from + 1, at - from - 1));
+  }
+  return -1;
+}
+}  // namespace
+
+// A mansard roof: a flat top (x 3..9, at 8 m) between two 60-degree slopes
+// down to 2.8 m (12 x 8 m footprint). 0.75 m beyond the top's edge the slope
+// lies over 1 m lower; extrapolated back to the edge from a second probe it
+// meets the top: no step by step_min (0.5 m). The raw rule (step_min_raw,
+// 1 m, the rule before) still makes its two walls.
+TEST(Airborne, ARoofSlopingDownFromAnEdgeIsNoStep) {
+  const double s = std::tan(60.0 * M_PI / 180.0), top = 8.0, eave = top - 3.0 * s;
+  std::vector<test::Face> f;
+  const double sl = 3.0 / std::cos(60.0 * M_PI / 180.0);
+  test::add_rect(f, Vec3(3, 0, top), Vec3::UnitX(), 6, Vec3::UnitY(), 8);
+  test::add_rect(f, Vec3(0, 0, eave), Vec3(3, 0, top - eave) / sl, sl, Vec3::UnitY(), 8);
+  test::add_rect(f, Vec3(12, 8, eave), Vec3(-3, 0, top - eave) / sl, sl, -Vec3::UnitY(), 8);
+  test::SynthOptions o;
+  o.spacing = 0.25;
+  o.noise_sigma = 0.01;
+  const double volume = 6 * 8 * top + 2 * 8 * 3 * 0.5 * (eave + top);
+  test::SynthBuilding b = test::finish(std::move(f), volume, 3, o, false);
+  b.input.footprint = {Vec2(0, 0), Vec2(12, 0), Vec2(12, 8), Vec2(0, 8)};
+  b.input.ground_z = 0.0;
+  b.input.has_ground_z = true;
+  LodParams p = city_params();
+  p.airborne.step_min = 0.5;
+  p.airborne.step_min_raw = 100.0;
+  const LodResult r = build_lod_tree(b.input, p);
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
+  EXPECT_EQ(step_walls(r), 0);
+  const LodModel* fin = test::last_anchor(r);
+  ASSERT_NE(fin, nullptr);
+  EXPECT_NEAR(fin->volume, volume, 0.03 * volume);
+  p.airborne.step_min_raw = 1.0;
+  EXPECT_EQ(step_walls(build_lod_tree(b.input, p)), 2);
+}
+
+// A stair house 3 x 3 x 0.6 m on a flat roof (12 x 8 m at 5 m): with steps
+// down to 0.5 m its walls are inferred and the finest model holds it.
+TEST(Airborne, ALowStepGetsItsWalls) {
+  std::vector<test::Face> f;
+  test::add_rect(f, Vec3(0, 0, 5), Vec3::UnitX(), 12, Vec3::UnitY(), 8, {{4.5, 7.5, 2.5, 5.5}});
+  test::add_box(f, Vec3(4.5, 2.5, 5), Vec3(7.5, 5.5, 5.6), 1 | 2 | 4 | 8 | 16);
+  test::SynthOptions o;
+  o.spacing = 0.25;
+  o.noise_sigma = 0.01;
+  test::SynthBuilding b = test::finish(std::move(f), 12 * 8 * 5 + 9 * 0.6, 2, o, false);
+  b.input.footprint = {Vec2(0, 0), Vec2(12, 0), Vec2(12, 8), Vec2(0, 8)};
+  b.input.ground_z = 0.0;
+  b.input.has_ground_z = true;
+  LodParams p = city_params();
+  p.airborne.step_min = 0.5;
+  const LodResult r = build_lod_tree(b.input, p);
+  ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
+  EXPECT_GE(step_walls(r), 4);
+  const LodModel* fin = test::last_anchor(r);
+  ASSERT_NE(fin, nullptr);
+  for (const auto& m : r.models) test::expect_closed_solid(m);
+  double top = 0;
+  for (const auto& v : fin->mesh.vertices) top = std::max(top, v.z());
+  EXPECT_NEAR(top, 5.6, 0.05);
+  EXPECT_NEAR(fin->volume, b.volume, 0.01 * b.volume);
+  // At the 1 m default the stair house is left out: no step wall, the roof at 5 m.
+  const LodResult q = build_lod_tree(b.input, city_params());
+  EXPECT_EQ(step_walls(q), 0);
+}

@@ -142,6 +142,7 @@ TEST(LodParams, ItemsRoundTrip) {
                         "tree.interpolation_floor",
                         "airborne.mode",
                         "airborne.step_min",
+                        "airborne.step_min_raw",
                         "airborne.block",
                         "colour.enabled",
                         "colour.distance",
@@ -152,7 +153,7 @@ TEST(LodParams, ItemsRoundTrip) {
                         "airborne.plane_merge_distance",
                         "airborne.plane_merge_angle_deg"})
     EXPECT_TRUE(names.count(n)) << n;
-  EXPECT_EQ(items.size(), 66u);  // one per field of every parameter struct
+  EXPECT_EQ(items.size(), 67u);  // one per field of every parameter struct
   // Every listed item can be set back to its listed value, unchanged.
   LodParams q;
   q.set("planes.epsilon", "0.3");

@@ -42,6 +42,8 @@ lod::LodParams city_lod_params() {
   lod::LodParams p;
   p.closure.terrain = lod::Terrain::Cut;
   p.closure.footprint_walls = true;
+  // Roof steps down to 0.5 m on a footprint (lod params.hpp, airborne.step_min).
+  p.airborne.step_min = 0.5;
   return p;
 }
 

@@ -36,7 +36,8 @@ namespace citylod::tiler {
 /// ground, and a low plane reaching a chunk's edge (a courtyard, a plaza) is
 /// not terrain to keep as a plinth (closure.terrain = cut); every chunk has a
 /// footprint, whose walls close what airborne LiDAR scanned in part
-/// (closure.footprint_walls).
+/// (closure.footprint_walls), and on it roof steps down to 0.5 m get walls
+/// (airborne.step_min).
 lod::LodParams city_lod_params();
 /// Applies "name=value[,name=value...]"; throws std::invalid_argument naming the item.
 void apply_lod_settings(lod::LodParams& p, const std::string& list);
