@@ -34,7 +34,7 @@ namespace citylod::tiler {
 namespace fs = std::filesystem;
 
 namespace {
-constexpr const char* kEngineVersion = "citylod-lod-13";
+constexpr const char* kEngineVersion = "citylod-lod-14";
 }  // namespace
 
 // ------------------------------------------------------------ parameters
