@@ -420,19 +420,23 @@ IoViewStep io_view_step(const Samples& samples, const Planes& planes, const LodP
   for (const auto& l : io_leaf_labels) io_labels.push_back(l[0]);
   budget.check("io-view");
   const auto matches = match_planes(io_bsp, prims);
-  IoView view = analyse_io_view(io_bsp, prims, matches, io_labels, P.ioview);
+  IoView view;
+  const auto analyse = [&](const IoViewParams& ip) {
+    view = analyse_io_view(io_bsp, prims, matches, io_labels, ip);
+    st.principal = int(
+        std::count_if(view.principal.begin(), view.principal.end(), [](char p) { return p != 0; }));
+  };
+  analyse(P.ioview);
   if (view.core_in < 0) throw LodError("io-view", "no cell labelled inside");
-  for (char p : view.principal) st.principal += p ? 1 : 0;
+  const LodError too_few("io-view", "fewer than 4 principal primitives");
+  // (ours) A roof height field labels stepped roofs as inside regions cut
+  // apart by their roof planes: the core is then one step, and few planes
+  // separate it from the core exterior. Seen again with no plane separating
+  // inside from inside, the core is the whole connected building.
+  IoViewParams joined = P.ioview;
+  joined.separation_coverage = 2;  // above any coverage (<= 1): nothing separates
   if (st.principal < 4 && heights) {
-    // (ours) A roof height field labels stepped roofs as inside regions cut
-    // apart by their roof planes: the core is then one step, and few planes
-    // separate it from the core exterior. Seen again with no plane separating
-    // inside from inside, the core is the whole connected building.
-    IoViewParams joined = P.ioview;
-    joined.separation_coverage = 2;  // above any coverage (<= 1): nothing separates
-    view = analyse_io_view(io_bsp, prims, matches, io_labels, joined);
-    st.principal = 0;
-    for (char p : view.principal) st.principal += p ? 1 : 0;
+    analyse(joined);
     st.notes.push_back("io-view: the inside regions taken as one core (" +
                        std::to_string(st.principal) + " principal primitives)");
   }
@@ -444,17 +448,14 @@ IoViewStep io_view_step(const Samples& samples, const Planes& planes, const LodP
     // is kept only where it fits better than the block (returns at the
     // ground's level make a roof plane through the ground, a wedge):
     // drop_low_object_worse_than_block after the metrics.
-    IoViewParams low = P.ioview;
-    low.separation_coverage = 2;
+    IoViewParams low = joined;
     low.min_principal_area = 1e-6;
-    view = analyse_io_view(io_bsp, prims, matches, io_labels, low);
-    st.low_object = io_view_failure("io-view: fewer than 4 principal primitives", *heights);
-    st.principal = 0;
-    for (char p : view.principal) st.principal += p ? 1 : 0;
+    analyse(low);
+    st.low_object = io_view_failure(too_few.what(), *heights);
     st.notes.push_back("io-view: a low object, every plane bounding its core principal (" +
                        std::to_string(st.principal) + " principal primitives)");
   }
-  if (st.principal < 4) throw LodError("io-view", "fewer than 4 principal primitives");
+  if (st.principal < 4) throw too_few;
   for (const auto& s : view.structures)
     (s.addon ? st.add_ons : st.cut_outs) += s.primitives.empty() ? 0 : 1;
   return {box, std::move(io_bsp), std::move(view)};
