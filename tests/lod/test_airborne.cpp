@@ -21,6 +21,16 @@ using test::has_note;
 
 namespace {
 
+/// The sampled faces on a 0..x_len x 0..y_len footprint with the ground at 0.
+test::SynthBuilding on_rectangle(std::vector<test::Face> f, double volume, int planes,
+                                 const test::SynthOptions& o, double x_len, double y_len) {
+  test::SynthBuilding b = test::finish(std::move(f), volume, planes, o, false);
+  b.input.footprint = {Vec2(0, 0), Vec2(x_len, 0), Vec2(x_len, y_len), Vec2(0, y_len)};
+  b.input.ground_z = 0.0;
+  b.input.has_ground_z = true;
+  return b;
+}
+
 /// A two-level flat-roofed building as airborne LiDAR sees it: main part
 /// x 0..12 with its roof at z = 8, annex x 12..20 at z = 4, y 0..10; only the
 /// roofs are sampled (no wall points at the step). Volume 960 + 320 m^3.
@@ -28,11 +38,46 @@ test::SynthBuilding two_level(const test::SynthOptions& o = {}) {
   std::vector<test::Face> f;
   test::add_box(f, Vec3(0, 0, 0), Vec3(12, 10, 8), 1 | 2 | 4 | 8 | 16);
   test::add_box(f, Vec3(12, 0, 0), Vec3(20, 10, 4), 1 | 2 | 4 | 8 | 16);
-  test::SynthBuilding b = test::finish(std::move(f), 1280.0, 2, o, false);
-  b.input.footprint = {Vec2(0, 0), Vec2(20, 0), Vec2(20, 10), Vec2(0, 10)};
-  b.input.ground_z = 0.0;
-  b.input.has_ground_z = true;
+  return on_rectangle(std::move(f), 1280.0, 2, o, 20, 10);
+}
+
+/// Roof returns 0.25 m apart with 1 cm noise.
+test::SynthOptions lidar() {
+  test::SynthOptions o;
+  o.spacing = 0.25;
+  o.noise_sigma = 0.01;
+  return o;
+}
+
+/// A 4 x 4 m footprint whose every side zigzags 2 cm in and out each 0.8 m
+/// (a traced outline): 20 walls, none larger than 0.8 m x the height.
+std::vector<Vec2> zigzag_square() {
+  std::vector<Vec2> fp;
+  const Vec2 corner[4] = {Vec2(0, 0), Vec2(4, 0), Vec2(4, 4), Vec2(0, 4)};
+  for (int side = 0; side < 4; ++side) {
+    const Vec2 a = corner[side], b = corner[(side + 1) % 4];
+    const Vec2 d = (b - a) / 5.0, in(-d.y() / d.norm(), d.x() / d.norm());
+    for (int k = 0; k < 5; ++k) fp.push_back(a + double(k) * d + (k % 2 ? 0.02 : 0.0) * in);
+  }
+  return fp;
+}
+
+/// A slab 0.3 m high (its roof sampled) on zigzag_square().
+test::SynthBuilding low_slab() {
+  auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(4, 4, 0.3), lidar());
+  b.input.footprint = zigzag_square();
   return b;
+}
+
+/// The number in the note "... N step walls inferred" (-1: no such note).
+int step_walls(const LodResult& r) {
+  for (const auto& n : r.stats.notes) {
+    const auto at = n.find(" step walls inferred");
+    if (at == std::string::npos) continue;
+    const auto from = n.rfind(' ', at - 1);
+    return std::stoi(n.substr(from + 1, at - from - 1));
+  }
+  return -1;
 }
 
 LodParams city_params() {
@@ -137,31 +182,12 @@ TEST(Airborne, LowObjectGetsItsRoof) {
   EXPECT_NEAR(top, 0.3, 0.05);
 }
 
-namespace {
-/// A 4 x 4 m footprint whose every side zigzags 2 cm in and out each 0.8 m
-/// (a traced outline): 20 walls, none larger than 0.8 m x the height.
-std::vector<Vec2> zigzag_square() {
-  std::vector<Vec2> fp;
-  const Vec2 corner[4] = {Vec2(0, 0), Vec2(4, 0), Vec2(4, 4), Vec2(0, 4)};
-  for (int side = 0; side < 4; ++side) {
-    const Vec2 a = corner[side], b = corner[(side + 1) % 4];
-    const Vec2 d = (b - a) / 5.0, in(-d.y() / d.norm(), d.x() / d.norm());
-    for (int k = 0; k < 5; ++k) fp.push_back(a + double(k) * d + (k % 2 ? 0.02 : 0.0) * in);
-  }
-  return fp;
-}
-}  // namespace
-
 // A slab 0.3 m high on a traced outline: its walls (0.24 m^2) are smaller
 // than ioview.min_principal_area, so only the roof and the ground separate
 // its core. Every plane bounding the core then counts: the tree models it,
 // better than its block.
 TEST(Airborne, LowObjectOnATracedOutlineIsModelled) {
-  test::SynthOptions o;
-  o.spacing = 0.25;
-  o.noise_sigma = 0.01;
-  auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(4, 4, 0.3), o);
-  b.input.footprint = zigzag_square();
+  auto b = low_slab();
   const LodResult r = build_lod_tree(b.input, city_params());
   ASSERT_EQ(r.status, lod::Status::ok) << r.reason;
   EXPECT_TRUE(has_note(r, "a low object")) << r.stats.notes.size();
@@ -179,11 +205,7 @@ TEST(Airborne, LowObjectOnATracedOutlineIsModelled) {
 // every model of its chain (wedges) fits worse than the block, and the block
 // stays a fallback that says what the scan saw.
 TEST(Airborne, LowObjectAtTheGroundsLevelStaysAFallback) {
-  test::SynthOptions o;
-  o.spacing = 0.25;
-  o.noise_sigma = 0.01;
-  auto b = test::roof_only_box(Vec3(0, 0, 0), Vec3(4, 4, 0.3), o);
-  b.input.footprint = zigzag_square();
+  auto b = low_slab();
   for (auto& q : b.input.points) q.z() += 0.1 * q.x() - 0.45;
   const LodResult r = build_lod_tree(b.input, city_params());
   EXPECT_EQ(r.status, lod::Status::fallback);
@@ -416,10 +438,7 @@ TEST(Airborne, EveryRoofPlaneReachesTheFinestLevel) {
   test::add_box(f, Vec3(0, 0, 0), Vec3(12, 10, 8), 1 | 2 | 4 | 8 | 16);
   test::add_box(f, Vec3(12, 0, 0), Vec3(20, 10, 4), 1 | 2 | 4 | 8 | 16);
   test::add_box(f, Vec3(3, 3, 8), Vec3(4.5, 4.5, 9), 1 | 2 | 4 | 8 | 16);  // a chimney
-  test::SynthBuilding b = test::finish(std::move(f), 1282.25, 2, o, false);
-  b.input.footprint = {Vec2(0, 0), Vec2(20, 0), Vec2(20, 10), Vec2(0, 10)};
-  b.input.ground_z = 0.0;
-  b.input.has_ground_z = true;
+  const test::SynthBuilding b = on_rectangle(std::move(f), 1282.25, 2, o, 20, 10);
   auto unsorted_roof_planes = [](const LodResult& r) {
     int n = 0;
     for (const auto& pl : r.planes) n += pl.level < 0 && !pl.inferred && pl.normal.z() >= 0.3;
@@ -454,19 +473,6 @@ TEST(Airborne, LowObjectModelsWorseThanTheBlockAreDropped) {
   EXPECT_EQ(worse.size(), 1u);
 }
 
-namespace {
-/// The number in the note "... N step walls inferred".
-int step_walls(const LodResult& r) {
-  for (const auto& n : r.stats.notes) {
-    const auto at = n.find(" step walls inferred");
-    if (at == std::string::npos) continue;
-    const auto from = n.rfind(' ', at - 1);
-    return std::stoi(n.substr(from + 1, at - from - 1));
-  }
-  return -1;
-}
-}  // namespace
-
 // A mansard roof: a flat top (x 3..9, at 8 m) between two 60-degree slopes
 // down to 2.8 m (12 x 8 m footprint). 0.75 m beyond the top's edge the slope
 // lies over 1 m lower; extrapolated back to the edge from a second probe it
@@ -479,14 +485,8 @@ TEST(Airborne, ARoofSlopingDownFromAnEdgeIsNoStep) {
   test::add_rect(f, Vec3(3, 0, top), Vec3::UnitX(), 6, Vec3::UnitY(), 8);
   test::add_rect(f, Vec3(0, 0, eave), Vec3(3, 0, top - eave) / sl, sl, Vec3::UnitY(), 8);
   test::add_rect(f, Vec3(12, 8, eave), Vec3(-3, 0, top - eave) / sl, sl, -Vec3::UnitY(), 8);
-  test::SynthOptions o;
-  o.spacing = 0.25;
-  o.noise_sigma = 0.01;
   const double volume = 6 * 8 * top + 2 * 8 * 3 * 0.5 * (eave + top);
-  test::SynthBuilding b = test::finish(std::move(f), volume, 3, o, false);
-  b.input.footprint = {Vec2(0, 0), Vec2(12, 0), Vec2(12, 8), Vec2(0, 8)};
-  b.input.ground_z = 0.0;
-  b.input.has_ground_z = true;
+  const test::SynthBuilding b = on_rectangle(std::move(f), volume, 3, lidar(), 12, 8);
   LodParams p = city_params();
   p.airborne.step_min = 0.5;
   p.airborne.step_min_raw = 100.0;
@@ -506,13 +506,7 @@ TEST(Airborne, ALowStepGetsItsWalls) {
   std::vector<test::Face> f;
   test::add_rect(f, Vec3(0, 0, 5), Vec3::UnitX(), 12, Vec3::UnitY(), 8, {{4.5, 7.5, 2.5, 5.5}});
   test::add_box(f, Vec3(4.5, 2.5, 5), Vec3(7.5, 5.5, 5.6), 1 | 2 | 4 | 8 | 16);
-  test::SynthOptions o;
-  o.spacing = 0.25;
-  o.noise_sigma = 0.01;
-  test::SynthBuilding b = test::finish(std::move(f), 12 * 8 * 5 + 9 * 0.6, 2, o, false);
-  b.input.footprint = {Vec2(0, 0), Vec2(12, 0), Vec2(12, 8), Vec2(0, 8)};
-  b.input.ground_z = 0.0;
-  b.input.has_ground_z = true;
+  const test::SynthBuilding b = on_rectangle(std::move(f), 12 * 8 * 5 + 9 * 0.6, 2, lidar(), 12, 8);
   LodParams p = city_params();
   p.airborne.step_min = 0.5;
   const LodResult r = build_lod_tree(b.input, p);
