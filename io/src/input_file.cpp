@@ -16,7 +16,9 @@ InputFile::InputFile(const std::string& path, std::size_t buffer_size) : path_(p
   size_ = regular_file_size(path);  // a FIFO or a device would block or never end
   f_ = std::fopen(path.c_str(), "rb");
   if (!f_) throw IoError(path, std::string("cannot open: ") + std::strerror(errno));
-  buf_.resize(std::max<std::size_t>(buffer_size, 4096));
+  // no larger than the file: a small file does not pay for zeroing a large buffer
+  buf_.resize(std::size_t(
+      std::clamp<std::uint64_t>(size_ + 1, 4096, std::max<std::size_t>(buffer_size, 4096))));
 }
 
 InputFile::~InputFile() {

@@ -7,10 +7,6 @@
 #include <Eigen/Geometry>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
-#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
-#include <CGAL/Polygon_mesh_processing/self_intersections.h>
-#include <CGAL/Surface_mesh.h>
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
 
@@ -110,6 +106,73 @@ bool soup_self_intersects(const std::vector<P3>& pts, const std::vector<std::arr
   return found;
 }
 
+/// PMP::does_self_intersect of a closed, oriented, manifold triangle mesh (a valid
+/// polygon mesh; vertices by index, as polygon_soup_to_polygon_mesh makes them),
+/// without building the Surface_mesh: every pair of triangles whose closed bounding
+/// boxes meet is tested as CGAL's do_faces_intersect tests it (a shared edge: the
+/// four corners coplanar and the opposite corners on one side of it; one shared
+/// vertex: either opposite edge meets the other triangle; else the triangles meet).
+/// The predicates are exact, so the answer does not depend on which pairs of
+/// disjoint triangles are also tested.
+bool closed_mesh_self_intersects(const std::vector<P3>& pts,
+                                 const std::vector<std::array<int, 3>>& tris) {
+  const std::size_t n = tris.size();
+  std::vector<CGAL::Bbox_3> box(n);
+  CGAL::Bbox_3 all;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& t = tris[i];
+    box[i] = pts[size_t(t[0])].bbox() + pts[size_t(t[1])].bbox() + pts[size_t(t[2])].bbox();
+    all += box[i];
+  }
+  // sweep along the longest axis of the whole
+  int ax = 0;
+  for (int k = 1; k < 3; ++k)
+    if (all.max(k) - all.min(k) > all.max(ax) - all.min(ax)) ax = k;
+  std::vector<std::uint32_t> order(n);
+  for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return box[a].min(ax) < box[b].min(ax) || (box[a].min(ax) == box[b].min(ax) && a < b);
+  });
+  const auto pair_intersects = [&](const std::array<int, 3>& h, const std::array<int, 3>& g) {
+    int shared = 0, hs[3] = {0, 0, 0}, gs[3] = {0, 0, 0};  // the shared corners' positions
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        if (h[size_t(i)] == g[size_t(j)]) {
+          hs[shared] = i;
+          gs[shared] = j;
+          ++shared;
+        }
+    if (shared == 3) return true;  // the same triangle, the other way round
+    if (shared == 2) {             // a shared edge pq; r, s: the corners opposite it
+      const P3& p = pts[size_t(h[size_t(hs[0])])];
+      const P3& q = pts[size_t(h[size_t(hs[1])])];
+      const P3& r = pts[size_t(h[size_t(3 - hs[0] - hs[1])])];
+      const P3& s = pts[size_t(g[size_t(3 - gs[0] - gs[1])])];
+      return CGAL::coplanar(p, q, r, s) && CGAL::coplanar_orientation(p, q, r, s) == CGAL::POSITIVE;
+    }
+    const K::Triangle_3 th(pts[size_t(h[0])], pts[size_t(h[1])], pts[size_t(h[2])]);
+    const K::Triangle_3 tg(pts[size_t(g[0])], pts[size_t(g[1])], pts[size_t(g[2])]);
+    if (shared == 1) {
+      const K::Segment_3 sh(pts[size_t(h[size_t((hs[0] + 1) % 3)])],
+                            pts[size_t(h[size_t((hs[0] + 2) % 3)])]);
+      const K::Segment_3 sg(pts[size_t(g[size_t((gs[0] + 1) % 3)])],
+                            pts[size_t(g[size_t((gs[0] + 2) % 3)])]);
+      return CGAL::do_intersect(th, sg) || CGAL::do_intersect(tg, sh);
+    }
+    return CGAL::do_intersect(th, tg);
+  };
+  for (std::size_t a = 0; a < n; ++a) {
+    const CGAL::Bbox_3& ba = box[order[a]];
+    for (std::size_t b = a + 1; b < n && box[order[b]].min(ax) <= ba.max(ax); ++b) {
+      const CGAL::Bbox_3& bb = box[order[b]];
+      bool meet = true;
+      for (int k = 0; k < 3 && meet; ++k) meet = bb.min(k) <= ba.max(k) && ba.min(k) <= bb.max(k);
+      if (meet && pair_intersects(tris[order[a]], tris[order[b]])) return true;
+    }
+  }
+  return false;
+}
+
 /// Union-find over ints.
 struct Dsu {
   std::vector<int> p;
@@ -132,12 +195,17 @@ void count_fans_and_shells(const TriangleMesh& mesh, MeshCheck& r) {
   Dsu shells(nt);
   std::unordered_map<std::uint64_t, int> first_of_edge;  // undirected edge -> a triangle
   first_of_edge.reserve(nt * 2);
-  // Per vertex: its incident triangles, to group them by shared edges at it.
-  std::vector<std::vector<int>> around(mesh.vertices.size());
+  // Per vertex: its incident triangles (around[first[v]..first[v + 1])), to group
+  // them by shared edges at it.
+  std::vector<int> first(mesh.vertices.size() + 1, 0), around(3 * nt);
+  for (const auto& tri : mesh.triangles)
+    for (const int v : tri) ++first[size_t(v) + 1];
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) first[v + 1] += first[v];
+  std::vector<int> fill(first.begin(), first.end() - 1);
   for (std::size_t t = 0; t < nt; ++t) {
     const auto& tri = mesh.triangles[t];
     for (int i = 0; i < 3; ++i) {
-      around[size_t(tri[i])].push_back(int(t));
+      around[size_t(fill[size_t(tri[i])]++)] = int(t);
       const int a = std::min(tri[i], tri[(i + 1) % 3]), b = std::max(tri[i], tri[(i + 1) % 3]);
       const auto [it, fresh] = first_of_edge.emplace(key(a, b), int(t));
       if (!fresh) shells.unite(int(t), it->second);
@@ -156,28 +224,31 @@ void count_fans_and_shells(const TriangleMesh& mesh, MeshCheck& r) {
   }
   for (std::size_t t = 0; t < nt; ++t)
     if (root_seen[t]) (volume[t] > 0 ? r.shells : r.cavities)++;
-  // Around vertex v, triangles sharing an edge (v, w) are in one fan.
-  for (std::size_t v = 0; v < around.size(); ++v) {
-    const auto& ts = around[v];
-    if (ts.size() < 2) continue;
-    std::unordered_map<int, int> by_other;  // other endpoint w -> local triangle index
-    std::vector<int> parent(ts.size());
-    for (std::size_t i = 0; i < ts.size(); ++i) parent[i] = int(i);
+  // Around vertex v, triangles sharing an edge (v, w) are in one fan: the (w, triangle)
+  // pairs sorted by w, equal neighbours joined.
+  std::vector<std::pair<int, int>> by_other;  // other endpoint w -> local triangle index
+  std::vector<int> parent;
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    const int* ts = around.data() + first[v];
+    const std::size_t n = std::size_t(first[v + 1] - first[v]);
+    if (n < 2) continue;
+    by_other.clear();
+    parent.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      parent[i] = int(i);
+      for (const int w : mesh.triangles[size_t(ts[i])])
+        if (w != int(v)) by_other.emplace_back(w, int(i));
+    }
     auto find = [&](int x) {
       while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
       return x;
     };
-    for (std::size_t i = 0; i < ts.size(); ++i) {
-      const auto& tri = mesh.triangles[size_t(ts[i])];
-      for (int k = 0; k < 3; ++k) {
-        const int w = tri[k];
-        if (w == int(v)) continue;
-        const auto [it, fresh] = by_other.emplace(w, int(i));
-        if (!fresh) parent[size_t(find(int(i)))] = find(it->second);
-      }
-    }
+    std::sort(by_other.begin(), by_other.end());
+    for (std::size_t k = 1; k < by_other.size(); ++k)
+      if (by_other[k].first == by_other[k - 1].first)
+        parent[size_t(find(by_other[k].second))] = find(by_other[k - 1].second);
     int fans = 0;
-    for (std::size_t i = 0; i < ts.size(); ++i) fans += find(int(i)) == int(i) ? 1 : 0;
+    for (std::size_t i = 0; i < n; ++i) fans += find(int(i)) == int(i) ? 1 : 0;
     if (fans > 1) ++r.pinched_vertices;
   }
 }
@@ -243,19 +314,12 @@ MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
     return r;
   }
 
-  // Valid polygon mesh -> PMP::does_self_intersect on a Surface_mesh; else our soup check.
-  std::vector<std::vector<std::size_t>> polys;
-  polys.reserve(tris.size());
-  for (const auto& t : tris)
-    polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
-  namespace PMP = CGAL::Polygon_mesh_processing;
-  if (r.edge_manifold && r.oriented && PMP::is_polygon_soup_a_polygon_mesh(polys)) {
-    CGAL::Surface_mesh<P3> sm;
-    PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);
-    r.self_intersecting = PMP::does_self_intersect<CGAL::Sequential_tag>(sm);
-  } else {
-    r.self_intersecting = soup_self_intersects(pts, tris);
-  }
+  // A valid polygon mesh (closed, oriented -- each edge once each way --, no
+  // degenerate triangle, no pinched vertex: what PMP::is_polygon_soup_a_polygon_mesh
+  // checks) is tested as PMP::does_self_intersect tests it; else our soup check.
+  r.self_intersecting = r.edge_manifold && r.oriented && r.pinched_vertices == 0
+                            ? closed_mesh_self_intersects(pts, tris)
+                            : soup_self_intersects(pts, tris);
   return r;
 }
 

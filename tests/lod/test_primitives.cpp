@@ -10,11 +10,17 @@
 
 #include <gtest/gtest.h>
 
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+
 #include <Eigen/Geometry>
 
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <random>
 
 using namespace citylod::lod;
 using namespace citylod::lod::detail;
@@ -505,6 +511,55 @@ TriangleMesh welded(TriangleMesh m) {
 
 // Two cubes touching at one corner, welded: every edge has two faces, but the
 // corner vertex joins two fans (a pinched vertex): not a valid solid.
+// check_mesh tests the self-intersections of a closed, oriented, manifold mesh
+// itself; it must answer as CGAL's PMP::does_self_intersect on the Surface_mesh does.
+// Closed meshes with corners moved to points of a coarse grid give folds at shared
+// edges, triangles crossing at a shared corner, and coplanar overlaps.
+TEST(MeshCheck, SelfIntersectionsAsCgalFindsThem) {
+  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+  namespace PMP = CGAL::Polygon_mesh_processing;
+  const T::SynthOptions o;
+  const std::vector<TriangleMesh> shapes{cube(Vec3(0, 0, 0), Vec3(2, 2, 2)),
+                                         T::l_shape(o, true).mesh, T::gable_dormer(o, true).mesh};
+  std::mt19937 rng(7);
+  int compared = 0, intersecting = 0;
+  for (int it = 0; it < 3000; ++it) {
+    TriangleMesh m = shapes[std::size_t(it) % shapes.size()];
+    Vec3 lo = m.vertices[0], hi = lo;
+    for (const Vec3& v : m.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+    const int moved = 1 + int(rng() % 3);
+    for (int k = 0; k < moved; ++k) {
+      Vec3& v = m.vertices[rng() % m.vertices.size()];
+      for (int a = 0; a < 3; ++a)  // a point of a 1 m grid over the shape
+        v[a] = std::floor(lo[a]) + double(rng() % std::uint32_t(hi[a] - lo[a] + 2));
+    }
+    const MeshCheck c = check_mesh(m);
+    std::vector<K::Point_3> pts;
+    for (const Vec3& v : m.vertices) pts.emplace_back(v.x(), v.y(), v.z());
+    std::vector<std::vector<std::size_t>> polys;
+    bool degenerate = false;
+    for (const auto& t : m.triangles) {
+      degenerate = degenerate || t[0] == t[1] || t[1] == t[2] || t[0] == t[2] ||
+                   CGAL::collinear(pts[size_t(t[0])], pts[size_t(t[1])], pts[size_t(t[2])]);
+      polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
+    }
+    if (degenerate || !PMP::is_polygon_soup_a_polygon_mesh(polys)) continue;
+    ASSERT_TRUE(c.edge_manifold && c.oriented && c.pinched_vertices == 0);
+    CGAL::Surface_mesh<K::Point_3> sm;
+    PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);
+    const bool cgal = PMP::does_self_intersect<CGAL::Sequential_tag>(sm);
+    ASSERT_EQ(c.self_intersecting, cgal) << "iteration " << it;
+    ++compared;
+    intersecting += cgal ? 1 : 0;
+  }
+  EXPECT_GT(compared, 1000);
+  EXPECT_GT(intersecting, 200);
+  EXPECT_GT(compared - intersecting, 200);
+}
+
 TEST(MeshCheck, PinchedVertexAndCavity) {
   const TriangleMesh c = cube(Vec3(0, 0, 0), Vec3(1, 1, 1));
   const TriangleMesh pinched = welded(concat(c, cube(Vec3(1, 1, 1), Vec3(2, 2, 2))));

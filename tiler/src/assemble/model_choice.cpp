@@ -215,16 +215,27 @@ class MeshIndex {
       while (parent[x] != x) x = parent[x] = parent[parent[x]];
       return x;
     };
-    std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> edge_tri;
+    // each edge (its corners by position) of each triangle; a later triangle on an
+    // edge is joined to the first
+    std::vector<std::uint32_t> at(m.vertices.size(), 0);
+    for (const auto& t : m.triangles)
+      for (const std::uint32_t v : t) at[v] = ids_.at(m.vertices[v]);
+    std::vector<std::array<std::uint32_t, 3>> edges;  // corner, corner, triangle
+    edges.reserve(3 * n);
     for (std::uint32_t i = 0; i < n; ++i)
       for (int k = 0; k < 3; ++k) {
-        std::uint32_t a = ids_.at(m.vertices[m.triangles[i][k]]);
-        std::uint32_t b = ids_.at(m.vertices[m.triangles[i][(k + 1) % 3]]);
+        std::uint32_t a = at[m.triangles[i][k]], b = at[m.triangles[i][(k + 1) % 3]];
         if (a > b) std::swap(a, b);
-        const auto [it, fresh] = edge_tri.emplace(std::make_pair(a, b), i);
-        if (!fresh && in_plane(i, it->second) && in_plane(it->second, i))
-          parent[root(i)] = root(it->second);
+        edges.push_back({a, b, i});
       }
+    std::sort(edges.begin(), edges.end());
+    for (std::size_t e = 0, f = 0; e < edges.size(); e = f) {
+      for (f = e + 1; f < edges.size() && edges[f][0] == edges[e][0] && edges[f][1] == edges[e][1];
+           ++f) {
+        const std::uint32_t i = edges[f][2], j = edges[e][2];
+        if (in_plane(i, j) && in_plane(j, i)) parent[root(i)] = root(j);
+      }
+    }
     // faces in order of their first triangle; members by face
     group_.assign(n, 0);
     std::vector<std::uint32_t> id(n, ~0u);
@@ -298,14 +309,19 @@ class MeshIndex {
   std::vector<std::uint32_t> used_;
 };
 
-/// Largest distance from a corner of A's triangles to B (a corner of B's own: 0).
-double vertex_distance(const MeshIndex& a, const MeshIndex& b) {
-  double best2 = 0;
+/// Raises `best` to the largest distance from a corner of A's triangles to B (a corner
+/// of B's own: 0); stops once best >= stop_above.
+void vertex_distance(const MeshIndex& a, const MeshIndex& b, double stop_above, double& best) {
+  if (best >= stop_above) return;  // also a negative stop_above
+  double best2 = best * best;
+  const double stop2 = stop_above * stop_above;
   std::uint32_t near = lod::BoxTree::kNoHint;  // consecutive vertices are mostly near
-  for (const std::uint32_t i : a.used())
+  for (const std::uint32_t i : a.used()) {
+    if (best2 >= stop2) break;
     if (const Vec3d& v = a.mesh().vertices[i]; !b.has_vertex(v))
       best2 = std::max(best2, b.tree().nearest(v, near, near));
-  return std::sqrt(best2);
+  }
+  best = std::max(best, std::sqrt(best2));
 }
 
 /// Raises `best` to the directed Hausdorff distance h(A -> B) = max over the
@@ -366,7 +382,9 @@ double hausdorff(const MeshIndex& a, const MeshIndex& b, double tolerance, doubl
   if (!(tolerance > 0)) throw std::invalid_argument("hausdorff_distance: tolerance must be > 0");
   if (&ma == &mb || (ma.vertices == mb.vertices && ma.triangles == mb.triangles))
     return 0.0;  // the same model (common)
-  double best = std::max(vertex_distance(a, b), vertex_distance(b, a));
+  double best = 0;
+  vertex_distance(a, b, stop_above, best);
+  vertex_distance(b, a, stop_above, best);
   directed(ma, b, tolerance, stop_above, best);
   directed(mb, a, tolerance, stop_above, best);
   return best;
