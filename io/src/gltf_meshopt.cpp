@@ -86,9 +86,16 @@ GlbNode codec_order(const GlbNode& in, bool corners_together, bool strip) {
     }
   for (std::size_t v = 0; v < nv; ++v)
     if (!seen[v]) use_order.push_back(static_cast<unsigned int>(v));
-  std::map<std::array<double, 4>, std::vector<unsigned int>> corners;
-  for (unsigned int v : use_order)
-    corners[{double(in.feature[v]), in.rel[v][0], in.rel[v][1], in.rel[v][2]}].push_back(v);
+  // the vertices of one corner (feature and position) side by side, in first-use order
+  const auto key = [&](unsigned int v) {
+    return std::array<double, 4>{double(in.feature[v]), in.rel[v][0], in.rel[v][1], in.rel[v][2]};
+  };
+  std::vector<unsigned int> by_corner(use_order);
+  if (corners_together)
+    std::stable_sort(by_corner.begin(), by_corner.end(),
+                     [&](unsigned int a, unsigned int b) { return key(a) < key(b); });
+  std::vector<unsigned int> at(nv);  // v's place in by_corner
+  for (std::size_t i = 0; i < nv; ++i) at[by_corner[i]] = static_cast<unsigned int>(i);
   std::vector<unsigned int> remap(nv, ~0u);
   unsigned int next = 0;
   for (unsigned int v : use_order) {
@@ -97,9 +104,9 @@ GlbNode codec_order(const GlbNode& in, bool corners_together, bool strip) {
       remap[v] = next++;
       continue;
     }
-    for (unsigned int u :
-         corners.at({double(in.feature[v]), in.rel[v][0], in.rel[v][1], in.rel[v][2]}))
-      remap[u] = next++;
+    std::size_t i = at[v];  // the first of its corner's vertices in first-use order
+    while (i > 0 && !(key(by_corner[i - 1]) < key(v))) --i;
+    for (; i < nv && !(key(v) < key(by_corner[i])); ++i) remap[by_corner[i]] = next++;
   }
   for (std::size_t i = 0; i < nv; ++i) {
     out.rel[remap[i]] = in.rel[i];

@@ -656,7 +656,8 @@ bool write_lod_report(const std::string& path, const LodReport& r) {
 
 BuildingModels read_building_models(
     const std::string& work_dir, const std::string& id,
-    const std::function<io::TriangleMesh(const std::string& file)>& read) {
+    const std::function<io::TriangleMesh(const std::string& file)>& read,
+    const std::vector<std::size_t>* only) {
   BuildingModels b;
   b.report_path = lod_report_path(work_dir, id);
   if (!fs::exists(b.report_path))
@@ -677,7 +678,10 @@ BuildingModels read_building_models(
     if (!fs::exists(b.files.back()))
       throw io::IoError(b.files.back(), "model listed in " + b.report_path + " is missing");
   }
-  for (const std::string& f : b.files) b.meshes.push_back(read(f));
+  b.meshes.resize(b.files.size());
+  for (std::size_t i = 0; i < b.files.size(); ++i)
+    if (!only || std::find(only->begin(), only->end(), i) != only->end())
+      b.meshes[i] = read(b.files[i]);
   return b;
 }
 

@@ -276,12 +276,14 @@ struct BuildingModels {
   std::vector<io::TriangleMesh> meshes;
 };
 /// Reads WORK/lod/<id>/report.json and every model it lists, each with `read`
-/// (which chooses the frame). io::IoError naming the report when it is missing
+/// (which chooses the frame); with `only`, just the models of those indices
+/// (the others are left empty). io::IoError naming the report when it is missing
 /// or lists no model (with its status and reason), or naming a listed model
 /// file that does not exist.
 BuildingModels read_building_models(
     const std::string& work_dir, const std::string& id,
-    const std::function<io::TriangleMesh(const std::string& file)>& read);
+    const std::function<io::TriangleMesh(const std::string& file)>& read,
+    const std::vector<std::size_t>* only = nullptr);
 
 // ------------------------------------------------------------ overrides.json
 
