@@ -494,7 +494,11 @@ std::string Assembly::finish(const std::vector<GlbFeature>& features) {
   std::ostringstream os;
   if (!writer.WriteGltfSceneToStream(&model_, os, false, true))
     throw IoError(kWhere, "tinygltf could not serialize");
-  return finish_glb(os.str(), compressed_, detail::schema_json(opt_.attributes), opt_.schema_uri);
+  // the schema itself only when no schemaUri points at it
+  return finish_glb(
+      os.str(), compressed_,
+      opt_.schema_uri.empty() ? detail::schema_json(opt_.attributes) : nlohmann::json(),
+      opt_.schema_uri);
 }
 
 }  // namespace

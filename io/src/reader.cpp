@@ -369,8 +369,8 @@ PointSet read_points(const std::string& path) {
 namespace {
 
 void read_mesh_impl(const std::string& path, PolygonMesh& mesh, std::vector<Vec3f>& normals,
-                    std::vector<Rgb8>& colors) {
-  const Format f = detect_format(path);
+                    std::vector<Rgb8>& colors, Format known = Format::unknown) {
+  const Format f = known == Format::unknown ? detect_format(path) : known;
   if (f == Format::obj) {
     detail::read_obj_mesh(path, mesh, normals);
     check_finite(mesh.vertices, 0, path);
@@ -460,10 +460,14 @@ std::size_t MeshReader::read_faces(FaceBatch& batch, std::size_t max_faces) {
 }
 
 TriangleMesh read_mesh(const std::string& path) {
+  return read_mesh(path, Format::unknown);
+}
+
+TriangleMesh read_mesh(const std::string& path, Format format) {
   PolygonMesh m;
   std::vector<Vec3f> n;
   std::vector<Rgb8> c;
-  read_mesh_impl(path, m, n, c);
+  read_mesh_impl(path, m, n, c, format);
   TriangleMesh t = triangulate_polygons(m);
   t.normals = std::move(n);
   t.colors = std::move(c);

@@ -17,6 +17,7 @@
 #include "citylod/io/error.hpp"
 #include "citylod/io/hash.hpp"
 #include "citylod/io/json_file.hpp"
+#include "citylod/io/reader.hpp"
 
 namespace citylod::tiler {
 
@@ -652,6 +653,11 @@ bool write_lod_report(const std::string& path, const LodReport& r) {
   }
   io::atomic_write_file(path, text);
   return true;
+}
+
+io::TriangleMesh read_model_file(const std::string& file) {
+  return fs::path(file).extension() == ".ply" ? io::read_mesh(file, io::Format::ply)
+                                              : io::read_mesh(file);
 }
 
 BuildingModels read_building_models(

@@ -108,7 +108,7 @@ double projected_area(const io::TriangleMesh& m) {
 
 /// A model in the scene frame: its file's coordinates + the chunk origin.
 io::TriangleMesh read_scene_model(const std::string& file, const Vec3d& origin) {
-  io::TriangleMesh m = io::read_mesh(file);
+  io::TriangleMesh m = read_model_file(file);
   for (auto& v : m.vertices)
     for (int k = 0; k < 3; ++k) v[size_t(k)] += origin[size_t(k)];
   return m;

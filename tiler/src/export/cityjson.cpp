@@ -391,7 +391,7 @@ struct Chain : BuildingModels {
 /// The models of `rec` and the chain to write: every model (all_models), the
 /// chain given (opt.chains), else the one choose_models keeps.
 Chain read_chain(const std::string& work, const ChunkRecord& rec, const CityJsonOptions& opt) {
-  const auto read = [](const std::string& f) { return io::read_mesh(f); };
+  const auto read = [](const std::string& f) { return read_model_file(f); };
   // a chain given: only its models are read
   const auto given =
       opt.chains && !opt.all_models ? opt.chains->find(rec.id) : decltype(opt.chains->end()){};

@@ -166,5 +166,8 @@ class MeshReader {
 /// normals/colours are kept when the file has them (PLY/OFF vertex attributes; OBJ vn referenced by
 /// faces).
 TriangleMesh read_mesh(const std::string& path);
+/// read_mesh() of a file known to be `format` (not detected: a file of another format
+/// is that format's reader's IoError), e.g. the models a program wrote itself.
+TriangleMesh read_mesh(const std::string& path, Format format);
 
 }  // namespace citylod::io

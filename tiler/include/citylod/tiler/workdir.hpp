@@ -275,6 +275,10 @@ struct BuildingModels {
   std::vector<std::string> files;
   std::vector<io::TriangleMesh> meshes;
 };
+/// A model file of a work directory: a .ply (as the LOD stage writes them) read as
+/// PLY without detecting its format, any other with io::read_mesh.
+io::TriangleMesh read_model_file(const std::string& file);
+
 /// Reads WORK/lod/<id>/report.json and every model it lists, each with `read`
 /// (which chooses the frame); with `only`, just the models of those indices
 /// (the others are left empty). io::IoError naming the report when it is missing
