@@ -18,6 +18,7 @@
 #include <CGAL/linear_least_squares_fitting_3.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -337,23 +338,31 @@ PolygonSolid make_solid(std::vector<Vec3> vertices, const std::vector<std::vecto
       x = parent[std::size_t(x)] = parent[std::size_t(parent[std::size_t(x)])];
     return x;
   };
-  std::map<std::pair<int, int>, int> edge_face;
+  // faces joined across their edges (by vertex index): the edges sorted, each joined
+  // to the first face on it
+  std::vector<std::array<int, 3>> edges;  // a < b, face
   for (std::size_t f = 0; f < faces.size(); ++f)
     for (std::size_t i = 0; i < faces[f].size(); ++i) {
       int a = faces[f][i], b = faces[f][(i + 1) % faces[f].size()];
       if (a > b) std::swap(a, b);
-      const auto [it, fresh] = edge_face.emplace(std::make_pair(a, b), int(f));
-      if (!fresh) parent[std::size_t(find(int(f)))] = find(it->second);
+      edges.push_back({a, b, int(f)});
     }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t e = 1; e < edges.size(); ++e)
+    if (edges[e][0] == edges[e - 1][0] && edges[e][1] == edges[e - 1][1])
+      parent[std::size_t(find(edges[e][2]))] = find(edges[e - 1][2]);
   // the pieces in order of their first face, each face's piece
-  std::map<int, std::size_t> piece_of_root;
+  std::vector<std::size_t> piece_of_root(faces.size(), ~std::size_t(0));
   std::vector<std::vector<std::vector<int>>> pieces;
   std::vector<std::size_t> piece_of(faces.size());
   for (std::size_t f = 0; f < faces.size(); ++f) {
-    const auto [it, fresh] = piece_of_root.emplace(find(int(f)), pieces.size());
-    if (fresh) pieces.emplace_back();
-    pieces[it->second].push_back(faces[f]);
-    piece_of[f] = it->second;
+    std::size_t& piece = piece_of_root[std::size_t(find(int(f)))];
+    if (piece == ~std::size_t(0)) {
+      piece = pieces.size();
+      pieces.emplace_back();
+    }
+    pieces[piece].push_back(faces[f]);
+    piece_of[f] = piece;
   }
   // the outer shell: the piece enclosing the largest volume (the first of equals)
   std::size_t outer = 0;
