@@ -116,6 +116,9 @@ bool soup_self_intersects(const std::vector<P3>& pts, const std::vector<std::arr
 /// disjoint triangles are also tested.
 bool closed_mesh_self_intersects(const std::vector<P3>& pts,
                                  const std::vector<std::array<int, 3>>& tris) {
+  // a sweep along one axis for a model's few thousand triangles; above, boxes that all
+  // span that axis (long walls) would make it quadratic
+  constexpr std::size_t kSweepMax = 4096;
   const std::size_t n = tris.size();
   std::vector<CGAL::Bbox_3> box(n);
   CGAL::Bbox_3 all;
@@ -124,15 +127,6 @@ bool closed_mesh_self_intersects(const std::vector<P3>& pts,
     box[i] = pts[size_t(t[0])].bbox() + pts[size_t(t[1])].bbox() + pts[size_t(t[2])].bbox();
     all += box[i];
   }
-  // sweep along the longest axis of the whole
-  int ax = 0;
-  for (int k = 1; k < 3; ++k)
-    if (all.max(k) - all.min(k) > all.max(ax) - all.min(ax)) ax = k;
-  std::vector<std::uint32_t> order(n);
-  for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return box[a].min(ax) < box[b].min(ax) || (box[a].min(ax) == box[b].min(ax) && a < b);
-  });
   const auto pair_intersects = [&](const std::array<int, 3>& h, const std::array<int, 3>& g) {
     int shared = 0, hs[3] = {0, 0, 0}, gs[3] = {0, 0, 0};  // the shared corners' positions
     for (int i = 0; i < 3; ++i)
@@ -161,6 +155,31 @@ bool closed_mesh_self_intersects(const std::vector<P3>& pts,
     }
     return CGAL::do_intersect(th, tg);
   };
+  if (n > kSweepMax) {  // CGAL's box intersection: no quadratic worst case
+    using Box = CGAL::Box_intersection_d::Box_with_handle_d<double, 3, std::size_t,
+                                                            CGAL::Box_intersection_d::ID_EXPLICIT>;
+    std::vector<Box> boxes;
+    boxes.reserve(n);
+    for (std::size_t i = 0; i < n; ++i) boxes.emplace_back(box[i], i);
+    struct Stop {};
+    try {
+      CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), [&](const Box& a, const Box& b) {
+        if (pair_intersects(tris[a.handle()], tris[b.handle()])) throw Stop();
+      });
+    } catch (const Stop&) {
+      return true;
+    }
+    return false;
+  }
+  // sweep along the longest axis of the whole
+  int ax = 0;
+  for (int k = 1; k < 3; ++k)
+    if (all.max(k) - all.min(k) > all.max(ax) - all.min(ax)) ax = k;
+  std::vector<std::uint32_t> order(n);
+  for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return box[a].min(ax) < box[b].min(ax) || (box[a].min(ax) == box[b].min(ax) && a < b);
+  });
   for (std::size_t a = 0; a < n; ++a) {
     const CGAL::Bbox_3& ba = box[order[a]];
     for (std::size_t b = a + 1; b < n && box[order[b]].min(ax) <= ba.max(ax); ++b) {

@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <map>
 #include <random>
 
 using namespace citylod::lod;
@@ -558,6 +559,49 @@ TEST(MeshCheck, SelfIntersectionsAsCgalFindsThem) {
   EXPECT_GT(compared, 1000);
   EXPECT_GT(intersecting, 200);
   EXPECT_GT(compared - intersecting, 200);
+
+  // A mesh of more triangles than the sweep takes (CGAL's box intersection then): a
+  // cube with each face a 30 x 30 grid, then one corner pushed through the far face.
+  const int n = 30;
+  TriangleMesh big;
+  std::map<std::array<int, 3>, int> id;
+  const auto vertex = [&](std::array<int, 3> c) {
+    const auto [it, fresh] = id.emplace(c, int(big.vertices.size()));
+    if (fresh) big.vertices.emplace_back(c[0], c[1], c[2]);
+    return it->second;
+  };
+  for (int d = 0; d < 3; ++d)
+    for (const int side : {0, n})
+      for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) {
+          const auto at = [&](int da, int db) {
+            std::array<int, 3> c{};
+            c[size_t(d)] = side;
+            c[size_t((d + 1) % 3)] = a + da;
+            c[size_t((d + 2) % 3)] = b + db;
+            return vertex(c);
+          };
+          std::array<int, 4> q{at(0, 0), at(1, 0), at(1, 1), at(0, 1)};  // normal +d
+          if (side == 0) std::swap(q[1], q[3]);
+          big.triangles.push_back({q[0], q[1], q[2]});
+          big.triangles.push_back({q[0], q[2], q[3]});
+        }
+  ASSERT_GT(big.triangles.size(), 10000u);
+  for (const bool pushed : {false, true}) {
+    TriangleMesh m = big;
+    if (pushed) m.vertices[size_t(id.at({n, n / 2, n / 2}))].x() = -1;
+    const MeshCheck c = check_mesh(m);
+    ASSERT_TRUE(c.closed && c.oriented && c.pinched_vertices == 0);
+    std::vector<K::Point_3> pts;
+    for (const Vec3& v : m.vertices) pts.emplace_back(v.x(), v.y(), v.z());
+    std::vector<std::vector<std::size_t>> polys;
+    for (const auto& t : m.triangles)
+      polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
+    CGAL::Surface_mesh<K::Point_3> sm;
+    PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);
+    EXPECT_EQ(PMP::does_self_intersect<CGAL::Sequential_tag>(sm), pushed);
+    EXPECT_EQ(c.self_intersecting, pushed);
+  }
 }
 
 TEST(MeshCheck, PinchedVertexAndCavity) {
