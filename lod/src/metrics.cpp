@@ -35,89 +35,56 @@ bool degenerate_tri(const TriangleMesh& m, const std::array<int, 3>& t) {
   return CGAL::collinear(a, b, c);
 }
 
-/// Do two triangles of the soup intersect other than along what they share?
-/// Mirrors the case analysis of PMP::self_intersections (shared edge / vertex).
-bool tri_pair_intersect(const std::vector<P3>& pts, const std::array<int, 3>& t1,
-                        const std::array<int, 3>& t2) {
-  int shared = 0, i1[3], i2[3];
+/// Do triangles h and g meet other than along what they share? As CGAL's
+/// do_faces_intersect (PMP::self_intersections) decides it for two faces of a
+/// polygon mesh (vertices by index): a shared edge -- the four corners coplanar
+/// and the corners opposite it on one side of it; one shared vertex -- either
+/// opposite edge meets the other triangle; none -- the triangles meet. The same
+/// triangle the other way round (three shared corners) meets. `soup`: also two
+/// coplanar triangles overlapping around a shared vertex (in a soup, not a mesh).
+bool faces_intersect(const std::vector<P3>& pts, const std::array<int, 3>& h,
+                     const std::array<int, 3>& g, bool soup) {
+  int shared = 0, hs[3] = {0, 0, 0}, gs[3] = {0, 0, 0};  // the shared corners' positions
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
-      if (t1[i] == t2[j]) {
-        i1[shared] = i;
-        i2[shared] = j;
+      if (h[size_t(i)] == g[size_t(j)]) {
+        hs[shared] = i;
+        gs[shared] = j;
         ++shared;
       }
-  const K::Triangle_3 T1(pts[t1[0]], pts[t1[1]], pts[t1[2]]);
-  const K::Triangle_3 T2(pts[t2[0]], pts[t2[1]], pts[t2[2]]);
-  if (shared == 0) return CGAL::do_intersect(T1, T2);
-  if (shared >= 3) return true;  // duplicate triangle
-  if (shared == 2) {
-    // Shared edge: intersect iff coplanar and the opposite vertices on the same side.
-    const int o1 = 3 - i1[0] - i1[1], o2 = 3 - i2[0] - i2[1];
-    const P3& p = pts[t1[i1[0]]];
-    const P3& q = pts[t1[i1[1]]];
-    const P3& r = pts[t1[o1]];
-    const P3& s = pts[t2[o2]];
-    if (CGAL::orientation(p, q, r, s) != CGAL::COPLANAR) return false;
-    return CGAL::coplanar_orientation(p, q, r, s) == CGAL::POSITIVE;
-  }
-  // Shared vertex: the opposite edge of one must not meet the other triangle.
-  const int a = i1[0], b = i2[0];
-  const K::Segment_3 e1(pts[t1[(a + 1) % 3]], pts[t1[(a + 2) % 3]]);
-  const K::Segment_3 e2(pts[t2[(b + 1) % 3]], pts[t2[(b + 2) % 3]]);
-  if (CGAL::do_intersect(e1, T2) || CGAL::do_intersect(e2, T1)) return true;
-  // Coplanar overlap around the shared vertex (both triangles on the same side).
-  const P3& v = pts[t1[a]];
-  if (CGAL::orientation(pts[t1[0]], pts[t1[1]], pts[t1[2]], pts[t2[(b + 1) % 3]]) ==
-          CGAL::COPLANAR &&
-      CGAL::orientation(pts[t1[0]], pts[t1[1]], pts[t1[2]], pts[t2[(b + 2) % 3]]) ==
-          CGAL::COPLANAR) {
-    // Sample a point slightly inside T2 near v and test containment in T1 (coplanar case).
-    const K::Vector_3 d = ((pts[t2[(b + 1) % 3]] - v) + (pts[t2[(b + 2) % 3]] - v)) * 1e-6;
-    if (T1.has_on(v + d)) return true;
-    const K::Vector_3 d1 = ((pts[t1[(a + 1) % 3]] - v) + (pts[t1[(a + 2) % 3]] - v)) * 1e-6;
-    if (T2.has_on(v + d1)) return true;
-  }
-  return false;
-}
-
-bool soup_self_intersects(const std::vector<P3>& pts, const std::vector<std::array<int, 3>>& tris) {
-  using Box = CGAL::Box_intersection_d::Box_with_handle_d<double, 3, std::size_t,
-                                                          CGAL::Box_intersection_d::ID_EXPLICIT>;
-  std::vector<Box> boxes;
-  boxes.reserve(tris.size());
-  for (std::size_t i = 0; i < tris.size(); ++i) {
-    const auto& t = tris[i];
-    const auto bb = pts[t[0]].bbox() + pts[t[1]].bbox() + pts[t[2]].bbox();
-    boxes.emplace_back(bb, i);
-  }
-  bool found = false;
-  struct Stop {};
-  auto cb = [&](const Box& a, const Box& b) {
-    if (tri_pair_intersect(pts, tris[a.handle()], tris[b.handle()])) {
-      found = true;
-      throw Stop();
-    }
+  const auto at = [&](const std::array<int, 3>& t, int i) -> const P3& {
+    return pts[size_t(t[size_t(i % 3)])];
   };
-  try {
-    CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), cb);
-  } catch (const Stop&) {
+  if (shared == 3) return true;
+  if (shared == 2) {  // a shared edge pq; r, s: the corners opposite it
+    const P3 &p = at(h, hs[0]), &q = at(h, hs[1]), &r = at(h, 3 - hs[0] - hs[1]),
+             &s = at(g, 3 - gs[0] - gs[1]);
+    return CGAL::coplanar(p, q, r, s) && CGAL::coplanar_orientation(p, q, r, s) == CGAL::POSITIVE;
   }
-  return found;
+  const K::Triangle_3 th(at(h, 0), at(h, 1), at(h, 2)), tg(at(g, 0), at(g, 1), at(g, 2));
+  if (shared == 0) return CGAL::do_intersect(th, tg);
+  const int a = hs[0], b = gs[0];  // the shared vertex v
+  if (CGAL::do_intersect(th, K::Segment_3(at(g, b + 1), at(g, b + 2))) ||
+      CGAL::do_intersect(tg, K::Segment_3(at(h, a + 1), at(h, a + 2))))
+    return true;
+  if (!soup || !CGAL::coplanar(at(h, 0), at(h, 1), at(h, 2), at(g, b + 1)) ||
+      !CGAL::coplanar(at(h, 0), at(h, 1), at(h, 2), at(g, b + 2)))
+    return false;
+  // Coplanar around v: a point slightly inside one near v, tested in the other.
+  const P3& v = at(h, a);
+  const K::Vector_3 d = ((at(g, b + 1) - v) + (at(g, b + 2) - v)) * 1e-6;
+  if (th.has_on(v + d)) return true;
+  const K::Vector_3 d1 = ((at(h, a + 1) - v) + (at(h, a + 2) - v)) * 1e-6;
+  return tg.has_on(v + d1);
 }
 
-/// PMP::does_self_intersect of a closed, oriented, manifold triangle mesh (a valid
-/// polygon mesh; vertices by index, as polygon_soup_to_polygon_mesh makes them),
-/// without building the Surface_mesh: every pair of triangles whose closed bounding
-/// boxes meet is tested as CGAL's do_faces_intersect tests it (a shared edge: the
-/// four corners coplanar and the opposite corners on one side of it; one shared
-/// vertex: either opposite edge meets the other triangle; else the triangles meet).
-/// The predicates are exact, so the answer does not depend on which pairs of
-/// disjoint triangles are also tested.
-bool closed_mesh_self_intersects(const std::vector<P3>& pts,
-                                 const std::vector<std::array<int, 3>>& tris) {
-  // a sweep along one axis for a model's few thousand triangles; above, boxes that all
-  // span that axis (long walls) would make it quadratic
+/// Does any pair of triangles meet (faces_intersect)? Every pair whose closed
+/// bounding boxes meet is tested; the predicates are exact, so the answer does
+/// not depend on which other pairs are also tested. A sweep along the longest axis
+/// for a model's few thousand triangles; above kSweepMax, where boxes that all span
+/// that axis (long walls) would make the sweep quadratic, CGAL's box intersection.
+bool self_intersects(const std::vector<P3>& pts, const std::vector<std::array<int, 3>>& tris,
+                     bool soup) {
   constexpr std::size_t kSweepMax = 4096;
   const std::size_t n = tris.size();
   std::vector<CGAL::Bbox_3> box(n);
@@ -127,35 +94,10 @@ bool closed_mesh_self_intersects(const std::vector<P3>& pts,
     box[i] = pts[size_t(t[0])].bbox() + pts[size_t(t[1])].bbox() + pts[size_t(t[2])].bbox();
     all += box[i];
   }
-  const auto pair_intersects = [&](const std::array<int, 3>& h, const std::array<int, 3>& g) {
-    int shared = 0, hs[3] = {0, 0, 0}, gs[3] = {0, 0, 0};  // the shared corners' positions
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        if (h[size_t(i)] == g[size_t(j)]) {
-          hs[shared] = i;
-          gs[shared] = j;
-          ++shared;
-        }
-    if (shared == 3) return true;  // the same triangle, the other way round
-    if (shared == 2) {             // a shared edge pq; r, s: the corners opposite it
-      const P3& p = pts[size_t(h[size_t(hs[0])])];
-      const P3& q = pts[size_t(h[size_t(hs[1])])];
-      const P3& r = pts[size_t(h[size_t(3 - hs[0] - hs[1])])];
-      const P3& s = pts[size_t(g[size_t(3 - gs[0] - gs[1])])];
-      return CGAL::coplanar(p, q, r, s) && CGAL::coplanar_orientation(p, q, r, s) == CGAL::POSITIVE;
-    }
-    const K::Triangle_3 th(pts[size_t(h[0])], pts[size_t(h[1])], pts[size_t(h[2])]);
-    const K::Triangle_3 tg(pts[size_t(g[0])], pts[size_t(g[1])], pts[size_t(g[2])]);
-    if (shared == 1) {
-      const K::Segment_3 sh(pts[size_t(h[size_t((hs[0] + 1) % 3)])],
-                            pts[size_t(h[size_t((hs[0] + 2) % 3)])]);
-      const K::Segment_3 sg(pts[size_t(g[size_t((gs[0] + 1) % 3)])],
-                            pts[size_t(g[size_t((gs[0] + 2) % 3)])]);
-      return CGAL::do_intersect(th, sg) || CGAL::do_intersect(tg, sh);
-    }
-    return CGAL::do_intersect(th, tg);
+  const auto meet = [&](std::size_t a, std::size_t b) {
+    return faces_intersect(pts, tris[a], tris[b], soup);
   };
-  if (n > kSweepMax) {  // CGAL's box intersection: no quadratic worst case
+  if (n > kSweepMax) {
     using Box = CGAL::Box_intersection_d::Box_with_handle_d<double, 3, std::size_t,
                                                             CGAL::Box_intersection_d::ID_EXPLICIT>;
     std::vector<Box> boxes;
@@ -164,14 +106,13 @@ bool closed_mesh_self_intersects(const std::vector<P3>& pts,
     struct Stop {};
     try {
       CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), [&](const Box& a, const Box& b) {
-        if (pair_intersects(tris[a.handle()], tris[b.handle()])) throw Stop();
+        if (meet(a.handle(), b.handle())) throw Stop();
       });
     } catch (const Stop&) {
       return true;
     }
     return false;
   }
-  // sweep along the longest axis of the whole
   int ax = 0;
   for (int k = 1; k < 3; ++k)
     if (all.max(k) - all.min(k) > all.max(ax) - all.min(ax)) ax = k;
@@ -184,9 +125,10 @@ bool closed_mesh_self_intersects(const std::vector<P3>& pts,
     const CGAL::Bbox_3& ba = box[order[a]];
     for (std::size_t b = a + 1; b < n && box[order[b]].min(ax) <= ba.max(ax); ++b) {
       const CGAL::Bbox_3& bb = box[order[b]];
-      bool meet = true;
-      for (int k = 0; k < 3 && meet; ++k) meet = bb.min(k) <= ba.max(k) && ba.min(k) <= bb.max(k);
-      if (meet && pair_intersects(tris[order[a]], tris[order[b]])) return true;
+      bool overlap = true;
+      for (int k = 0; k < 3 && overlap; ++k)
+        overlap = bb.min(k) <= ba.max(k) && ba.min(k) <= bb.max(k);
+      if (overlap && meet(order[a], order[b])) return true;
     }
   }
   return false;
@@ -335,10 +277,9 @@ MeshCheck check_mesh(const TriangleMesh& mesh, bool test_self_intersections) {
 
   // A valid polygon mesh (closed, oriented -- each edge once each way --, no
   // degenerate triangle, no pinched vertex: what PMP::is_polygon_soup_a_polygon_mesh
-  // checks) is tested as PMP::does_self_intersect tests it; else our soup check.
-  r.self_intersecting = r.edge_manifold && r.oriented && r.pinched_vertices == 0
-                            ? closed_mesh_self_intersects(pts, tris)
-                            : soup_self_intersects(pts, tris);
+  // checks) is tested as PMP::does_self_intersect tests it; else as a soup.
+  r.self_intersecting =
+      self_intersects(pts, tris, !(r.edge_manifold && r.oriented && r.pinched_vertices == 0));
   return r;
 }
 

@@ -21,6 +21,7 @@
 #include <ctime>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <random>
 
 using namespace citylod::lod;
@@ -522,8 +523,25 @@ TEST(MeshCheck, SelfIntersectionsAsCgalFindsThem) {
   const T::SynthOptions o;
   const std::vector<TriangleMesh> shapes{cube(Vec3(0, 0, 0), Vec3(2, 2, 2)),
                                          T::l_shape(o, true).mesh, T::gable_dormer(o, true).mesh};
+  // CGAL's answer on the Surface_mesh; nullopt when the triangles are no polygon mesh
+  // (or have a degenerate one: check_mesh then says self-intersecting without a test)
+  const auto cgal = [](const TriangleMesh& m) -> std::optional<bool> {
+    std::vector<K::Point_3> pts;
+    for (const Vec3& v : m.vertices) pts.emplace_back(v.x(), v.y(), v.z());
+    std::vector<std::vector<std::size_t>> polys;
+    for (const auto& t : m.triangles) {
+      if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2] ||
+          CGAL::collinear(pts[size_t(t[0])], pts[size_t(t[1])], pts[size_t(t[2])]))
+        return std::nullopt;
+      polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
+    }
+    if (!PMP::is_polygon_soup_a_polygon_mesh(polys)) return std::nullopt;
+    CGAL::Surface_mesh<K::Point_3> sm;
+    PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);
+    return PMP::does_self_intersect<CGAL::Sequential_tag>(sm);
+  };
   std::mt19937 rng(7);
-  int compared = 0, intersecting = 0;
+  int compared = 0, intersecting = 0, compared_open = 0, intersecting_open = 0;
   for (int it = 0; it < 3000; ++it) {
     TriangleMesh m = shapes[std::size_t(it) % shapes.size()];
     Vec3 lo = m.vertices[0], hi = lo;
@@ -538,27 +556,26 @@ TEST(MeshCheck, SelfIntersectionsAsCgalFindsThem) {
         v[a] = std::floor(lo[a]) + double(rng() % std::uint32_t(hi[a] - lo[a] + 2));
     }
     const MeshCheck c = check_mesh(m);
-    std::vector<K::Point_3> pts;
-    for (const Vec3& v : m.vertices) pts.emplace_back(v.x(), v.y(), v.z());
-    std::vector<std::vector<std::size_t>> polys;
-    bool degenerate = false;
-    for (const auto& t : m.triangles) {
-      degenerate = degenerate || t[0] == t[1] || t[1] == t[2] || t[0] == t[2] ||
-                   CGAL::collinear(pts[size_t(t[0])], pts[size_t(t[1])], pts[size_t(t[2])]);
-      polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
-    }
-    if (degenerate || !PMP::is_polygon_soup_a_polygon_mesh(polys)) continue;
+    const std::optional<bool> expected = cgal(m);
+    if (!expected) continue;
     ASSERT_TRUE(c.edge_manifold && c.oriented && c.pinched_vertices == 0);
-    CGAL::Surface_mesh<K::Point_3> sm;
-    PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);
-    const bool cgal = PMP::does_self_intersect<CGAL::Sequential_tag>(sm);
-    ASSERT_EQ(c.self_intersecting, cgal) << "iteration " << it;
+    ASSERT_EQ(c.self_intersecting, *expected) << "iteration " << it;
     ++compared;
-    intersecting += cgal ? 1 : 0;
+    intersecting += *expected ? 1 : 0;
+    // Open (one triangle off), it is tested as a soup: CGAL agrees there too.
+    m.triangles.erase(m.triangles.begin());
+    const std::optional<bool> open = cgal(m);
+    if (!open) continue;
+    ASSERT_FALSE(check_mesh(m).oriented);
+    ASSERT_EQ(check_mesh(m).self_intersecting, *open) << "iteration " << it << ", open";
+    ++compared_open;
+    intersecting_open += *open ? 1 : 0;
   }
   EXPECT_GT(compared, 1000);
   EXPECT_GT(intersecting, 200);
   EXPECT_GT(compared - intersecting, 200);
+  EXPECT_GT(intersecting_open, 200);
+  EXPECT_GT(compared_open - intersecting_open, 200);
 
   // A mesh of more triangles than the sweep takes (CGAL's box intersection then): a
   // cube with each face a 30 x 30 grid, then one corner pushed through the far face.
@@ -592,14 +609,7 @@ TEST(MeshCheck, SelfIntersectionsAsCgalFindsThem) {
     if (pushed) m.vertices[size_t(id.at({n, n / 2, n / 2}))].x() = -1;
     const MeshCheck c = check_mesh(m);
     ASSERT_TRUE(c.closed && c.oriented && c.pinched_vertices == 0);
-    std::vector<K::Point_3> pts;
-    for (const Vec3& v : m.vertices) pts.emplace_back(v.x(), v.y(), v.z());
-    std::vector<std::vector<std::size_t>> polys;
-    for (const auto& t : m.triangles)
-      polys.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
-    CGAL::Surface_mesh<K::Point_3> sm;
-    PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);
-    EXPECT_EQ(PMP::does_self_intersect<CGAL::Sequential_tag>(sm), pushed);
+    EXPECT_EQ(cgal(m), std::optional<bool>(pushed));
     EXPECT_EQ(c.self_intersecting, pushed);
   }
 }
