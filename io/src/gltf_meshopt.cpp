@@ -104,9 +104,10 @@ GlbNode codec_order(const GlbNode& in, bool corners_together, bool strip) {
       remap[v] = next++;
       continue;
     }
-    std::size_t i = at[v];  // the first of its corner's vertices in first-use order
-    while (i > 0 && !(key(by_corner[i - 1]) < key(v))) --i;
-    for (; i < nv && !(key(v) < key(by_corner[i])); ++i) remap[by_corner[i]] = next++;
+    // v is the first-used vertex of its corner (a corner's vertices are numbered
+    // together), so the first of them in by_corner (the sort is stable)
+    for (std::size_t i = at[v]; i < nv && !(key(v) < key(by_corner[i])); ++i)
+      remap[by_corner[i]] = next++;
   }
   for (std::size_t i = 0; i < nv; ++i) {
     out.rel[remap[i]] = in.rel[i];

@@ -391,12 +391,14 @@ struct Chain : BuildingModels {
 /// The models of `rec` and the chain to write: every model (all_models), the
 /// chain given (opt.chains), else the one choose_models keeps.
 Chain read_chain(const std::string& work, const ChunkRecord& rec, const CityJsonOptions& opt) {
-  const auto read = [](const std::string& f) { return read_model_file(f); };
   // a chain given: only its models are read
   const auto given =
       opt.chains && !opt.all_models ? opt.chains->find(rec.id) : decltype(opt.chains->end()){};
   const bool have = opt.chains && !opt.all_models && given != opt.chains->end();
-  Chain ch{read_building_models(work, rec.id, read, have ? &given->second.kept : nullptr), {}, {}};
+  Chain ch{
+      read_building_models(work, rec.id, read_model_file, have ? &given->second.kept : nullptr),
+      {},
+      {}};
   const std::vector<ModelRecord>& models = ch.report.models;
   if (opt.all_models) {
     for (std::size_t i = 0; i < models.size(); ++i) ch.kept.push_back(i);
@@ -406,7 +408,7 @@ Chain read_chain(const std::string& work, const ChunkRecord& rec, const CityJson
     const bool reuse = have && std::all_of(given->second.kept.begin(), given->second.kept.end(),
                                            [&](std::size_t k) { return k < models.size(); });
     if (have && !reuse)  // the report changed since: every model, and the choice
-      ch.meshes = read_building_models(work, rec.id, read).meshes;
+      ch.meshes = read_building_models(work, rec.id, read_model_file).meshes;
     const ModelChoice c =
         reuse ? given->second
               : choose_models(ch.report, ch.meshes, opt.min_change_m, opt.hausdorff_tolerance_m);
